@@ -1,0 +1,88 @@
+/* mimic list: one row per template. JSON: schemas/list.schema.json. */
+#include "commands.h"
+#include "mim_db.h"
+
+#include <getopt.h>
+#include <jansson.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static void help(FILE *out)
+{
+    fprintf(out, "usage: mimic list --store DIR [--subject S] [--pose P] [--json]\n\n"
+                 "Lists the templates of a store: id, subject, pose and source path.\n\n"
+                 "  --store DIR    the template store\n"
+                 "  --subject S    only templates of subject S\n"
+                 "  --pose P       only templates in pose P\n"
+                 "  --json         a JSON array on stdout (schemas/list.schema.json)\n"
+                 "  -h, --help     this help\n");
+}
+
+typedef struct {
+    const char *subject, *pose;
+    json_t *rows; /* NULL: print text */
+    uint64_t shown;
+} list_t;
+
+static int row(const mim_template_view_t *t, void *user)
+{
+    list_t *l = user;
+    if (l->subject && strcmp(l->subject, t->subject)) return 0;
+    if (l->pose && strcmp(l->pose, t->pose)) return 0;
+    l->shown++;
+    if (l->rows)
+        return json_array_append_new(l->rows, json_pack("{s:I, s:s, s:s, s:s}", "id", (json_int_t)t->id, "subject",
+                                                        t->subject, "pose", t->pose, "source", t->source));
+    printf("%8llu  %-10s %-10s %s\n", (unsigned long long)t->id, t->subject[0] ? t->subject : "-",
+           t->pose[0] ? t->pose : "-", t->source);
+    return 0;
+}
+
+int mim_cmd_list(int argc, char **argv)
+{
+    static const struct option longopts[] = {{"store", required_argument, 0, 's'}, {"subject", required_argument, 0, 'S'},
+                                              {"pose", required_argument, 0, 'p'},  {"json", no_argument, 0, 'j'},
+                                              {"help", no_argument, 0, 'h'},        {0, 0, 0, 0}};
+    const char *store = NULL;
+    list_t l = {0};
+    int as_json = 0, c;
+    optind = 0;
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, "s:S:p:jh", longopts, NULL)) != -1) {
+        if (c == 's') store = optarg;
+        else if (c == 'S') l.subject = optarg;
+        else if (c == 'p') l.pose = optarg;
+        else if (c == 'j') as_json = 1;
+        else if (c == 'h') return help(stdout), 0;
+        else {
+            fprintf(stderr, "mimic list: unknown or incomplete option '%s' (see mimic list --help)\n", argv[optind - 1]);
+            return 2;
+        }
+    }
+    if (!store) {
+        fprintf(stderr, "mimic list: --store DIR is required (see mimic list --help)\n");
+        return 2;
+    }
+    mim_error_t err = {0};
+    mim_db_t *db = NULL;
+    mim_db_options_t o = {.read_only = 1};
+    mim_db_txn_t *t = NULL;
+    int rc = mim_db_open(&db, store, &o, &err);
+    if (!rc) rc = mim_db_begin(db, 0, &t, &err);
+    if (!rc) {
+        if (as_json) l.rows = json_array();
+        else printf("%8s  %-10s %-10s %s\n", "id", "subject", "pose", "source");
+        rc = mim_db_template_each(t, row, &l, &err);
+    }
+    if (!rc && as_json) {
+        char *s = json_dumps(l.rows, JSON_INDENT(2) | JSON_PRESERVE_ORDER);
+        printf("%s\n", s ? s : "[]");
+        free(s);
+    }
+    if (rc) fprintf(stderr, "mimic list: %s\n", mim_error_text(&err));
+    json_decref(l.rows);
+    mim_db_abort(&t);
+    mim_db_close(&db);
+    return rc ? 2 : 0;
+}

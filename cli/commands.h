@@ -1,0 +1,12 @@
+/* The subcommands of the `mimic` binary. Each takes argv with argv[0] = the
+ * subcommand name, prints its own --help, and returns the process exit status:
+ * 0 success, 1 some input failed (reported), 2 bad usage. */
+#ifndef MIM_CLI_COMMANDS_H
+#define MIM_CLI_COMMANDS_H
+
+int mim_cmd_synth(int argc, char **argv);
+int mim_cmd_ingest(int argc, char **argv);
+int mim_cmd_info(int argc, char **argv);
+int mim_cmd_list(int argc, char **argv);
+
+#endif

@@ -1,0 +1,158 @@
+/* mimic core: what every module shares and nothing else.
+ * Error codes and mim_strerror, an error context with detail, the mesh
+ * arrays type, small vector/quaternion math, hashing, progress and logging.
+ * Uses nothing of mimic. */
+#ifndef MIM_CORE_H
+#define MIM_CORE_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <stdarg.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define MIM_VERSION "0.1.0"
+
+/* ---- errors: 0 on success, negative MIM_E* codes, or -errno ---- */
+enum {
+    MIM_OK = 0,
+    MIM_EINVAL = -1000,  /* bad argument from the caller */
+    MIM_ENOMEM,          /* allocation failed */
+    MIM_EIO,             /* read or write failed */
+    MIM_EFORMAT,         /* malformed file or record */
+    MIM_ETRUNCATED,      /* file ends early */
+    MIM_ENONFINITE,      /* NaN or infinite coordinate */
+    MIM_EINDEX,          /* face index past the vertex count */
+    MIM_EEMPTY,          /* mesh without vertices or faces */
+    MIM_ETOPOLOGY,       /* connectivity differs from the store's */
+    MIM_ESCHEMA,         /* store of another schema version */
+    MIM_ESTORE,          /* store error (LMDB) */
+    MIM_ENOTFOUND,       /* no such record or file */
+    MIM_EUNSUPPORTED,    /* format or feature not supported */
+    MIM_ENOLANDMARKS,    /* no landmark map where one is needed */
+    MIM_EBUSY,           /* resource in use */
+    MIM_ELAST_
+};
+
+const char *mim_strerror(int err);
+
+/* An error context keeps the first error and a one-line message with detail
+ * (file, line, which vertex ...). Zero-initialise before use. */
+typedef struct mim_error {
+    int code;
+    char msg[512];
+} mim_error_t;
+
+/* Records err (if none is recorded yet) and returns code, so callers can
+ * write `return mim_error_set(e, MIM_EFORMAT, "%s: ...", path);`.
+ * e may be NULL. */
+int mim_error_set(mim_error_t *e, int code, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+void mim_error_clear(mim_error_t *e);
+/* The message if one was set, else mim_strerror(code). */
+const char *mim_error_text(const mim_error_t *e);
+
+/* ---- mesh arrays: triangles only, float32 positions ---- */
+typedef struct mim_mesh {
+    uint32_t n_vertices;
+    uint32_t n_faces;
+    float *positions; /* 3 * n_vertices, x y z */
+    uint32_t *faces;  /* 3 * n_faces, counter-clockwise seen from outside */
+} mim_mesh_t;
+
+int mim_mesh_alloc(mim_mesh_t *m, uint32_t n_vertices, uint32_t n_faces);
+void mim_mesh_free(mim_mesh_t *m); /* accepts a zeroed mesh; zeroes it */
+
+/* ---- landmark map: which vertex is each landmark, and the mirror table ----
+ * File format (DESIGN.md, schemas/landmarks.schema.json):
+ * {"topology_vertices": N, "landmarks": [{"name": "head", "vertex": 412}, ...],
+ *  "mirror": [0, 1, 2, 4, 3, ...]}
+ * Any map with >= 4 landmarks and a mirror table (an involution) works. */
+#define MIM_LANDMARKS_MIN 4
+#define MIM_LANDMARKS_MAX 64
+#define MIM_LANDMARK_NAME_MAX 32
+#define MIM_LANDMARKS_DEFAULT_COUNT 16
+
+typedef struct mim_landmark_map {
+    uint32_t count;
+    uint32_t topology_vertices;
+    char names[MIM_LANDMARKS_MAX][MIM_LANDMARK_NAME_MAX];
+    uint32_t vertex[MIM_LANDMARKS_MAX];
+    uint32_t mirror[MIM_LANDMARKS_MAX]; /* mirror[i]: landmark i seen left<->right */
+} mim_landmark_map_t;
+
+/* head, chest, pelvis, l_shoulder, r_shoulder, l_elbow, r_elbow, l_wrist,
+ * r_wrist, l_hip, r_hip, l_knee, r_knee, l_ankle, r_ankle, spine */
+extern const char *const mim_landmark_default_names[MIM_LANDMARKS_DEFAULT_COUNT];
+/* Fills the 16 default names and their mirror table with the given vertices. */
+void mim_landmarks_default(mim_landmark_map_t *map, const uint32_t vertices[MIM_LANDMARKS_DEFAULT_COUNT],
+                           uint32_t topology_vertices);
+/* Parse from text; origin names the source in messages ("path" or "store"). */
+int mim_landmarks_parse(mim_landmark_map_t *map, const char *text, size_t len, const char *origin,
+                        mim_error_t *err);
+int mim_landmarks_read(mim_landmark_map_t *map, const char *path, mim_error_t *err);
+/* Serialise as JSON text (malloc'd, NUL-terminated; caller frees). */
+char *mim_landmarks_to_json(const mim_landmark_map_t *map);
+int mim_landmarks_write(const mim_landmark_map_t *map, const char *path, mim_error_t *err);
+/* Checks count, mirror involution, vertices < n_vertices (if n_vertices > 0). */
+int mim_landmarks_validate(const mim_landmark_map_t *map, uint32_t n_vertices, const char *origin,
+                           mim_error_t *err);
+
+/* ---- hashing: 64-bit, fast, stable across runs and machines ---- */
+uint64_t mim_hash64(const void *data, size_t len, uint64_t seed);
+
+/* ---- small vector and quaternion math (double) ---- */
+typedef struct { double x, y, z; } mim_vec3;
+typedef struct { double x, y, z, w; } mim_quat; /* unit quaternion */
+
+static inline mim_vec3 mim_v3(double x, double y, double z) { mim_vec3 r = {x, y, z}; return r; }
+static inline mim_vec3 mim_v3_add(mim_vec3 a, mim_vec3 b) { return mim_v3(a.x + b.x, a.y + b.y, a.z + b.z); }
+static inline mim_vec3 mim_v3_sub(mim_vec3 a, mim_vec3 b) { return mim_v3(a.x - b.x, a.y - b.y, a.z - b.z); }
+static inline mim_vec3 mim_v3_scale(mim_vec3 a, double s) { return mim_v3(a.x * s, a.y * s, a.z * s); }
+static inline double mim_v3_dot(mim_vec3 a, mim_vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+static inline mim_vec3 mim_v3_cross(mim_vec3 a, mim_vec3 b)
+{
+    return mim_v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+double mim_v3_norm(mim_vec3 a);
+mim_vec3 mim_v3_normalize(mim_vec3 a); /* zero vector stays zero */
+static inline mim_vec3 mim_v3_lerp(mim_vec3 a, mim_vec3 b, double t)
+{
+    return mim_v3(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t, a.z + (b.z - a.z) * t);
+}
+
+mim_quat mim_quat_identity(void);
+mim_quat mim_quat_axis_angle(mim_vec3 axis, double radians);
+mim_quat mim_quat_mul(mim_quat a, mim_quat b); /* a then... : rotates by b first, then a */
+mim_quat mim_quat_normalize(mim_quat q);
+mim_vec3 mim_quat_rotate(mim_quat q, mim_vec3 v);
+mim_quat mim_quat_slerp(mim_quat a, mim_quat b, double t);
+
+/* ---- progress and logging (stderr) ---- */
+typedef struct mim_progress {
+    const char *label;
+    uint64_t total;   /* 0 when unknown */
+    uint64_t done;
+    double t_start;   /* seconds, monotonic */
+    double t_last;    /* last print */
+    int enabled;      /* print only on a terminal, or when forced */
+} mim_progress_t;
+
+double mim_now(void); /* monotonic seconds */
+/* enabled = isatty(stderr) unless MIMIC_PROGRESS=1 forces it on or =0 off. */
+void mim_progress_begin(mim_progress_t *p, const char *label, uint64_t total);
+void mim_progress_update(mim_progress_t *p, uint64_t done); /* rate-limited */
+void mim_progress_end(mim_progress_t *p);
+
+/* Logging: one line to stderr, prefixed with "mimic: ". */
+void mim_log(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+/* Verbosity: 0 quiet (errors only), 1 normal, 2 verbose. */
+extern int mim_log_level;
+void mim_log_verbose(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+#ifdef __cplusplus
+}
+#endif
+#endif

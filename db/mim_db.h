@@ -1,0 +1,114 @@
+/* mimic template store: an LMDB environment in a directory.
+ *
+ * Named databases (layout: schemas/store.md, version: schemas/store-version):
+ *   meta        schema version, creating mimic version, next template id
+ *   topology    the reference connectivity (faces, vertex count, hash)
+ *   landmarks   the landmark map (JSON)
+ *   templates   id -> template record (labels, source, float32 positions)
+ *   by_hash     content hash -> ids (dedupe)
+ *   descriptors, encodings   id -> data that later stages add per template
+ *
+ * Many readers and one writer may work at once, from different processes.
+ * Data lent out of the store (pointers in views) points into the memory map
+ * and is valid until the transaction that produced it ends. */
+#ifndef MIM_DB_H
+#define MIM_DB_H
+
+#include "mim_core.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct mim_db mim_db_t;
+typedef struct mim_db_txn mim_db_txn_t;
+
+typedef struct mim_db_options {
+    uint64_t map_size; /* bytes of address space to map; 0 means 256 GiB (sparse) */
+    int read_only;     /* open an existing store for reading only */
+} mim_db_options_t;
+
+/* Opens (creating if missing and not read_only) the store in directory dir.
+ * Fails with MIM_ESCHEMA for another schema version, MIM_ESTORE for a
+ * directory that holds something other than a mimic store. */
+int mim_db_open(mim_db_t **out, const char *dir, const mim_db_options_t *opt, mim_error_t *err);
+void mim_db_close(mim_db_t **db); /* accepts NULL; nulls the pointer */
+const char *mim_db_path(const mim_db_t *db);
+
+/* Transactions: write ones serialise across threads and processes. */
+int mim_db_begin(mim_db_t *db, int write, mim_db_txn_t **out, mim_error_t *err);
+int mim_db_commit(mim_db_txn_t **txn, mim_error_t *err); /* frees the txn, even on failure */
+void mim_db_abort(mim_db_txn_t **txn);                   /* accepts NULL */
+
+typedef struct mim_db_meta {
+    uint32_t schema_version;
+    char created_by[64]; /* "mimic 0.1.0" */
+    uint64_t next_id;
+    uint64_t templates;  /* number of template records */
+} mim_db_meta_t;
+int mim_db_meta_get(mim_db_txn_t *txn, mim_db_meta_t *out, mim_error_t *err);
+
+/* ---- reference connectivity ---- */
+typedef struct mim_db_topology {
+    uint32_t n_vertices;
+    uint32_t n_faces;
+    uint64_t hash;
+    const uint32_t *faces; /* 3 * n_faces, lent: valid until the txn ends */
+} mim_db_topology_t;
+uint64_t mim_db_topology_hash(const uint32_t *faces, uint32_t n_faces, uint32_t n_vertices);
+/* MIM_ENOTFOUND while the store has none. */
+int mim_db_topology_get(mim_db_txn_t *txn, mim_db_topology_t *out, mim_error_t *err);
+/* Sets it once; MIM_EINVAL if the store already has one. */
+int mim_db_topology_put(mim_db_txn_t *txn, const uint32_t *faces, uint32_t n_faces, uint32_t n_vertices,
+                        mim_error_t *err);
+
+/* ---- landmark map ---- */
+int mim_db_landmarks_get(mim_db_txn_t *txn, mim_landmark_map_t *out, mim_error_t *err); /* MIM_ENOTFOUND */
+int mim_db_landmarks_put(mim_db_txn_t *txn, const mim_landmark_map_t *map, mim_error_t *err);
+
+/* ---- templates ---- */
+typedef struct mim_template_in {
+    const float *positions; /* 3 * n_vertices */
+    uint32_t n_vertices;
+    uint64_t content_hash;  /* mim_db_content_hash(positions, n_vertices) */
+    const char *source;     /* where it came from; may be NULL */
+    const char *subject;    /* label, or NULL / "" for none */
+    const char *pose;       /* label, or NULL / "" for none */
+} mim_template_in_t;
+
+typedef struct mim_template_view {
+    uint64_t id;
+    uint64_t content_hash;
+    uint32_t n_vertices;
+    const float *positions; /* zero-copy from the map: valid until the txn ends */
+    const char *source;     /* "" when unknown; lent like positions */
+    const char *subject;    /* "" when unlabelled */
+    const char *pose;       /* "" when unlabelled */
+} mim_template_view_t;
+
+uint64_t mim_db_content_hash(const float *positions, uint32_t n_vertices);
+/* Stores a template unless one with the same content exists: then *existed
+ * is set and *id is the existing one. */
+int mim_db_template_put(mim_db_txn_t *txn, const mim_template_in_t *t, uint64_t *id, int *existed,
+                        mim_error_t *err);
+int mim_db_template_get(mim_db_txn_t *txn, uint64_t id, mim_template_view_t *out, mim_error_t *err);
+/* Calls fn for every template in id order; stops early when fn returns non-zero
+ * (and returns that value). Views are valid until the txn ends. */
+typedef int (*mim_db_template_fn)(const mim_template_view_t *t, void *user);
+int mim_db_template_each(mim_db_txn_t *txn, mim_db_template_fn fn, void *user, mim_error_t *err);
+
+/* ---- size ---- */
+typedef struct mim_db_stat {
+    uint64_t page_size;
+    uint64_t pages_used;      /* pages holding data (incl. free list) */
+    uint64_t file_bytes;      /* data.mdb size */
+    uint64_t disk_bytes;      /* blocks allocated on disk for data.mdb + lock.mdb */
+    uint64_t map_size;
+    uint64_t template_bytes;  /* bytes of pages holding template records and their index */
+} mim_db_stat_t;
+int mim_db_stat(mim_db_t *db, mim_db_stat_t *out, mim_error_t *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

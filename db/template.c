@@ -1,0 +1,188 @@
+/* Template records. Layout (little-endian, schemas/store.md):
+ *   0  "MTP1"            4  u32 header bytes (48)
+ *   8  u64 id           16  u64 content hash
+ *  24  u32 n_vertices   28  u32 positions offset (multiple of 16)
+ *  32  u16 source len   34  u16 subject len   36 u16 pose len   38 u16 0
+ *  40  u32 flags (0)    44  u32 0
+ *  48  source NUL subject NUL pose NUL, zero padding, then float32 x y z.
+ * A record is padded to at least RECORD_MIN bytes so LMDB keeps it on its
+ * own overflow pages, which start page-aligned: the positions can then be
+ * handed out as a float pointer straight into the map (zero-copy). */
+#include "internal.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#define REC_MAGIC "MTP1"
+#define REC_HEADER 48
+#define RECORD_MIN 2048 /* > half a 4 KiB page: always an overflow record */
+
+uint64_t mim_db_content_hash(const float *positions, uint32_t n_vertices)
+{
+    return mim_hash64(positions, (size_t)n_vertices * 3 * sizeof(float), 0x706f7365ULL);
+}
+
+static size_t str_len16(const char *s)
+{
+    size_t n = s ? strlen(s) : 0;
+    return n > 4095 ? 4095 : n; /* labels and paths longer than this are cut */
+}
+
+static int next_id(mim_db_txn_t *t, uint64_t *id, mim_error_t *err)
+{
+    MDB_val k = {7, "next_id"}, v;
+    int rc = mdb_get(t->txn, t->db->dbi[DBI_META], &k, &v);
+    if (rc) return mim__db_fail(err, rc, "store metadata next_id");
+    uint64_t cur = 0;
+    if (v.mv_size == 8) memcpy(&cur, v.mv_data, 8);
+    *id = cur;
+    cur++;
+    MDB_val nv = {8, &cur};
+    rc = mdb_put(t->txn, t->db->dbi[DBI_META], &k, &nv, 0);
+    return rc ? mim__db_fail(err, rc, "store metadata next_id") : 0;
+}
+
+static int decode(const MDB_val *v, mim_template_view_t *out, uint64_t key, mim_error_t *err)
+{
+    const unsigned char *p = v->mv_data;
+    memset(out, 0, sizeof *out);
+    if (v->mv_size < REC_HEADER || memcmp(p, REC_MAGIC, 4) != 0)
+        return mim_error_set(err, MIM_ESTORE, "template %llu: record is not a template (bad magic)",
+                             (unsigned long long)key);
+    uint32_t hdr, pos_off;
+    uint16_t ls, lsub, lpose;
+    memcpy(&hdr, p + 4, 4);
+    memcpy(&out->id, p + 8, 8);
+    memcpy(&out->content_hash, p + 16, 8);
+    memcpy(&out->n_vertices, p + 24, 4);
+    memcpy(&pos_off, p + 28, 4);
+    memcpy(&ls, p + 32, 2);
+    memcpy(&lsub, p + 34, 2);
+    memcpy(&lpose, p + 36, 2);
+    size_t strings_end = (size_t)hdr + ls + 1 + lsub + 1 + lpose + 1;
+    if (hdr != REC_HEADER || strings_end > pos_off || pos_off % 16 ||
+        (uint64_t)pos_off + (uint64_t)out->n_vertices * 12 > v->mv_size || out->id != key)
+        return mim_error_set(err, MIM_ESTORE, "template %llu: record layout is inconsistent",
+                             (unsigned long long)key);
+    const char *s = (const char *)p + hdr;
+    if (s[ls] || s[ls + 1 + lsub] || s[ls + 1 + lsub + 1 + lpose])
+        return mim_error_set(err, MIM_ESTORE, "template %llu: label strings are not terminated",
+                             (unsigned long long)key);
+    if ((uintptr_t)(p + pos_off) % sizeof(float))
+        return mim_error_set(err, MIM_ESTORE, "template %llu: positions are misaligned in the map",
+                             (unsigned long long)key);
+    out->source = s;
+    out->subject = s + ls + 1;
+    out->pose = s + ls + 1 + lsub + 1;
+    out->positions = (const float *)(const void *)(p + pos_off);
+    return 0;
+}
+
+int mim_db_template_get(mim_db_txn_t *t, uint64_t id, mim_template_view_t *out, mim_error_t *err)
+{
+    size_t key = (size_t)id;
+    MDB_val k = {sizeof key, &key}, v;
+    int rc = mdb_get(t->txn, t->db->dbi[DBI_TEMPLATES], &k, &v);
+    if (rc == MDB_NOTFOUND)
+        return mim_error_set(err, MIM_ENOTFOUND, "template %llu: not in the store", (unsigned long long)id);
+    if (rc) return mim__db_fail(err, rc, "template");
+    return decode(&v, out, id, err);
+}
+
+/* Looks for a stored template with the same content; *found = its id or 0. */
+static int find_same(mim_db_txn_t *t, const mim_template_in_t *in, uint64_t *found, mim_error_t *err)
+{
+    *found = 0;
+    MDB_cursor *c;
+    int rc = mdb_cursor_open(t->txn, t->db->dbi[DBI_BY_HASH], &c);
+    if (rc) return mim__db_fail(err, rc, "store hash index");
+    size_t h = (size_t)in->content_hash;
+    MDB_val k = {sizeof h, &h}, v;
+    for (rc = mdb_cursor_get(c, &k, &v, MDB_SET); rc == 0; rc = mdb_cursor_get(c, &k, &v, MDB_NEXT_DUP)) {
+        size_t id;
+        memcpy(&id, v.mv_data, sizeof id);
+        mim_template_view_t view;
+        /* equal hashes: compare the positions, so a collision never merges two meshes */
+        if (mim_db_template_get(t, id, &view, NULL) == 0 && view.n_vertices == in->n_vertices &&
+            memcmp(view.positions, in->positions, (size_t)in->n_vertices * 12) == 0) {
+            *found = id;
+            break;
+        }
+    }
+    mdb_cursor_close(c);
+    if (rc && rc != MDB_NOTFOUND) return mim__db_fail(err, rc, "store hash index");
+    return 0;
+}
+
+int mim_db_template_put(mim_db_txn_t *t, const mim_template_in_t *in, uint64_t *id_out, int *existed,
+                        mim_error_t *err)
+{
+    if (existed) *existed = 0;
+    if (!t->write) return mim_error_set(err, MIM_EINVAL, "template put needs a write transaction");
+    uint64_t same;
+    int rc = find_same(t, in, &same, err);
+    if (rc) return rc;
+    if (same) {
+        if (id_out) *id_out = same;
+        if (existed) *existed = 1;
+        return 0;
+    }
+    uint64_t id;
+    if ((rc = next_id(t, &id, err))) return rc;
+
+    size_t ls = str_len16(in->source), lsub = str_len16(in->subject), lpose = str_len16(in->pose);
+    size_t pos_off = (REC_HEADER + ls + lsub + lpose + 3 + 15) & ~(size_t)15;
+    size_t size = pos_off + (size_t)in->n_vertices * 12;
+    if (size < RECORD_MIN) size = RECORD_MIN;
+
+    size_t key = (size_t)id;
+    MDB_val k = {sizeof key, &key}, v = {size, NULL};
+    rc = mdb_put(t->txn, t->db->dbi[DBI_TEMPLATES], &k, &v, MDB_NOOVERWRITE | MDB_RESERVE);
+    if (rc) return mim__db_fail(err, rc, "template");
+    unsigned char *p = v.mv_data;
+    memset(p, 0, pos_off);
+    memcpy(p, REC_MAGIC, 4);
+    uint32_t hdr = REC_HEADER, po = (uint32_t)pos_off;
+    uint16_t l1 = (uint16_t)ls, l2 = (uint16_t)lsub, l3 = (uint16_t)lpose;
+    memcpy(p + 4, &hdr, 4);
+    memcpy(p + 8, &id, 8);
+    memcpy(p + 16, &in->content_hash, 8);
+    memcpy(p + 24, &in->n_vertices, 4);
+    memcpy(p + 28, &po, 4);
+    memcpy(p + 32, &l1, 2);
+    memcpy(p + 34, &l2, 2);
+    memcpy(p + 36, &l3, 2);
+    char *s = (char *)p + REC_HEADER;
+    if (ls) memcpy(s, in->source, ls);
+    if (lsub) memcpy(s + ls + 1, in->subject, lsub);
+    if (lpose) memcpy(s + ls + 1 + lsub + 1, in->pose, lpose);
+    memcpy(p + pos_off, in->positions, (size_t)in->n_vertices * 12);
+    if (size > pos_off + (size_t)in->n_vertices * 12)
+        memset(p + pos_off + (size_t)in->n_vertices * 12, 0, size - pos_off - (size_t)in->n_vertices * 12);
+
+    size_t h = (size_t)in->content_hash;
+    MDB_val hk = {sizeof h, &h}, hv = {sizeof key, &key};
+    rc = mdb_put(t->txn, t->db->dbi[DBI_BY_HASH], &hk, &hv, 0);
+    if (rc) return mim__db_fail(err, rc, "store hash index");
+    if (id_out) *id_out = id;
+    return 0;
+}
+
+int mim_db_template_each(mim_db_txn_t *t, mim_db_template_fn fn, void *user, mim_error_t *err)
+{
+    MDB_cursor *c;
+    int rc = mdb_cursor_open(t->txn, t->db->dbi[DBI_TEMPLATES], &c);
+    if (rc) return mim__db_fail(err, rc, "templates");
+    MDB_val k, v;
+    int ret = 0;
+    for (rc = mdb_cursor_get(c, &k, &v, MDB_FIRST); rc == 0; rc = mdb_cursor_get(c, &k, &v, MDB_NEXT)) {
+        size_t key;
+        memcpy(&key, k.mv_data, sizeof key);
+        mim_template_view_t view;
+        if ((ret = decode(&v, &view, key, err))) break;
+        if ((ret = fn(&view, user))) break;
+    }
+    mdb_cursor_close(c);
+    if (!ret && rc && rc != MDB_NOTFOUND) ret = mim__db_fail(err, rc, "templates");
+    return ret;
+}

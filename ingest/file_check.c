@@ -1,0 +1,237 @@
+/* What a mesh file declares about itself, checked before and after the
+ * library reads it: header element counts (PLY, OFF), the exact body size of
+ * binary PLY and STL, nan/inf spelled out in text files, an OBJ cut mid-line. */
+#include "file_check.h"
+
+#include <ctype.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+int mim__format_of(const char *path)
+{
+    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
+    if (!dot || (slash && dot < slash)) return FMT_UNKNOWN;
+    static const struct { const char *ext; int fmt; } tab[] = {
+        {".off", FMT_OFF}, {".ply", FMT_PLY}, {".obj", FMT_OBJ}, {".stl", FMT_STL}, {".gltf", FMT_GLTF}, {".glb", FMT_GLB},
+    };
+    for (size_t i = 0; i < sizeof tab / sizeof tab[0]; i++)
+        if (strcasecmp(dot, tab[i].ext) == 0) return tab[i].fmt;
+    return FMT_UNKNOWN;
+}
+
+static uint64_t ply_type_size(const char *t)
+{
+    static const struct { const char *name; uint64_t size; } tab[] = {
+        {"char", 1},  {"uchar", 1},  {"int8", 1},   {"uint8", 1},  {"short", 2},   {"ushort", 2},
+        {"int16", 2}, {"uint16", 2}, {"int", 4},    {"uint", 4},   {"int32", 4},   {"uint32", 4},
+        {"float", 4}, {"float32", 4}, {"double", 8}, {"float64", 8},
+    };
+    for (size_t i = 0; i < sizeof tab / sizeof tab[0]; i++)
+        if (strcmp(t, tab[i].name) == 0) return tab[i].size;
+    return 0;
+}
+
+static int parse_ply(const char *path, const unsigned char *head, size_t len, mim__decl_t *d, mim_error_t *err)
+{
+    const char *s = (const char *)head, *end = s + len;
+    const char *eh = NULL;
+    for (const char *p = s; p + 10 <= end; p++)
+        if (memcmp(p, "end_header", 10) == 0 && (p == s || p[-1] == '\n')) {
+            eh = p;
+            break;
+        }
+    if (len < 4 || memcmp(s, "ply", 3) != 0) return mim_error_set(err, MIM_EFORMAT, "%s: not a PLY file (no 'ply' magic)", path);
+    if (!eh) {
+        if (d->file_bytes <= len)
+            return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: PLY header has no end_header", path);
+        return mim_error_set(err, MIM_EFORMAT, "%s: PLY header is longer than 64 KiB", path);
+    }
+    const char *nl = memchr(eh, '\n', (size_t)(end - eh));
+    if (!nl) return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: PLY header has no end_header line end", path);
+    d->header_bytes = (uint64_t)(nl + 1 - s);
+
+    /* element/property lines between magic and end_header */
+    char line[512];
+    const char *p = s;
+    enum { NONE, VERT, FACE, OTHER } cur = NONE;
+    int face_lists = 0, other_lists = 0;
+    d->sizes_known = 1;
+    while (p < eh) {
+        const char *q = memchr(p, '\n', (size_t)(eh - p));
+        if (!q) q = eh;
+        size_t n = (size_t)(q - p) < sizeof line - 1 ? (size_t)(q - p) : sizeof line - 1;
+        memcpy(line, p, n);
+        line[n] = 0;
+        if (n && line[n - 1] == '\r') line[n - 1] = 0;
+        p = q + 1;
+        char a[64] = "", b[64] = "", c[64] = "", e[64] = "";
+        long long cnt = 0;
+        if (strncmp(line, "format ", 7) == 0) {
+            d->binary = strstr(line, "binary") != NULL;
+        } else if (sscanf(line, "element %63s %lld", a, &cnt) == 2) {
+            if (cnt < 0) return mim_error_set(err, MIM_EFORMAT, "%s: PLY element '%s' has a negative count", path, a);
+            if (strcmp(a, "vertex") == 0) cur = VERT, d->n_vertices = cnt;
+            else if (strcmp(a, "face") == 0) cur = FACE, d->n_faces = cnt;
+            else cur = OTHER, d->other_bytes = 0, d->sizes_known = d->sizes_known && cnt == 0;
+        } else if (sscanf(line, "property list %63s %63s %63s", a, b, c) == 3) {
+            uint64_t cs = ply_type_size(a), is = ply_type_size(b);
+            if (!cs || !is) return mim_error_set(err, MIM_EFORMAT, "%s: PLY property type '%s' unknown", path, !cs ? a : b);
+            if (cur == FACE && !face_lists++) d->face_fixed_bytes += cs, d->index_bytes = is;
+            else other_lists = 1;
+        } else if (sscanf(line, "property %63s %63s", a, e) == 2) {
+            uint64_t ts = ply_type_size(a);
+            if (!ts) return mim_error_set(err, MIM_EFORMAT, "%s: PLY property type '%s' unknown", path, a);
+            if (cur == VERT) d->vertex_bytes += ts;
+            else if (cur == FACE) d->face_fixed_bytes += ts;
+        }
+    }
+    if (other_lists || face_lists != 1) d->sizes_known = 0;
+    return 0;
+}
+
+static int parse_off(const char *path, const unsigned char *head, size_t len, mim__decl_t *d, mim_error_t *err)
+{
+    /* "OFF" (or COFF, NOFF, ...), then nv nf ne; comments start with '#' */
+    const char *s = (const char *)head, *end = s + len;
+    long long nums[3];
+    int got = 0, magic = 0;
+    const char *p = s;
+    while (p < end && got < 3) {
+        while (p < end && isspace((unsigned char)*p)) p++;
+        if (p < end && *p == '#') {
+            while (p < end && *p != '\n') p++;
+            continue;
+        }
+        const char *t = p;
+        while (p < end && !isspace((unsigned char)*p)) p++;
+        if (p == t) break;
+        if (!magic) {
+            magic = 1;
+            if ((size_t)(p - t) >= 3 && memcmp(p - 3, "OFF", 3) == 0) {
+                /* "OFF BINARY": no text counts check */
+                const char *q = p;
+                while (q < end && (*q == ' ' || *q == '\t')) q++;
+                if (end - q >= 6 && memcmp(q, "BINARY", 6) == 0) d->binary = 1;
+                continue;
+            }
+        }
+        char tok[32];
+        size_t tl = (size_t)(p - t) < 31 ? (size_t)(p - t) : 31;
+        memcpy(tok, t, tl);
+        tok[tl] = 0;
+        char *ep;
+        long long v = strtoll(tok, &ep, 10);
+        if (*ep || v < 0) return mim_error_set(err, MIM_EFORMAT, "%s: OFF header: '%s' is not a count", path, tok);
+        nums[got++] = v;
+    }
+    if (d->binary) return 0;
+    if (got < 2) {
+        if (d->file_bytes <= len) return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: OFF header lacks its counts", path);
+        return mim_error_set(err, MIM_EFORMAT, "%s: OFF header lacks its counts", path);
+    }
+    d->n_vertices = nums[0];
+    d->n_faces = nums[1];
+    return 0;
+}
+
+int mim__decl_parse(const char *path, int format, const unsigned char *head, size_t len, uint64_t file_bytes,
+                    mim__decl_t *d, mim_error_t *err)
+{
+    memset(d, 0, sizeof *d);
+    d->format = format;
+    d->n_vertices = d->n_faces = -1;
+    d->file_bytes = file_bytes;
+    switch (format) {
+    case FMT_PLY: return parse_ply(path, head, len, d, err);
+    case FMT_OFF: return parse_off(path, head, len, d, err);
+    case FMT_STL: {
+        int ascii = len >= 5 && memcmp(head, "solid", 5) == 0 && memmem(head, len, "facet", 5) != NULL;
+        if (len >= 84) {
+            uint32_t nt;
+            memcpy(&nt, head + 80, 4);
+            if (file_bytes == 84 + 50ULL * nt) ascii = 0; /* binary, even if the header says "solid" */
+            else if (!ascii && file_bytes < 84 + 50ULL * nt)
+                return mim_error_set(err, MIM_ETRUNCATED,
+                                     "%s: truncated: binary STL declares %u triangles (%llu bytes), file has %llu",
+                                     path, nt, 84 + 50ULL * nt, (unsigned long long)file_bytes);
+            if (!ascii) d->n_faces = nt;
+        } else if (!ascii) {
+            return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: %llu bytes is less than a binary STL header",
+                                 path, (unsigned long long)file_bytes);
+        }
+        d->binary = !ascii;
+        return 0;
+    }
+    case FMT_GLB:
+        if (len >= 12 && memcmp(head, "glTF", 4) == 0) {
+            uint32_t total;
+            memcpy(&total, head + 8, 4);
+            if (file_bytes < total)
+                return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: GLB declares %u bytes, file has %llu", path,
+                                     total, (unsigned long long)file_bytes);
+        }
+        d->binary = 1;
+        return 0;
+    default: return 0;
+    }
+}
+
+static int nonfinite_word(const char *t, size_t n)
+{
+    if (n && (*t == '-' || *t == '+')) t++, n--;
+    return n >= 3 && (strncasecmp(t, "nan", 3) == 0 || strncasecmp(t, "inf", 3) == 0);
+}
+
+uint64_t mim__text_nonfinite(const char *text, size_t len, int format, const char *body, char *token, size_t token_size)
+{
+    const char *p = body ? body : text, *end = text + len;
+    uint64_t line = 1;
+    for (const char *c = text; c < p; c++) line += *c == '\n';
+    while (p < end) {
+        const char *eol = memchr(p, '\n', (size_t)(end - p));
+        if (!eol) eol = end;
+        const char *q = p;
+        while (q < eol && (*q == ' ' || *q == '\t')) q++;
+        /* only coordinate lines: OBJ "v ", STL "vertex", any non-comment line of OFF/PLY */
+        int check = q < eol && *q != '#';
+        if (format == FMT_OBJ) check = eol - q > 2 && q[0] == 'v' && (q[1] == ' ' || q[1] == '\t');
+        if (format == FMT_STL) check = eol - q > 6 && strncmp(q, "vertex", 6) == 0;
+        if (check) {
+            const char *t = q;
+            while (t < eol) {
+                while (t < eol && isspace((unsigned char)*t)) t++;
+                const char *w = t;
+                while (t < eol && !isspace((unsigned char)*t)) t++;
+                if (t > w && nonfinite_word(w, (size_t)(t - w))) {
+                    size_t n = (size_t)(t - w) < token_size - 1 ? (size_t)(t - w) : token_size - 1;
+                    memcpy(token, w, n);
+                    token[n] = 0;
+                    return line;
+                }
+            }
+        }
+        p = eol + 1;
+        line++;
+    }
+    return 0;
+}
+
+int mim__obj_last_line_cut(const char *text, size_t len)
+{
+    if (!len || text[len - 1] == '\n') return 0;
+    const char *start = text + len;
+    while (start > text && start[-1] != '\n') start--;
+    int words = 0;
+    const char *p = start, *end = text + len;
+    while (p < end) {
+        while (p < end && isspace((unsigned char)*p)) p++;
+        if (p < end) words++;
+        while (p < end && !isspace((unsigned char)*p)) p++;
+    }
+    /* "v x y z" needs 4 words, "f a b c" 4; fewer means the file stops mid-line */
+    if (start[0] == 'v' && (start[1] == ' ' || start[1] == '\t')) return words < 4;
+    if (start[0] == 'f' && (start[1] == ' ' || start[1] == '\t')) return words < 4;
+    return 0;
+}

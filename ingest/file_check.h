@@ -1,0 +1,33 @@
+/* Internal to ingest/: what a mesh file declares about itself (header counts,
+ * binary body size), and text scans, so that read.c can tell a truncated or
+ * non-finite file from one the library merely failed to parse. */
+#ifndef MIM_INGEST_FILE_CHECK_H
+#define MIM_INGEST_FILE_CHECK_H
+
+#include "mim_core.h"
+
+enum { FMT_UNKNOWN, FMT_OFF, FMT_PLY, FMT_OBJ, FMT_STL, FMT_GLTF, FMT_GLB };
+
+typedef struct mim__decl {
+    int format;
+    int binary;
+    int64_t n_vertices; /* declared by the header; -1 unknown */
+    int64_t n_faces;
+    /* binary PLY: body size = nv * vertex_bytes + nf * (face_fixed_bytes) + refs * index_bytes */
+    int sizes_known;
+    uint64_t header_bytes, vertex_bytes, face_fixed_bytes, index_bytes, other_bytes;
+    uint64_t file_bytes;
+} mim__decl_t;
+
+int mim__format_of(const char *path);
+/* Parses what the file's beginning declares. head holds the first bytes of the file. */
+int mim__decl_parse(const char *path, int format, const unsigned char *head, size_t head_len,
+                    uint64_t file_bytes, mim__decl_t *out, mim_error_t *err);
+/* For text formats: finds a coordinate token spelled nan/inf; returns its
+ * 1-based line or 0. */
+uint64_t mim__text_nonfinite(const char *text, size_t len, int format, const char *header_end, char *token,
+                             size_t token_size);
+/* OBJ: 1 if the last line is a vertex or face line cut short. */
+int mim__obj_last_line_cut(const char *text, size_t len);
+
+#endif

@@ -1,0 +1,260 @@
+/* The ingest pipeline: reader threads parse, check and hash meshes (on all
+ * cores); the calling thread, the store's single writer, takes them in file
+ * order, checks them against the reference connectivity, labels them, and
+ * commits one transaction per batch. A kill part-way loses at most the
+ * uncommitted batch; a re-run skips what is stored (content hash). */
+#include "mim_ingest.h"
+
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+typedef struct {
+    int ready;
+    int rc;
+    mim_mesh_t mesh;
+    uint64_t content_hash;
+    mim_error_t err;
+} slot_t;
+
+typedef struct {
+    char **paths;
+    size_t n;
+    slot_t *slots;
+    size_t next;   /* next file a reader claims */
+    size_t base;   /* first file the writer has not finished */
+    size_t window; /* files read ahead of the writer, at most */
+    int stop;
+    pthread_mutex_t mu;
+    pthread_cond_t ready_cv, space_cv;
+} work_t;
+
+static void *reader_main(void *arg)
+{
+    work_t *w = arg;
+    for (;;) {
+        pthread_mutex_lock(&w->mu);
+        while (!w->stop && w->next < w->n && w->next >= w->base + w->window) pthread_cond_wait(&w->space_cv, &w->mu);
+        if (w->stop || w->next >= w->n) {
+            pthread_mutex_unlock(&w->mu);
+            return NULL;
+        }
+        size_t i = w->next++;
+        pthread_mutex_unlock(&w->mu);
+
+        slot_t s = {0};
+        s.rc = mim_mesh_read(w->paths[i], &s.mesh, &s.err);
+        if (!s.rc) s.content_hash = mim_db_content_hash(s.mesh.positions, s.mesh.n_vertices);
+
+        pthread_mutex_lock(&w->mu);
+        s.ready = 1;
+        w->slots[i] = s;
+        pthread_cond_broadcast(&w->ready_cv);
+        pthread_mutex_unlock(&w->mu);
+    }
+}
+
+/* The writer's view of the store while ingesting. */
+typedef struct {
+    mim_db_txn_t *txn;
+    int have_topology;
+    uint32_t n_vertices, n_faces;
+    uint64_t topo_hash;
+    uint32_t *faces; /* own copy: store pointers die with each commit */
+    mim_landmark_map_t landmarks;
+    int have_landmarks;
+} writer_t;
+
+static int load_reference(mim_db_t *db, writer_t *wr, mim_error_t *err)
+{
+    mim_db_txn_t *t;
+    int rc = mim_db_begin(db, 0, &t, err);
+    if (rc) return rc;
+    mim_db_topology_t topo;
+    rc = mim_db_topology_get(t, &topo, err);
+    if (rc == 0) {
+        wr->have_topology = 1;
+        wr->n_vertices = topo.n_vertices;
+        wr->n_faces = topo.n_faces;
+        wr->topo_hash = topo.hash;
+        wr->faces = malloc((size_t)topo.n_faces * 12 + 1);
+        if (!wr->faces) rc = MIM_ENOMEM;
+        else memcpy(wr->faces, topo.faces, (size_t)topo.n_faces * 12);
+    } else if (rc == MIM_ENOTFOUND) {
+        rc = 0;
+    }
+    mim_db_abort(&t);
+    return rc;
+}
+
+/* Checks a mesh against the reference; 0 or MIM_ETOPOLOGY with a message. */
+static int check_topology(const writer_t *wr, const char *path, const mim_mesh_t *m, mim_error_t *err)
+{
+    if (m->n_vertices != wr->n_vertices || m->n_faces != wr->n_faces)
+        return mim_error_set(err, MIM_ETOPOLOGY,
+                             "%s: connectivity differs from the store's: %u vertices and %u faces, the store has %u and %u",
+                             path, m->n_vertices, m->n_faces, wr->n_vertices, wr->n_faces);
+    if (mim_db_topology_hash(m->faces, m->n_faces, m->n_vertices) != wr->topo_hash ||
+        memcmp(m->faces, wr->faces, (size_t)m->n_faces * 12) != 0) {
+        uint32_t f = 0;
+        while (f < m->n_faces && !memcmp(m->faces + 3 * (size_t)f, wr->faces + 3 * (size_t)f, 12)) f++;
+        return mim_error_set(err, MIM_ETOPOLOGY,
+                             "%s: connectivity differs from the store's: same counts, but face %u is (%u %u %u), the store's is (%u %u %u)",
+                             path, f, m->faces[3 * (size_t)f], m->faces[3 * (size_t)f + 1], m->faces[3 * (size_t)f + 2],
+                             wr->faces[3 * (size_t)f], wr->faces[3 * (size_t)f + 1], wr->faces[3 * (size_t)f + 2]);
+    }
+    return 0;
+}
+
+/* The first good mesh of an empty store fixes the connectivity, together
+ * with the landmark map, in the same transaction as the first batch. */
+static int set_reference(writer_t *wr, const char *path, const mim_mesh_t *m, mim_error_t *err)
+{
+    mim_error_t lm_err = {0};
+    int rc = mim_landmarks_validate(&wr->landmarks, m->n_vertices, "landmark map", &lm_err);
+    if (rc) return mim_error_set(err, rc, "%s (checked against the first mesh, %s)", lm_err.msg, path);
+    wr->landmarks.topology_vertices = m->n_vertices;
+    if ((rc = mim_db_topology_put(wr->txn, m->faces, m->n_faces, m->n_vertices, err))) return rc;
+    if ((rc = mim_db_landmarks_put(wr->txn, &wr->landmarks, err))) return rc;
+    wr->have_topology = 1;
+    wr->n_vertices = m->n_vertices;
+    wr->n_faces = m->n_faces;
+    wr->topo_hash = mim_db_topology_hash(m->faces, m->n_faces, m->n_vertices);
+    wr->faces = malloc((size_t)m->n_faces * 12 + 1);
+    if (!wr->faces) return MIM_ENOMEM;
+    memcpy(wr->faces, m->faces, (size_t)m->n_faces * 12);
+    return 0;
+}
+
+int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_ingest_options_t *opt,
+                   mim_ingest_report_t *report, mim_error_t *err)
+{
+    mim_ingest_options_t defaults = {0};
+    if (!opt) opt = &defaults;
+    memset(report, 0, sizeof *report);
+    double t0 = mim_now();
+    uint32_t batch = opt->batch ? opt->batch : 64;
+    long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+    uint32_t threads = opt->threads ? opt->threads : (uint32_t)(ncpu > 0 ? ncpu : 1);
+
+    writer_t wr = {0};
+    mim_manifest_t *manifest = NULL;
+    mim_file_list_t files = {0};
+    int rc = load_reference(db, &wr, err);
+    if (!rc && !wr.have_topology) {
+        /* An empty store needs a landmark map before anything goes in. */
+        char found[4096];
+        const char *lm = opt->landmarks_path;
+        if (!lm && mim_discover_landmarks(paths, n_paths, found, sizeof found)) lm = found;
+        if (!lm)
+            rc = mim_error_set(err, MIM_ENOLANDMARKS,
+                               "%s: the store is empty and needs a landmark map: pass --landmarks FILE or put landmarks.json beside the meshes",
+                               mim_db_path(db));
+        else if (!(rc = mim_landmarks_read(&wr.landmarks, lm, err)))
+            wr.have_landmarks = 1;
+    } else if (!rc && opt->landmarks_path) {
+        mim_log("note: the store already has a landmark map; ignoring %s", opt->landmarks_path);
+    }
+    if (!rc && opt->manifest_path) rc = mim_manifest_load(&manifest, opt->manifest_path, err);
+    if (!rc) rc = mim_discover(paths, n_paths, &files, err);
+    if (rc) goto out;
+    report->files = files.count;
+
+    work_t w = {0};
+    w.paths = files.paths;
+    w.n = files.count;
+    w.window = batch + 4 * threads;
+    w.slots = calloc(files.count ? files.count : 1, sizeof *w.slots);
+    if (!w.slots) {
+        rc = MIM_ENOMEM;
+        goto out;
+    }
+    pthread_mutex_init(&w.mu, NULL);
+    pthread_cond_init(&w.ready_cv, NULL);
+    pthread_cond_init(&w.space_cv, NULL);
+    pthread_t *tids = calloc(threads, sizeof *tids);
+    uint32_t started = 0;
+    for (; tids && started < threads; started++)
+        if (pthread_create(&tids[started], NULL, reader_main, &w)) break;
+    if (!started) {
+        rc = mim_error_set(err, MIM_ENOMEM, "cannot start reader threads");
+        goto join;
+    }
+
+    mim_progress_t prog;
+    mim_progress_begin(&prog, "ingest", files.count);
+    uint32_t pending = 0;
+    for (size_t i = 0; i < files.count && !rc; i++) {
+        pthread_mutex_lock(&w.mu);
+        while (!w.slots[i].ready) pthread_cond_wait(&w.ready_cv, &w.mu);
+        slot_t s = w.slots[i];
+        pthread_mutex_unlock(&w.mu);
+
+        const char *path = files.paths[i];
+        if (!s.rc && wr.have_topology) s.rc = check_topology(&wr, path, &s.mesh, &s.err);
+        if (s.rc) {
+            report->failed++;
+            if (!opt->quiet) {
+                if (prog.enabled) fputc('\n', stderr);
+                mim_log("%s", mim_error_text(&s.err));
+            }
+        } else {
+            if (!wr.txn && (rc = mim_db_begin(db, 1, &wr.txn, err))) break;
+            if (!wr.have_topology && (rc = set_reference(&wr, path, &s.mesh, err))) break;
+            mim_labels_t lab = {{0}, {0}};
+            if (!(manifest && mim_manifest_lookup(manifest, path, &lab))) mim_labels_from_name(path, &lab);
+            char real[4096];
+            mim_template_in_t tin = {s.mesh.positions, s.mesh.n_vertices, s.content_hash,
+                                     realpath(path, real) ? real : path, lab.subject, lab.pose};
+            uint64_t id;
+            int existed;
+            if ((rc = mim_db_template_put(wr.txn, &tin, &id, &existed, err))) break;
+            if (existed) report->duplicates++;
+            else report->added++, pending++;
+            if (pending >= batch) {
+                rc = mim_db_commit(&wr.txn, err);
+                pending = 0;
+            }
+        }
+        mim_mesh_free(&s.mesh);
+        pthread_mutex_lock(&w.mu);
+        w.slots[i].mesh.positions = NULL; /* freed above via the copy */
+        w.slots[i].mesh.faces = NULL;
+        w.base = i + 1;
+        pthread_cond_broadcast(&w.space_cv);
+        pthread_mutex_unlock(&w.mu);
+        mim_progress_update(&prog, i + 1);
+    }
+    if (!rc && wr.txn) rc = mim_db_commit(&wr.txn, err);
+    mim_db_abort(&wr.txn); /* after a failure: the open batch is dropped, nothing half-written */
+    mim_progress_end(&prog);
+
+join:
+    pthread_mutex_lock(&w.mu);
+    w.stop = 1;
+    pthread_cond_broadcast(&w.space_cv);
+    pthread_mutex_unlock(&w.mu);
+    for (uint32_t k = 0; k < started; k++) pthread_join(tids[k], NULL);
+    free(tids);
+    for (size_t i = 0; i < files.count; i++) mim_mesh_free(&w.slots[i].mesh);
+    free(w.slots);
+    pthread_mutex_destroy(&w.mu);
+    pthread_cond_destroy(&w.ready_cv);
+    pthread_cond_destroy(&w.space_cv);
+out:
+    if (!rc) {
+        mim_db_txn_t *t;
+        mim_db_meta_t meta;
+        if (!mim_db_begin(db, 0, &t, NULL)) {
+            if (!mim_db_meta_get(t, &meta, NULL)) report->templates = meta.templates;
+            mim_db_abort(&t);
+        }
+    }
+    report->seconds = mim_now() - t0;
+    free(wr.faces);
+    mim_manifest_free(&manifest);
+    mim_file_list_free(&files);
+    return rc;
+}

@@ -1,0 +1,34 @@
+/* The pure-C face of the C++ shims (OpenMesh, tinygltf). Internal to ingest/.
+ * Each shim fills `raw` with what the file holds, triangulated, without
+ * judging it beyond what its library reports; read.c validates. */
+#ifndef MIM_INGEST_MESH_SHIM_H
+#define MIM_INGEST_MESH_SHIM_H
+
+#include "mim_core.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct mim__raw_mesh {
+    mim_mesh_t mesh;          /* triangulated; faces may hold bad indices (see below) */
+    uint64_t n_polygons;      /* faces as the file gave them, before triangulation */
+    uint64_t n_polygon_refs;  /* sum of polygon sizes (for size checks of binary PLY) */
+    int64_t first_bad_face;   /* polygon with an index >= n_vertices, or -1 */
+    uint64_t bad_index;       /* that index */
+    int library_failed;       /* the library said the read failed */
+    char library_msg[256];    /* what the library said, if anything */
+} mim__raw_mesh_t;
+
+void mim__raw_mesh_free(mim__raw_mesh_t *r);
+
+/* OFF, PLY (ASCII, binary), OBJ, STL (ASCII, binary) through OpenMesh. */
+int mim__openmesh_read(const char *path, mim__raw_mesh_t *out);
+/* glTF / GLB through tinygltf: the first mesh's first primitive, POSITION
+ * as stored (the bind pose of a skinned mesh), triangles/strips/fans. */
+int mim__gltf_read(const char *path, mim__raw_mesh_t *out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,82 @@
+/* mimic ingest: mesh readers, dataset discovery and labels, and the ingest
+ * pipeline that puts meshes into the template store. */
+#ifndef MIM_INGEST_H
+#define MIM_INGEST_H
+
+#include "mim_core.h"
+#include "mim_db.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- reading ---- */
+/* Reads OFF, PLY (ASCII/binary), OBJ, STL (ASCII/binary) through OpenMesh and
+ * glTF/GLB through tinygltf, by file extension; polygons are fan-triangulated.
+ * Rejects, with a one-line message naming the file: a missing or unreadable
+ * path, a truncated file, a NaN/infinite coordinate, a face index past the
+ * vertex count, an empty mesh. On failure *out is left zeroed. */
+int mim_mesh_read(const char *path, mim_mesh_t *out, mim_error_t *err);
+/* 1 if the file name has an extension mim_mesh_read handles. */
+int mim_mesh_format_known(const char *path);
+
+/* ---- discovery ---- */
+typedef struct mim_file_list {
+    char **paths; /* sorted; owned */
+    size_t count;
+} mim_file_list_t;
+/* Files given as files are kept whatever their extension (so a bad one is
+ * reported); folders are walked recursively for known mesh extensions. */
+int mim_discover(char *const *paths, size_t n, mim_file_list_t *out, mim_error_t *err);
+void mim_file_list_free(mim_file_list_t *l);
+/* landmarks.json beside the dataset: in a folder PATH, or beside a file PATH. */
+int mim_discover_landmarks(char *const *paths, size_t n, char *out, size_t size);
+
+/* ---- labels ---- */
+#define MIM_LABEL_MAX 64
+typedef struct mim_labels {
+    char subject[MIM_LABEL_MAX]; /* "" when none */
+    char pose[MIM_LABEL_MAX];
+} mim_labels_t;
+/* Labels from a recognised file-name layout: FAUST tr_reg_NNN (subject NNN/10,
+ * pose NNN%10), SCAPE meshNNN (subject 0, pose NNN), mimic synth and
+ * mh-bodies NAME_sSS_pPP. Returns 1 if the name was recognised. */
+int mim_labels_from_name(const char *path, mim_labels_t *out);
+
+typedef struct mim_manifest mim_manifest_t;
+/* CSV with a header naming at least the columns file, subject, pose; file is
+ * relative to the manifest's folder. */
+int mim_manifest_load(mim_manifest_t **out, const char *path, mim_error_t *err);
+void mim_manifest_free(mim_manifest_t **m);
+/* 1 if the manifest has a row for path (matched by real path, then by name). */
+int mim_manifest_lookup(const mim_manifest_t *m, const char *path, mim_labels_t *out);
+
+/* ---- the pipeline ---- */
+typedef struct mim_ingest_options {
+    const char *landmarks_path; /* NULL: landmarks.json beside the dataset */
+    const char *manifest_path;  /* NULL: labels from file names */
+    uint32_t batch;             /* templates per transaction; 0 means 64 */
+    uint32_t threads;           /* reader threads; 0 means the number of cores */
+    int quiet;                  /* no per-file messages */
+} mim_ingest_options_t;
+
+typedef struct mim_ingest_report {
+    uint64_t files;      /* files considered */
+    uint64_t added;      /* new templates */
+    uint64_t duplicates; /* content already in the store */
+    uint64_t failed;     /* files rejected (each reported on stderr) */
+    uint64_t templates;  /* templates in the store afterwards */
+    double seconds;
+} mim_ingest_report_t;
+
+/* Reads the files on `threads` threads, checks each against the store's
+ * connectivity, and commits them in batches. Bad files are reported and
+ * skipped. Returns 0 unless the ingest could not run at all (store error,
+ * no landmark map for an empty store); per-file failures are in report. */
+int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_ingest_options_t *opt,
+                   mim_ingest_report_t *report, mim_error_t *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,150 @@
+/* mim_mesh_read: one entry for every mesh format. The libraries parse
+ * (OpenMesh, tinygltf); this file decides whether what they returned is a
+ * whole, finite, consistent mesh, and says precisely what is wrong if not. */
+#include "file_check.h"
+#include "mesh_shim.h"
+#include "mim_ingest.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#define HEAD_BYTES 65536
+
+static const char *format_name(int f)
+{
+    switch (f) {
+    case FMT_OFF: return "OFF";
+    case FMT_PLY: return "PLY";
+    case FMT_OBJ: return "OBJ";
+    case FMT_STL: return "STL";
+    case FMT_GLTF: return "glTF";
+    case FMT_GLB: return "GLB";
+    default: return "mesh";
+    }
+}
+
+int mim_mesh_format_known(const char *path) { return mim__format_of(path) != FMT_UNKNOWN; }
+
+/* Reads the whole file (text formats) or its head (binary ones). */
+static int slurp(const char *path, size_t max, unsigned char **buf, size_t *len, mim_error_t *err)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return mim_error_set(err, -errno, "%s: cannot open: %s", path, strerror(errno));
+    unsigned char *b = malloc(max + 1);
+    if (!b) {
+        fclose(f);
+        return MIM_ENOMEM;
+    }
+    size_t n = fread(b, 1, max, f);
+    int bad = ferror(f);
+    fclose(f);
+    if (bad) {
+        free(b);
+        return mim_error_set(err, MIM_EIO, "%s: read error", path);
+    }
+    b[n] = 0;
+    *buf = b;
+    *len = n;
+    return 0;
+}
+
+static int validate(const char *path, int fmt, const mim__decl_t *d, mim__raw_mesh_t *raw, int shim_rc,
+                    mim_error_t *err)
+{
+    const mim_mesh_t *m = &raw->mesh;
+    if (shim_rc == MIM_ENOMEM) return mim_error_set(err, MIM_ENOMEM, "%s: out of memory while reading", path);
+    if (fmt == FMT_GLTF || fmt == FMT_GLB) {
+        if (shim_rc) return mim_error_set(err, shim_rc, "%s: %s", path, raw->library_msg);
+    }
+    /* Fewer elements than the header declares: the file stops early. */
+    if (d->n_vertices >= 0 && (int64_t)m->n_vertices < d->n_vertices)
+        return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: header declares %lld vertices, file holds %u", path,
+                             (long long)d->n_vertices, m->n_vertices);
+    if (d->n_faces >= 0 && (int64_t)raw->n_polygons < d->n_faces && fmt != FMT_STL)
+        return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: header declares %lld faces, file holds %llu", path,
+                             (long long)d->n_faces, (unsigned long long)raw->n_polygons);
+    if (fmt == FMT_PLY && d->binary && d->sizes_known && d->n_vertices >= 0 && d->n_faces >= 0) {
+        uint64_t refs = raw->n_polygon_refs > 3 * (uint64_t)d->n_faces ? raw->n_polygon_refs : 3 * (uint64_t)d->n_faces;
+        uint64_t need = d->header_bytes + (uint64_t)d->n_vertices * d->vertex_bytes +
+                        (uint64_t)d->n_faces * d->face_fixed_bytes + refs * d->index_bytes;
+        if (d->file_bytes < need)
+            return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: %llu bytes, the header's %lld vertices and %lld faces need %llu",
+                                 path, (unsigned long long)d->file_bytes, (long long)d->n_vertices,
+                                 (long long)d->n_faces, (unsigned long long)need);
+    }
+    if (raw->first_bad_face >= 0)
+        return mim_error_set(err, MIM_EINDEX, "%s: face %lld refers to vertex %llu, but there are only %u vertices", path,
+                             (long long)raw->first_bad_face, (unsigned long long)raw->bad_index, m->n_vertices);
+    if (shim_rc || raw->library_failed) {
+        if (m->n_vertices == 0 && m->n_faces == 0 && d->file_bytes > 0 && raw->library_msg[0] && fmt != FMT_OBJ)
+            return mim_error_set(err, MIM_EFORMAT, "%s: not a valid %s file (%s)", path, format_name(fmt), raw->library_msg);
+    }
+    if (m->n_vertices == 0 || m->n_faces == 0)
+        return mim_error_set(err, MIM_EEMPTY, "%s: empty mesh: %u vertices, %u faces", path, m->n_vertices, m->n_faces);
+    for (uint32_t v = 0; v < m->n_vertices; v++) {
+        const float *p = m->positions + 3 * (size_t)v;
+        if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
+            return mim_error_set(err, MIM_ENONFINITE, "%s: vertex %u has a non-finite coordinate (%g, %g, %g)", path, v,
+                                 (double)p[0], (double)p[1], (double)p[2]);
+    }
+    if (shim_rc || raw->library_failed)
+        return mim_error_set(err, MIM_EFORMAT, "%s: not a valid %s file (%s)", path, format_name(fmt),
+                             raw->library_msg[0] ? raw->library_msg : "unreadable");
+    return 0;
+}
+
+int mim_mesh_read(const char *path, mim_mesh_t *out, mim_error_t *err)
+{
+    memset(out, 0, sizeof *out);
+    struct stat st;
+    if (stat(path, &st) != 0)
+        return mim_error_set(err, errno == ENOENT ? MIM_ENOTFOUND : -errno, "%s: cannot read: %s", path, strerror(errno));
+    if (S_ISDIR(st.st_mode)) return mim_error_set(err, MIM_EINVAL, "%s: is a directory, not a mesh file", path);
+    if (!S_ISREG(st.st_mode)) return mim_error_set(err, MIM_EINVAL, "%s: not a regular file", path);
+    int fmt = mim__format_of(path);
+    if (fmt == FMT_UNKNOWN)
+        return mim_error_set(err, MIM_EUNSUPPORTED,
+                             "%s: unknown mesh format (expected .off .ply .obj .stl .gltf or .glb)", path);
+    if (st.st_size == 0) return mim_error_set(err, MIM_EEMPTY, "%s: empty mesh: the file has 0 bytes", path);
+
+    /* The head tells what the file declares; text files are then read whole
+     * for the nan/inf scan (binary ones are checked by size and by value). */
+    unsigned char *buf = NULL;
+    size_t len = 0;
+    int rc = slurp(path, HEAD_BYTES, &buf, &len, err);
+    if (rc) return rc;
+    mim__decl_t d;
+    rc = mim__decl_parse(path, fmt, buf, len, (uint64_t)st.st_size, &d, err);
+    int text = !d.binary && fmt != FMT_GLTF && fmt != FMT_GLB;
+    if (!rc && text && (uint64_t)st.st_size > len) {
+        free(buf);
+        buf = NULL;
+        rc = slurp(path, (size_t)st.st_size, &buf, &len, err);
+    }
+    if (!rc && text) {
+        char tok[32];
+        const char *body = fmt == FMT_PLY ? (const char *)buf + d.header_bytes : NULL;
+        uint64_t line = mim__text_nonfinite((const char *)buf, len, fmt, body, tok, sizeof tok);
+        if (line)
+            rc = mim_error_set(err, MIM_ENONFINITE, "%s:%llu: '%s' is not a finite coordinate", path,
+                               (unsigned long long)line, tok);
+        else if (fmt == FMT_OBJ && mim__obj_last_line_cut((const char *)buf, len))
+            rc = mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: the last line stops part-way", path);
+    }
+    free(buf);
+    if (rc) return rc;
+
+    mim__raw_mesh_t raw;
+    int shim_rc = (fmt == FMT_GLTF || fmt == FMT_GLB) ? mim__gltf_read(path, &raw) : mim__openmesh_read(path, &raw);
+    rc = validate(path, fmt, &d, &raw, shim_rc, err);
+    if (rc) {
+        mim__raw_mesh_free(&raw);
+        return rc;
+    }
+    *out = raw.mesh; /* ownership moves to the caller */
+    return 0;
+}
