@@ -235,3 +235,57 @@ int mim__obj_last_line_cut(const char *text, size_t len)
     if (start[0] == 'f' && (start[1] == ' ' || start[1] == '\t')) return words < 4;
     return 0;
 }
+
+int mim__stl_ascii_complete(const char *text, size_t len)
+{
+    size_t from = len > 512 ? len - 512 : 0;
+    return memmem(text + from, len - from, "endsolid", 8) != NULL;
+}
+
+/* Counts the words of one line; *first gets the first word's value. */
+static int line_words(const char *p, const char *eol, long *first)
+{
+    int n = 0;
+    while (p < eol) {
+        while (p < eol && isspace((unsigned char)*p)) p++;
+        if (p >= eol) break;
+        if (n == 0) *first = strtol(p, NULL, 10);
+        n++;
+        while (p < eol && !isspace((unsigned char)*p)) p++;
+    }
+    return n;
+}
+
+int mim__off_ascii_complete(const char *text, size_t len, int64_t nv, int64_t nf)
+{
+    /* OpenMesh's OFF reader keeps going past the end of a short file, so the
+     * structure is checked here: after the counts line, nv vertex lines of
+     * at least 3 words, then nf face lines "k i1 .. ik". */
+    const char *p = text, *end = text + len;
+    int counts_seen = 0;
+    int64_t v = 0, f = 0;
+    while (p < end && f < nf) {
+        const char *eol = memchr(p, '\n', (size_t)(end - p));
+        if (!eol) eol = end;
+        long first = 0;
+        int words = line_words(p, eol, &first);
+        if (words && !counts_seen) {
+            /* the magic line may carry the counts too: "OFF 8 6 0" */
+            if (strncmp(p, "OFF", 3) == 0 || (eol - p > 3 && memmem(p, (size_t)(eol - p), "OFF", 3))) {
+                if (words >= 3) counts_seen = 1;
+            } else {
+                counts_seen = 1;
+            }
+        } else if (words) {
+            if (v < nv) {
+                if (words < 3) return 0;
+                v++;
+            } else {
+                if (first < 1 || words < first + 1) return 0;
+                f++;
+            }
+        }
+        p = eol + 1;
+    }
+    return v == nv && f == nf;
+}

@@ -29,5 +29,9 @@ uint64_t mim__text_nonfinite(const char *text, size_t len, int format, const cha
                              size_t token_size);
 /* OBJ: 1 if the last line is a vertex or face line cut short. */
 int mim__obj_last_line_cut(const char *text, size_t len);
+/* ASCII OFF: 1 if all declared vertex and face lines are there and whole. */
+int mim__off_ascii_complete(const char *text, size_t len, int64_t nv, int64_t nf);
+/* ASCII STL: 1 if the file closes with endsolid. */
+int mim__stl_ascii_complete(const char *text, size_t len);
 
 #endif

@@ -22,8 +22,9 @@ typedef struct mim__raw_mesh {
 
 void mim__raw_mesh_free(mim__raw_mesh_t *r);
 
-/* OFF, PLY (ASCII, binary), OBJ, STL (ASCII, binary) through OpenMesh. */
-int mim__openmesh_read(const char *path, mim__raw_mesh_t *out);
+/* OFF, PLY (ASCII, binary), OBJ, STL (ASCII, binary) through OpenMesh;
+ * format is "off", "ply", "obj" or "stl". Safe to call from many threads. */
+int mim__openmesh_read(const char *path, const char *format, mim__raw_mesh_t *out);
 /* glTF / GLB through tinygltf: the first mesh's first primitive, POSITION
  * as stored (the bind pose of a skinned mesh), triangles/strips/fans. */
 int mim__gltf_read(const char *path, mim__raw_mesh_t *out);

@@ -3,10 +3,20 @@
 // polygons directly, so faces are kept exactly as the file lists them (a
 // half-edge mesh would silently drop non-manifold faces) and bad indices can
 // be reported instead of dereferenced. No C++ type or exception crosses into C.
+//
+// OpenMesh's readers keep per-file state in members of their singleton
+// instances, so two threads must never share one: each read borrows a set of
+// reader objects from a pool. A reader registers itself with the IOManager
+// when constructed and never unregisters, so pooled sets live as long as the
+// process (at most one per concurrent reader thread).
 #include "mesh_shim.h"
 
 #include <OpenMesh/Core/IO/IOManager.hh>
 #include <OpenMesh/Core/IO/importer/BaseImporter.hh>
+#include <OpenMesh/Core/IO/reader/OBJReader.hh>
+#include <OpenMesh/Core/IO/reader/OFFReader.hh>
+#include <OpenMesh/Core/IO/reader/PLYReader.hh>
+#include <OpenMesh/Core/IO/reader/STLReader.hh>
 #include <OpenMesh/Core/System/omstream.hh>
 
 #include <cstdint>
@@ -114,9 +124,43 @@ public:
 
 std::once_flag quiet_once;
 
+struct ReaderSet {
+    _PLYReader_ ply;
+    _OFFReader_ off;
+    _OBJReader_ obj;
+    _STLReader_ stl;
+};
+
+std::mutex pool_mutex;
+std::vector<ReaderSet *> pool;
+
+ReaderSet *acquire_readers()
+{
+    std::lock_guard<std::mutex> lock(pool_mutex);
+    if (pool.empty()) return new ReaderSet(); // registration happens under the lock
+    ReaderSet *r = pool.back();
+    pool.pop_back();
+    return r;
+}
+
+void release_readers(ReaderSet *r)
+{
+    std::lock_guard<std::mutex> lock(pool_mutex);
+    pool.push_back(r);
+}
+
+BaseReader *pick(ReaderSet *r, const char *format)
+{
+    if (!std::strcmp(format, "ply")) return &r->ply;
+    if (!std::strcmp(format, "off")) return &r->off;
+    if (!std::strcmp(format, "obj")) return &r->obj;
+    if (!std::strcmp(format, "stl")) return &r->stl;
+    return nullptr;
+}
+
 } // namespace
 
-extern "C" int mim__openmesh_read(const char *path, mim__raw_mesh_t *out)
+extern "C" int mim__openmesh_read(const char *path, const char *format, mim__raw_mesh_t *out)
 {
     std::memset(out, 0, sizeof *out);
     out->first_bad_face = -1;
@@ -130,7 +174,18 @@ extern "C" int mim__openmesh_read(const char *path, mim__raw_mesh_t *out)
         });
         ArrayImporter imp;
         Options opt;
-        bool ok = IOManager().read(path, imp, opt);
+        ReaderSet *readers = acquire_readers();
+        BaseReader *reader = pick(readers, format);
+        bool ok = false;
+        try {
+            // As the IOManager does: can_u_read parses the header into the
+            // reader's state (the OFF reader depends on it), then read.
+            ok = reader && reader->can_u_read(path) && reader->read(path, imp, opt);
+        } catch (...) {
+            release_readers(readers);
+            throw;
+        }
+        release_readers(readers);
         out->library_failed = !ok;
         if (!ok) std::snprintf(out->library_msg, sizeof out->library_msg, "OpenMesh could not parse it");
         size_t nv = imp.points.size() / 3, nt = imp.tris.size() / 3;

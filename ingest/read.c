@@ -134,12 +134,23 @@ int mim_mesh_read(const char *path, mim_mesh_t *out, mim_error_t *err)
                                (unsigned long long)line, tok);
         else if (fmt == FMT_OBJ && mim__obj_last_line_cut((const char *)buf, len))
             rc = mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: the last line stops part-way", path);
+        else if (fmt == FMT_OFF && memchr(buf, '#', len))
+            /* OpenMesh's OFF reader takes a comment line for data and misreads the rest */
+            rc = mim_error_set(err, MIM_EUNSUPPORTED, "%s: OFF with '#' comment lines is not supported; remove the comments",
+                               path);
+        else if (fmt == FMT_OFF && !mim__off_ascii_complete((const char *)buf, len, d.n_vertices, d.n_faces))
+            rc = mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: fewer than the %lld vertex and %lld face lines its header declares",
+                               path, (long long)d.n_vertices, (long long)d.n_faces);
+        else if (fmt == FMT_STL && !mim__stl_ascii_complete((const char *)buf, len))
+            rc = mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: ASCII STL without its closing endsolid", path);
     }
     free(buf);
     if (rc) return rc;
 
     mim__raw_mesh_t raw;
-    int shim_rc = (fmt == FMT_GLTF || fmt == FMT_GLB) ? mim__gltf_read(path, &raw) : mim__openmesh_read(path, &raw);
+    static const char *const om_format[] = {[FMT_OFF] = "off", [FMT_PLY] = "ply", [FMT_OBJ] = "obj", [FMT_STL] = "stl"};
+    int shim_rc = (fmt == FMT_GLTF || fmt == FMT_GLB) ? mim__gltf_read(path, &raw)
+                                                      : mim__openmesh_read(path, om_format[fmt], &raw);
     rc = validate(path, fmt, &d, &raw, shim_rc, err);
     if (rc) {
         mim__raw_mesh_free(&raw);

@@ -1,0 +1,61 @@
+/* Shared helpers for mimic's tests: temp folders, running the mimic binary,
+ * and test data generators (meshes in every format, corrupted variants). */
+#ifndef MIM_TEST_SUPPORT_H
+#define MIM_TEST_SUPPORT_H
+
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include "mim_core.h"
+
+/* A fresh folder under $TMPDIR (or /tmp); removed by ts_rmtree. */
+char *ts_tempdir(const char *tag);
+void ts_rmtree(const char *path);
+/* Joins dir and name into a static-lifetime-free malloc'd string. */
+char *ts_path(const char *dir, const char *name);
+
+/* Runs `$MIMIC_BIN args...` (args is a shell-free argv, NULL-terminated).
+ * Captures stdout and stderr (malloc'd, NUL-terminated; may be NULL args). */
+int ts_run_mimic(char **out, char **err, const char *const *args);
+const char *ts_mimic_bin(void);
+
+/* Reads a whole file (malloc'd, NUL-terminated); NULL if it cannot. */
+char *ts_read_file(const char *path, size_t *len);
+int ts_write_file(const char *path, const void *data, size_t len);
+/* Shortens a file to `keep` bytes. */
+int ts_truncate(const char *path, size_t keep);
+
+/* ---- test meshes ---- */
+/* A closed lat-long sphere of radius r: triangle fans at the poles, quads
+ * elsewhere (so readers must triangulate). Polygons are returned as a flat
+ * index list with per-polygon sizes. */
+typedef struct ts_polymesh {
+    uint32_t n_vertices, n_polys;
+    float *pos;        /* 3 * n_vertices */
+    uint32_t *sizes;   /* n_polys */
+    uint32_t *idx;     /* sum of sizes */
+    uint32_t n_idx;
+} ts_polymesh_t;
+void ts_sphere(ts_polymesh_t *m, uint32_t rings, uint32_t segments, float r);
+void ts_polymesh_free(ts_polymesh_t *m);
+/* Number of triangles after fan triangulation. */
+uint32_t ts_polymesh_triangles(const ts_polymesh_t *m);
+/* A triangle-only copy (fan triangulation), as mim_mesh_read returns it. */
+void ts_triangulate(const ts_polymesh_t *m, mim_mesh_t *out);
+
+int ts_write_off(const char *path, const ts_polymesh_t *m);
+int ts_write_ply_ascii(const char *path, const ts_polymesh_t *m);
+int ts_write_ply_binary(const char *path, const ts_polymesh_t *m);
+int ts_write_obj(const char *path, const ts_polymesh_t *m);
+int ts_write_stl_ascii(const char *path, const ts_polymesh_t *m);  /* triangles */
+int ts_write_stl_binary(const char *path, const ts_polymesh_t *m); /* triangles */
+/* glTF 2.0: a GLB, or a .gltf with the buffer embedded as a data URI. */
+int ts_write_glb(const char *path, const ts_polymesh_t *m);
+int ts_write_gltf(const char *path, const ts_polymesh_t *m);
+/* Writes a triangle mesh as binary PLY (as mimic synth does). */
+int ts_write_mesh_ply(const char *path, const mim_mesh_t *m);
+
+#endif
