@@ -127,7 +127,7 @@ int mim_db_template_put(mim_db_txn_t *t, const mim_template_in_t *in, uint64_t *
         if (existed) *existed = 1;
         return 0;
     }
-    uint64_t id;
+    uint64_t id = 0;
     if ((rc = next_id(t, &id, err))) return rc;
 
     size_t ls = str_len16(in->source), lsub = str_len16(in->subject), lpose = str_len16(in->pose);

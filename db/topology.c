@@ -1,11 +1,14 @@
 /* The reference connectivity: one per store, fixed by the first ingest.
- * Record: u32 n_vertices, u32 n_faces, u64 hash, then 3 * n_faces u32. */
+ * Record: u32 n_vertices, u32 n_faces, u64 hash, then 3 * n_faces u32,
+ * zero-padded to at least RECORD_MIN bytes so that LMDB puts it on its own
+ * page-aligned overflow pages and the faces can be lent zero-copy. */
 #include "internal.h"
 
 #include <stdlib.h>
 #include <string.h>
 
 #define TOPO_HEADER 16
+#define RECORD_MIN 2048 /* > half a 4 KiB page */
 
 uint64_t mim_db_topology_hash(const uint32_t *faces, uint32_t n_faces, uint32_t n_vertices)
 {
@@ -24,7 +27,7 @@ int mim_db_topology_get(mim_db_txn_t *t, mim_db_topology_t *out, mim_error_t *er
     memcpy(&out->n_vertices, p, 4);
     memcpy(&out->n_faces, p + 4, 4);
     memcpy(&out->hash, p + 8, 8);
-    if (v.mv_size != TOPO_HEADER + (size_t)out->n_faces * 12)
+    if (v.mv_size < TOPO_HEADER + (size_t)out->n_faces * 12)
         return mim_error_set(err, MIM_ESTORE, "store topology record has %zu bytes, expected %zu", v.mv_size,
                              TOPO_HEADER + (size_t)out->n_faces * 12);
     if ((uintptr_t)(p + TOPO_HEADER) % sizeof(uint32_t))
@@ -36,7 +39,7 @@ int mim_db_topology_get(mim_db_txn_t *t, mim_db_topology_t *out, mim_error_t *er
 int mim_db_topology_put(mim_db_txn_t *t, const uint32_t *faces, uint32_t n_faces, uint32_t n_vertices,
                         mim_error_t *err)
 {
-    size_t size = TOPO_HEADER + (size_t)n_faces * 12;
+    size_t used = TOPO_HEADER + (size_t)n_faces * 12, size = used < RECORD_MIN ? RECORD_MIN : used;
     MDB_val k = {5, "faces"}, v = {size, NULL};
     /* RESERVE: write the record in place, no staging copy; NOOVERWRITE: set once. */
     int rc = mdb_put(t->txn, t->db->dbi[DBI_TOPOLOGY], &k, &v, MDB_NOOVERWRITE | MDB_RESERVE);
@@ -48,5 +51,6 @@ int mim_db_topology_put(mim_db_txn_t *t, const uint32_t *faces, uint32_t n_faces
     memcpy(p + 4, &n_faces, 4);
     memcpy(p + 8, &h, 8);
     memcpy(p + TOPO_HEADER, faces, (size_t)n_faces * 12);
+    if (size > used) memset(p + used, 0, size - used);
     return 0;
 }

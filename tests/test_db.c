@@ -1,0 +1,405 @@
+/* db/: store round trip, zero-copy views, schema mismatch, foreign stores,
+ * two reader processes while one writes, and kill -9 during an ingest. */
+#include "mim_db.h"
+#include "mim_ingest.h"
+#include "test_support.h"
+
+#include <lmdb.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+static char *dir;
+
+static int setup(void **state)
+{
+    (void)state;
+    dir = ts_tempdir("db");
+    return dir ? 0 : -1;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    ts_rmtree(dir);
+    free(dir);
+    return 0;
+}
+
+static void fill(float *p, uint32_t n, float seed)
+{
+    for (uint32_t i = 0; i < 3 * n; i++) p[i] = seed + 0.001f * (float)i;
+}
+
+static void test_round_trip(void **s)
+{
+    (void)s;
+    char *store = ts_path(dir, "rt");
+    mim_db_t *db;
+    mim_error_t err = {0};
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    mim_db_txn_t *t;
+    assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
+    uint32_t faces[] = {0, 1, 2, 0, 2, 3, 0, 3, 1, 1, 3, 2};
+    assert_int_equal(mim_db_topology_put(t, faces, 4, 4, &err), 0);
+    assert_int_equal(mim_db_topology_put(t, faces, 4, 4, &err), MIM_EINVAL); /* set once */
+    uint32_t lv[16];
+    for (int i = 0; i < 16; i++) lv[i] = (uint32_t)i % 4;
+    mim_landmark_map_t lm;
+    mim_landmarks_default(&lm, lv, 4);
+    assert_int_equal(mim_db_landmarks_put(t, &lm, &err), 0);
+    /* sizes from tiny to a body, so both small and large records are covered */
+    uint32_t sizes[] = {4, 100, 7000};
+    uint64_t ids[3];
+    for (int i = 0; i < 3; i++) {
+        float *p = malloc(12 * sizes[i]);
+        fill(p, sizes[i], (float)i);
+        char subj[8];
+        snprintf(subj, sizeof subj, "s%d", i);
+        mim_template_in_t in = {p, sizes[i], mim_db_content_hash(p, sizes[i]), "/data/x.ply", subj, i == 2 ? "" : "sit"};
+        int existed = -1;
+        assert_int_equal(mim_db_template_put(t, &in, &ids[i], &existed, &err), 0);
+        assert_int_equal(existed, 0);
+        assert_int_equal(ids[i], (uint64_t)i + 1);
+        free(p);
+    }
+    assert_int_equal(mim_db_commit(&t, &err), 0);
+    assert_null(t);
+    mim_db_close(&db);
+    assert_null(db);
+
+    mim_db_options_t ro = {.read_only = 1};
+    int rc = mim_db_open(&db, store, &ro, &err);
+    if (rc) fprintf(stderr, "%s\n", err.msg);
+    assert_int_equal(rc, 0);
+    assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    mim_db_meta_t meta;
+    assert_int_equal(mim_db_meta_get(t, &meta, &err), 0);
+    assert_int_equal(meta.templates, 3);
+    assert_int_equal(meta.next_id, 4);
+    assert_string_equal(meta.created_by, "mimic " MIM_VERSION);
+    mim_db_topology_t topo;
+    assert_int_equal(mim_db_topology_get(t, &topo, &err), 0);
+    assert_int_equal(topo.n_faces, 4);
+    assert_memory_equal(topo.faces, faces, sizeof faces);
+    assert_int_equal(topo.hash, mim_db_topology_hash(faces, 4, 4));
+    mim_landmark_map_t back;
+    assert_int_equal(mim_db_landmarks_get(t, &back, &err), 0);
+    assert_int_equal(back.count, 16);
+    assert_string_equal(back.names[3], "l_shoulder");
+    assert_int_equal(back.mirror[3], 4);
+    for (int i = 0; i < 3; i++) {
+        mim_template_view_t v;
+        assert_int_equal(mim_db_template_get(t, ids[i], &v, &err), 0);
+        float *p = malloc(12 * sizes[i]);
+        fill(p, sizes[i], (float)i);
+        assert_int_equal(v.n_vertices, sizes[i]);
+        assert_memory_equal(v.positions, p, 12 * sizes[i]);
+        assert_int_equal(v.content_hash, mim_db_content_hash(p, sizes[i]));
+        assert_int_equal((uintptr_t)v.positions % 16, 0); /* straight from the map, aligned */
+        assert_string_equal(v.source, "/data/x.ply");
+        assert_string_equal(v.pose, i == 2 ? "" : "sit");
+        /* zero-copy: a second lookup lends the same bytes */
+        mim_template_view_t again;
+        assert_int_equal(mim_db_template_get(t, ids[i], &again, &err), 0);
+        assert_ptr_equal(again.positions, v.positions);
+        free(p);
+    }
+    mim_template_view_t none;
+    assert_int_equal(mim_db_template_get(t, 99, &none, &err), MIM_ENOTFOUND);
+    /* writes are refused on a read-only store */
+    mim_db_txn_t *w = NULL;
+    mim_error_clear(&err);
+    assert_int_equal(mim_db_begin(db, 1, &w, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "read-only"));
+    mim_db_abort(&t);
+    mim_db_close(&db);
+    free(store);
+}
+
+static void test_dedupe(void **s)
+{
+    (void)s;
+    char *store = ts_path(dir, "dd");
+    mim_db_t *db;
+    mim_error_t err = {0};
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    mim_db_txn_t *t;
+    assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
+    float a[30], b[30];
+    fill(a, 10, 1.0f);
+    fill(b, 10, 2.0f);
+    /* b claims a's hash: equal hashes alone must not merge different meshes */
+    mim_template_in_t ia = {a, 10, mim_db_content_hash(a, 10), "a", "", ""};
+    mim_template_in_t ib = {b, 10, ia.content_hash, "b", "", ""};
+    uint64_t id1, id2, id3;
+    int e1, e2, e3;
+    assert_int_equal(mim_db_template_put(t, &ia, &id1, &e1, &err), 0);
+    assert_int_equal(mim_db_template_put(t, &ib, &id2, &e2, &err), 0);
+    assert_int_equal(mim_db_template_put(t, &ia, &id3, &e3, &err), 0);
+    assert_false(e1);
+    assert_false(e2);
+    assert_true(e3);
+    assert_int_not_equal(id1, id2);
+    assert_int_equal(id3, id1);
+    assert_int_equal(mim_db_commit(&t, &err), 0);
+    mim_db_close(&db);
+    free(store);
+}
+
+static void test_schema_mismatch(void **s)
+{
+    (void)s;
+    char *store = ts_path(dir, "schema");
+    mim_db_t *db;
+    mim_error_t err = {0};
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    mim_db_close(&db);
+    /* rewrite the version underneath, as a future mimic would have written it */
+    MDB_env *env;
+    MDB_txn *txn;
+    MDB_dbi dbi;
+    assert_int_equal(mdb_env_create(&env), 0);
+    mdb_env_set_maxdbs(env, 16);
+    assert_int_equal(mdb_env_open(env, store, 0, 0664), 0);
+    assert_int_equal(mdb_txn_begin(env, NULL, 0, &txn), 0);
+    assert_int_equal(mdb_dbi_open(txn, "meta", 0, &dbi), 0);
+    uint64_t v = 99;
+    MDB_val k = {14, "schema_version"}, d = {8, &v};
+    assert_int_equal(mdb_put(txn, dbi, &k, &d, 0), 0);
+    assert_int_equal(mdb_txn_commit(txn), 0);
+    mdb_env_close(env);
+
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), MIM_ESCHEMA);
+    assert_null(db);
+    assert_non_null(strstr(err.msg, "schema version 99"));
+    assert_non_null(strstr(err.msg, store));
+    /* and through the command line: one clear line, no crash */
+    char *out = NULL, *errs = NULL;
+    const char *args[] = {"info", "--store", store, NULL};
+    assert_int_equal(ts_run_mimic(&out, &errs, args), 2);
+    assert_non_null(strstr(errs, "schema version 99"));
+    free(out), free(errs), free(store);
+}
+
+static void test_not_a_store(void **s)
+{
+    (void)s;
+    mim_db_t *db;
+    mim_error_t err = {0};
+    char *d = ts_path(dir, "garbage");
+    mkdir(d, 0755);
+    char *f = ts_path(d, "data.mdb");
+    char junk[8192];
+    for (size_t i = 0; i < sizeof junk; i++) junk[i] = (char)(i * 7 + 3);
+    ts_write_file(f, junk, sizeof junk);
+    int rc = mim_db_open(&db, d, NULL, &err);
+    assert_true(rc == MIM_ESTORE);
+    assert_non_null(strstr(err.msg, d));
+    assert_null(db);
+    /* a file where a folder should be */
+    mim_error_clear(&err);
+    assert_int_equal(mim_db_open(&db, f, NULL, &err), MIM_EINVAL);
+    /* read-only open of nothing */
+    mim_db_options_t ro = {.read_only = 1};
+    char *missing = ts_path(dir, "missing");
+    mim_error_clear(&err);
+    assert_int_equal(mim_db_open(&db, missing, &ro, &err), MIM_ENOTFOUND);
+    assert_non_null(strstr(err.msg, "missing"));
+    free(missing), free(f), free(d);
+}
+
+/* n perturbed spheres of one connectivity + landmarks.json; returns the folder. */
+static char *make_dataset(const char *name, int n, uint32_t rings)
+{
+    char *d = ts_path(dir, name);
+    mkdir(d, 0755);
+    for (int i = 0; i < n; i++) {
+        ts_polymesh_t m;
+        ts_sphere(&m, rings, 2 * rings, 0.4f + 0.001f * (float)i);
+        char fn[64];
+        snprintf(fn, sizeof fn, "ball_%04d.ply", i);
+        char *p = ts_path(d, fn);
+        ts_write_ply_binary(p, &m);
+        free(p);
+        ts_polymesh_free(&m);
+    }
+    char *p = ts_path(d, "landmarks.json");
+    const char *lm = "{\"landmarks\":[{\"name\":\"a\",\"vertex\":0},{\"name\":\"b\",\"vertex\":1},"
+                     "{\"name\":\"c\",\"vertex\":2},{\"name\":\"d\",\"vertex\":3}]}";
+    ts_write_file(p, lm, strlen(lm));
+    free(p);
+    return d;
+}
+
+static uint64_t store_count(const char *store)
+{
+    mim_db_t *db;
+    mim_db_options_t ro = {.read_only = 1};
+    if (mim_db_open(&db, store, &ro, NULL)) return 0;
+    mim_db_txn_t *t;
+    mim_db_meta_t meta = {0};
+    if (!mim_db_begin(db, 0, &t, NULL)) {
+        mim_db_meta_get(t, &meta, NULL);
+        mim_db_abort(&t);
+    }
+    mim_db_close(&db);
+    return meta.templates;
+}
+
+typedef struct {
+    uint64_t n, bad;
+} verify_t;
+
+static int verify_one(const mim_template_view_t *v, void *user)
+{
+    verify_t *vt = user;
+    vt->n++;
+    if (mim_db_content_hash(v->positions, v->n_vertices) != v->content_hash) vt->bad++;
+    return 0;
+}
+
+/* A reader process: snapshots must be whole and counts never go back. */
+static int reader_loop(const char *store, double seconds)
+{
+    mim_db_t *db = NULL;
+    mim_db_options_t ro = {.read_only = 1};
+    double t0 = mim_now();
+    while (!db && mim_now() - t0 < 10)
+        if (mim_db_open(&db, store, &ro, NULL)) usleep(1000);
+    if (!db) return 3;
+    uint64_t last = 0, distinct = 0, rounds = 0;
+    while (mim_now() - t0 < seconds) {
+        mim_db_txn_t *t;
+        if (mim_db_begin(db, 0, &t, NULL)) return 4;
+        mim_db_meta_t meta;
+        verify_t vt = {0, 0};
+        if (mim_db_meta_get(t, &meta, NULL) || mim_db_template_each(t, verify_one, &vt, NULL)) return 5;
+        mim_db_abort(&t);
+        if (vt.bad || vt.n != meta.templates) return 6; /* torn or inconsistent snapshot */
+        if (meta.templates < last) return 7;
+        if (meta.templates != last) distinct++;
+        last = meta.templates;
+        rounds++;
+        if (last >= 400) break;
+    }
+    mim_db_close(&db);
+    return distinct >= 2 && rounds >= 2 ? 0 : 8;
+}
+
+static void test_readers_while_writing(void **s)
+{
+    (void)s;
+    char *data = make_dataset("conc", 400, 24);
+    char *store = ts_path(dir, "conc_store");
+    /* create the store first so readers can open it at once */
+    mim_db_t *db;
+    assert_int_equal(mim_db_open(&db, store, NULL, NULL), 0);
+    mim_db_close(&db);
+    pid_t readers[2];
+    for (int r = 0; r < 2; r++) {
+        readers[r] = fork();
+        if (readers[r] == 0) _exit(reader_loop(store, 60));
+    }
+    char *out = NULL, *errs = NULL;
+    const char *args[] = {"ingest", "--store", store, "--batch", "2", data, NULL};
+    int rc = ts_run_mimic(&out, &errs, args);
+    if (rc) fprintf(stderr, "%s\n%s\n", out, errs);
+    assert_int_equal(rc, 0);
+    for (int r = 0; r < 2; r++) {
+        int st;
+        waitpid(readers[r], &st, 0);
+        assert_true(WIFEXITED(st));
+        if (WEXITSTATUS(st)) fprintf(stderr, "reader %d exited %d\n", r, WEXITSTATUS(st));
+        assert_int_equal(WEXITSTATUS(st), 0);
+    }
+    assert_int_equal(store_count(store), 400);
+    free(out), free(errs), free(store), free(data);
+}
+
+typedef struct {
+    char **names;
+    uint64_t n, bad;
+} sources_t;
+
+static int collect(const mim_template_view_t *v, void *user)
+{
+    sources_t *s = user;
+    if (mim_db_content_hash(v->positions, v->n_vertices) != v->content_hash) s->bad++;
+    s->names[s->n++] = strdup(strrchr(v->source, '/') + 1);
+    return 0;
+}
+
+static void test_kill_during_ingest(void **s)
+{
+    (void)s;
+    enum { N = 600, BATCH = 3 };
+    char *data = make_dataset("kill", N, 32);
+    char *store = ts_path(dir, "kill_store");
+    pid_t pid = fork();
+    if (pid == 0) {
+        int null = open("/dev/null", 1);
+        dup2(null, 1), dup2(null, 2);
+        execl(ts_mimic_bin(), ts_mimic_bin(), "ingest", "--store", store, "--batch", "3", data, (char *)NULL);
+        _exit(127);
+    }
+    /* kill it once some batches are committed, while it is still going */
+    double t0 = mim_now();
+    uint64_t seen = 0;
+    while (mim_now() - t0 < 60 && (seen = store_count(store)) < 4 * BATCH) usleep(500);
+    kill(pid, SIGKILL);
+    int st;
+    waitpid(pid, &st, 0);
+    assert_true(WIFSIGNALED(st));
+    assert_int_equal(WTERMSIG(st), SIGKILL);
+
+    /* the store opens, and holds exactly whole batches, in file order, intact */
+    mim_db_t *db;
+    mim_error_t err = {0};
+    mim_db_options_t ro = {.read_only = 1};
+    assert_int_equal(mim_db_open(&db, store, &ro, &err), 0);
+    mim_db_txn_t *t;
+    assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    sources_t src = {calloc(N, sizeof(char *)), 0, 0};
+    assert_int_equal(mim_db_template_each(t, collect, &src, &err), 0);
+    mim_db_abort(&t);
+    mim_db_close(&db);
+    fprintf(stderr, "killed after %llu committed templates of %d\n", (unsigned long long)src.n, N);
+    assert_true(src.n >= seen);
+    assert_true(src.n < N); /* it really was cut part-way */
+    assert_int_equal(src.n % BATCH, 0);
+    assert_int_equal(src.bad, 0);
+    for (uint64_t i = 0; i < src.n; i++) {
+        char want[64];
+        snprintf(want, sizeof want, "ball_%04llu.ply", (unsigned long long)i);
+        assert_string_equal(src.names[i], want);
+        free(src.names[i]);
+    }
+    free(src.names);
+
+    /* a re-run completes the work */
+    char *out = NULL, *errs = NULL;
+    const char *args[] = {"ingest", "--store", store, data, NULL};
+    assert_int_equal(ts_run_mimic(&out, &errs, args), 0);
+    assert_int_equal(store_count(store), N);
+    assert_non_null(strstr(out, "already stored"));
+    free(out), free(errs), free(store), free(data);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_round_trip),
+        cmocka_unit_test(test_dedupe),
+        cmocka_unit_test(test_schema_mismatch),
+        cmocka_unit_test(test_not_a_store),
+        cmocka_unit_test(test_readers_while_writing),
+        cmocka_unit_test(test_kill_during_ingest),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
