@@ -1,0 +1,124 @@
+/* core/: error texts and contexts, hashing, math, landmark maps. */
+#include "test_support.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static void test_errors(void **s)
+{
+    (void)s;
+    for (int c = MIM_EINVAL; c < MIM_ELAST_; c++) {
+        assert_non_null(mim_strerror(c));
+        assert_string_not_equal(mim_strerror(c), "unknown error");
+    }
+    assert_string_equal(mim_strerror(-2), "No such file or directory");
+    mim_error_t e = {0};
+    assert_int_equal(mim_error_set(&e, MIM_EFORMAT, "%s:%d: bad\nthing", "f.ply", 3), MIM_EFORMAT);
+    assert_string_equal(e.msg, "f.ply:3: bad thing"); /* one line */
+    mim_error_set(&e, MIM_EIO, "second");                /* the first error is kept */
+    assert_int_equal(e.code, MIM_EFORMAT);
+    assert_string_equal(mim_error_text(&e), "f.ply:3: bad thing");
+    mim_error_clear(&e);
+    assert_int_equal(e.code, 0);
+    assert_int_equal(mim_error_set(NULL, MIM_EIO, "x"), MIM_EIO);
+}
+
+static void test_hash(void **s)
+{
+    (void)s;
+    unsigned char buf[1000];
+    for (int i = 0; i < 1000; i++) buf[i] = (unsigned char)(i * 31 + 7);
+    uint64_t h = mim_hash64(buf, sizeof buf, 0);
+    assert_int_equal(h, mim_hash64(buf, sizeof buf, 0));
+    assert_int_not_equal(h, mim_hash64(buf, sizeof buf, 1));
+    /* every single-bit change of every length changes the hash */
+    for (size_t len = 0; len <= 40; len++) {
+        uint64_t base = mim_hash64(buf, len, 0);
+        for (size_t bit = 0; bit < len * 8; bit++) {
+            buf[bit / 8] ^= (unsigned char)(1u << (bit % 8));
+            assert_int_not_equal(mim_hash64(buf, len, 0), base);
+            buf[bit / 8] ^= (unsigned char)(1u << (bit % 8));
+        }
+        if (len) assert_int_not_equal(base, mim_hash64(buf, len - 1, 0));
+    }
+}
+
+static void test_quaternions(void **s)
+{
+    (void)s;
+    mim_quat q = mim_quat_axis_angle(mim_v3(0, 0, 1), M_PI / 2);
+    mim_vec3 v = mim_quat_rotate(q, mim_v3(1, 0, 0));
+    assert_true(fabs(v.x) < 1e-12 && fabs(v.y - 1) < 1e-12 && fabs(v.z) < 1e-12);
+    /* mul applies the right factor first */
+    mim_quat r = mim_quat_axis_angle(mim_v3(1, 0, 0), M_PI / 2);
+    mim_vec3 a = mim_quat_rotate(mim_quat_mul(q, r), mim_v3(0, 1, 0));
+    mim_vec3 b = mim_quat_rotate(q, mim_quat_rotate(r, mim_v3(0, 1, 0)));
+    assert_true(mim_v3_norm(mim_v3_sub(a, b)) < 1e-12);
+    mim_quat h = mim_quat_slerp(mim_quat_identity(), q, 0.5);
+    v = mim_quat_rotate(h, mim_v3(1, 0, 0));
+    assert_true(fabs(v.x - cos(M_PI / 4)) < 1e-12 && fabs(v.y - sin(M_PI / 4)) < 1e-12);
+}
+
+static void test_landmarks(void **s)
+{
+    (void)s;
+    uint32_t v[16];
+    for (int i = 0; i < 16; i++) v[i] = (uint32_t)(100 + i);
+    mim_landmark_map_t m, back;
+    mim_landmarks_default(&m, v, 5000);
+    char *json = mim_landmarks_to_json(&m);
+    mim_error_t e = {0};
+    assert_int_equal(mim_landmarks_parse(&back, json, strlen(json), "mem", &e), 0);
+    assert_int_equal(back.count, 16);
+    assert_int_equal(back.topology_vertices, 5000);
+    for (int i = 0; i < 16; i++) {
+        assert_string_equal(back.names[i], mim_landmark_default_names[i]);
+        assert_int_equal(back.vertex[i], v[i]);
+        assert_int_equal(back.mirror[back.mirror[i]], (uint32_t)i);
+    }
+    assert_int_equal(back.mirror[5], 6); /* l_elbow <-> r_elbow */
+    free(json);
+    assert_int_equal(mim_landmarks_validate(&m, 110, "mem", &e), MIM_EINDEX);
+    assert_non_null(strstr(e.msg, "'r_hip' is vertex 110"));
+
+    struct { const char *text; int code; const char *phrase; } bad[] = {
+        {"{\"landmarks\": [1, 2", MIM_EFORMAT, "mem:1:"},
+        {"{\"landmarks\": []}", MIM_EFORMAT, "needs 4"},
+        {"{\"landmarks\": [{\"name\":\"a\",\"vertex\":1},{\"name\":\"b\",\"vertex\":2},{\"name\":\"c\",\"vertex\":3},"
+         "{\"name\":\"d\",\"vertex\":-4}]}", MIM_EFORMAT, "'d' needs a non-negative integer"},
+        {"{\"landmarks\": [{\"name\":\"a\",\"vertex\":1},{\"name\":\"b\",\"vertex\":2},{\"name\":\"c\",\"vertex\":3},"
+         "{\"name\":\"d\",\"vertex\":4}], \"mirror\": [1, 2, 0, 3]}", MIM_EFORMAT, "not a pairing"},
+        {"{\"landmarks\": [{\"name\":\"a\",\"vertex\":1},{\"name\":\"a\",\"vertex\":2},{\"name\":\"c\",\"vertex\":3},"
+         "{\"name\":\"d\",\"vertex\":4}]}", MIM_EFORMAT, "appears twice"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        mim_error_clear(&e);
+        assert_int_equal(mim_landmarks_parse(&back, bad[i].text, strlen(bad[i].text), "mem", &e), bad[i].code);
+        if (!strstr(e.msg, bad[i].phrase)) fprintf(stderr, "got: %s\n", e.msg);
+        assert_non_null(strstr(e.msg, bad[i].phrase));
+    }
+    /* any count >= 4 works; without a mirror table l_/r_ pairs are found by name */
+    const char *five = "{\"landmarks\": [{\"name\":\"nose\",\"vertex\":1},{\"name\":\"l_eye\",\"vertex\":2},"
+                       "{\"name\":\"r_eye\",\"vertex\":3},{\"name\":\"l_ear\",\"vertex\":4},{\"name\":\"r_ear\",\"vertex\":5}]}";
+    assert_int_equal(mim_landmarks_parse(&back, five, strlen(five), "mem", &e), 0);
+    assert_int_equal(back.count, 5);
+    assert_int_equal(back.mirror[0], 0);
+    assert_int_equal(back.mirror[1], 2);
+    assert_int_equal(back.mirror[4], 3);
+    mim_error_clear(&e);
+    assert_int_equal(mim_landmarks_read(&back, "/nonexistent/landmarks.json", &e), MIM_ENOTFOUND);
+    assert_non_null(strstr(e.msg, "/nonexistent/landmarks.json"));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_errors),
+        cmocka_unit_test(test_hash),
+        cmocka_unit_test(test_quaternions),
+        cmocka_unit_test(test_landmarks),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
