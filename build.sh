@@ -4,6 +4,7 @@
 #   ./build.sh test   install what is missing, build, run the whole test suite
 #                     (a -Werror build, then an ASan+UBSan build)
 #   ./build.sh build  install what is missing and build (build/cli/mimic)
+#   ./build.sh fuzz [SECONDS]  libFuzzer harnesses (clang), each for SECONDS (default 60)
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -61,5 +62,14 @@ case "$cmd" in
     configure_build build-asan -DMIM_WERROR=ON -DMIM_SANITIZE=ON -DCMAKE_BUILD_TYPE=Debug
     ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 run_tests build-asan
     ;;
-  *) echo "usage: ./build.sh demo|test|build" >&2; exit 2 ;;
+  fuzz)
+    PACKAGES+=(clang libclang-rt-14-dev)
+    install_deps
+    CC=clang CXX=clang++ configure_build build-fuzz -DMIM_FUZZ=ON -DMIM_SANITIZE=ON -DCMAKE_BUILD_TYPE=Debug
+    for f in build-fuzz/tests/fuzz_*; do
+      mkdir -p "build-fuzz/corpus/$(basename "$f")"
+      "$f" -max_total_time="${2:-60}" -rss_limit_mb=4096 -max_len=65536 "build-fuzz/corpus/$(basename "$f")"
+    done
+    ;;
+  *) echo "usage: ./build.sh demo|test|build|fuzz [SECONDS]" >&2; exit 2 ;;
 esac

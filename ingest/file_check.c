@@ -33,6 +33,17 @@ static uint64_t ply_type_size(const char *t)
     return 0;
 }
 
+/* Splits a header line into at most 8 words; 0 words for a blank line. */
+static int split_words(char *line, char **w, int max)
+{
+    int n = 0;
+    char *save = NULL;
+    for (char *t = strtok_r(line, " \t\r", &save); t && n < max; t = strtok_r(NULL, " \t\r", &save)) w[n++] = t;
+    return n;
+}
+
+/* The PLY header is checked strictly before OpenMesh sees it: its header
+ * parser crashes on some malformed headers. */
 static int parse_ply(const char *path, const unsigned char *head, size_t len, mim__decl_t *d, mim_error_t *err)
 {
     const char *s = (const char *)head, *end = s + len;
@@ -42,7 +53,8 @@ static int parse_ply(const char *path, const unsigned char *head, size_t len, mi
             eh = p;
             break;
         }
-    if (len < 4 || memcmp(s, "ply", 3) != 0) return mim_error_set(err, MIM_EFORMAT, "%s: not a PLY file (no 'ply' magic)", path);
+    if (len < 4 || memcmp(s, "ply", 3) != 0 || (s[3] != '\n' && s[3] != '\r'))
+        return mim_error_set(err, MIM_EFORMAT, "%s: not a PLY file (no 'ply' magic line)", path);
     if (!eh) {
         if (d->file_bytes <= len)
             return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: PLY header has no end_header", path);
@@ -52,42 +64,71 @@ static int parse_ply(const char *path, const unsigned char *head, size_t len, mi
     if (!nl) return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: PLY header has no end_header line end", path);
     d->header_bytes = (uint64_t)(nl + 1 - s);
 
-    /* element/property lines between magic and end_header */
-    char line[512];
-    const char *p = s;
     enum { NONE, VERT, FACE, OTHER } cur = NONE;
-    int face_lists = 0, other_lists = 0;
+    int face_lists = 0, other_lists = 0, have_format = 0, xyz = 0, line_no = 0;
     d->sizes_known = 1;
+    const char *p = s;
     while (p < eh) {
         const char *q = memchr(p, '\n', (size_t)(eh - p));
         if (!q) q = eh;
-        size_t n = (size_t)(q - p) < sizeof line - 1 ? (size_t)(q - p) : sizeof line - 1;
-        memcpy(line, p, n);
-        line[n] = 0;
-        if (n && line[n - 1] == '\r') line[n - 1] = 0;
+        line_no++;
+        char line[512];
+        if ((size_t)(q - p) >= sizeof line)
+            return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d is too long", path, line_no);
+        memcpy(line, p, (size_t)(q - p));
+        line[q - p] = 0;
         p = q + 1;
-        char a[64] = "", b[64] = "", c[64] = "", e[64] = "";
-        long long cnt = 0;
-        if (strncmp(line, "format ", 7) == 0) {
-            d->binary = strstr(line, "binary") != NULL;
-        } else if (sscanf(line, "element %63s %lld", a, &cnt) == 2) {
-            if (cnt < 0) return mim_error_set(err, MIM_EFORMAT, "%s: PLY element '%s' has a negative count", path, a);
-            if (strcmp(a, "vertex") == 0) cur = VERT, d->n_vertices = cnt;
-            else if (strcmp(a, "face") == 0) cur = FACE, d->n_faces = cnt;
-            else cur = OTHER, d->other_bytes = 0, d->sizes_known = d->sizes_known && cnt == 0;
-        } else if (sscanf(line, "property list %63s %63s %63s", a, b, c) == 3) {
-            uint64_t cs = ply_type_size(a), is = ply_type_size(b);
-            if (!cs || !is) return mim_error_set(err, MIM_EFORMAT, "%s: PLY property type '%s' unknown", path, !cs ? a : b);
+        for (char *c = line; *c; c++)
+            if ((unsigned char)*c < 32 && *c != '\t' && *c != '\r')
+                return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d has a control character", path, line_no);
+        char *w[8];
+        int n = split_words(line, w, 8);
+        if (n == 0 || line_no == 1) continue; /* "ply" */
+        if (!strcmp(w[0], "comment") || !strcmp(w[0], "obj_info")) continue;
+        if (!strcmp(w[0], "format")) {
+            if (n != 3 || (strcmp(w[1], "ascii") && strcmp(w[1], "binary_little_endian") && strcmp(w[1], "binary_big_endian")))
+                return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d: unknown format", path, line_no);
+            d->binary = strcmp(w[1], "ascii") != 0;
+            have_format = 1;
+        } else if (!strcmp(w[0], "element")) {
+            char *e;
+            long long cnt = n == 3 ? strtoll(w[2], &e, 10) : -1;
+            if (n != 3 || *e || cnt < 0 || cnt > (1LL << 31))
+                return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d: expected 'element NAME COUNT'", path, line_no);
+            if (!strcmp(w[1], "vertex")) cur = VERT, d->n_vertices = cnt;
+            else if (!strcmp(w[1], "face")) cur = FACE, d->n_faces = cnt;
+            else cur = OTHER, d->sizes_known = d->sizes_known && cnt == 0;
+        } else if (!strcmp(w[0], "property") && n >= 2 && !strcmp(w[1], "list")) {
+            if (n != 5 || cur == NONE)
+                return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d: expected 'property list TYPE TYPE NAME' after an element",
+                                     path, line_no);
+            uint64_t cs = ply_type_size(w[2]), is = ply_type_size(w[3]);
+            if (!cs || !is) return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d: unknown type", path, line_no);
             if (cur == FACE && !face_lists++) d->face_fixed_bytes += cs, d->index_bytes = is;
             else other_lists = 1;
-        } else if (sscanf(line, "property %63s %63s", a, e) == 2) {
-            uint64_t ts = ply_type_size(a);
-            if (!ts) return mim_error_set(err, MIM_EFORMAT, "%s: PLY property type '%s' unknown", path, a);
-            if (cur == VERT) d->vertex_bytes += ts;
-            else if (cur == FACE) d->face_fixed_bytes += ts;
+        } else if (!strcmp(w[0], "property")) {
+            uint64_t ts = n == 3 ? ply_type_size(w[1]) : 0;
+            if (!ts || cur == NONE)
+                return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d: expected 'property TYPE NAME' after an element",
+                                     path, line_no);
+            if (cur == VERT) {
+                d->vertex_bytes += ts;
+                if (!strcmp(w[2], "x")) xyz |= 1;
+                if (!strcmp(w[2], "y")) xyz |= 2;
+                if (!strcmp(w[2], "z")) xyz |= 4;
+            } else if (cur == FACE) {
+                d->face_fixed_bytes += ts;
+            }
+        } else {
+            return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d: unknown keyword '%.32s'", path, line_no, w[0]);
         }
     }
-    if (other_lists || face_lists != 1) d->sizes_known = 0;
+    if (!have_format) return mim_error_set(err, MIM_EFORMAT, "%s: PLY header has no format line", path);
+    if (d->n_vertices < 0 || xyz != 7)
+        return mim_error_set(err, MIM_EFORMAT, "%s: PLY header needs a vertex element with x, y and z", path);
+    if (d->n_faces >= 0 && face_lists != 1)
+        return mim_error_set(err, MIM_EFORMAT, "%s: PLY face element needs one list of vertex indices", path);
+    if (other_lists) d->sizes_known = 0;
     return 0;
 }
 
@@ -288,4 +329,40 @@ int mim__off_ascii_complete(const char *text, size_t len, int64_t nv, int64_t nf
         p = eol + 1;
     }
     return v == nv && f == nf;
+}
+
+uint64_t mim__obj_bad_face_line(const char *text, size_t len)
+{
+    /* Each "f" line needs >= 3 references "v", "v/vt", "v//vn" or "v/vt/vn"
+     * with v a (possibly negative) integer. OpenMesh's OBJ reader asserts on
+     * a face without usable references, so such a file must not reach it. */
+    const char *p = text, *end = text + len;
+    uint64_t line = 1;
+    while (p < end) {
+        const char *eol = memchr(p, '\n', (size_t)(end - p));
+        if (!eol) eol = end;
+        const char *q = p;
+        while (q < eol && (*q == ' ' || *q == '\t')) q++;
+        if (eol - q >= 2 && q[0] == 'f' && (q[1] == ' ' || q[1] == '\t')) {
+            int refs = 0;
+            q += 2;
+            while (q < eol) {
+                while (q < eol && isspace((unsigned char)*q)) q++;
+                if (q >= eol) break;
+                const char *w = q;
+                while (q < eol && !isspace((unsigned char)*q)) q++;
+                const char *d = w;
+                if (d < q && *d == '-') d++;
+                if (d >= q || !isdigit((unsigned char)*d)) return line;
+                while (d < q && isdigit((unsigned char)*d)) d++;
+                for (; d < q; d++) /* the rest: /vt, //vn, /vt/vn */
+                    if (*d != '/' && *d != '-' && !isdigit((unsigned char)*d)) return line;
+                refs++;
+            }
+            if (refs < 3) return line;
+        }
+        p = eol + 1;
+        line++;
+    }
+    return 0;
 }

@@ -31,6 +31,9 @@ uint64_t mim__text_nonfinite(const char *text, size_t len, int format, const cha
 int mim__obj_last_line_cut(const char *text, size_t len);
 /* ASCII OFF: 1 if all declared vertex and face lines are there and whole. */
 int mim__off_ascii_complete(const char *text, size_t len, int64_t nv, int64_t nf);
+/* OBJ: the 1-based line of the first face line without 3 well-formed
+ * vertex references, or 0. */
+uint64_t mim__obj_bad_face_line(const char *text, size_t len);
 /* ASCII STL: 1 if the file closes with endsolid. */
 int mim__stl_ascii_complete(const char *text, size_t len);
 

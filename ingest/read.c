@@ -134,6 +134,9 @@ int mim_mesh_read(const char *path, mim_mesh_t *out, mim_error_t *err)
                                (unsigned long long)line, tok);
         else if (fmt == FMT_OBJ && mim__obj_last_line_cut((const char *)buf, len))
             rc = mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: the last line stops part-way", path);
+        else if (fmt == FMT_OBJ && (line = mim__obj_bad_face_line((const char *)buf, len)))
+            rc = mim_error_set(err, MIM_EFORMAT, "%s:%llu: a face needs at least 3 vertex references like 7, 7/2 or 7//3",
+                               path, (unsigned long long)line);
         else if (fmt == FMT_OFF && memchr(buf, '#', len))
             /* OpenMesh's OFF reader takes a comment line for data and misreads the rest */
             rc = mim_error_set(err, MIM_EUNSUPPORTED, "%s: OFF with '#' comment lines is not supported; remove the comments",

@@ -237,6 +237,10 @@ static void test_unreadable(void **s)
     ts_write_file(p, "OFF\n# made by hand\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", 46);
     expect_error(p, MIM_EUNSUPPORTED, "comment");
     free(p);
+    p = ts_path(dir, "bad_face.obj"); /* OpenMesh would assert on this one */
+    ts_write_file(p, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf /2 3 1\n", 34);
+    expect_error(p, MIM_EFORMAT, "bad_face.obj:4: a face needs at least 3 vertex references");
+    free(p);
     p = ts_path(dir, "garbage.ply");
     ts_write_file(p, "this is not a ply file at all\n", 30);
     expect_error(p, MIM_EFORMAT, "PLY");
