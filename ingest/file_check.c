@@ -49,7 +49,8 @@ static int parse_ply(const char *path, const unsigned char *head, size_t len, mi
     const char *s = (const char *)head, *end = s + len;
     const char *eh = NULL;
     for (const char *p = s; p + 10 <= end; p++)
-        if (memcmp(p, "end_header", 10) == 0 && (p == s || p[-1] == '\n')) {
+        if (memcmp(p, "end_header", 10) == 0 && (p == s || p[-1] == '\n') &&
+            (p + 10 == end || p[10] == '\n' || (p[10] == '\r' && p + 11 < end && p[11] == '\n'))) {
             eh = p;
             break;
         }
@@ -86,8 +87,10 @@ static int parse_ply(const char *path, const unsigned char *head, size_t len, mi
         if (n == 0 || line_no == 1) continue; /* "ply" */
         if (!strcmp(w[0], "comment") || !strcmp(w[0], "obj_info")) continue;
         if (!strcmp(w[0], "format")) {
-            if (n != 3 || (strcmp(w[1], "ascii") && strcmp(w[1], "binary_little_endian") && strcmp(w[1], "binary_big_endian")))
-                return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d: unknown format", path, line_no);
+            if (n != 3 || strcmp(w[2], "1.0") ||
+                (strcmp(w[1], "ascii") && strcmp(w[1], "binary_little_endian") && strcmp(w[1], "binary_big_endian")))
+                return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d: expected 'format ascii|binary_little_endian|binary_big_endian 1.0'",
+                                     path, line_no);
             d->binary = strcmp(w[1], "ascii") != 0;
             have_format = 1;
         } else if (!strcmp(w[0], "element")) {

@@ -24,6 +24,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <mutex>
+#include <streambuf>
 #include <vector>
 
 namespace {
@@ -124,6 +125,13 @@ public:
 
 std::once_flag quiet_once;
 
+// A stream buffer that accepts and drops every character.
+class NullBuffer : public std::streambuf {
+protected:
+    int overflow(int c) override { return traits_type::not_eof(c); }
+    std::streamsize xsputn(const char *, std::streamsize n) override { return n; }
+};
+
 struct ReaderSet {
     _PLYReader_ ply;
     _OFFReader_ off;
@@ -167,10 +175,14 @@ extern "C" int mim__openmesh_read(const char *path, const char *format, mim__raw
     try {
         // OpenMesh reports on its own global streams, which are not
         // thread-safe; mimic reports every problem itself.
+        // Their multiplexing buffer also deadlocks on a long message (it
+        // re-locks its own mutex when it overflows), which a malformed file
+        // can trigger; so the streams get a buffer that discards everything.
         std::call_once(quiet_once, [] {
-            omerr().disable();
-            omlog().disable();
-            omout().disable();
+            static NullBuffer sink;
+            omerr().rdbuf(&sink);
+            omlog().rdbuf(&sink);
+            omout().rdbuf(&sink);
         });
         ArrayImporter imp;
         Options opt;

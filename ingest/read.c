@@ -147,6 +147,27 @@ int mim_mesh_read(const char *path, mim_mesh_t *out, mim_error_t *err)
         else if (fmt == FMT_STL && !mim__stl_ascii_complete((const char *)buf, len))
             rc = mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: ASCII STL without its closing endsolid", path);
     }
+    /* Before the library reads: a body too short for the header's counts is
+     * truncated, and must not reach OpenMesh, which would loop over the
+     * declared counts on a failed stream. */
+    if (!rc && fmt == FMT_PLY && d.binary && d.sizes_known) {
+        uint64_t need = d.header_bytes + (uint64_t)d.n_vertices * d.vertex_bytes +
+                        (uint64_t)(d.n_faces > 0 ? d.n_faces : 0) * (d.face_fixed_bytes + 3 * d.index_bytes);
+        if (d.file_bytes < need)
+            rc = mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: %llu bytes, the header's %lld vertices and %lld faces need at least %llu",
+                               path, (unsigned long long)d.file_bytes, (long long)d.n_vertices, (long long)d.n_faces,
+                               (unsigned long long)need);
+    } else if (!rc && fmt == FMT_PLY && !d.binary) {
+        uint64_t lines = 0;
+        for (size_t i = d.header_bytes; i < len; i++) /* non-blank lines of the body */
+            if (buf[i] != '\n' && buf[i] != '\r' && buf[i] != ' ' && (i == d.header_bytes || buf[i - 1] == '\n')) lines++;
+        uint64_t want = (uint64_t)d.n_vertices + (uint64_t)(d.n_faces > 0 ? d.n_faces : 0);
+        if (lines < want)
+            rc = mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: header declares %lld vertices and %lld faces, the file has %llu lines of data",
+                               path, (long long)d.n_vertices, (long long)d.n_faces, (unsigned long long)lines);
+    } else if (!rc && fmt == FMT_OFF && d.binary) {
+        rc = mim_error_set(err, MIM_EUNSUPPORTED, "%s: binary OFF is not supported; use PLY", path);
+    }
     free(buf);
     if (rc) return rc;
 
