@@ -135,48 +135,14 @@ static int parse_ply(const char *path, const unsigned char *head, size_t len, mi
     return 0;
 }
 
+/* OFF: only whether it is "OFF BINARY"; the text layout is checked whole by
+ * mim__off_check once the file is read. */
 static int parse_off(const char *path, const unsigned char *head, size_t len, mim__decl_t *d, mim_error_t *err)
 {
-    /* "OFF" (or COFF, NOFF, ...), then nv nf ne; comments start with '#' */
-    const char *s = (const char *)head, *end = s + len;
-    long long nums[3];
-    int got = 0, magic = 0;
-    const char *p = s;
-    while (p < end && got < 3) {
-        while (p < end && isspace((unsigned char)*p)) p++;
-        if (p < end && *p == '#') {
-            while (p < end && *p != '\n') p++;
-            continue;
-        }
-        const char *t = p;
-        while (p < end && !isspace((unsigned char)*p)) p++;
-        if (p == t) break;
-        if (!magic) {
-            magic = 1;
-            if ((size_t)(p - t) >= 3 && memcmp(p - 3, "OFF", 3) == 0) {
-                /* "OFF BINARY": no text counts check */
-                const char *q = p;
-                while (q < end && (*q == ' ' || *q == '\t')) q++;
-                if (end - q >= 6 && memcmp(q, "BINARY", 6) == 0) d->binary = 1;
-                continue;
-            }
-        }
-        char tok[32];
-        size_t tl = (size_t)(p - t) < 31 ? (size_t)(p - t) : 31;
-        memcpy(tok, t, tl);
-        tok[tl] = 0;
-        char *ep;
-        long long v = strtoll(tok, &ep, 10);
-        if (*ep || v < 0) return mim_error_set(err, MIM_EFORMAT, "%s: OFF header: '%s' is not a count", path, tok);
-        nums[got++] = v;
-    }
-    if (d->binary) return 0;
-    if (got < 2) {
-        if (d->file_bytes <= len) return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: OFF header lacks its counts", path);
-        return mim_error_set(err, MIM_EFORMAT, "%s: OFF header lacks its counts", path);
-    }
-    d->n_vertices = nums[0];
-    d->n_faces = nums[1];
+    (void)path, (void)err;
+    const char *nl = memchr(head, '\n', len);
+    size_t n = nl ? (size_t)(nl - (const char *)head) : len;
+    d->binary = memmem(head, n, "BINARY", 6) != NULL;
     return 0;
 }
 
@@ -286,52 +252,88 @@ int mim__stl_ascii_complete(const char *text, size_t len)
     return memmem(text + from, len - from, "endsolid", 8) != NULL;
 }
 
-/* Counts the words of one line; *first gets the first word's value. */
-static int line_words(const char *p, const char *eol, long *first)
+static int is_number(const char *w, size_t n, int integer)
 {
-    int n = 0;
-    while (p < eol) {
-        while (p < eol && isspace((unsigned char)*p)) p++;
-        if (p >= eol) break;
-        if (n == 0) *first = strtol(p, NULL, 10);
-        n++;
-        while (p < eol && !isspace((unsigned char)*p)) p++;
-    }
-    return n;
+    char tmp[64];
+    if (n == 0 || n >= sizeof tmp) return 0;
+    memcpy(tmp, w, n);
+    tmp[n] = 0;
+    char *e;
+    if (integer) (void)strtoll(tmp, &e, 10);
+    else (void)strtod(tmp, &e);
+    return *e == 0;
 }
 
-int mim__off_ascii_complete(const char *text, size_t len, int64_t nv, int64_t nf)
+int mim__off_check(const char *path, const char *text, size_t len, mim__decl_t *d, mim_error_t *err)
 {
-    /* OpenMesh's OFF reader keeps going past the end of a short file, so the
-     * structure is checked here: after the counts line, nv vertex lines of
-     * at least 3 words, then nf face lines "k i1 .. ik". */
+    /* OpenMesh's OFF reader trusts the file: it loops over the declared
+     * counts past the end of a short file and allocates by any polygon size
+     * it reads. So the layout is checked here first: a line "[ST][C][N][4]OFF",
+     * a line "nv nf [ne]", nv lines of >= 3 numbers, nf lines "k i1 .. ik"
+     * with 3 <= k <= 256. Blank lines are allowed between them. */
     const char *p = text, *end = text + len;
-    int counts_seen = 0;
-    int64_t v = 0, f = 0;
-    while (p < end && f < nf) {
+    uint64_t line = 0;
+    int stage = 0; /* 0 magic, 1 counts, 2 vertices, 3 faces */
+    int64_t nv = 0, nf = 0, v = 0, f = 0;
+    while (p < end && !(stage == 3 && f == nf)) {
         const char *eol = memchr(p, '\n', (size_t)(end - p));
         if (!eol) eol = end;
-        long first = 0;
-        int words = line_words(p, eol, &first);
-        if (words && !counts_seen) {
-            /* the magic line may carry the counts too: "OFF 8 6 0" */
-            if (strncmp(p, "OFF", 3) == 0 || (eol - p > 3 && memmem(p, (size_t)(eol - p), "OFF", 3))) {
-                if (words >= 3) counts_seen = 1;
-            } else {
-                counts_seen = 1;
-            }
-        } else if (words) {
-            if (v < nv) {
-                if (words < 3) return 0;
-                v++;
-            } else {
-                if (first < 1 || words < first + 1) return 0;
-                f++;
-            }
+        line++;
+        const char *w[260];
+        size_t wl[260];
+        int n = 0;
+        for (const char *q = p; q < eol && n < 260;) {
+            while (q < eol && isspace((unsigned char)*q)) q++;
+            if (q >= eol) break;
+            w[n] = q;
+            while (q < eol && !isspace((unsigned char)*q)) q++;
+            wl[n] = (size_t)(q - w[n]);
+            n++;
         }
+        int last = eol == end; /* a bad last line without its newline: the file was cut */
         p = eol + 1;
+        if (n == 0) continue;
+        if (stage == 0) {
+            if (n != 1 || wl[0] < 3 || wl[0] > 7 || memcmp(w[0] + wl[0] - 3, "OFF", 3))
+                return mim_error_set(err, MIM_EFORMAT, "%s:%llu: expected the OFF keyword alone on its line", path,
+                                     (unsigned long long)line);
+            stage = 1;
+        } else if (stage == 1) {
+            if ((n != 2 && n != 3) || !is_number(w[0], wl[0], 1) || !is_number(w[1], wl[1], 1))
+                return mim_error_set(err, MIM_EFORMAT, "%s:%llu: expected the counts 'vertices faces edges'", path,
+                                     (unsigned long long)line);
+            nv = strtoll(w[0], NULL, 10);
+            nf = strtoll(w[1], NULL, 10);
+            if (nv < 0 || nf < 0 || nv > (1LL << 28) || nf > (1LL << 28))
+                return mim_error_set(err, MIM_EFORMAT, "%s:%llu: counts out of range", path, (unsigned long long)line);
+            d->n_vertices = nv;
+            d->n_faces = nf;
+            stage = nv ? 2 : 3;
+        } else if (stage == 2) {
+            if (n < 3 || !is_number(w[0], wl[0], 0) || !is_number(w[1], wl[1], 0) || !is_number(w[2], wl[2], 0))
+                return last ? mim_error_set(err, MIM_ETRUNCATED, "%s:%llu: truncated in a vertex line", path, (unsigned long long)line)
+                            : mim_error_set(err, MIM_EFORMAT, "%s:%llu: a vertex line needs 3 numbers", path, (unsigned long long)line);
+            if (++v == nv) stage = 3;
+        } else {
+            long k = is_number(w[0], wl[0], 1) ? strtol(w[0], NULL, 10) : -1;
+            if (last && (k < 3 || n < k + 1))
+                return mim_error_set(err, MIM_ETRUNCATED, "%s:%llu: truncated in a face line", path, (unsigned long long)line);
+            if (k < 3 || k > 256 || n < k + 1)
+                return mim_error_set(err, MIM_EFORMAT, "%s:%llu: a face line needs 'k i1 .. ik' with 3 <= k <= 256", path,
+                                     (unsigned long long)line);
+            for (long i = 1; i <= k; i++)
+                if (!is_number(w[i], wl[i], 1))
+                    return mim_error_set(err, MIM_EFORMAT, "%s:%llu: face index '%.*s' is not an integer", path,
+                                         (unsigned long long)line, (int)(wl[i] < 20 ? wl[i] : 20), w[i]);
+            f++;
+        }
     }
-    return v == nv && f == nf;
+    if (stage < 2 && !(stage == 3))
+        return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: OFF header is incomplete", path);
+    if (v < nv || f < nf)
+        return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: header declares %lld vertices and %lld faces, file holds %lld and %lld",
+                             path, (long long)nv, (long long)nf, (long long)v, (long long)f);
+    return 0;
 }
 
 uint64_t mim__obj_bad_face_line(const char *text, size_t len)

@@ -29,8 +29,8 @@ uint64_t mim__text_nonfinite(const char *text, size_t len, int format, const cha
                              size_t token_size);
 /* OBJ: 1 if the last line is a vertex or face line cut short. */
 int mim__obj_last_line_cut(const char *text, size_t len);
-/* ASCII OFF: 1 if all declared vertex and face lines are there and whole. */
-int mim__off_ascii_complete(const char *text, size_t len, int64_t nv, int64_t nf);
+/* ASCII OFF: checks the whole layout (see file_check.c); sets the counts in d. */
+int mim__off_check(const char *path, const char *text, size_t len, mim__decl_t *d, mim_error_t *err);
 /* OBJ: the 1-based line of the first face line without 3 well-formed
  * vertex references, or 0. */
 uint64_t mim__obj_bad_face_line(const char *text, size_t len);

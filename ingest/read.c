@@ -141,9 +141,8 @@ int mim_mesh_read(const char *path, mim_mesh_t *out, mim_error_t *err)
             /* OpenMesh's OFF reader takes a comment line for data and misreads the rest */
             rc = mim_error_set(err, MIM_EUNSUPPORTED, "%s: OFF with '#' comment lines is not supported; remove the comments",
                                path);
-        else if (fmt == FMT_OFF && !mim__off_ascii_complete((const char *)buf, len, d.n_vertices, d.n_faces))
-            rc = mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: fewer than the %lld vertex and %lld face lines its header declares",
-                               path, (long long)d.n_vertices, (long long)d.n_faces);
+        else if (fmt == FMT_OFF)
+            rc = mim__off_check(path, (const char *)buf, len, &d, err);
         else if (fmt == FMT_STL && !mim__stl_ascii_complete((const char *)buf, len))
             rc = mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: ASCII STL without its closing endsolid", path);
     }
@@ -168,6 +167,9 @@ int mim_mesh_read(const char *path, mim_mesh_t *out, mim_error_t *err)
     } else if (!rc && fmt == FMT_OFF && d.binary) {
         rc = mim_error_set(err, MIM_EUNSUPPORTED, "%s: binary OFF is not supported; use PLY", path);
     }
+    if (!rc && (d.n_vertices == 0 || d.n_faces == 0))
+        rc = mim_error_set(err, MIM_EEMPTY, "%s: empty mesh: the header declares %lld vertices and %lld faces", path,
+                           (long long)d.n_vertices, (long long)d.n_faces);
     free(buf);
     if (rc) return rc;
 
