@@ -100,13 +100,17 @@ static int parse_ply(const char *path, const unsigned char *head, size_t len, mi
                 return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d: expected 'element NAME COUNT'", path, line_no);
             if (!strcmp(w[1], "vertex")) cur = VERT, d->n_vertices = cnt;
             else if (!strcmp(w[1], "face")) cur = FACE, d->n_faces = cnt;
-            else cur = OTHER, d->sizes_known = d->sizes_known && cnt == 0;
+            else cur = OTHER, d->sizes_known = d->sizes_known && cnt == 0, d->other_elements |= cnt > 0;
         } else if (!strcmp(w[0], "property") && n >= 2 && !strcmp(w[1], "list")) {
             if (n != 5 || cur == NONE)
                 return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d: expected 'property list TYPE TYPE NAME' after an element",
                                      path, line_no);
             uint64_t cs = ply_type_size(w[2]), is = ply_type_size(w[3]);
             if (!cs || !is) return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d: unknown type", path, line_no);
+            /* a face's vertex count must be small: OpenMesh allocates by it */
+            if (cur == FACE && cs > 2)
+                return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d: the face list count must be a uchar or ushort",
+                                     path, line_no);
             if (cur == FACE && !face_lists++) d->face_fixed_bytes += cs, d->index_bytes = is;
             else other_lists = 1;
         } else if (!strcmp(w[0], "property")) {
@@ -116,11 +120,13 @@ static int parse_ply(const char *path, const unsigned char *head, size_t len, mi
                                      path, line_no);
             if (cur == VERT) {
                 d->vertex_bytes += ts;
+                d->vertex_props++;
                 if (!strcmp(w[2], "x")) xyz |= 1;
                 if (!strcmp(w[2], "y")) xyz |= 2;
                 if (!strcmp(w[2], "z")) xyz |= 4;
             } else if (cur == FACE) {
                 d->face_fixed_bytes += ts;
+                d->face_fixed_props++;
             }
         } else {
             return mim_error_set(err, MIM_EFORMAT, "%s: PLY header line %d: unknown keyword '%.32s'", path, line_no, w[0]);
@@ -262,6 +268,67 @@ static int is_number(const char *w, size_t n, int integer)
     if (integer) (void)strtoll(tmp, &e, 10);
     else (void)strtod(tmp, &e);
     return *e == 0;
+}
+
+/* Words of one line, at most max. */
+static int words_of(const char *p, const char *eol, const char **w, size_t *wl, int max)
+{
+    int n = 0;
+    for (const char *q = p; q < eol && n < max;) {
+        while (q < eol && isspace((unsigned char)*q)) q++;
+        if (q >= eol) break;
+        w[n] = q;
+        while (q < eol && !isspace((unsigned char)*q)) q++;
+        wl[n] = (size_t)(q - w[n]);
+        n++;
+    }
+    return n;
+}
+
+int mim__ply_ascii_check(const char *path, const char *text, size_t len, const mim__decl_t *d, mim_error_t *err)
+{
+    /* OpenMesh's ASCII PLY reader trusts every count it reads (it allocated
+     * 4 GiB for one face), so the body is checked first: nv lines of exactly
+     * the vertex properties, then nf lines "k i1 .. ik [props]" with
+     * 3 <= k <= 255. */
+    if (d->other_elements)
+        return mim_error_set(err, MIM_EUNSUPPORTED, "%s: ASCII PLY with elements other than vertex and face", path);
+    const char *p = text + d->header_bytes, *end = text + len;
+    uint64_t line = 0;
+    for (const char *c = text; c < p; c++) line += *c == '\n';
+    int64_t v = 0, f = 0, nf = d->n_faces > 0 ? d->n_faces : 0;
+    while (p < end && (v < d->n_vertices || f < nf)) {
+        const char *eol = memchr(p, '\n', (size_t)(end - p));
+        if (!eol) eol = end;
+        line++;
+        const char *w[300];
+        size_t wl[300];
+        int n = words_of(p, eol, w, wl, 300), last = eol == end;
+        p = eol + 1;
+        if (n == 0) continue;
+        if (v < d->n_vertices) {
+            int ok = n == d->vertex_props;
+            for (int i = 0; ok && i < n; i++) ok = is_number(w[i], wl[i], 0);
+            if (!ok)
+                return last ? mim_error_set(err, MIM_ETRUNCATED, "%s:%llu: truncated in a vertex line", path, (unsigned long long)line)
+                            : mim_error_set(err, MIM_EFORMAT, "%s:%llu: a vertex line needs %d numbers", path,
+                                            (unsigned long long)line, d->vertex_props);
+            v++;
+        } else {
+            long k = is_number(w[0], wl[0], 1) ? strtol(w[0], NULL, 10) : -1;
+            int ok = k >= 3 && k <= 255 && n == k + 1 + d->face_fixed_props;
+            for (int i = 1; ok && i <= k; i++) ok = is_number(w[i], wl[i], 1);
+            if (!ok)
+                return last ? mim_error_set(err, MIM_ETRUNCATED, "%s:%llu: truncated in a face line", path, (unsigned long long)line)
+                            : mim_error_set(err, MIM_EFORMAT, "%s:%llu: a face line needs 'k i1 .. ik' with 3 <= k <= 255", path,
+                                            (unsigned long long)line);
+            f++;
+        }
+    }
+    if (v < d->n_vertices || f < nf)
+        return mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: header declares %lld vertices and %lld faces, file holds %lld and %lld",
+                             path, (long long)d->n_vertices, (long long)nf, (long long)v, (long long)f);
+    return 0;
 }
 
 int mim__off_check(const char *path, const char *text, size_t len, mim__decl_t *d, mim_error_t *err)

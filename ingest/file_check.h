@@ -17,6 +17,9 @@ typedef struct mim__decl {
     int sizes_known;
     uint64_t header_bytes, vertex_bytes, face_fixed_bytes, index_bytes, other_bytes;
     uint64_t file_bytes;
+    /* PLY: property counts, and whether elements other than vertex and face
+     * hold data */
+    int vertex_props, face_fixed_props, other_elements;
 } mim__decl_t;
 
 int mim__format_of(const char *path);
@@ -29,6 +32,8 @@ uint64_t mim__text_nonfinite(const char *text, size_t len, int format, const cha
                              size_t token_size);
 /* OBJ: 1 if the last line is a vertex or face line cut short. */
 int mim__obj_last_line_cut(const char *text, size_t len);
+/* ASCII PLY: checks the body layout (see file_check.c). */
+int mim__ply_ascii_check(const char *path, const char *text, size_t len, const mim__decl_t *d, mim_error_t *err);
 /* ASCII OFF: checks the whole layout (see file_check.c); sets the counts in d. */
 int mim__off_check(const char *path, const char *text, size_t len, mim__decl_t *d, mim_error_t *err);
 /* OBJ: the 1-based line of the first face line without 3 well-formed

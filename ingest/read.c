@@ -157,13 +157,7 @@ int mim_mesh_read(const char *path, mim_mesh_t *out, mim_error_t *err)
                                path, (unsigned long long)d.file_bytes, (long long)d.n_vertices, (long long)d.n_faces,
                                (unsigned long long)need);
     } else if (!rc && fmt == FMT_PLY && !d.binary) {
-        uint64_t lines = 0;
-        for (size_t i = d.header_bytes; i < len; i++) /* non-blank lines of the body */
-            if (buf[i] != '\n' && buf[i] != '\r' && buf[i] != ' ' && (i == d.header_bytes || buf[i - 1] == '\n')) lines++;
-        uint64_t want = (uint64_t)d.n_vertices + (uint64_t)(d.n_faces > 0 ? d.n_faces : 0);
-        if (lines < want)
-            rc = mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: header declares %lld vertices and %lld faces, the file has %llu lines of data",
-                               path, (long long)d.n_vertices, (long long)d.n_faces, (unsigned long long)lines);
+        rc = mim__ply_ascii_check(path, (const char *)buf, len, &d, err);
     } else if (!rc && fmt == FMT_OFF && d.binary) {
         rc = mim_error_set(err, MIM_EUNSUPPORTED, "%s: binary OFF is not supported; use PLY", path);
     }
