@@ -67,8 +67,10 @@ case "$cmd" in
     install_deps
     CC=clang CXX=clang++ configure_build build-fuzz -DMIM_FUZZ=ON -DMIM_SANITIZE=ON -DCMAKE_BUILD_TYPE=Debug
     for f in build-fuzz/tests/fuzz_*; do
-      mkdir -p "build-fuzz/corpus/$(basename "$f")"
-      "$f" -max_total_time="${2:-60}" -rss_limit_mb=4096 -max_len=65536 "build-fuzz/corpus/$(basename "$f")"
+      name=$(basename "$f")
+      mkdir -p "build-fuzz/corpus/$name"
+      cp -n tests/fuzz/seeds/"$name"/* "build-fuzz/corpus/$name/" 2>/dev/null || true
+      "$f" -max_total_time="${2:-60}" -timeout=10 -rss_limit_mb=4096 -max_len=65536 "build-fuzz/corpus/$name"
     done
     ;;
   *) echo "usage: ./build.sh demo|test|build|fuzz [SECONDS]" >&2; exit 2 ;;
