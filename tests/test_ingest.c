@@ -457,9 +457,8 @@ static void test_discover(void **s)
 static void test_mh_bodies(void **s)
 {
     (void)s;
-    const char *shared = getenv("MIMIC_SHARED_DATA");
     char path[4096];
-    snprintf(path, sizeof path, "%s/mh-bodies", shared ? shared : "../shared/data");
+    snprintf(path, sizeof path, "%s/mh-bodies", ts_shared_data());
     if (access(path, R_OK) != 0) skip();
     char *store = ts_path(dir, "mh");
     char manifest[4200];

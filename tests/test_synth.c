@@ -8,6 +8,7 @@
 #include <cmocka.h>
 
 #include "mim_synth.h"
+#include "test_support.h"
 
 #include <dirent.h>
 #include <ftw.h>
@@ -166,41 +167,22 @@ static void check_manifold(const uint32_t *f, uint32_t nf, uint32_t nv)
 
 static char *tempdir(const char *tag)
 {
-    const char *base = getenv("TMPDIR");
-    char *p = malloc(512);
+    char *p = ts_tempdir(tag);
     assert_non_null(p);
-    snprintf(p, 512, "%s/mimic-test-%s-XXXXXX", base && *base ? base : "/tmp", tag);
-    assert_non_null(mkdtemp(p));
     return p;
-}
-
-static int rm_one(const char *path, const struct stat *st, int flag, struct FTW *ftw)
-{
-    (void)st, (void)flag, (void)ftw;
-    return remove(path);
 }
 
 static void rmtree(char *dir)
 {
-    nftw(dir, rm_one, 16, FTW_DEPTH | FTW_PHYS);
+    ts_rmtree(dir);
     free(dir);
 }
 
 static char *slurp(const char *dir, const char *name, size_t *len)
 {
-    char path[1024];
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *b = malloc((size_t)n + 1);
-    assert_non_null(b);
-    assert_int_equal(fread(b, 1, (size_t)n, f), (size_t)n);
-    b[n] = 0;
-    fclose(f);
-    *len = (size_t)n;
+    char *path = ts_path(dir, name);
+    char *b = ts_read_file(path, len);
+    free(path);
     return b;
 }
 
@@ -701,28 +683,15 @@ static void test_errors(void **state)
     assert_string_equal(name, "synth_s123_p05.ply");
 }
 
-/* The command line, when the test runs with the mimic binary. */
+/* The command line through the mimic binary; output copied into the buffers. */
 static int run(const char *const *args, char *out, size_t on, char *err, size_t en)
 {
-    const char *bin = getenv("MIMIC_BIN");
-    char cmd[2048];
-    int n = snprintf(cmd, sizeof cmd, "'%s'", bin);
-    for (int i = 0; args[i]; i++) n += snprintf(cmd + n, sizeof cmd - (size_t)n, " '%s'", args[i]);
-    char of[64] = "/tmp/mimic-synth-outXXXXXX", ef[64] = "/tmp/mimic-synth-errXXXXXX";
-    int fo = mkstemp(of), fe = mkstemp(ef);
-    close(fo), close(fe);
-    snprintf(cmd + n, sizeof cmd - (size_t)n, " >%s 2>%s", of, ef);
-    int st = system(cmd);
-    FILE *f = fopen(of, "r");
-    size_t k = fread(out, 1, on - 1, f);
-    out[k] = 0;
-    fclose(f);
-    f = fopen(ef, "r");
-    k = fread(err, 1, en - 1, f);
-    err[k] = 0;
-    fclose(f);
-    remove(of), remove(ef);
-    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+    char *o = NULL, *e = NULL;
+    int rc = ts_run_mimic(&o, &e, args);
+    snprintf(out, on, "%s", o ? o : "");
+    snprintf(err, en, "%s", e ? e : "");
+    free(o), free(e);
+    return rc;
 }
 
 static int count_lines(const char *s)
@@ -735,8 +704,7 @@ static int count_lines(const char *s)
 static void test_cli(void **state)
 {
     (void)state;
-    const char *bin = getenv("MIMIC_BIN");
-    if (!bin || access(bin, X_OK) != 0) skip();
+    if (access(ts_mimic_bin(), X_OK) != 0) skip();
     char out[8192], err[8192];
     const char *help[] = {"synth", "--help", NULL};
     assert_int_equal(run(help, out, sizeof out, err, sizeof err), 0);

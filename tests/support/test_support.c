@@ -42,7 +42,7 @@ char *ts_path(const char *dir, const char *name)
 const char *ts_mimic_bin(void)
 {
     const char *b = getenv("MIMIC_BIN");
-    return b && *b ? b : "mimic";
+    return b && *b ? b : MIMIC_BIN_DEFAULT;
 }
 
 char *ts_read_file(const char *path, size_t *len)
@@ -98,4 +98,10 @@ int ts_run_mimic(char **out, char **err, const char *const *args)
     free(dir);
     if (WIFEXITED(status)) return WEXITSTATUS(status);
     return 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+}
+
+const char *ts_shared_data(void)
+{
+    const char *d = getenv("MIMIC_SHARED_DATA");
+    return d && *d ? d : MIMIC_SHARED_DATA_DEFAULT;
 }

@@ -21,6 +21,8 @@ char *ts_path(const char *dir, const char *name);
  * Captures stdout and stderr (malloc'd, NUL-terminated; may be NULL args). */
 int ts_run_mimic(char **out, char **err, const char *const *args);
 const char *ts_mimic_bin(void);
+/* ../shared/data beside the project ($MIMIC_SHARED_DATA overrides). */
+const char *ts_shared_data(void);
 
 /* Reads a whole file (malloc'd, NUL-terminated); NULL if it cannot. */
 char *ts_read_file(const char *path, size_t *len);
