@@ -29,10 +29,15 @@ install_deps() {
   fi
 }
 
-configure_build() { # dir, extra cmake args...
+configure_build() { # dir, extra cmake args...; the compiler's output is shown only on failure
   local dir=$1; shift
-  cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo "$@" >/dev/null
-  cmake --build "$dir" -j"$(nproc)"
+  echo "build.sh: building in $dir" >&2
+  mkdir -p "$dir"
+  if ! { cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo "$@" && cmake --build "$dir" -j"$(nproc)"; } > "$dir/build.log" 2>&1; then
+    cat "$dir/build.log" >&2
+    echo "build.sh: build failed in $dir (log: $dir/build.log)" >&2
+    exit 1
+  fi
 }
 
 run_tests() { # dir
