@@ -1,4 +1,5 @@
 /* mimic ingest: mesh files and folders into a template store. */
+#include "args.h"
 #include "commands.h"
 #include "mim_db.h"
 #include "mim_ingest.h"
@@ -28,15 +29,6 @@ static void help(FILE *out)
             "the ingest could not run.\n");
 }
 
-static int parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out)
-{
-    char *e;
-    unsigned long v = strtoul(s, &e, 10);
-    if (!*s || *e || v < lo || v > hi) return -1;
-    *out = (uint32_t)v;
-    return 0;
-}
-
 int mim_cmd_ingest(int argc, char **argv)
 {
     static const struct option longopts[] = {
@@ -50,22 +42,19 @@ int mim_cmd_ingest(int argc, char **argv)
     optind = 0;
     opterr = 0;
     int c;
+    uint64_t v;
     while ((c = getopt_long(argc, argv, "s:l:m:b:t:qh", longopts, NULL)) != -1) {
         switch (c) {
         case 's': store = optarg; break;
         case 'l': opt.landmarks_path = optarg; break;
         case 'm': opt.manifest_path = optarg; break;
         case 'b':
-            if (parse_u32(optarg, 1, 1000000, &opt.batch)) {
-                fprintf(stderr, "mimic ingest: --batch must be an integer 1..1000000, not '%s'\n", optarg);
-                return 2;
-            }
+            if (mim_cli_number("ingest", "batch", optarg, 1, 1000000, &v)) return 2;
+            opt.batch = (uint32_t)v;
             break;
         case 't':
-            if (parse_u32(optarg, 1, 256, &opt.threads)) {
-                fprintf(stderr, "mimic ingest: --threads must be an integer 1..256, not '%s'\n", optarg);
-                return 2;
-            }
+            if (mim_cli_number("ingest", "threads", optarg, 1, 256, &v)) return 2;
+            opt.threads = (uint32_t)v;
             break;
         case 'q': opt.quiet = 1; break;
         case 'h': help(stdout); return 0;

@@ -1,4 +1,5 @@
 /* mimic synth: write a dataset of synthetic human bodies (mim_synth.h). */
+#include "args.h"
 #include "commands.h"
 #include "mim_synth.h"
 
@@ -28,18 +29,6 @@ static void help(FILE *out)
             "  -h, --help      this help\n");
 }
 
-/* Parses a whole decimal number within [lo, hi]; no sign, no trailing text. */
-static int parse_u64(const char *s, uint64_t lo, uint64_t hi, uint64_t *out)
-{
-    if (!s || *s < '0' || *s > '9') return -1;
-    errno = 0;
-    char *end;
-    unsigned long long v = strtoull(s, &end, 10);
-    if (errno || *end || v < lo || v > hi) return -1;
-    *out = v;
-    return 0;
-}
-
 int mim_cmd_synth(int argc, char **argv)
 {
     static const struct option longopts[] = {
@@ -59,32 +48,19 @@ int mim_cmd_synth(int argc, char **argv)
             out = optarg;
             break;
         case 's':
-            if (parse_u64(optarg, 1, 1000, &v)) {
-                fprintf(stderr, "mimic synth: --subjects '%s' is not a number in 1..1000\n", optarg);
-                return 2;
-            }
+            if (mim_cli_number("synth", "subjects", optarg, 1, 1000, &v)) return 2;
             opt.subjects = (uint32_t)v;
             break;
         case 'p':
-            if (parse_u64(optarg, 1, 1000, &v)) {
-                fprintf(stderr, "mimic synth: --poses '%s' is not a number in 1..1000\n", optarg);
-                return 2;
-            }
+            if (mim_cli_number("synth", "poses", optarg, 1, 1000, &v)) return 2;
             opt.poses = (uint32_t)v;
             break;
         case 'n':
-            if (parse_u64(optarg, MIM_SYNTH_MIN_VERTICES, MIM_SYNTH_MAX_VERTICES, &v)) {
-                fprintf(stderr, "mimic synth: --vertices '%s' is not a number in %u..%u\n", optarg,
-                        MIM_SYNTH_MIN_VERTICES, MIM_SYNTH_MAX_VERTICES);
-                return 2;
-            }
+            if (mim_cli_number("synth", "vertices", optarg, MIM_SYNTH_MIN_VERTICES, MIM_SYNTH_MAX_VERTICES, &v)) return 2;
             opt.vertices = (uint32_t)v;
             break;
         case 'k':
-            if (parse_u64(optarg, 0, UINT64_MAX, &v)) {
-                fprintf(stderr, "mimic synth: --seed '%s' is not a number in 0..18446744073709551615\n", optarg);
-                return 2;
-            }
+            if (mim_cli_number("synth", "seed", optarg, 0, UINT64_MAX, &v)) return 2;
             opt.seed = v;
             break;
         case 'h':

@@ -5,13 +5,18 @@
 
 int mim_log_level = 1;
 
+static void vlog(const char *fmt, va_list ap)
+{
+    fputs("mimic: ", stderr);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+}
+
 void mim_log(const char *fmt, ...)
 {
     va_list ap;
     va_start(ap, fmt);
-    fputs("mimic: ", stderr);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
+    vlog(fmt, ap);
     va_end(ap);
 }
 
@@ -20,8 +25,6 @@ void mim_log_verbose(const char *fmt, ...)
     if (mim_log_level < 2) return;
     va_list ap;
     va_start(ap, fmt);
-    fputs("mimic: ", stderr);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
+    vlog(fmt, ap);
     va_end(ap);
 }

@@ -348,15 +348,7 @@ int mim__off_check(const char *path, const char *text, size_t len, mim__decl_t *
         line++;
         const char *w[260];
         size_t wl[260];
-        int n = 0;
-        for (const char *q = p; q < eol && n < 260;) {
-            while (q < eol && isspace((unsigned char)*q)) q++;
-            if (q >= eol) break;
-            w[n] = q;
-            while (q < eol && !isspace((unsigned char)*q)) q++;
-            wl[n] = (size_t)(q - w[n]);
-            n++;
-        }
+        int n = words_of(p, eol, w, wl, 260);
         int last = eol == end; /* a bad last line without its newline: the file was cut */
         p = eol + 1;
         if (n == 0) continue;

@@ -65,7 +65,7 @@ static void test_usage_errors(void **s)
     struct { const char *args[6]; const char *phrase; } cases[] = {
         {{"ingest", "x.ply", NULL}, "--store DIR is required"},
         {{"ingest", "--store", "/tmp/never-made", NULL}, "no PATH given"},
-        {{"ingest", "--store", "s", "--batch", "zero", NULL}, "--batch must be"},
+        {{"ingest", "--store", "s", "--batch", "zero", NULL}, "--batch 'zero' is not a number in 1..1000000"},
         {{"info", NULL}, "--store DIR is required"},
         {{"list", "--bogus", NULL}, "unknown or incomplete option '--bogus'"},
         {{"info", "--store", "/nonexistent/store", NULL}, "/nonexistent/store"},

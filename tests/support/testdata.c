@@ -79,11 +79,9 @@ void ts_triangulate(const ts_polymesh_t *m, mim_mesh_t *out)
     }
 }
 
-int ts_write_off(const char *path, const ts_polymesh_t *m)
+/* Vertex lines "x y z", then polygon lines "k i1 .. ik": the body of OFF and ASCII PLY. */
+static void write_text_body(FILE *f, const ts_polymesh_t *m)
 {
-    FILE *f = fopen(path, "w");
-    if (!f) return -1;
-    fprintf(f, "OFF\n%u %u 0\n", m->n_vertices, m->n_polys);
     for (uint32_t v = 0; v < m->n_vertices; v++)
         fprintf(f, "%.9g %.9g %.9g\n", m->pos[3 * v], m->pos[3 * v + 1], m->pos[3 * v + 2]);
     for (uint32_t p = 0, k = 0; p < m->n_polys; k += m->sizes[p++]) {
@@ -91,6 +89,14 @@ int ts_write_off(const char *path, const ts_polymesh_t *m)
         for (uint32_t c = 0; c < m->sizes[p]; c++) fprintf(f, " %u", m->idx[k + c]);
         fprintf(f, "\n");
     }
+}
+
+int ts_write_off(const char *path, const ts_polymesh_t *m)
+{
+    FILE *f = fopen(path, "w");
+    if (!f) return -1;
+    fprintf(f, "OFF\n%u %u 0\n", m->n_vertices, m->n_polys);
+    write_text_body(f, m);
     return fclose(f);
 }
 
@@ -106,13 +112,7 @@ int ts_write_ply_ascii(const char *path, const ts_polymesh_t *m)
     FILE *f = fopen(path, "w");
     if (!f) return -1;
     ply_header(f, m, "ascii");
-    for (uint32_t v = 0; v < m->n_vertices; v++)
-        fprintf(f, "%.9g %.9g %.9g\n", m->pos[3 * v], m->pos[3 * v + 1], m->pos[3 * v + 2]);
-    for (uint32_t p = 0, k = 0; p < m->n_polys; k += m->sizes[p++]) {
-        fprintf(f, "%u", m->sizes[p]);
-        for (uint32_t c = 0; c < m->sizes[p]; c++) fprintf(f, " %u", m->idx[k + c]);
-        fprintf(f, "\n");
-    }
+    write_text_body(f, m);
     return fclose(f);
 }
 

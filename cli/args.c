@@ -1,0 +1,23 @@
+/* Argument helpers shared by the subcommands. */
+#include "args.h"
+
+#include <errno.h>
+#include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+int mim_cli_number(const char *cmd, const char *name, const char *text, uint64_t lo, uint64_t hi, uint64_t *out)
+{
+    int ok = text && *text >= '0' && *text <= '9';
+    if (ok) {
+        errno = 0;
+        char *end;
+        unsigned long long v = strtoull(text, &end, 10);
+        ok = !errno && !*end && v >= lo && v <= hi;
+        if (ok) *out = v;
+    }
+    if (!ok)
+        fprintf(stderr, "mimic %s: --%s '%s' is not a number in %" PRIu64 "..%" PRIu64 "\n", cmd, name, text ? text : "",
+                lo, hi);
+    return ok ? 0 : -1;
+}

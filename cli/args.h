@@ -1,0 +1,12 @@
+/* Argument helpers shared by the subcommands. */
+#ifndef MIM_CLI_ARGS_H
+#define MIM_CLI_ARGS_H
+
+#include <stdint.h>
+
+/* Parses a whole decimal number in [lo, hi] (no sign, no trailing text) given
+ * to option --name of command cmd. On failure prints one line,
+ * "mimic CMD: --NAME 'TEXT' is not a number in LO..HI", and returns -1. */
+int mim_cli_number(const char *cmd, const char *name, const char *text, uint64_t lo, uint64_t hi, uint64_t *out);
+
+#endif
