@@ -247,6 +247,43 @@ static void test_unreadable(void **s)
     free(p);
 }
 
+/* Malformed files that must be stopped before the library reads them (each
+ * of these crashed, hung or asserted inside OpenMesh when fuzzed). */
+static void test_malformed(void **s)
+{
+    (void)s;
+    const char *hdr = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                      "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    char big[512];
+    struct { const char *name, *text; int code; const char *phrase; } cases[] = {
+        {"version.ply", "ply\nformat ascii 2.0\nelement vertex 0\nend_header\n", MIM_EFORMAT, "header line 2"},
+        {"keyword.ply", "ply\nformat ascii 1.0\nbogus line\nend_header\n", MIM_EFORMAT, "unknown keyword 'bogus'"},
+        {"control.ply", "ply\nformat ascii 1.0\ncomment a\x01b\nend_header\n", MIM_EFORMAT, "control character"},
+        {"noxyz.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n", MIM_EFORMAT,
+         "x, y and z"},
+        {"intcount.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                         "property float z\nelement face 1\nproperty list int int vertex_indices\nend_header\n",
+         MIM_EFORMAT, "uchar or ushort"},
+        {"hugeface.ply", NULL, MIM_EFORMAT, ":13: a face line needs"},
+        {"shortvert.ply", NULL, MIM_EFORMAT, ":11: a vertex line needs 3 numbers"},
+        {"offmagic.off", "OFF 3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", MIM_EFORMAT, ":1: expected the OFF keyword"},
+        {"offk.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n2 0 1\n", MIM_EFORMAT, ":6: a face line needs"},
+        {"offbin.off", "OFF BINARY\n", MIM_EUNSUPPORTED, "binary OFF"},
+    };
+    snprintf(big, sizeof big, "%s0 0 0\n1 0 0\n0 1 0\n0 999999999999999999990 1\n", hdr);
+    cases[5].text = strdup(big);
+    snprintf(big, sizeof big, "%s0 0 0\n1 0\n0 1 0\n3 0 1 2\n", hdr);
+    cases[6].text = strdup(big);
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        char *p = ts_path(dir, cases[i].name);
+        ts_write_file(p, cases[i].text, strlen(cases[i].text));
+        expect_error(p, cases[i].code, cases[i].phrase);
+        free(p);
+    }
+    free((char *)cases[5].text);
+    free((char *)cases[6].text);
+}
+
 static void test_labels(void **s)
 {
     (void)s;
@@ -486,7 +523,8 @@ int main(void)
         cmocka_unit_test(test_read_glb),        cmocka_unit_test(test_read_gltf),
         cmocka_unit_test(test_truncated),       cmocka_unit_test(test_nonfinite),
         cmocka_unit_test(test_bad_index),       cmocka_unit_test(test_empty),
-        cmocka_unit_test(test_unreadable),      cmocka_unit_test(test_labels),
+        cmocka_unit_test(test_unreadable),      cmocka_unit_test(test_malformed),
+        cmocka_unit_test(test_labels),
         cmocka_unit_test(test_manifest),        cmocka_unit_test(test_discover),
         cmocka_unit_test(test_pipeline),        cmocka_unit_test(test_landmark_requirements),
         cmocka_unit_test(test_mh_bodies),
