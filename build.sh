@@ -13,6 +13,7 @@ PACKAGES=(
   build-essential cmake pkg-config
   libopenmesh-dev libtinygltf-dev
   liblmdb-dev libjansson-dev libcmocka-dev
+  python3-jsonschema
 )
 
 install_deps() {
