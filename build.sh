@@ -13,6 +13,7 @@ PACKAGES=(
   build-essential cmake pkg-config
   libopenmesh-dev libtinygltf-dev
   liblmdb-dev libjansson-dev libcmocka-dev
+  libsuitesparse-dev libopenblas-dev libflann-dev libsvm-dev
   python3-jsonschema
 )
 

@@ -1,0 +1,492 @@
+/* Pose transfer accuracy and timings (issue 3, points 3 and 8; seed 000
+ * Section 3.4). Prints figures; never passes or fails.
+ *
+ * Setting: avatar = subject A in pose 0; landmarks = A's 16 landmark
+ * vertices in pose p; template = subject B != A in pose p; ground truth = A
+ * in pose p (same connectivity). Errors are per-vertex distances in mm,
+ * pooled over all vertices of all pairs (A != B, p != 0).
+ *
+ * usage: bench_transfer_accuracy [--vertices N] [--mh DIR | --no-mh] [--pairs-max K]
+ * The mh-bodies folder defaults to $MIMIC_SHARED_DATA/mh-bodies, else
+ * ../shared/data/mh-bodies beside the source tree; it is skipped when absent. */
+#include "mim_core.h"
+#include "mim_ingest.h"
+#include "mim_synth.h"
+#include "mim_transfer.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define MAXIT 10
+#define HIST_BINS 200000 /* 0.01 mm bins up to 2 m */
+
+typedef struct dataset {
+    const char *name;
+    uint32_t n, n_faces, subjects, poses;
+    uint32_t *faces;
+    mim_landmark_map_t map;
+    float **pos; /* [s * poses + p] */
+} dataset_t;
+
+typedef struct stat {
+    const char *name;
+    double sum;
+    uint64_t count;
+    uint32_t *hist;
+    double iters;
+    uint64_t runs;
+} stat_t;
+
+static void stat_add(stat_t *st, const float *x, const float *truth, uint32_t n)
+{
+    for (uint32_t i = 0; i < n; i++) {
+        double dx = x[3 * i] - truth[3 * i], dy = x[3 * i + 1] - truth[3 * i + 1],
+               dz = x[3 * i + 2] - truth[3 * i + 2];
+        double e = 1000.0 * sqrt(dx * dx + dy * dy + dz * dz);
+        st->sum += e;
+        long b = (long)(e * 100.0);
+        if (b >= HIST_BINS || b < 0)
+            b = HIST_BINS - 1;
+        st->hist[b]++;
+    }
+    st->count += n;
+}
+
+static double stat_p95(const stat_t *st)
+{
+    uint64_t want = (uint64_t)ceil(0.95 * (double)st->count), acc = 0;
+    for (long b = 0; b < HIST_BINS; b++) {
+        acc += st->hist[b];
+        if (acc >= want)
+            return (b + 0.5) / 100.0;
+    }
+    return INFINITY;
+}
+
+static int cmp_d(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static double median(double *v, int k)
+{
+    qsort(v, (size_t)k, sizeof *v, cmp_d);
+    return v[k / 2];
+}
+
+static int load_synth(dataset_t *d, uint32_t vertices)
+{
+    mim_error_t err = {0};
+    mim_synth_t *s = NULL;
+    mim_synth_options_t o = {.subjects = 4, .poses = 12, .vertices = vertices, .seed = 1};
+    if (mim_synth_create(&s, &o, &err)) {
+        fprintf(stderr, "synth: %s\n", mim_error_text(&err));
+        return -1;
+    }
+    d->name = "synth";
+    d->n = mim_synth_n_vertices(s);
+    d->n_faces = mim_synth_n_faces(s);
+    d->subjects = 4;
+    d->poses = 12;
+    d->faces = malloc(3 * (size_t)d->n_faces * sizeof *d->faces);
+    memcpy(d->faces, mim_synth_faces(s), 3 * (size_t)d->n_faces * sizeof *d->faces);
+    mim_synth_landmarks(s, &d->map);
+    d->pos = calloc((size_t)d->subjects * d->poses, sizeof *d->pos);
+    for (uint32_t k = 0; k < d->subjects * d->poses; k++) {
+        d->pos[k] = malloc(3 * (size_t)d->n * sizeof(float));
+        mim_synth_body(s, k / d->poses, k % d->poses, d->pos[k]);
+    }
+    mim_synth_destroy(&s);
+    return 0;
+}
+
+static int load_mh(dataset_t *d, const char *dir)
+{
+    mim_error_t err = {0};
+    char path[4096];
+    snprintf(path, sizeof path, "%s/landmarks.json", dir);
+    if (mim_landmarks_read(&d->map, path, &err))
+        return -1;
+    d->name = "mh-bodies";
+    d->subjects = 8;
+    d->poses = 12;
+    d->pos = calloc((size_t)d->subjects * d->poses, sizeof *d->pos);
+    for (uint32_t k = 0; k < d->subjects * d->poses; k++) {
+        mim_mesh_t m = {0};
+        snprintf(path, sizeof path, "%s/mh_s%02u_p%02u.ply", dir, k / d->poses, k % d->poses);
+        if (mim_mesh_read(path, &m, &err)) {
+            fprintf(stderr, "mh-bodies: %s\n", mim_error_text(&err));
+            return -1;
+        }
+        if (k == 0) {
+            d->n = m.n_vertices;
+            d->n_faces = m.n_faces;
+            d->faces = malloc(3 * (size_t)m.n_faces * sizeof *d->faces);
+            memcpy(d->faces, m.faces, 3 * (size_t)m.n_faces * sizeof *d->faces);
+        } else if (m.n_vertices != d->n || m.n_faces != d->n_faces ||
+                   memcmp(m.faces, d->faces, 3 * (size_t)m.n_faces * sizeof *d->faces)) {
+            fprintf(stderr, "mh-bodies: %s: connectivity differs\n", path);
+            return -1;
+        }
+        d->pos[k] = m.positions;
+        m.positions = NULL;
+        mim_mesh_free(&m);
+    }
+    return 0;
+}
+
+static void dataset_free(dataset_t *d)
+{
+    if (d->pos)
+        for (uint32_t k = 0; k < d->subjects * d->poses; k++)
+            free(d->pos[k]);
+    free(d->pos);
+    free(d->faces);
+    memset(d, 0, sizeof *d);
+}
+
+enum { M_BASE1, M_BASE2, M_PAPER, M_LS10, M_DEFAULT, M_LS_D1, M_LS_D07, M_LS_D05R1, M_LS_D05R07, M_SQ_DEF, M_LS2, M_LS3, M_ANCHOR, M_COUNT };
+static const char *method_names[M_COUNT] = {
+    "baseline 1: B moved to landmark centroid",
+    "baseline 2: Laplacian editing, avatar rest frames",
+    "paper: square, hard constraints, 10 it",
+    "least squares, 10 it, no damping, no early stop",
+    "mimic default (least squares, damping 0.5, stop ratio 0.5)",
+    "least squares, damping 1 (none), stop ratio 1",
+    "least squares, damping 0.7, stop ratio 1",
+    "least squares, damping 0.5, stop ratio 1",
+    "least squares, damping 0.5, stop ratio 0.7",
+    "square, mimic defaults (early stop)",
+    "least squares, 2 it, no damping",
+    "least squares, 3 it, no damping",
+    "mode (a) template only: pelvis anchor, LS defaults",
+};
+
+static int run_accuracy(const dataset_t *d, uint32_t pairs_max)
+{
+    mim_error_t err = {0};
+    const uint32_t n = d->n, c = d->map.count;
+    mim_xfer_topology_t *topo = NULL;
+    mim_xfer_solver_t *sq = NULL, *ls = NULL, *an = NULL;
+    if (mim_xfer_topology_open(&topo, n, d->faces, d->n_faces, &err))
+        goto fail;
+    mim_xfer_solver_options_t so_sq = {.formulation = MIM_XFER_SQUARE}, so_ls = {0};
+    if (mim_xfer_solver_open(&sq, topo, d->map.vertex, c, &so_sq, &err) ||
+        mim_xfer_solver_open(&ls, topo, d->map.vertex, c, &so_ls, &err) ||
+        mim_xfer_solver_open(&an, topo, &d->map.vertex[2], 1, &so_ls, &err))
+        goto fail;
+
+    stat_t st[M_COUNT];
+    memset(st, 0, sizeof st);
+    for (int m = 0; m < M_COUNT; m++) {
+        st[m].name = method_names[m];
+        st[m].hist = calloc(HIST_BINS, sizeof(uint32_t));
+    }
+    double err_ls[MAXIT] = {0}, err_sq[MAXIT] = {0};
+    uint64_t pairs = 0;
+    double *W = malloc(3 * (size_t)n * sizeof(double));
+    double *Fa = malloc(9 * (size_t)n * sizeof(double));
+    double *Ft = malloc(9 * (size_t)n * sizeof(double));
+    float *out = malloc(3 * (size_t)n * sizeof(float));
+    float *targets = malloc(3 * (size_t)c * sizeof(float));
+    double e_it[MAXIT];
+    /* error by body region: each vertex belongs to its nearest landmark on
+     * the avatar's rest pose; for the default and the paper's formulation */
+    uint32_t *region = malloc((size_t)n * sizeof *region);
+    double reg_sum[2][MIM_LANDMARKS_MAX] = {{0}};
+    uint64_t reg_cnt[MIM_LANDMARKS_MAX] = {0};
+
+    for (uint32_t a = 0; a < d->subjects; a++) {
+        const float *rest = d->pos[a * d->poses];
+        mim_xfer_frames(topo, rest, Fa);
+        mim_xfer_encode(topo, rest, Fa, W);
+        for (uint32_t i = 0; i < n; i++) {
+            double best = INFINITY;
+            for (uint32_t k = 0; k < c; k++) {
+                const float *l = rest + 3 * (size_t)d->map.vertex[k];
+                double dx = rest[3 * i] - l[0], dy = rest[3 * i + 1] - l[1], dz = rest[3 * i + 2] - l[2];
+                double dd = dx * dx + dy * dy + dz * dz;
+                if (dd < best)
+                    best = dd, region[i] = k;
+            }
+        }
+        for (uint32_t b = 0; b < d->subjects; b++) {
+            if (b == a)
+                continue;
+            for (uint32_t p = 1; p < d->poses; p++) {
+                if (pairs_max && pairs >= pairs_max)
+                    continue;
+                const float *truth = d->pos[a * d->poses + p];
+                const float *tmpl = d->pos[b * d->poses + p];
+                double ca[3] = {0}, cb[3] = {0};
+                for (uint32_t k = 0; k < c; k++)
+                    for (int q = 0; q < 3; q++) {
+                        targets[3 * k + q] = truth[3 * (size_t)d->map.vertex[k] + q];
+                        ca[q] += targets[3 * k + q] / c;
+                        cb[q] += tmpl[3 * (size_t)d->map.vertex[k] + q] / c;
+                    }
+                /* baseline 1 */
+                for (uint32_t i = 0; i < n; i++)
+                    for (int q = 0; q < 3; q++)
+                        out[3 * i + q] = (float)(tmpl[3 * i + q] + ca[q] - cb[q]);
+                stat_add(&st[M_BASE1], out, truth, n);
+                mim_xfer_frames(topo, tmpl, Ft);
+                mim_xfer_report_t rep;
+                struct {
+                    int m;
+                    mim_xfer_solver_t *s;
+                    const double *F;
+                    mim_xfer_options_t o;
+                    double *eacc;
+                } runs[] = {
+                    {M_BASE2, sq, Fa, {.max_iterations = 1}, NULL},
+                    {M_PAPER, sq, Ft, {.max_iterations = 10, .tol = -1, .damping = 1, .no_early_stop = 1, .truth = truth, .error_by_iteration = e_it}, err_sq},
+                    {M_LS10, ls, Ft, {.max_iterations = 10, .tol = -1, .damping = 1, .no_early_stop = 1, .truth = truth, .error_by_iteration = e_it}, err_ls},
+                    {M_DEFAULT, ls, Ft, {0}, NULL},
+                    {M_LS_D07, ls, Ft, {.damping = 0.7, .stop_ratio = 1}, NULL},
+                    {M_LS_D1, ls, Ft, {.damping = 1, .stop_ratio = 1}, NULL},
+                    {M_LS_D05R1, ls, Ft, {.damping = 0.5, .stop_ratio = 1}, NULL},
+                    {M_LS_D05R07, ls, Ft, {.stop_ratio = 0.7}, NULL},
+                    {M_SQ_DEF, sq, Ft, {0}, NULL},
+                    {M_LS2, ls, Ft, {.max_iterations = 2, .tol = -1, .damping = 1, .no_early_stop = 1}, NULL},
+                    {M_LS3, ls, Ft, {.max_iterations = 3, .tol = -1, .damping = 1, .no_early_stop = 1}, NULL},
+                    {M_ANCHOR, an, Ft, {0}, NULL},
+                };
+                for (size_t r = 0; r < sizeof runs / sizeof runs[0]; r++) {
+                    /* mode (a) gets the pelvis (landmark 2) alone */
+                    int anchor = runs[r].s == an;
+                    if (mim_xfer_transfer(runs[r].s, W, n, runs[r].F, anchor ? targets + 6 : targets,
+                                          anchor ? 1 : c, &runs[r].o, out, &rep, &err))
+                        goto fail;
+                    stat_add(&st[runs[r].m], out, truth, n);
+                    if (runs[r].m == M_DEFAULT || runs[r].m == M_PAPER) {
+                        int w = runs[r].m == M_PAPER;
+                        for (uint32_t i = 0; i < n; i++) {
+                            double dx = out[3 * i] - truth[3 * i], dy = out[3 * i + 1] - truth[3 * i + 1],
+                                   dz = out[3 * i + 2] - truth[3 * i + 2];
+                            reg_sum[w][region[i]] += 1000.0 * sqrt(dx * dx + dy * dy + dz * dz);
+                            if (!w)
+                                reg_cnt[region[i]]++;
+                        }
+                    }
+                    st[runs[r].m].iters += rep.iterations;
+                    st[runs[r].m].runs++;
+                    if (runs[r].eacc)
+                        for (int k = 0; k < MAXIT; k++)
+                            runs[r].eacc[k] += 1000.0 * e_it[k];
+                }
+                pairs++;
+            }
+        }
+    }
+    printf("\n## %s: %u vertices, %u subjects x %u poses, %llu pairs (A != B, p != 0)\n\n", d->name, n,
+           d->subjects, d->poses, (unsigned long long)pairs);
+    printf("| method | mean mm | p95 mm | mean iterations |\n|---|---:|---:|---:|\n");
+    for (int m = 0; m < M_COUNT; m++)
+        printf("| %s | %.2f | %.2f | %s%.2f |\n", st[m].name, st[m].sum / (double)st[m].count,
+               stat_p95(&st[m]), st[m].runs ? "" : "- ", st[m].runs ? st[m].iters / (double)st[m].runs : 0.0);
+    printf("\nmean error (mm) by iteration, no damping, no early stop:\n\n| iteration |");
+    for (int k = 0; k < MAXIT; k++)
+        printf(" %d |", k + 1);
+    printf("\n|---|");
+    for (int k = 0; k < MAXIT; k++)
+        printf("---:|");
+    printf("\n| least squares |");
+    for (int k = 0; k < MAXIT; k++)
+        printf(" %.2f |", err_ls[k] / (double)pairs);
+    printf("\n| square (paper) |");
+    for (int k = 0; k < MAXIT; k++)
+        printf(" %.2f |", err_sq[k] / (double)pairs);
+    printf("\n\nmean error (mm) by body region (vertices nearest each landmark on the rest pose):\n\n");
+    printf("| region | share of vertices | mimic default | paper |\n|---|---:|---:|---:|\n");
+    uint64_t tot = 0;
+    for (uint32_t k = 0; k < c; k++)
+        tot += reg_cnt[k];
+    for (uint32_t k = 0; k < c; k++)
+        if (reg_cnt[k])
+            printf("| %s | %.1f%% | %.2f | %.2f |\n", d->map.names[k], 100.0 * (double)reg_cnt[k] / (double)tot,
+                   reg_sum[0][k] / (double)reg_cnt[k], reg_sum[1][k] / (double)reg_cnt[k]);
+    free(region);
+    double md = st[M_DEFAULT].sum / (double)st[M_DEFAULT].count, mp = st[M_PAPER].sum / (double)st[M_PAPER].count;
+    double m1 = st[M_BASE1].sum / (double)st[M_BASE1].count, m2 = st[M_BASE2].sum / (double)st[M_BASE2].count;
+    printf("\ntargets: default mean < baselines: %s; default p95 < baselines: %s; default mean / paper mean = %.3f (<= 0.6: %s)\n",
+           (md < m1 && md < m2) ? "yes" : "NO",
+           (stat_p95(&st[M_DEFAULT]) < stat_p95(&st[M_BASE1]) && stat_p95(&st[M_DEFAULT]) < stat_p95(&st[M_BASE2])) ? "yes" : "NO",
+           md / mp, md / mp <= 0.6 ? "yes" : "NO");
+    for (int m = 0; m < M_COUNT; m++)
+        free(st[m].hist);
+    free(W);
+    free(Fa);
+    free(Ft);
+    free(out);
+    free(targets);
+    mim_xfer_solver_close(&sq);
+    mim_xfer_solver_close(&ls);
+    mim_xfer_solver_close(&an);
+    mim_xfer_topology_close(&topo);
+    return 0;
+fail:
+    fprintf(stderr, "bench: %s\n", mim_error_text(&err));
+    mim_xfer_solver_close(&sq);
+    mim_xfer_solver_close(&ls);
+    mim_xfer_solver_close(&an);
+    mim_xfer_topology_close(&topo);
+    return -1;
+}
+
+#define RUNS 101
+
+static int run_timings(const dataset_t *d)
+{
+    mim_error_t err = {0};
+    const uint32_t n = d->n, c = d->map.count;
+    mim_xfer_topology_t *topo = NULL;
+    double t0 = mim_now();
+    if (mim_xfer_topology_open(&topo, n, d->faces, d->n_faces, &err)) {
+        fprintf(stderr, "bench: %s\n", mim_error_text(&err));
+        return -1;
+    }
+    double t_topo = mim_now() - t0;
+    double *W = malloc(3 * (size_t)n * sizeof(double));
+    double *Fa = malloc(9 * (size_t)n * sizeof(double));
+    double *Ft = malloc(9 * (size_t)n * sizeof(double));
+    float *out = malloc(3 * (size_t)n * sizeof(float));
+    float *targets = malloc(3 * (size_t)c * sizeof(float));
+    double *rhs = NULL, *x = NULL;
+    const float *rest = d->pos[0], *tmpl = d->pos[1 * d->poses + 3], *truth = d->pos[3];
+    for (uint32_t k = 0; k < c; k++)
+        for (int q = 0; q < 3; q++)
+            targets[3 * k + q] = truth[3 * (size_t)d->map.vertex[k] + q];
+    double v[RUNS];
+    for (int k = 0; k < RUNS; k++) {
+        t0 = mim_now();
+        mim_xfer_frames(topo, tmpl, Ft);
+        v[k] = mim_now() - t0;
+    }
+    double t_frames = median(v, RUNS);
+    mim_xfer_frames(topo, rest, Fa);
+    mim_xfer_encode(topo, rest, Fa, W);
+    printf("\n## timings, %s, %u vertices (median of %d runs, one core)\n\n", d->name, n, RUNS);
+    printf("adjacency (Laplacian) build: %.3f ms; frames: %.3f ms\n\n", 1e3 * t_topo, 1e3 * t_frames);
+    printf("| formulation | analysis ms | factorization ms | factor nnz | plain solve ms | iteration ms | iteration / solve | default transfer ms (iterations) |\n|---|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (int f = 0; f < 2; f++) {
+        mim_xfer_solver_options_t so = {.formulation = f ? MIM_XFER_SQUARE : MIM_XFER_LEAST_SQUARES};
+        mim_xfer_solver_t *s = NULL;
+        if (mim_xfer_solver_open(&s, topo, d->map.vertex, c, &so, &err)) {
+            fprintf(stderr, "bench: %s\n", mim_error_text(&err));
+            break;
+        }
+        mim_xfer_solver_stats_t ss;
+        mim_xfer_solver_stats(s, &ss);
+        free(rhs);
+        free(x);
+        rhs = calloc(3 * (size_t)ss.n_free, sizeof(double));
+        x = calloc(3 * (size_t)ss.n_free, sizeof(double));
+        for (size_t i = 0; i < 3 * (size_t)ss.n_free; i++)
+            rhs[i] = (double)(i % 7) - 3.0;
+        for (int k = 0; k < RUNS; k++) {
+            t0 = mim_now();
+            mim_xfer_solver_solve(s, rhs, x, &err);
+            v[k] = mim_now() - t0;
+        }
+        double t_solve = median(v, RUNS);
+        /* one iteration = (2 iterations) - (1 iteration): frames + RHS + solve */
+        mim_xfer_options_t o1 = {.max_iterations = 1, .tol = -1, .no_early_stop = 1};
+        mim_xfer_options_t o2 = {.max_iterations = 2, .tol = -1, .damping = 1, .no_early_stop = 1};
+        double v2[RUNS];
+        for (int k = 0; k < RUNS; k++) {
+            t0 = mim_now();
+            mim_xfer_transfer(s, W, n, Ft, targets, c, &o1, out, NULL, &err);
+            v[k] = mim_now() - t0;
+            t0 = mim_now();
+            mim_xfer_transfer(s, W, n, Ft, targets, c, &o2, out, NULL, &err);
+            v2[k] = mim_now() - t0;
+        }
+        double t_it = median(v2, RUNS) - median(v, RUNS);
+        mim_xfer_report_t rep = {0};
+        for (int k = 0; k < RUNS; k++) {
+            t0 = mim_now();
+            mim_xfer_transfer(s, W, n, Ft, targets, c, NULL, out, &rep, &err);
+            v[k] = mim_now() - t0;
+        }
+        double t_whole = median(v, RUNS);
+        mim_xfer_solver_stats(s, &ss);
+        printf("| %s | %.3f | %.3f | %.0f | %.3f | %.3f | %.2f | %.3f (%u) |\n", f ? "square L^c" : "least squares",
+               1e3 * ss.t_analyze, 1e3 * ss.t_factorize, ss.factor_nnz, 1e3 * t_solve, 1e3 * t_it,
+               t_it / t_solve, 1e3 * t_whole, rep.iterations);
+        mim_xfer_solver_close(&s);
+    }
+    free(rhs);
+    free(x);
+    free(W);
+    free(Fa);
+    free(Ft);
+    free(out);
+    free(targets);
+    mim_xfer_topology_close(&topo);
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    uint32_t vertices = 7000, pairs_max = 0;
+    const char *mh = NULL;
+    int no_mh = 0;
+    char buf[4096];
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--vertices") && i + 1 < argc)
+            vertices = (uint32_t)strtoul(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--mh") && i + 1 < argc)
+            mh = argv[++i];
+        else if (!strcmp(argv[i], "--no-mh"))
+            no_mh = 1;
+        else if (!strcmp(argv[i], "--pairs-max") && i + 1 < argc)
+            pairs_max = (uint32_t)strtoul(argv[++i], NULL, 10);
+        else {
+            fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--pairs-max K]\n", argv[0]);
+            return 2;
+        }
+    }
+    if (!mh) {
+        const char *env = getenv("MIMIC_SHARED_DATA");
+        if (env) {
+            snprintf(buf, sizeof buf, "%s/mh-bodies", env);
+        } else {
+            /* the source tree's sibling ../shared/data */
+            snprintf(buf, sizeof buf, "%s", __FILE__);
+            char *slash = strrchr(buf, '/');
+            if (slash)
+                *slash = 0;
+            strncat(buf, "/../../shared/data/mh-bodies", sizeof buf - strlen(buf) - 1);
+        }
+        mh = buf;
+    }
+    mim_log_level = 0;
+    dataset_t d = {0};
+    if (load_synth(&d, vertices))
+        return 1;
+    run_accuracy(&d, pairs_max);
+    run_timings(&d);
+    dataset_free(&d);
+    if (!no_mh) {
+        char probe[4200];
+        snprintf(probe, sizeof probe, "%s/landmarks.json", mh);
+        FILE *f = fopen(probe, "r");
+        if (!f) {
+            printf("\nmh-bodies: %s not found, skipped\n", mh);
+            return 0;
+        }
+        fclose(f);
+        if (load_mh(&d, mh)) {
+            dataset_free(&d);
+            return 1;
+        }
+        run_accuracy(&d, pairs_max);
+        run_timings(&d);
+        dataset_free(&d);
+    }
+    return 0;
+}

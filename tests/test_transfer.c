@@ -1,0 +1,429 @@
+/* transfer/: Laplacian, frames, encoding, CHOLMOD solver, iteration
+ * (seed 000, Sections 3.1 and 3.4), on synth bodies made here. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include "mim_core.h"
+#include "mim_synth.h"
+#include "mim_transfer.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct fixture {
+    mim_synth_t *synth;
+    mim_xfer_topology_t *topo;
+    mim_landmark_map_t map;
+    uint32_t n;
+} fixture_t;
+
+static fixture_t fx;
+
+static int setup(void **state)
+{
+    (void)state;
+    mim_error_t err = {0};
+    mim_synth_options_t o = {.subjects = 4, .poses = 12, .vertices = 2000, .seed = 7};
+    if (mim_synth_create(&fx.synth, &o, &err))
+        return -1;
+    fx.n = mim_synth_n_vertices(fx.synth);
+    mim_synth_landmarks(fx.synth, &fx.map);
+    return mim_xfer_topology_open(&fx.topo, fx.n, mim_synth_faces(fx.synth), mim_synth_n_faces(fx.synth), &err);
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    mim_xfer_topology_close(&fx.topo);
+    mim_synth_destroy(&fx.synth);
+    return 0;
+}
+
+static float *body(uint32_t s, uint32_t p)
+{
+    float *x = malloc(3 * (size_t)fx.n * sizeof *x);
+    assert_non_null(x);
+    assert_int_equal(mim_synth_body(fx.synth, s, p, x), 0);
+    return x;
+}
+
+static void landmark_positions(const float *x, float *u)
+{
+    for (uint32_t k = 0; k < fx.map.count; k++)
+        for (int c = 0; c < 3; c++)
+            u[3 * k + c] = x[3 * (size_t)fx.map.vertex[k] + c];
+}
+
+static double max_dist(const float *a, const float *b, uint32_t n)
+{
+    double m = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        double dx = a[3 * i] - b[3 * i], dy = a[3 * i + 1] - b[3 * i + 1], dz = a[3 * i + 2] - b[3 * i + 2];
+        double d = sqrt(dx * dx + dy * dy + dz * dz);
+        if (d > m)
+            m = d;
+    }
+    return m;
+}
+
+static void test_laplacian(void **state)
+{
+    (void)state;
+    /* symmetric, rows sum to zero, degrees >= 3 on a closed surface */
+    uint32_t cnt;
+    for (uint32_t v = 0; v < fx.n; v++) {
+        const uint32_t *nb = mim_xfer_neighbors(fx.topo, v, &cnt);
+        assert_true(cnt >= 3);
+        for (uint32_t k = 0; k < cnt; k++) {
+            uint32_t c2;
+            const uint32_t *nb2 = mim_xfer_neighbors(fx.topo, nb[k], &c2);
+            int found = 0;
+            for (uint32_t q = 0; q < c2; q++)
+                found |= nb2[q] == v;
+            assert_true(found);
+            if (k)
+                assert_true(nb[k] > nb[k - 1]);
+        }
+    }
+    double *x = malloc(3 * (size_t)fx.n * sizeof *x), *y = malloc(3 * (size_t)fx.n * sizeof *y);
+    for (uint32_t i = 0; i < 3 * fx.n; i++)
+        x[i] = 2.5; /* a translation is in the null space */
+    mim_xfer_laplacian_apply(fx.topo, x, y);
+    for (uint32_t i = 0; i < 3 * fx.n; i++)
+        assert_true(fabs(y[i]) < 1e-12);
+    free(x);
+    free(y);
+}
+
+static void test_frames_orthonormal(void **state)
+{
+    (void)state;
+    float *x = body(1, 2);
+    double *F = malloc(9 * (size_t)fx.n * sizeof *F);
+    mim_xfer_frames(fx.topo, x, F);
+    for (uint32_t i = 0; i < fx.n; i++) {
+        const double *f = F + 9 * (size_t)i;
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++) {
+                double d = f[3 * a] * f[3 * b] + f[3 * a + 1] * f[3 * b + 1] + f[3 * a + 2] * f[3 * b + 2];
+                assert_true(fabs(d - (a == b)) < 1e-9);
+            }
+    }
+    /* degenerate vertex: all neighbours on the normal line never gives NaN */
+    uint32_t faces[] = {0, 1, 2, 0, 2, 3, 0, 3, 1, 1, 3, 2};
+    float pos[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    mim_xfer_topology_t *t = NULL;
+    assert_int_equal(mim_xfer_topology_open(&t, 4, faces, 4, NULL), 0);
+    double F4[36];
+    mim_xfer_frames(t, pos, F4);
+    for (int i = 0; i < 36; i++)
+        assert_true(isfinite(F4[i]));
+    mim_xfer_topology_close(&t);
+    assert_null(t);
+    free(F);
+    free(x);
+}
+
+/* An avatar transferred to its own pose with its own frames reproduces
+ * itself, in both formulations and both modes. */
+static void test_round_trip(void **state)
+{
+    (void)state;
+    float *x = body(2, 4);
+    double *F = malloc(9 * (size_t)fx.n * sizeof *F), *W = malloc(3 * (size_t)fx.n * sizeof *W);
+    float *out = malloc(3 * (size_t)fx.n * sizeof *out);
+    float u[3 * MIM_LANDMARKS_MAX];
+    mim_xfer_frames(fx.topo, x, F);
+    mim_xfer_encode(fx.topo, x, F, W);
+    landmark_positions(x, u);
+    for (int f = 0; f < 2; f++) {
+        for (int mode = 0; mode < 2; mode++) {
+            mim_xfer_solver_options_t so = {.formulation = f ? MIM_XFER_SQUARE : MIM_XFER_LEAST_SQUARES};
+            mim_xfer_solver_t *s = NULL;
+            mim_error_t err = {0};
+            const uint32_t *cons = mode ? fx.map.vertex : &fx.map.vertex[2];
+            uint32_t nc = mode ? fx.map.count : 1;
+            const float *tu = mode ? u : u + 6;
+            assert_int_equal(mim_xfer_solver_open(&s, fx.topo, cons, nc, &so, &err), 0);
+            mim_xfer_report_t rep;
+            assert_int_equal(mim_xfer_transfer(s, W, fx.n, F, tu, nc, NULL, out, &rep, &err), 0);
+            assert_true(max_dist(out, x, fx.n) < 2e-5);
+            assert_true(rep.converged);
+            assert_int_equal(rep.iterations, 2);
+            mim_xfer_solver_close(&s);
+            assert_null(s);
+        }
+    }
+    free(F);
+    free(W);
+    free(out);
+    free(x);
+}
+
+static void rigid(const float *in, float *out, uint32_t n, const double R[9], const double t[3])
+{
+    for (uint32_t i = 0; i < n; i++)
+        for (int r = 0; r < 3; r++)
+            out[3 * i + r] = (float)(R[3 * r] * in[3 * i] + R[3 * r + 1] * in[3 * i + 1] + R[3 * r + 2] * in[3 * i + 2] + t[r]);
+}
+
+static void test_rigid_invariance(void **state)
+{
+    (void)state;
+    float *avatar = body(0, 0), *tmpl = body(1, 3), *truth = body(0, 3);
+    float *tmpl2 = malloc(3 * (size_t)fx.n * sizeof(float));
+    float *out = malloc(3 * (size_t)fx.n * sizeof(float)), *out2 = malloc(3 * (size_t)fx.n * sizeof(float));
+    float *expect = malloc(3 * (size_t)fx.n * sizeof(float));
+    double *F = malloc(9 * (size_t)fx.n * sizeof *F), *W = malloc(3 * (size_t)fx.n * sizeof *W);
+    double *Ft = malloc(9 * (size_t)fx.n * sizeof *F), *Ft2 = malloc(9 * (size_t)fx.n * sizeof *F);
+    float u[3 * MIM_LANDMARKS_MAX], u2[3 * MIM_LANDMARKS_MAX];
+    mim_xfer_frames(fx.topo, avatar, F);
+    mim_xfer_encode(fx.topo, avatar, F, W);
+    landmark_positions(truth, u);
+    /* rotation of 0.7 rad about (1, 2, 3)/|..|, then a translation */
+    double ax[3] = {1 / sqrt(14.0), 2 / sqrt(14.0), 3 / sqrt(14.0)}, a = 0.7, c = cos(a), sn = sin(a);
+    double R[9] = {c + ax[0] * ax[0] * (1 - c), ax[0] * ax[1] * (1 - c) - ax[2] * sn, ax[0] * ax[2] * (1 - c) + ax[1] * sn,
+                   ax[1] * ax[0] * (1 - c) + ax[2] * sn, c + ax[1] * ax[1] * (1 - c), ax[1] * ax[2] * (1 - c) - ax[0] * sn,
+                   ax[2] * ax[0] * (1 - c) - ax[1] * sn, ax[2] * ax[1] * (1 - c) + ax[0] * sn, c + ax[2] * ax[2] * (1 - c)};
+    double T[3] = {0.3, -1.2, 2.0};
+    rigid(tmpl, tmpl2, fx.n, R, T);
+    rigid(u, u2, fx.map.count, R, T);
+    mim_xfer_frames(fx.topo, tmpl, Ft);
+    mim_xfer_frames(fx.topo, tmpl2, Ft2);
+    for (int mode = 0; mode < 2; mode++) {
+        mim_xfer_solver_t *s = NULL;
+        const uint32_t *cons = mode ? fx.map.vertex : &fx.map.vertex[2];
+        uint32_t nc = mode ? fx.map.count : 1;
+        /* mode (a): the anchor is the template's pelvis */
+        float a1[3], a2[3];
+        for (int k = 0; k < 3; k++) {
+            a1[k] = tmpl[3 * (size_t)fx.map.vertex[2] + k];
+            a2[k] = tmpl2[3 * (size_t)fx.map.vertex[2] + k];
+        }
+        assert_int_equal(mim_xfer_solver_open(&s, fx.topo, cons, nc, NULL, NULL), 0);
+        mim_xfer_options_t o = {.max_iterations = 3, .tol = -1, .no_early_stop = 1};
+        assert_int_equal(mim_xfer_transfer(s, W, fx.n, Ft, mode ? u : a1, nc, &o, out, NULL, NULL), 0);
+        assert_int_equal(mim_xfer_transfer(s, W, fx.n, Ft2, mode ? u2 : a2, nc, &o, out2, NULL, NULL), 0);
+        rigid(out, expect, fx.n, R, T);
+        assert_true(max_dist(out2, expect, fx.n) < 1e-4);
+        mim_xfer_solver_close(&s);
+    }
+    free(avatar), free(tmpl), free(truth), free(tmpl2), free(out), free(out2), free(expect);
+    free(F), free(W), free(Ft), free(Ft2);
+}
+
+static void test_factor_reused(void **state)
+{
+    (void)state;
+    float *a0 = body(0, 0), *a1 = body(1, 0), *t1 = body(2, 1), *t2 = body(1, 5);
+    double *F = malloc(9 * (size_t)fx.n * sizeof *F), *W = malloc(3 * (size_t)fx.n * sizeof *W);
+    double *W1 = malloc(3 * (size_t)fx.n * sizeof *W);
+    float *out = malloc(3 * (size_t)fx.n * sizeof(float));
+    float u[3 * MIM_LANDMARKS_MAX];
+    mim_xfer_solver_t *s = NULL;
+    assert_int_equal(mim_xfer_solver_open(&s, fx.topo, fx.map.vertex, fx.map.count, NULL, NULL), 0);
+    mim_xfer_solver_stats_t st;
+    mim_xfer_solver_stats(s, &st);
+    assert_int_equal(st.analyses, 1);
+    assert_int_equal(st.factorizations, 1);
+    mim_xfer_frames(fx.topo, a0, F);
+    mim_xfer_encode(fx.topo, a0, F, W);
+    mim_xfer_frames(fx.topo, a1, F);
+    mim_xfer_encode(fx.topo, a1, F, W1);
+    mim_xfer_frames(fx.topo, t1, F);
+    landmark_positions(t1, u);
+    assert_int_equal(mim_xfer_transfer(s, W, fx.n, F, u, fx.map.count, NULL, out, NULL, NULL), 0);
+    mim_xfer_frames(fx.topo, t2, F);
+    landmark_positions(t2, u);
+    /* another avatar, another template, other landmarks: same factor */
+    assert_int_equal(mim_xfer_transfer(s, W1, fx.n, F, u, fx.map.count, NULL, out, NULL, NULL), 0);
+    mim_xfer_solver_stats(s, &st);
+    assert_int_equal(st.analyses, 1);
+    assert_int_equal(st.factorizations, 1);
+    assert_true(st.solves >= 2);
+    mim_xfer_solver_close(&s);
+    mim_xfer_solver_close(&s); /* NULL is fine */
+    free(a0), free(a1), free(t1), free(t2), free(F), free(W), free(W1), free(out);
+}
+
+typedef struct acc {
+    double sum;
+    float *e;
+    size_t k;
+} acc_t;
+
+static void acc_add(acc_t *a, const float *x, const float *truth)
+{
+    for (uint32_t i = 0; i < fx.n; i++) {
+        double dx = x[3 * i] - truth[3 * i], dy = x[3 * i + 1] - truth[3 * i + 1], dz = x[3 * i + 2] - truth[3 * i + 2];
+        double d = sqrt(dx * dx + dy * dy + dz * dz);
+        a->sum += d;
+        a->e[a->k++] = (float)d;
+    }
+}
+
+static int cmp_f(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+static double acc_p95(acc_t *a)
+{
+    qsort(a->e, a->k, sizeof *a->e, cmp_f);
+    return a->e[(size_t)(0.95 * (double)(a->k - 1))];
+}
+
+/* Issue 3 point 3 on synth: mimic's default beats both baselines on mean
+ * and p95, with mean <= 0.6 x the paper's formulation. */
+static void test_accuracy_bounds(void **state)
+{
+    (void)state;
+    const uint32_t S = mim_synth_n_subjects(fx.synth), P = mim_synth_n_poses(fx.synth), n = fx.n;
+    size_t pairs = (size_t)S * (S - 1) * (P - 1);
+    acc_t acc[4];
+    for (int m = 0; m < 4; m++) {
+        acc[m].sum = 0, acc[m].k = 0;
+        acc[m].e = malloc(pairs * n * sizeof(float));
+        assert_non_null(acc[m].e);
+    }
+    mim_xfer_solver_t *sq = NULL, *ls = NULL;
+    mim_xfer_solver_options_t so = {.formulation = MIM_XFER_SQUARE};
+    assert_int_equal(mim_xfer_solver_open(&sq, fx.topo, fx.map.vertex, fx.map.count, &so, NULL), 0);
+    assert_int_equal(mim_xfer_solver_open(&ls, fx.topo, fx.map.vertex, fx.map.count, NULL, NULL), 0);
+    double *Fa = malloc(9 * (size_t)n * sizeof *Fa), *Ft = malloc(9 * (size_t)n * sizeof *Ft);
+    double *W = malloc(3 * (size_t)n * sizeof *W);
+    float *out = malloc(3 * (size_t)n * sizeof *out), u[3 * MIM_LANDMARKS_MAX];
+    for (uint32_t a = 0; a < S; a++) {
+        float *rest = body(a, 0);
+        mim_xfer_frames(fx.topo, rest, Fa);
+        mim_xfer_encode(fx.topo, rest, Fa, W);
+        for (uint32_t p = 1; p < P; p++) {
+            float *truth = body(a, p);
+            landmark_positions(truth, u);
+            for (uint32_t b = 0; b < S; b++) {
+                if (b == a)
+                    continue;
+                float *t = body(b, p);
+                double ca[3] = {0}, cb[3] = {0};
+                for (uint32_t k = 0; k < fx.map.count; k++)
+                    for (int c = 0; c < 3; c++) {
+                        ca[c] += u[3 * k + c];
+                        cb[c] += t[3 * (size_t)fx.map.vertex[k] + c];
+                    }
+                for (uint32_t i = 0; i < n; i++)
+                    for (int c = 0; c < 3; c++)
+                        out[3 * i + c] = (float)(t[3 * i + c] + (ca[c] - cb[c]) / fx.map.count);
+                acc_add(&acc[0], out, truth);
+                mim_xfer_options_t o1 = {.max_iterations = 1};
+                assert_int_equal(mim_xfer_transfer(sq, W, n, Fa, u, fx.map.count, &o1, out, NULL, NULL), 0);
+                acc_add(&acc[1], out, truth);
+                mim_xfer_frames(fx.topo, t, Ft);
+                mim_xfer_options_t op = {.max_iterations = 10, .tol = -1, .damping = 1, .no_early_stop = 1};
+                assert_int_equal(mim_xfer_transfer(sq, W, n, Ft, u, fx.map.count, &op, out, NULL, NULL), 0);
+                acc_add(&acc[2], out, truth);
+                mim_xfer_report_t rep;
+                assert_int_equal(mim_xfer_transfer(ls, W, n, Ft, u, fx.map.count, NULL, out, &rep, NULL), 0);
+                assert_true(rep.iterations >= 1 && rep.iterations <= MIM_XFER_DEFAULT_MAX_ITERATIONS);
+                acc_add(&acc[3], out, truth);
+                free(t);
+            }
+            free(truth);
+        }
+        free(rest);
+    }
+    double mean[4], p95[4];
+    for (int m = 0; m < 4; m++) {
+        mean[m] = acc[m].sum / (double)acc[m].k;
+        p95[m] = acc_p95(&acc[m]);
+        print_message("method %d: mean %.2f mm, p95 %.2f mm\n", m, 1e3 * mean[m], 1e3 * p95[m]);
+        free(acc[m].e);
+    }
+    assert_true(mean[3] < mean[0] && mean[3] < mean[1]);
+    assert_true(p95[3] < p95[0] && p95[3] < p95[1]);
+    assert_true(mean[3] <= 0.6 * mean[2]);
+    mim_xfer_solver_close(&sq);
+    mim_xfer_solver_close(&ls);
+    free(Fa), free(Ft), free(W), free(out);
+}
+
+static void test_bad_inputs(void **state)
+{
+    (void)state;
+    float *x = body(0, 0);
+    double *F = malloc(9 * (size_t)fx.n * sizeof *F), *W = malloc(3 * (size_t)fx.n * sizeof *W);
+    float *out = malloc(3 * (size_t)fx.n * sizeof(float));
+    float u[3 * MIM_LANDMARKS_MAX];
+    mim_xfer_frames(fx.topo, x, F);
+    mim_xfer_encode(fx.topo, x, F, W);
+    landmark_positions(x, u);
+    mim_xfer_solver_t *s = NULL;
+    mim_error_t err = {0};
+    assert_int_equal(mim_xfer_solver_open(&s, fx.topo, fx.map.vertex, fx.map.count, NULL, &err), 0);
+
+    /* wrong landmark count */
+    assert_int_equal(mim_xfer_transfer(s, W, fx.n, F, u, fx.map.count - 1, NULL, out, NULL, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "15 landmark positions given, 16 expected"));
+    /* NaN landmark coordinate */
+    mim_error_clear(&err);
+    u[3 * 5 + 1] = NAN;
+    assert_int_equal(mim_xfer_transfer(s, W, fx.n, F, u, fx.map.count, NULL, out, NULL, &err), MIM_ENONFINITE);
+    assert_non_null(strstr(err.msg, "landmark 5"));
+    u[3 * 5 + 1] = 0.5f;
+    /* mismatched vertex counts */
+    mim_error_clear(&err);
+    assert_int_equal(mim_xfer_transfer(s, W, fx.n + 1, F, u, fx.map.count, NULL, out, NULL, &err), MIM_ETOPOLOGY);
+    assert_true(strlen(err.msg) > 0);
+    mim_mesh_t m = {0};
+    assert_int_equal(mim_mesh_alloc(&m, fx.n - 1, mim_synth_n_faces(fx.synth)), 0);
+    mim_error_clear(&err);
+    assert_int_equal(mim_xfer_check_mesh(fx.topo, &m, "avatar.ply", &err), MIM_ETOPOLOGY);
+    assert_non_null(strstr(err.msg, "avatar.ply"));
+    mim_mesh_free(&m);
+    /* bad options */
+    mim_xfer_options_t o = {.damping = 1.5};
+    mim_error_clear(&err);
+    assert_int_equal(mim_xfer_transfer(s, W, fx.n, F, u, fx.map.count, &o, out, NULL, &err), MIM_EINVAL);
+    mim_xfer_solver_close(&s);
+
+    /* solver: no constraints, duplicates, out of range */
+    uint32_t dup[2] = {5, 5}, far = fx.n;
+    mim_error_clear(&err);
+    assert_int_equal(mim_xfer_solver_open(&s, fx.topo, dup, 0, NULL, &err), MIM_EINVAL);
+    mim_error_clear(&err);
+    assert_int_equal(mim_xfer_solver_open(&s, fx.topo, dup, 2, NULL, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "twice"));
+    mim_error_clear(&err);
+    assert_int_equal(mim_xfer_solver_open(&s, fx.topo, &far, 1, NULL, &err), MIM_EINVAL);
+    assert_null(s);
+    /* topology: index past the vertices; two components, one constrained */
+    uint32_t faces[] = {0, 1, 2, 0, 2, 3, 0, 3, 1, 1, 3, 2, 4, 5, 6, 4, 6, 7, 4, 7, 5, 5, 7, 6};
+    mim_xfer_topology_t *t = NULL;
+    mim_error_clear(&err);
+    assert_int_equal(mim_xfer_topology_open(&t, 7, faces, 8, &err), MIM_EINDEX);
+    assert_int_equal(mim_xfer_topology_open(&t, 8, faces, 8, &err), 0);
+    uint32_t c0 = 0;
+    mim_error_clear(&err);
+    assert_int_equal(mim_xfer_solver_open(&s, t, &c0, 1, NULL, &err), MIM_ETOPOLOGY);
+    assert_non_null(strstr(err.msg, "vertex 4"));
+    mim_xfer_topology_close(&t);
+    free(x), free(F), free(W), free(out);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_laplacian),
+        cmocka_unit_test(test_frames_orthonormal),
+        cmocka_unit_test(test_round_trip),
+        cmocka_unit_test(test_rigid_invariance),
+        cmocka_unit_test(test_factor_reused),
+        cmocka_unit_test(test_accuracy_bounds),
+        cmocka_unit_test(test_bad_inputs),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}

@@ -1,0 +1,158 @@
+/* mimic transfer: intrinsic encoding and Cholesky-reused pose transfer
+ * (seed 000, Lifkooee et al. 2019, Sections 3.1 and 3.4).
+ *
+ * Computation over caller-owned arrays: nothing here opens the store. The
+ * caller keeps what is worth keeping (a template's frames, an avatar's
+ * encoding W) and hands it back.
+ *
+ * Objects:
+ *   mim_xfer_topology_t  one connectivity: one-ring adjacency (the uniform
+ *                        Laplacian L), the faces, the fixed frame neighbour.
+ *   mim_xfer_solver_t    one (connectivity, constrained vertex set,
+ *                        formulation): the CHOLMOD analysis and factor, done
+ *                        once at open and reused by every transfer, plus
+ *                        all workspaces (no allocation per transfer).
+ *
+ * Arrays: positions are float x y z per vertex (mim_mesh_t layout); frames
+ * are double, 9 per vertex, F(v_i) column-major: frames[9i+3k+c] is
+ * component c of f_{k+1} (f1 normal, f2 tangent, f3 = f1 x f2); encodings W
+ * are double, 3 per vertex. */
+#ifndef MIM_TRANSFER_H
+#define MIM_TRANSFER_H
+
+#include "mim_core.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- connectivity and the uniform Laplacian (laplacian.c) ---- */
+typedef struct mim_xfer_topology mim_xfer_topology_t;
+
+/* Builds the one-ring adjacency from triangles (3 * n_faces indices).
+ * Returns 0, MIM_EINVAL (NULL, zero counts), MIM_EINDEX (index past
+ * n_vertices), MIM_EFORMAT (a face repeating a vertex) or MIM_ENOMEM. */
+int mim_xfer_topology_open(mim_xfer_topology_t **out, uint32_t n_vertices, const uint32_t *faces,
+                           uint32_t n_faces, mim_error_t *err);
+void mim_xfer_topology_close(mim_xfer_topology_t **t); /* accepts NULL, nulls */
+uint32_t mim_xfer_topology_n_vertices(const mim_xfer_topology_t *t);
+/* Sorted one-ring neighbours of v (deg(v) = *count); NULL if v is out of range. */
+const uint32_t *mim_xfer_neighbors(const mim_xfer_topology_t *t, uint32_t v, uint32_t *count);
+/* y = L x (3 columns, x y z per vertex), L_ii = deg(v_i), L_ij = -1 on edges. */
+void mim_xfer_laplacian_apply(const mim_xfer_topology_t *t, const double *x, double *y);
+
+/* Checks that a mesh is on this connectivity (same vertex count, same
+ * faces) and has finite positions: MIM_ETOPOLOGY / MIM_ENONFINITE with the
+ * vertex or face in the message; origin names the mesh in it. */
+int mim_xfer_check_mesh(const mim_xfer_topology_t *t, const mim_mesh_t *m, const char *origin,
+                        mim_error_t *err);
+
+/* ---- local frames (frames.c) ---- */
+/* frames (9 * n) of the mesh with these positions (3 * n floats). */
+void mim_xfer_frames(const mim_xfer_topology_t *t, const float *positions, double *frames);
+/* The same from double positions. */
+void mim_xfer_frames_d(const mim_xfer_topology_t *t, const double *positions, double *frames);
+
+/* ---- encoding W = F^T L X (encode.c) ---- */
+/* W (3 * n) of the mesh with these positions and their frames (from
+ * mim_xfer_frames on the same positions). */
+void mim_xfer_encode(const mim_xfer_topology_t *t, const float *positions, const double *frames,
+                     double *W);
+/* delta_i = F(v_i) W_i (3 * n): the Laplacian offsets W asks for in frames. */
+void mim_xfer_decode(uint32_t n_vertices, const double *frames, const double *W, double *delta);
+
+/* ---- the constrained solver (solver.c) ---- */
+typedef enum mim_xfer_formulation {
+    /* min ||L X - F*W||^2 over the free vertices, constrained vertices fixed:
+     * normal matrix L_f^T L_f (mimic's default: about half the error). */
+    MIM_XFER_LEAST_SQUARES = 0,
+    /* The paper's system (3): L^c X_f = F*W + b^c, constrained rows and
+     * columns removed. */
+    MIM_XFER_SQUARE = 1
+} mim_xfer_formulation_t;
+
+typedef struct mim_xfer_solver_options {
+    mim_xfer_formulation_t formulation; /* 0: least squares */
+    int supernodal;                     /* 0: simplicial (faster at this size) */
+} mim_xfer_solver_options_t;
+
+typedef struct mim_xfer_solver mim_xfer_solver_t;
+
+/* Analyses and factors once for this connectivity and constrained vertex
+ * set (count >= 1, distinct, < n; every connected component of the mesh
+ * must hold one). t must outlive the solver. One transfer at a time per
+ * solver (workspaces are shared). Returns 0, MIM_EINVAL, MIM_ETOPOLOGY (a
+ * component without constraint), MIM_ENOMEM, or MIM_EUNSUPPORTED (CHOLMOD
+ * failed: the message says why). */
+int mim_xfer_solver_open(mim_xfer_solver_t **out, const mim_xfer_topology_t *t,
+                         const uint32_t *constrained, uint32_t count,
+                         const mim_xfer_solver_options_t *opt, mim_error_t *err);
+void mim_xfer_solver_close(mim_xfer_solver_t **s); /* accepts NULL, nulls */
+
+typedef struct mim_xfer_solver_stats {
+    uint32_t n_free, n_constrained;
+    uint64_t analyses, factorizations, solves; /* counted since open */
+    double t_analyze, t_factorize;             /* seconds */
+    double factor_nnz;                         /* entries of the Cholesky factor */
+} mim_xfer_solver_stats_t;
+void mim_xfer_solver_stats(const mim_xfer_solver_t *s, mim_xfer_solver_stats_t *st);
+/* One solve of the factored system with a 3-column right-hand side
+ * (3 * n_free doubles, column-major x then y then z) into x (same layout).
+ * For benchmarks and tests; the transfer uses it internally. */
+int mim_xfer_solver_solve(mim_xfer_solver_t *s, const double *rhs, double *x, mim_error_t *err);
+
+/* ---- the transfer iteration (transfer.c) ---- */
+#define MIM_XFER_DEFAULT_MAX_ITERATIONS 10u
+#define MIM_XFER_DEFAULT_TOL 1e-4     /* metres: largest vertex move */
+/* Defaults measured with bench/transfer_accuracy.c (synth 7k and mh-bodies
+ * 13k vertices): without damping the error is lowest at iteration 2 and
+ * then grows; damping 0.5 with an early stop as soon as the largest move no
+ * longer halves gives the lowest mean and p95 on both (3-4 iterations).
+ * The tolerance is a floor: the iteration rarely gets that still. */
+#define MIM_XFER_DEFAULT_DAMPING 0.5    /* step fraction towards each new solve */
+#define MIM_XFER_DEFAULT_STOP_RATIO 0.5 /* stop when the move no longer halves */
+
+typedef struct mim_xfer_options {
+    uint32_t max_iterations; /* 0: MIM_XFER_DEFAULT_MAX_ITERATIONS */
+    double tol;              /* 0: MIM_XFER_DEFAULT_TOL; < 0: never converge */
+    double damping;          /* 0: MIM_XFER_DEFAULT_DAMPING; in (0, 1] */
+    int no_early_stop;       /* 1: do not stop when the move per iteration grows */
+    double stop_ratio;       /* 0: MIM_XFER_DEFAULT_STOP_RATIO; early stop when
+                                move_k > stop_ratio * move_{k-1} (k >= 3) */
+    const float *truth;      /* optional ground truth (3 * n) for error_by_iteration */
+    double *error_by_iteration; /* optional: max_iterations entries, mean |x - truth| */
+} mim_xfer_options_t;
+
+typedef struct mim_xfer_report {
+    uint32_t iterations; /* solves done */
+    double last_move;    /* largest vertex move of the last iteration (metres) */
+    int converged;       /* last_move < tol */
+    int early_stopped;   /* stopped because the move grew (oscillation) */
+} mim_xfer_report_t;
+
+/* Transfers the avatar (its encoding W, 3 * n) to the pose given by the
+ * frames `frames0` (9 * n, usually the template's) and the positions of the
+ * solver's constrained vertices `targets` (3 * count floats, in the order
+ * given to mim_xfer_solver_open). Mode (a) "template only": a solver on the
+ * pelvis vertex alone, target = the template's pelvis. Mode (b): a solver
+ * on all landmark vertices, targets = the tracked landmarks. (Mode (a) is
+ * far less accurate: with one anchor nothing holds the low-frequency drift
+ * of the reconstruction; see bench/transfer_accuracy.c.)
+ * n_vertices (the length of W, frames0 and out, in vertices) must be the
+ * connectivity's, n_targets the solver's constrained count.
+ * Writes 3 * n floats to out. report may be NULL. Returns 0, MIM_EINVAL
+ * (NULL arrays, bad options, wrong landmark count), MIM_ETOPOLOGY (vertex
+ * count differs), MIM_ENONFINITE (a NaN/inf target or W) or
+ * MIM_EUNSUPPORTED (solve failed). */
+int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices,
+                      const double *frames0, const float *targets, uint32_t n_targets,
+                      const mim_xfer_options_t *opt, float *out, mim_xfer_report_t *report,
+                      mim_error_t *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,202 @@
+/* The transfer iteration (seed 000, Section 3.4, "Final Algorithm"):
+ *   1) F* = F_T (the template's frames);
+ *   2) solve equation (3) (or its least-squares form, solver.c) for X*,
+ *      three right-hand sides F*(v_i) W_i plus the constraint terms;
+ *   3) recompute F* from X* (frames.c);
+ *   4) stop when the largest vertex move falls below tol, or at the cap.
+ * mimic adds two things, because the iteration does not converge to a
+ * tight tolerance (it improves for 2-3 iterations, then oscillates):
+ * damping (each new X moves only a fraction of the way from the last one)
+ * and an early stop when the largest move stops shrinking fast (move_k >
+ * stop_ratio * move_{k-1}, default 0.5), i.e. the iteration has started to
+ * drift or oscillate; it then returns the mean of the last two iterates,
+ * the middle of an oscillation. Nothing is allocated here: all
+ * workspaces live in the solver. */
+#include "internal.h"
+
+#include <math.h>
+#include <string.h>
+
+static void build_rhs(mim_xfer_solver_t *s, const double *W, const double *F, const float *u)
+{
+    const mim_xfer_topology_t *t = s->topo;
+    const uint32_t nf = s->nf;
+    double *B = s->B->x;
+    if (s->formulation == MIM_XFER_SQUARE) {
+        for (uint32_t j = 0; j < nf; j++) {
+            uint32_t v = s->free_v[j];
+            const double *f = F + 9 * (size_t)v, *w = W + 3 * (size_t)v;
+            double b[3];
+            for (int c = 0; c < 3; c++)
+                b[c] = f[c] * w[0] + f[3 + c] * w[1] + f[6 + c] * w[2];
+            /* b^c: -l_vu u_u = +u_u for constrained neighbours */
+            for (uint32_t k = t->adj_start[v]; k < t->adj_start[v + 1]; k++) {
+                int32_t q = s->slot[t->adj[k]];
+                if (q < 0) {
+                    const float *uu = u + 3 * (size_t)(-1 - q);
+                    b[0] += uu[0], b[1] += uu[1], b[2] += uu[2];
+                }
+            }
+            B[j] = b[0];
+            B[nf + j] = b[1];
+            B[2 * (size_t)nf + j] = b[2];
+        }
+        return;
+    }
+    /* least squares: r = F*W - L_:c U over all rows, then B = (L r)_f */
+    double *r = s->r;
+    for (uint32_t i = 0; i < s->n; i++) {
+        const double *f = F + 9 * (size_t)i, *w = W + 3 * (size_t)i;
+        double *ri = r + 3 * (size_t)i;
+        for (int c = 0; c < 3; c++)
+            ri[c] = f[c] * w[0] + f[3 + c] * w[1] + f[6 + c] * w[2];
+        int32_t qi = s->slot[i];
+        if (qi < 0) {
+            const float *uu = u + 3 * (size_t)(-1 - qi);
+            double d = (double)(t->adj_start[i + 1] - t->adj_start[i]);
+            ri[0] -= d * uu[0], ri[1] -= d * uu[1], ri[2] -= d * uu[2];
+        }
+        for (uint32_t k = t->adj_start[i]; k < t->adj_start[i + 1]; k++) {
+            int32_t q = s->slot[t->adj[k]];
+            if (q < 0) {
+                const float *uu = u + 3 * (size_t)(-1 - q);
+                ri[0] += uu[0], ri[1] += uu[1], ri[2] += uu[2];
+            }
+        }
+    }
+    for (uint32_t j = 0; j < nf; j++) {
+        uint32_t v = s->free_v[j];
+        double d = (double)(t->adj_start[v + 1] - t->adj_start[v]);
+        const double *rv = r + 3 * (size_t)v;
+        double b0 = d * rv[0], b1 = d * rv[1], b2 = d * rv[2];
+        for (uint32_t k = t->adj_start[v]; k < t->adj_start[v + 1]; k++) {
+            const double *ru = r + 3 * (size_t)t->adj[k];
+            b0 -= ru[0], b1 -= ru[1], b2 -= ru[2];
+        }
+        B[j] = b0;
+        B[nf + j] = b1;
+        B[2 * (size_t)nf + j] = b2;
+    }
+}
+
+static double mean_error(const double *pos, const float *truth, uint32_t n)
+{
+    double sum = 0.0;
+    for (uint32_t i = 0; i < n; i++) {
+        double dx = pos[3 * (size_t)i] - truth[3 * (size_t)i];
+        double dy = pos[3 * (size_t)i + 1] - truth[3 * (size_t)i + 1];
+        double dz = pos[3 * (size_t)i + 2] - truth[3 * (size_t)i + 2];
+        sum += sqrt(dx * dx + dy * dy + dz * dz);
+    }
+    return sum / n;
+}
+
+int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices,
+                      const double *frames0, const float *targets, uint32_t n_targets,
+                      const mim_xfer_options_t *opt, float *out, mim_xfer_report_t *report,
+                      mim_error_t *err)
+{
+    if (report)
+        memset(report, 0, sizeof *report);
+    if (!s || !W || !frames0 || !targets || !out)
+        return mim_error_set(err, MIM_EINVAL, "transfer: NULL solver, encoding, frames, targets or output");
+    if (n_vertices != s->n)
+        return mim_error_set(err, MIM_ETOPOLOGY, "transfer: mesh has %u vertices, the connectivity %u",
+                             n_vertices, s->n);
+    if (n_targets != s->nc)
+        return mim_error_set(err, MIM_EINVAL, "transfer: %u landmark positions given, %u expected",
+                             n_targets, s->nc);
+    mim_xfer_options_t o = {0};
+    if (opt)
+        o = *opt;
+    uint32_t maxit = o.max_iterations ? o.max_iterations : MIM_XFER_DEFAULT_MAX_ITERATIONS;
+    double tol = o.tol != 0.0 ? o.tol : MIM_XFER_DEFAULT_TOL;
+    double alpha = o.damping != 0.0 ? o.damping : MIM_XFER_DEFAULT_DAMPING;
+    double ratio = o.stop_ratio != 0.0 ? o.stop_ratio : MIM_XFER_DEFAULT_STOP_RATIO;
+    if (!(ratio > 0.0))
+        return mim_error_set(err, MIM_EINVAL, "transfer: stop ratio %g not positive", ratio);
+    if (!(alpha > 0.0 && alpha <= 1.0))
+        return mim_error_set(err, MIM_EINVAL, "transfer: damping %g outside (0, 1]", alpha);
+    if (isnan(tol))
+        return mim_error_set(err, MIM_EINVAL, "transfer: tolerance is NaN");
+    if (o.error_by_iteration && !o.truth)
+        return mim_error_set(err, MIM_EINVAL, "transfer: error_by_iteration needs truth");
+    for (uint32_t c = 0; c < s->nc; c++)
+        for (int k = 0; k < 3; k++)
+            if (!isfinite(targets[3 * (size_t)c + k]))
+                return mim_error_set(err, MIM_ENONFINITE,
+                                     "transfer: landmark %u (vertex %u) has a non-finite coordinate %c",
+                                     c, s->cons[c], "xyz"[k]);
+    for (size_t i = 0; i < 3 * (size_t)s->n; i++)
+        if (!isfinite(W[i]))
+            return mim_error_set(err, MIM_ENONFINITE, "transfer: encoding of vertex %zu is not finite", i / 3);
+
+    const uint32_t n = s->n, nf = s->nf;
+    double *pos = s->pos, *prev = s->prev;
+    const double *F = frames0;
+    double last_prev_move = INFINITY, move = INFINITY;
+    uint32_t it = 0;
+    int converged = 0, early = 0;
+    while (it < maxit) {
+        build_rhs(s, W, F, targets);
+        int rc = mim__xfer_solve(s, err);
+        if (rc)
+            return rc;
+        it++;
+        const double *X = s->X->x;
+        double mv = 0.0;
+        for (uint32_t j = 0; j < nf; j++) {
+            double *p = pos + 3 * (size_t)s->free_v[j];
+            const double *q = prev + 3 * (size_t)s->free_v[j];
+            double m2 = 0.0;
+            for (int c = 0; c < 3; c++) {
+                double x = X[(size_t)c * nf + j];
+                if (it > 1) {
+                    x = q[c] + alpha * (x - q[c]);
+                    m2 += (x - q[c]) * (x - q[c]);
+                }
+                p[c] = x;
+            }
+            if (m2 > mv)
+                mv = m2;
+        }
+        for (uint32_t c = 0; c < s->nc; c++)
+            for (int k = 0; k < 3; k++)
+                pos[3 * (size_t)s->cons[c] + k] = targets[3 * (size_t)c + k];
+        last_prev_move = move;
+        move = it > 1 ? sqrt(mv) : INFINITY;
+        if (it > 2 && !o.no_early_stop && move > ratio * last_prev_move) {
+            /* oscillation: return the middle of the last two iterates */
+            for (size_t i = 0; i < 3 * (size_t)n; i++)
+                pos[i] = 0.5 * (pos[i] + prev[i]);
+            early = 1;
+        }
+        if (o.error_by_iteration)
+            o.error_by_iteration[it - 1] = mean_error(pos, o.truth, n);
+        if (early)
+            break;
+        if (move < tol) {
+            converged = 1;
+            break;
+        }
+        /* swap so prev holds this iterate */
+        double *tmp = pos;
+        pos = prev;
+        prev = tmp;
+        if (it < maxit) {
+            mim_xfer_frames_d(s->topo, prev, s->frames);
+            F = s->frames;
+        }
+    }
+    /* the result is in pos unless the loop ended by the cap after a swap */
+    const double *res = (converged || early) ? pos : prev;
+    for (size_t i = 0; i < 3 * (size_t)n; i++)
+        out[i] = (float)res[i];
+    if (report) {
+        report->iterations = it;
+        report->last_move = move;
+        report->converged = converged;
+        report->early_stopped = early;
+    }
+    return 0;
+}
