@@ -100,6 +100,27 @@ int mim_landmarks_write(const mim_landmark_map_t *map, const char *path, mim_err
 int mim_landmarks_validate(const mim_landmark_map_t *map, uint32_t n_vertices, const char *origin,
                            mim_error_t *err);
 
+/* ---- landmark frames: tracked landmark positions, one frame or a batch ----
+ * File format (schemas/landmark-frames.schema.json), in landmark map order:
+ * {"frames": [{"landmarks": [[x, y, z] | null, ...]}, ...]} or, for one
+ * frame, {"landmarks": [...]}. null marks a lost landmark. */
+typedef struct mim_landmark_frames {
+    uint32_t n_frames, n_landmarks;
+    float *positions; /* n_frames * n_landmarks * 3; NaN where missing */
+    uint8_t *present; /* n_frames * n_landmarks: 1 present, 0 missing (null) */
+} mim_landmark_frames_t;
+/* Errors: malformed JSON with file:line:column (MIM_EFORMAT); a frame whose
+ * landmark count differs from n_landmarks, a coordinate that is not a
+ * number, or more than max_missing nulls in a frame (MIM_EFORMAT, naming
+ * the frame and landmark); a number that is not a finite float
+ * (MIM_ENONFINITE); a file that cannot be opened (MIM_ENOTFOUND/MIM_EIO).
+ * On error *out is left empty. */
+int mim_landmark_frames_read(const char *path, uint32_t n_landmarks, uint32_t max_missing,
+                             mim_landmark_frames_t *out, mim_error_t *err);
+int mim_landmark_frames_parse(const char *text, size_t len, const char *origin, uint32_t n_landmarks,
+                              uint32_t max_missing, mim_landmark_frames_t *out, mim_error_t *err);
+void mim_landmark_frames_free(mim_landmark_frames_t *f); /* accepts NULL and an empty set */
+
 /* ---- hashing: 64-bit, fast, stable across runs and machines ---- */
 uint64_t mim_hash64(const void *data, size_t len, uint64_t seed);
 

@@ -112,6 +112,62 @@ static void test_landmarks(void **s)
     assert_non_null(strstr(e.msg, "/nonexistent/landmarks.json"));
 }
 
+/* Landmark frames: both layouts, nulls, and each bad input with where. */
+static void test_landmark_frames(void **s)
+{
+    (void)s;
+    mim_error_t e = {0};
+    mim_landmark_frames_t f;
+    const char *one = "{\"landmarks\": [[0,0,0],[1,0,0],null,[0,0,1.5]]}";
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(one, strlen(one), "one", 4, 3, &f, &e), 0);
+    assert_int_equal(f.n_frames, 1);
+    assert_int_equal(f.present[2], 0);
+    assert_int_equal(f.present[3], 1);
+    assert_true(isnan(f.positions[6]));
+    assert_true(f.positions[11] == 1.5f);
+    mim_landmark_frames_free(&f);
+
+    const char *batch = "{\"frames\": [{\"landmarks\": [[0,0,0],[1,0,0],[0,1,0],[0,0,1]]},\n"
+                        " {\"landmarks\": [[0,0,0],[2,0,0],[0,2,0],[0,0,2]]}]}";
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(batch, strlen(batch), "batch", 4, 0, &f, &e), 0);
+    assert_int_equal(f.n_frames, 2);
+    assert_true(f.positions[12 + 3] == 2.0f);
+    mim_landmark_frames_free(&f);
+
+    /* malformed JSON: line and column */
+    const char *bad = "{\"frames\": [\n  {\"landmarks\": [[0,0,0],]}]}";
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(bad, strlen(bad), "bad.json", 4, 3, &f, &e), MIM_EFORMAT);
+    assert_non_null(strstr(e.msg, "bad.json:2:"));
+    assert_null(f.positions);
+    /* wrong count names the frame */
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(batch, strlen(batch), "b", 5, 3, &f, &e), MIM_EFORMAT);
+    assert_non_null(strstr(e.msg, "frame 0 has 4 landmarks"));
+    /* too many missing */
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(one, strlen(one), "one", 4, 0, &f, &e), MIM_EFORMAT);
+    assert_non_null(strstr(e.msg, "1 missing"));
+    /* a string coordinate, and a float overflow */
+    const char *str = "{\"landmarks\": [[0,0,0],[1,\"x\",0],[0,1,0],[0,0,1]]}";
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(str, strlen(str), "s", 4, 3, &f, &e), MIM_EFORMAT);
+    assert_non_null(strstr(e.msg, "landmark 1: y is not a number"));
+    const char *big = "{\"landmarks\": [[0,0,0],[1,0,0],[0,1e300,0],[0,0,1]]}";
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(big, strlen(big), "g", 4, 3, &f, &e), MIM_ENONFINITE);
+    /* NaN is not JSON */
+    const char *nan = "{\"landmarks\": [[0,0,0],[NaN,0,0],[0,1,0],[0,0,1]]}";
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(nan, strlen(nan), "n", 4, 3, &f, &e), MIM_EFORMAT);
+    assert_non_null(strstr(e.msg, "n:1:"));
+    /* missing file */
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_read("/nonexistent/x.json", 4, 3, &f, &e), MIM_ENOTFOUND);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -119,6 +175,7 @@ int main(void)
         cmocka_unit_test(test_hash),
         cmocka_unit_test(test_quaternions),
         cmocka_unit_test(test_landmarks),
+        cmocka_unit_test(test_landmark_frames),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

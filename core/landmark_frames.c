@@ -1,0 +1,156 @@
+/* Landmark frames: the tracked positions of the landmark map's landmarks,
+ * one frame or a batch, as `mimic query` and `mimic transfer` read them
+ * (schemas/landmark-frames.schema.json):
+ *   {"frames": [{"landmarks": [[x, y, z] | null, ...]}, ...]}  or
+ *   {"landmarks": [[x, y, z] | null, ...]}                      (one frame)
+ * in the order of the store's landmark map. null marks a landmark the
+ * tracker lost. JSON through jansson: malformed text is reported with line
+ * and column; a wrong count or a bad coordinate names the frame and the
+ * landmark. */
+#include "mim_core.h"
+
+#include <errno.h>
+#include <jansson.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+void mim_landmark_frames_free(mim_landmark_frames_t *f)
+{
+    if (!f)
+        return;
+    free(f->positions);
+    free(f->present);
+    memset(f, 0, sizeof *f);
+}
+
+/* One frame's "landmarks" array into pos/present. */
+static int parse_frame(json_t *lm, const char *origin, uint32_t fi, uint32_t n, uint32_t max_missing,
+                       float *pos, uint8_t *present, mim_error_t *err)
+{
+    if (!json_is_array(lm))
+        return mim_error_set(err, MIM_EFORMAT, "%s: frame %u: \"landmarks\" must be an array", origin, fi);
+    if (json_array_size(lm) != n)
+        return mim_error_set(err, MIM_EFORMAT, "%s: frame %u has %zu landmarks, the landmark map has %u",
+                             origin, fi, json_array_size(lm), n);
+    uint32_t missing = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        json_t *p = json_array_get(lm, i);
+        if (json_is_null(p)) {
+            present[i] = 0;
+            pos[3 * i] = pos[3 * i + 1] = pos[3 * i + 2] = NAN;
+            missing++;
+            continue;
+        }
+        if (!json_is_array(p) || json_array_size(p) != 3)
+            return mim_error_set(err, MIM_EFORMAT,
+                                 "%s: frame %u, landmark %u: expected [x, y, z] or null", origin, fi, i);
+        for (int c = 0; c < 3; c++) {
+            json_t *v = json_array_get(p, (size_t)c);
+            if (!json_is_number(v))
+                return mim_error_set(err, MIM_EFORMAT, "%s: frame %u, landmark %u: %c is not a number",
+                                     origin, fi, i, "xyz"[c]);
+            double x = json_number_value(v);
+            if (!isfinite(x) || !isfinite((float)x))
+                return mim_error_set(err, MIM_ENONFINITE,
+                                     "%s: frame %u, landmark %u: %c = %g is not a finite float", origin,
+                                     fi, i, "xyz"[c], x);
+            pos[3 * i + (uint32_t)c] = (float)x;
+        }
+        present[i] = 1;
+    }
+    if (missing > max_missing)
+        return mim_error_set(err, MIM_EFORMAT, "%s: frame %u has %u missing landmarks, at most %u allowed",
+                             origin, fi, missing, max_missing);
+    return 0;
+}
+
+static int parse_root(json_t *root, const char *origin, uint32_t n, uint32_t max_missing,
+                      mim_landmark_frames_t *out, mim_error_t *err)
+{
+    if (!json_is_object(root))
+        return mim_error_set(err, MIM_EFORMAT, "%s: expected an object with \"frames\" or \"landmarks\"",
+                             origin);
+    json_t *frames = json_object_get(root, "frames");
+    json_t *single = json_object_get(root, "landmarks");
+    if (frames && single)
+        return mim_error_set(err, MIM_EFORMAT, "%s: has both \"frames\" and \"landmarks\"; use one", origin);
+    size_t nf;
+    if (frames) {
+        if (!json_is_array(frames) || json_array_size(frames) == 0)
+            return mim_error_set(err, MIM_EFORMAT, "%s: \"frames\" must be a non-empty array", origin);
+        nf = json_array_size(frames);
+    } else if (single) {
+        nf = 1;
+    } else {
+        return mim_error_set(err, MIM_EFORMAT, "%s: no \"frames\" or \"landmarks\" member", origin);
+    }
+    if (nf > UINT32_MAX / 3 / (n ? n : 1))
+        return mim_error_set(err, MIM_EFORMAT, "%s: %zu frames is too many", origin, nf);
+    out->positions = malloc(nf * n * 3 * sizeof(float));
+    out->present = malloc(nf * n);
+    if (!out->positions || !out->present)
+        return mim_error_set(err, MIM_ENOMEM, "%s: out of memory for %zu frames", origin, nf);
+    out->n_frames = (uint32_t)nf;
+    out->n_landmarks = n;
+    for (size_t f = 0; f < nf; f++) {
+        json_t *lm = single;
+        if (frames) {
+            json_t *fr = json_array_get(frames, f);
+            lm = json_is_object(fr) ? json_object_get(fr, "landmarks") : NULL;
+            if (!lm)
+                return mim_error_set(err, MIM_EFORMAT, "%s: frame %zu is not an object with \"landmarks\"",
+                                     origin, f);
+        }
+        int rc = parse_frame(lm, origin, (uint32_t)f, n, max_missing, out->positions + f * n * 3,
+                             out->present + f * n, err);
+        if (rc)
+            return rc;
+    }
+    return 0;
+}
+
+static int finish(json_t *root, const char *origin, uint32_t n, uint32_t max_missing,
+                  mim_landmark_frames_t *out, mim_error_t *err)
+{
+    int rc = parse_root(root, origin, n, max_missing, out, err);
+    json_decref(root);
+    if (rc)
+        mim_landmark_frames_free(out);
+    return rc;
+}
+
+int mim_landmark_frames_parse(const char *text, size_t len, const char *origin, uint32_t n_landmarks,
+                              uint32_t max_missing, mim_landmark_frames_t *out, mim_error_t *err)
+{
+    memset(out, 0, sizeof *out);
+    if (!text || n_landmarks < MIM_LANDMARKS_MIN || n_landmarks > MIM_LANDMARKS_MAX)
+        return mim_error_set(err, MIM_EINVAL, "%s: bad arguments (%u landmarks)", origin ? origin : "frames",
+                             n_landmarks);
+    origin = origin ? origin : "landmark frames";
+    json_error_t je;
+    json_t *root = json_loadb(text, len, JSON_REJECT_DUPLICATES, &je);
+    if (!root)
+        return mim_error_set(err, MIM_EFORMAT, "%s:%d:%d: %s", origin, je.line, je.column, je.text);
+    return finish(root, origin, n_landmarks, max_missing, out, err);
+}
+
+int mim_landmark_frames_read(const char *path, uint32_t n_landmarks, uint32_t max_missing,
+                             mim_landmark_frames_t *out, mim_error_t *err)
+{
+    memset(out, 0, sizeof *out);
+    if (!path || n_landmarks < MIM_LANDMARKS_MIN || n_landmarks > MIM_LANDMARKS_MAX)
+        return mim_error_set(err, MIM_EINVAL, "landmark frames: bad arguments (%u landmarks)", n_landmarks);
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return mim_error_set(err, errno == ENOENT ? MIM_ENOTFOUND : MIM_EIO, "%s: cannot open: %s", path,
+                             strerror(errno));
+    json_error_t je;
+    json_t *root = json_loadf(f, JSON_REJECT_DUPLICATES, &je);
+    int rerr = ferror(f);
+    fclose(f);
+    if (!root)
+        return mim_error_set(err, rerr ? MIM_EIO : MIM_EFORMAT, "%s:%d:%d: %s", path, je.line, je.column,
+                             je.text);
+    return finish(root, path, n_landmarks, max_missing, out, err);
+}
