@@ -6,9 +6,12 @@
  * in pose p (same connectivity). Errors are per-vertex distances in mm,
  * pooled over all vertices of all pairs (A != B, p != 0).
  *
+ * Timings are in bench/transfer.c.
+ *
  * usage: bench_transfer_accuracy [--vertices N] [--mh DIR | --no-mh] [--pairs-max K]
  * The mh-bodies folder defaults to $MIMIC_SHARED_DATA/mh-bodies, else
  * ../shared/data/mh-bodies beside the source tree; it is skipped when absent. */
+#include "bench_data.h"
 #include "mim_core.h"
 #include "mim_ingest.h"
 #include "mim_synth.h"
@@ -21,14 +24,6 @@
 
 #define MAXIT 10
 #define HIST_BINS 200000 /* 0.01 mm bins up to 2 m */
-
-typedef struct dataset {
-    const char *name;
-    uint32_t n, n_faces, subjects, poses;
-    uint32_t *faces;
-    mim_landmark_map_t map;
-    float **pos; /* [s * poses + p] */
-} dataset_t;
 
 typedef struct stat {
     const char *name;
@@ -65,90 +60,7 @@ static double stat_p95(const stat_t *st)
     return INFINITY;
 }
 
-static int cmp_d(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-static double median(double *v, int k)
-{
-    qsort(v, (size_t)k, sizeof *v, cmp_d);
-    return v[k / 2];
-}
-
-static int load_synth(dataset_t *d, uint32_t vertices)
-{
-    mim_error_t err = {0};
-    mim_synth_t *s = NULL;
-    mim_synth_options_t o = {.subjects = 4, .poses = 12, .vertices = vertices, .seed = 1};
-    if (mim_synth_create(&s, &o, &err)) {
-        fprintf(stderr, "synth: %s\n", mim_error_text(&err));
-        return -1;
-    }
-    d->name = "synth";
-    d->n = mim_synth_n_vertices(s);
-    d->n_faces = mim_synth_n_faces(s);
-    d->subjects = 4;
-    d->poses = 12;
-    d->faces = malloc(3 * (size_t)d->n_faces * sizeof *d->faces);
-    memcpy(d->faces, mim_synth_faces(s), 3 * (size_t)d->n_faces * sizeof *d->faces);
-    mim_synth_landmarks(s, &d->map);
-    d->pos = calloc((size_t)d->subjects * d->poses, sizeof *d->pos);
-    for (uint32_t k = 0; k < d->subjects * d->poses; k++) {
-        d->pos[k] = malloc(3 * (size_t)d->n * sizeof(float));
-        mim_synth_body(s, k / d->poses, k % d->poses, d->pos[k]);
-    }
-    mim_synth_destroy(&s);
-    return 0;
-}
-
-static int load_mh(dataset_t *d, const char *dir)
-{
-    mim_error_t err = {0};
-    char path[4096];
-    snprintf(path, sizeof path, "%s/landmarks.json", dir);
-    if (mim_landmarks_read(&d->map, path, &err))
-        return -1;
-    d->name = "mh-bodies";
-    d->subjects = 8;
-    d->poses = 12;
-    d->pos = calloc((size_t)d->subjects * d->poses, sizeof *d->pos);
-    for (uint32_t k = 0; k < d->subjects * d->poses; k++) {
-        mim_mesh_t m = {0};
-        snprintf(path, sizeof path, "%s/mh_s%02u_p%02u.ply", dir, k / d->poses, k % d->poses);
-        if (mim_mesh_read(path, &m, &err)) {
-            fprintf(stderr, "mh-bodies: %s\n", mim_error_text(&err));
-            return -1;
-        }
-        if (k == 0) {
-            d->n = m.n_vertices;
-            d->n_faces = m.n_faces;
-            d->faces = malloc(3 * (size_t)m.n_faces * sizeof *d->faces);
-            memcpy(d->faces, m.faces, 3 * (size_t)m.n_faces * sizeof *d->faces);
-        } else if (m.n_vertices != d->n || m.n_faces != d->n_faces ||
-                   memcmp(m.faces, d->faces, 3 * (size_t)m.n_faces * sizeof *d->faces)) {
-            fprintf(stderr, "mh-bodies: %s: connectivity differs\n", path);
-            return -1;
-        }
-        d->pos[k] = m.positions;
-        m.positions = NULL;
-        mim_mesh_free(&m);
-    }
-    return 0;
-}
-
-static void dataset_free(dataset_t *d)
-{
-    if (d->pos)
-        for (uint32_t k = 0; k < d->subjects * d->poses; k++)
-            free(d->pos[k]);
-    free(d->pos);
-    free(d->faces);
-    memset(d, 0, sizeof *d);
-}
-
-enum { M_BASE1, M_BASE2, M_PAPER, M_LS10, M_DEFAULT, M_LS_D1, M_LS_D07, M_LS_D05R1, M_LS_D05R07, M_SQ_DEF, M_LS2, M_LS3, M_ANCHOR, M_COUNT };
+enum { M_BASE1, M_BASE2, M_PAPER, M_LS10, M_DEFAULT, M_LS_D1, M_LS_D07, M_LS_D05R1, M_LS_D05R07, M_SQ_DEF, M_LS2, M_LS3, M_ANCHOR, M_RETARGET, M_COUNT };
 static const char *method_names[M_COUNT] = {
     "baseline 1: B moved to landmark centroid",
     "baseline 2: Laplacian editing, avatar rest frames",
@@ -162,10 +74,11 @@ static const char *method_names[M_COUNT] = {
     "square, mimic defaults (early stop)",
     "least squares, 2 it, no damping",
     "least squares, 3 it, no damping",
-    "mode (a) template only: pelvis anchor, LS defaults",
+    "mode (a) template only, the paper's way: pelvis anchor alone, LS defaults",
+    "mode (a) template only, mimic: landmarks retargeted from the template, LS defaults",
 };
 
-static int run_accuracy(const dataset_t *d, uint32_t pairs_max)
+static int run_accuracy(const bench_dataset_t *d, uint32_t pairs_max)
 {
     mim_error_t err = {0};
     const uint32_t n = d->n, c = d->map.count;
@@ -228,6 +141,18 @@ static int run_accuracy(const dataset_t *d, uint32_t pairs_max)
                         ca[q] += targets[3 * k + q] / c;
                         cb[q] += tmpl[3 * (size_t)d->map.vertex[k] + q] / c;
                     }
+                /* mode (a), mimic: landmarks retargeted from the template onto
+                 * A's proportions; like the pelvis-anchor row it is placed at
+                 * the true pelvis (translation is all it takes from A's pose) */
+                float retarget[3 * MIM_LANDMARKS_MAX];
+                if (mim_xfer_retarget_landmarks(&d->map, rest, tmpl, retarget, &err))
+                    goto fail;
+                float shift[3];
+                for (int q = 0; q < 3; q++)
+                    shift[q] = targets[6 + q] - retarget[6 + q];
+                for (uint32_t k = 0; k < c; k++)
+                    for (int q = 0; q < 3; q++)
+                        retarget[3 * k + q] += shift[q];
                 /* baseline 1 */
                 for (uint32_t i = 0; i < n; i++)
                     for (int q = 0; q < 3; q++)
@@ -254,12 +179,13 @@ static int run_accuracy(const dataset_t *d, uint32_t pairs_max)
                     {M_LS2, ls, Ft, {.max_iterations = 2, .tol = -1, .damping = 1, .no_early_stop = 1}, NULL},
                     {M_LS3, ls, Ft, {.max_iterations = 3, .tol = -1, .damping = 1, .no_early_stop = 1}, NULL},
                     {M_ANCHOR, an, Ft, {0}, NULL},
+                    {M_RETARGET, ls, Ft, {0}, NULL},
                 };
                 for (size_t r = 0; r < sizeof runs / sizeof runs[0]; r++) {
                     /* mode (a) gets the pelvis (landmark 2) alone */
                     int anchor = runs[r].s == an;
-                    if (mim_xfer_transfer(runs[r].s, W, n, runs[r].F, anchor ? targets + 6 : targets,
-                                          anchor ? 1 : c, &runs[r].o, out, &rep, &err))
+                    const float *u = anchor ? targets + 6 : runs[r].m == M_RETARGET ? retarget : targets;
+                    if (mim_xfer_transfer(runs[r].s, W, n, runs[r].F, u, anchor ? 1 : c, &runs[r].o, out, &rep, &err))
                         goto fail;
                     stat_add(&st[runs[r].m], out, truth, n);
                     if (runs[r].m == M_DEFAULT || runs[r].m == M_PAPER) {
@@ -337,99 +263,6 @@ fail:
     return -1;
 }
 
-#define RUNS 101
-
-static int run_timings(const dataset_t *d)
-{
-    mim_error_t err = {0};
-    const uint32_t n = d->n, c = d->map.count;
-    mim_xfer_topology_t *topo = NULL;
-    double t0 = mim_now();
-    if (mim_xfer_topology_open(&topo, n, d->faces, d->n_faces, &err)) {
-        fprintf(stderr, "bench: %s\n", mim_error_text(&err));
-        return -1;
-    }
-    double t_topo = mim_now() - t0;
-    double *W = malloc(3 * (size_t)n * sizeof(double));
-    double *Fa = malloc(9 * (size_t)n * sizeof(double));
-    double *Ft = malloc(9 * (size_t)n * sizeof(double));
-    float *out = malloc(3 * (size_t)n * sizeof(float));
-    float *targets = malloc(3 * (size_t)c * sizeof(float));
-    double *rhs = NULL, *x = NULL;
-    const float *rest = d->pos[0], *tmpl = d->pos[1 * d->poses + 3], *truth = d->pos[3];
-    for (uint32_t k = 0; k < c; k++)
-        for (int q = 0; q < 3; q++)
-            targets[3 * k + q] = truth[3 * (size_t)d->map.vertex[k] + q];
-    double v[RUNS];
-    for (int k = 0; k < RUNS; k++) {
-        t0 = mim_now();
-        mim_xfer_frames(topo, tmpl, Ft);
-        v[k] = mim_now() - t0;
-    }
-    double t_frames = median(v, RUNS);
-    mim_xfer_frames(topo, rest, Fa);
-    mim_xfer_encode(topo, rest, Fa, W);
-    printf("\n## timings, %s, %u vertices (median of %d runs, one core)\n\n", d->name, n, RUNS);
-    printf("adjacency (Laplacian) build: %.3f ms; frames: %.3f ms\n\n", 1e3 * t_topo, 1e3 * t_frames);
-    printf("| formulation | analysis ms | factorization ms | factor nnz | plain solve ms | iteration ms | iteration / solve | default transfer ms (iterations) |\n|---|---:|---:|---:|---:|---:|---:|---:|\n");
-    for (int f = 0; f < 2; f++) {
-        mim_xfer_solver_options_t so = {.formulation = f ? MIM_XFER_SQUARE : MIM_XFER_LEAST_SQUARES};
-        mim_xfer_solver_t *s = NULL;
-        if (mim_xfer_solver_open(&s, topo, d->map.vertex, c, &so, &err)) {
-            fprintf(stderr, "bench: %s\n", mim_error_text(&err));
-            break;
-        }
-        mim_xfer_solver_stats_t ss;
-        mim_xfer_solver_stats(s, &ss);
-        free(rhs);
-        free(x);
-        rhs = calloc(3 * (size_t)ss.n_free, sizeof(double));
-        x = calloc(3 * (size_t)ss.n_free, sizeof(double));
-        for (size_t i = 0; i < 3 * (size_t)ss.n_free; i++)
-            rhs[i] = (double)(i % 7) - 3.0;
-        for (int k = 0; k < RUNS; k++) {
-            t0 = mim_now();
-            mim_xfer_solver_solve(s, rhs, x, &err);
-            v[k] = mim_now() - t0;
-        }
-        double t_solve = median(v, RUNS);
-        /* one iteration = (2 iterations) - (1 iteration): frames + RHS + solve */
-        mim_xfer_options_t o1 = {.max_iterations = 1, .tol = -1, .no_early_stop = 1};
-        mim_xfer_options_t o2 = {.max_iterations = 2, .tol = -1, .damping = 1, .no_early_stop = 1};
-        double v2[RUNS];
-        for (int k = 0; k < RUNS; k++) {
-            t0 = mim_now();
-            mim_xfer_transfer(s, W, n, Ft, targets, c, &o1, out, NULL, &err);
-            v[k] = mim_now() - t0;
-            t0 = mim_now();
-            mim_xfer_transfer(s, W, n, Ft, targets, c, &o2, out, NULL, &err);
-            v2[k] = mim_now() - t0;
-        }
-        double t_it = median(v2, RUNS) - median(v, RUNS);
-        mim_xfer_report_t rep = {0};
-        for (int k = 0; k < RUNS; k++) {
-            t0 = mim_now();
-            mim_xfer_transfer(s, W, n, Ft, targets, c, NULL, out, &rep, &err);
-            v[k] = mim_now() - t0;
-        }
-        double t_whole = median(v, RUNS);
-        mim_xfer_solver_stats(s, &ss);
-        printf("| %s | %.3f | %.3f | %.0f | %.3f | %.3f | %.2f | %.3f (%u) |\n", f ? "square L^c" : "least squares",
-               1e3 * ss.t_analyze, 1e3 * ss.t_factorize, ss.factor_nnz, 1e3 * t_solve, 1e3 * t_it,
-               t_it / t_solve, 1e3 * t_whole, rep.iterations);
-        mim_xfer_solver_close(&s);
-    }
-    free(rhs);
-    free(x);
-    free(W);
-    free(Fa);
-    free(Ft);
-    free(out);
-    free(targets);
-    mim_xfer_topology_close(&topo);
-    return 0;
-}
-
 int main(int argc, char **argv)
 {
     uint32_t vertices = 7000, pairs_max = 0;
@@ -450,43 +283,24 @@ int main(int argc, char **argv)
             return 2;
         }
     }
-    if (!mh) {
-        const char *env = getenv("MIMIC_SHARED_DATA");
-        if (env) {
-            snprintf(buf, sizeof buf, "%s/mh-bodies", env);
-        } else {
-            /* the source tree's sibling ../shared/data */
-            snprintf(buf, sizeof buf, "%s", __FILE__);
-            char *slash = strrchr(buf, '/');
-            if (slash)
-                *slash = 0;
-            strncat(buf, "/../../shared/data/mh-bodies", sizeof buf - strlen(buf) - 1);
-        }
-        mh = buf;
-    }
+    if (!mh)
+        mh = bench_mh_dir(buf, sizeof buf);
     mim_log_level = 0;
-    dataset_t d = {0};
-    if (load_synth(&d, vertices))
+    bench_dataset_t d = {0};
+    if (bench_load_synth(&d, 4, 12, vertices))
         return 1;
     run_accuracy(&d, pairs_max);
-    run_timings(&d);
-    dataset_free(&d);
+    bench_dataset_free(&d);
     if (!no_mh) {
-        char probe[4200];
-        snprintf(probe, sizeof probe, "%s/landmarks.json", mh);
-        FILE *f = fopen(probe, "r");
-        if (!f) {
+        int rc = bench_load_mh(&d, mh);
+        if (rc > 0) {
             printf("\nmh-bodies: %s not found, skipped\n", mh);
             return 0;
         }
-        fclose(f);
-        if (load_mh(&d, mh)) {
-            dataset_free(&d);
+        if (rc < 0)
             return 1;
-        }
         run_accuracy(&d, pairs_max);
-        run_timings(&d);
-        dataset_free(&d);
+        bench_dataset_free(&d);
     }
     return 0;
 }

@@ -1,6 +1,7 @@
 /* mimic info: what a template store holds. JSON: schemas/info.schema.json. */
 #include "commands.h"
 #include "mim_db.h"
+#include "mim_query.h"
 
 #include <getopt.h>
 #include <jansson.h>
@@ -12,7 +13,9 @@ static void help(FILE *out)
 {
     fprintf(out, "usage: mimic info --store DIR [--json]\n\n"
                  "Describes a template store: number of templates, counts by subject and by pose,\n"
-                 "the reference connectivity, the landmark map, the schema version and the size on disk.\n\n"
+                 "the reference connectivity, the landmark map, the schema version, the size on disk,\n"
+                 "and the recognition index (mimic index): its classes (pose labels or k-means) and\n"
+                 "whether it is stale (templates added since it was built).\n\n"
                  "  --store DIR  the template store\n"
                  "  --json       one JSON object on stdout (schemas/info.schema.json)\n"
                  "  -h, --help   this help\n");
@@ -108,6 +111,8 @@ int mim_cmd_info(int argc, char **argv)
     }
     if (!rc) rc = mim_db_template_each(t, tally, &ta, &err);
     if (!rc) rc = mim_db_stat(db, &st, &err);
+    mim_query_status_t qs = {0};
+    if (!rc) rc = mim_query_status(db, &qs, &err);
     if (rc) {
         fprintf(stderr, "mimic info: %s\n", mim_error_text(&err));
         goto done;
@@ -143,6 +148,14 @@ int mim_cmd_info(int argc, char **argv)
                                       (json_int_t)st.file_bytes, "used_bytes",
                                       (json_int_t)(st.pages_used * st.page_size), "template_bytes",
                                       (json_int_t)st.template_bytes, "bytes_per_template", per_template));
+        if (qs.has_index)
+            json_object_set_new(root, "index",
+                                json_pack("{s:b, s:s, s:I, s:I, s:I}", "stale", qs.stale, "class_source",
+                                          qs.built.class_source == MIM_CLASSES_KMEANS ? "kmeans" : "labels", "classes",
+                                          (json_int_t)qs.built.n_classes, "features", (json_int_t)qs.built.d,
+                                          "templates", (json_int_t)qs.built.templates));
+        else
+            json_object_set_new(root, "index", json_null());
         char *s = json_dumps(root, JSON_INDENT(2) | JSON_PRESERVE_ORDER);
         printf("%s\n", s);
         free(s);
@@ -165,6 +178,13 @@ int mim_cmd_info(int argc, char **argv)
         } else {
             printf("landmarks    (none yet)\n");
         }
+        if (qs.has_index)
+            printf("index        %u classes from %s, %u angles, built over %llu templates%s\n", qs.built.n_classes,
+                   qs.built.class_source == MIM_CLASSES_KMEANS ? "k-means (no pose labels)" : "pose labels",
+                   qs.built.d, (unsigned long long)qs.built.templates,
+                   qs.stale ? "; STALE: templates were added since (run mimic index)" : "");
+        else
+            printf("index        (none: run mimic index)\n");
         printf("size         %.1f MiB on disk, %.1f MiB in use, %.0f bytes per template\n",
                (double)st.disk_bytes / 1048576.0, (double)(st.pages_used * st.page_size) / 1048576.0, per_template);
     }

@@ -14,6 +14,11 @@ static const struct {
     {"ingest", mim_cmd_ingest, "put mesh files into a template store"},
     {"info", mim_cmd_info, "describe a template store"},
     {"list", mim_cmd_list, "list the templates of a store"},
+    {"index", mim_cmd_index, "build the pose recognition index of a store"},
+    {"query", mim_cmd_query, "find the nearest-pose templates of landmark frames"},
+    {"transfer", mim_cmd_transfer, "deform an avatar into a template's pose and/or landmarks"},
+    {"morph", mim_cmd_morph, "key poses and the poses between them, as a GLB animation"},
+    {"vest", mim_cmd_vest, "list, record, replay or simulate a tracking vest"},
 };
 
 static void usage(FILE *out)

@@ -1,7 +1,8 @@
 /* mimic template store: an LMDB environment in a directory.
  *
  * Named databases (layout: schemas/store.md, version: schemas/store-version):
- *   meta        schema version, creating mimic version, next template id
+ *   meta        schema version, creating mimic version, next template id,
+ *               the recognition index (mim_db_index_put)
  *   topology    the reference connectivity (faces, vertex count, hash)
  *   landmarks   the landmark map (JSON)
  *   templates   id -> template record (labels, source, float32 positions)
@@ -96,6 +97,38 @@ int mim_db_template_get(mim_db_txn_t *txn, uint64_t id, mim_template_view_t *out
  * (and returns that value). Views are valid until the txn ends. */
 typedef int (*mim_db_template_fn)(const mim_template_view_t *t, void *user);
 int mim_db_template_each(mim_db_txn_t *txn, mim_db_template_fn fn, void *user, mim_error_t *err);
+
+/* ---- recognition index (mimic index writes it, query reads it) ----
+ * Kept under two keys of the meta table (schemas/store.md). */
+typedef struct mim_db_index_meta {
+    uint64_t next_id;      /* the store's next_id when the index was built */
+    uint64_t templates;    /* and its template count */
+    uint32_t class_source; /* MIM_CLASSES_* of mim_index.h: 0 pose labels, 1 k-means */
+    uint32_t n_classes, d;
+    double built_at;       /* Unix seconds */
+} mim_db_index_meta_t;
+/* Replaces the store's index blob and build record. */
+int mim_db_index_put(mim_db_txn_t *txn, const void *blob, size_t len, const mim_db_index_meta_t *meta,
+                     mim_error_t *err);
+/* The build record, and (blob non-NULL) the blob, lent: valid until the txn
+ * ends. MIM_ENOTFOUND when the store has no index. */
+int mim_db_index_get(mim_db_txn_t *txn, const void **blob, size_t *len, mim_db_index_meta_t *meta,
+                     mim_error_t *err);
+
+/* ---- intrinsic encodings (seed 000 Section 3.1), one per template ----
+ * What a transfer needs of a template, stored by ingest so that no query
+ * recomputes it (layout: schemas/store.md). */
+typedef struct mim_db_encoding {
+    uint32_t n_vertices;
+    const float *frames; /* 6 * n: f1 (normal), f2 (tangent) per vertex; f3 = f1 x f2 */
+    const float *W;      /* 3 * n: W = F^T L X */
+} mim_db_encoding_t;        /* arrays lent from the map: valid until the txn ends */
+/* Stores (or replaces) template id's encoding. */
+int mim_db_encoding_put(mim_db_txn_t *txn, uint64_t id, const float *frames, const float *W, uint32_t n_vertices,
+                        mim_error_t *err);
+/* MIM_ENOTFOUND when the template has none (a store ingested before
+ * encodings were kept: callers compute it from the positions). */
+int mim_db_encoding_get(mim_db_txn_t *txn, uint64_t id, mim_db_encoding_t *out, mim_error_t *err);
 
 /* ---- size ---- */
 typedef struct mim_db_stat {

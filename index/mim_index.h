@@ -61,6 +61,127 @@ int mim_index_select(const float *x, const uint32_t *labels, uint32_t n_samples,
                      uint32_t n_classes, const uint32_t *angle_mirror, const mim_select_options_t *opt,
                      uint32_t *selected, mim_select_report_t *report, mim_error_t *err);
 
+/* ---- the recognition index: classes, per-class SVMs, per-class k-NN ----
+ * (seed 000, Section 3.3: "per-class SVMs pick the pose class, k-NN inside
+ * the class picks the template").
+ *
+ * Classes. Pose labels define them. Templates without a pose label, in a
+ * store where some have one, join the class whose mean (over all candidate
+ * angles) is nearest. A store with no pose label at all is clustered by
+ * k-means (k-means++ seeding, fixed seed) on all candidate angles with
+ * k = round(sqrt(n / 2)) clamped to 1..64 (the usual rule of thumb: it grows
+ * with the store but slowly; silhouette search would cost O(n^2) per k).
+ *
+ * Features. The d selected angles in radians, unscaled (every feature is an
+ * angle in 0..pi, so one scale fits all); a template angle that is undefined
+ * (two coincident landmarks) takes its class mean.
+ *
+ * SVMs. One libsvm C-SVC per class, one-vs-rest, RBF kernel, probability
+ * outputs (Platt scaling, libsvm's -b 1). C in {1, 10, 100, 1000} and gamma
+ * in {1/4, 1, 4, 16} / (mean squared distance between descriptors) are
+ * chosen by k-fold cross-validation of the whole one-vs-rest classifier
+ * (folds by subject when there are several subjects, so the estimate is for
+ * unseen people; ties go to fewer support vectors, i.e. faster queries).
+ * The class of a frame is the SVM with the highest probability; its
+ * probability is reported normalised over the classes.
+ *
+ * k-NN. FLANN inside each class over the descriptors, squared L2 (reported
+ * distances are square-rooted: radians). Classes up to exact_max templates
+ * use FLANN's exact linear scan; larger ones a randomised kd-forest (4
+ * trees, 128 checks), which is approximate: at 1 000 000 templates its
+ * first hit is on average 3 % further than the exact one, for a tenth of
+ * the exact scan's time (bench/RESULTS.md).
+ *
+ * Missing landmarks (a query frame may lose up to 3): only the angles that
+ * do not involve them are used. Beside the d descriptor angles the index
+ * keeps the next ranked angles of the tree, d2 in all (default 3 d: with
+ * 3 of 16 landmarks lost, about 45 % of any angle set goes, and d angles
+ * alone then miss poses). The nearest template over the available angles of
+ * the d2 (an exact scan of the whole index; of the first 256 templates of
+ * each class in an index over exact_max templates) completes the frame's missing
+ * descriptor angles; the SVMs classify the completed descriptor; the k-NN
+ * inside a class of up to exact_max templates is an exact scan over the
+ * available d2 angles, its squared distance rescaled by d / available (a
+ * larger class searches its kd-forest with the completed descriptor). */
+typedef struct mim_index mim_index_t;
+
+typedef struct mim_index_input {
+    uint32_t n_templates, n_landmarks;
+    const float *landmarks;       /* n_templates * n_landmarks * 3, all present */
+    const uint64_t *ids;          /* template ids */
+    const char *const *subjects;  /* n_templates labels ("" or NULL: none); NULL: none at all */
+    const char *const *poses;     /* likewise */
+    const uint32_t *mirror;       /* n_landmarks, the landmark map's mirror table; NULL: none */
+} mim_index_input_t;
+
+typedef struct mim_index_options {
+    uint32_t features;        /* d; 0 means 60 */
+    uint32_t missing_features; /* d2 >= d, angles kept for missing landmarks; 0 means 3 d */
+    uint32_t cv_folds;        /* 0 means 5 */
+    uint32_t cv_max_samples;  /* cross-validation on at most this many templates; 0 means 1000 */
+    uint32_t svm_max_samples; /* each SVM trains on at most this many; 0 means 4000 */
+    uint32_t select_max_samples; /* the tree sees at most this many; 0 means 4000 */
+    uint32_t exact_max;       /* classes up to this size get an exact k-NN; 0 means 8192 */
+    uint32_t checks;          /* kd-forest checks for larger classes; 0 means 128 */
+    double C, gamma;          /* both > 0: skip cross-validation and use these */
+    mim_progress_t *progress; /* NULL: quiet */
+} mim_index_options_t;
+
+enum { MIM_CLASSES_LABELS = 0, MIM_CLASSES_KMEANS = 1 };
+
+typedef struct mim_index_report {
+    uint32_t n_classes, d, class_source; /* MIM_CLASSES_* */
+    double C, gamma, cv_accuracy;        /* cv_accuracy < 0: not cross-validated */
+    uint32_t support_vectors;            /* all SVMs together */
+    uint32_t exact_classes;              /* classes with an exact k-NN */
+    mim_select_report_t select;
+    double seconds;
+} mim_index_report_t;
+
+int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_index_options_t *opt,
+                    mim_index_report_t *report, mim_error_t *err);
+void mim_index_close(mim_index_t **ix); /* accepts NULL; nulls the pointer */
+
+/* Serialised form: one versioned blob with a checksum (malloc'd; caller
+ * frees). Loading checks magic, version, sizes and checksum: a damaged blob is
+ * MIM_EFORMAT, never a crash. The FLANN indexes are rebuilt on load (a
+ * saved FLANN index does not hold its data; rebuilding is the cheaper copy). */
+int mim_index_save(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err);
+int mim_index_load(mim_index_t **out, const void *blob, size_t len, mim_error_t *err);
+
+typedef struct mim_index_info {
+    uint32_t n_templates, n_landmarks, d, d2, n_classes, class_source;
+    double C, gamma, cv_accuracy;
+} mim_index_info_t;
+void mim_index_get_info(const mim_index_t *ix, mim_index_info_t *out);
+const char *mim_index_class_name(const mim_index_t *ix, uint32_t cls);
+const uint32_t *mim_index_selected(const mim_index_t *ix); /* d2 candidate angles, the descriptor first */
+
+typedef struct mim_index_query_options {
+    uint32_t k;                  /* 0 means 1 */
+    const char *exclude_subject; /* leave this subject's templates out; NULL: none */
+    uint32_t checks;             /* kd-forest checks for this query; 0 means the index's */
+} mim_index_query_options_t;
+
+typedef struct mim_index_hit {
+    uint64_t id;
+    const char *subject, *pose; /* the template's labels ("" when none); valid while ix lives */
+    float distance;             /* L2 over the selected angles, radians */
+} mim_index_hit_t;
+
+typedef struct mim_index_answer {
+    uint32_t cls;
+    double probability;
+    uint32_t missing;   /* landmarks missing in the frame */
+    uint32_t n_hits;    /* <= k */
+} mim_index_answer_t;
+
+/* One frame: positions 3 * n_landmarks, present n_landmarks flags (NULL: all
+ * present). hits has room for k. Thread-safe on one index. */
+int mim_index_query(const mim_index_t *ix, const float *positions, const uint8_t *present,
+                    const mim_index_query_options_t *opt, mim_index_answer_t *ans, mim_index_hit_t *hits,
+                    mim_error_t *err);
+
 #ifdef __cplusplus
 }
 #endif

@@ -1,9 +1,11 @@
 /* The ingest pipeline: reader threads parse, check and hash meshes (on all
  * cores); the calling thread, the store's single writer, takes them in file
  * order, checks them against the reference connectivity, labels them, and
- * commits one transaction per batch. A kill part-way loses at most the
+ * commits one transaction per batch. Readers also compute each template's
+ * transfer encoding (frames and W, seed 000 §3.1), stored beside it. A kill part-way loses at most the
  * uncommitted batch; a re-run skips what is stored (content hash). */
 #include "mim_ingest.h"
+#include "mim_transfer.h"
 
 #include <pthread.h>
 #include <stdio.h>
@@ -16,6 +18,7 @@ typedef struct {
     int rc;
     mim_mesh_t mesh;
     uint64_t content_hash;
+    float *encoding; /* 6n frames then 3n W (transfer's stored encoding) */
     mim_error_t err;
 } slot_t;
 
@@ -31,14 +34,44 @@ typedef struct {
     pthread_cond_t ready_cv, space_cv;
 } work_t;
 
+/* The transfer encoding of a mesh, on the reader's connectivity (rebuilt
+ * when a mesh brings another one; such a mesh is rejected later unless it
+ * is the store's). */
+typedef struct {
+    mim_xfer_topology_t *topo;
+    double *work; /* 12 n doubles of encoding scratch, kept between meshes */
+} reader_t;
+
+static int encode(reader_t *r, slot_t *s, const char *path)
+{
+    const mim_mesh_t *m = &s->mesh;
+    if (!r->topo || mim_xfer_check_mesh(r->topo, m, path, NULL)) {
+        mim_xfer_topology_close(&r->topo);
+        free(r->work);
+        r->work = malloc(12 * (size_t)m->n_vertices * sizeof *r->work);
+        int rc = r->work ? mim_xfer_topology_open(&r->topo, m->n_vertices, m->faces, m->n_faces, &s->err)
+                         : mim_error_set(&s->err, MIM_ENOMEM, "%s: out of memory for its encoding", path);
+        if (rc)
+            return rc;
+    }
+    s->encoding = malloc(9 * (size_t)m->n_vertices * sizeof(float));
+    if (!s->encoding)
+        return mim_error_set(&s->err, MIM_ENOMEM, "%s: out of memory for its encoding", path);
+    return mim_xfer_encoding_compute(r->topo, m->positions, s->encoding, s->encoding + 6 * (size_t)m->n_vertices,
+                                     r->work, &s->err);
+}
+
 static void *reader_main(void *arg)
 {
     work_t *w = arg;
+    reader_t r = {0};
     for (;;) {
         pthread_mutex_lock(&w->mu);
         while (!w->stop && w->next < w->n && w->next >= w->base + w->window) pthread_cond_wait(&w->space_cv, &w->mu);
         if (w->stop || w->next >= w->n) {
             pthread_mutex_unlock(&w->mu);
+            mim_xfer_topology_close(&r.topo);
+            free(r.work);
             return NULL;
         }
         size_t i = w->next++;
@@ -47,6 +80,7 @@ static void *reader_main(void *arg)
         slot_t s = {0};
         s.rc = mim_mesh_read(w->paths[i], &s.mesh, &s.err);
         if (!s.rc) s.content_hash = mim_db_content_hash(s.mesh.positions, s.mesh.n_vertices);
+        if (!s.rc) s.rc = encode(&r, &s, w->paths[i]);
 
         pthread_mutex_lock(&w->mu);
         s.ready = 1;
@@ -211,6 +245,14 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
             uint64_t id;
             int existed;
             if ((rc = mim_db_template_put(wr.txn, &tin, &id, &existed, err))) break;
+            /* the encoding goes beside it; a template stored without one
+             * (by an older mimic) gets it now */
+            mim_db_encoding_t have;
+            if (!existed || mim_db_encoding_get(wr.txn, id, &have, NULL) == MIM_ENOTFOUND) {
+                const uint32_t n = s.mesh.n_vertices;
+                if ((rc = mim_db_encoding_put(wr.txn, id, s.encoding, s.encoding + 6 * (size_t)n, n, err))) break;
+                if (existed) pending++;
+            }
             if (existed) report->duplicates++;
             else report->added++, pending++;
             if (pending >= batch) {
@@ -219,9 +261,11 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
             }
         }
         mim_mesh_free(&s.mesh);
+        free(s.encoding);
         pthread_mutex_lock(&w.mu);
         w.slots[i].mesh.positions = NULL; /* freed above via the copy */
         w.slots[i].mesh.faces = NULL;
+        w.slots[i].encoding = NULL;
         w.base = i + 1;
         pthread_cond_broadcast(&w.space_cv);
         pthread_mutex_unlock(&w.mu);
@@ -238,7 +282,10 @@ join:
     pthread_mutex_unlock(&w.mu);
     for (uint32_t k = 0; k < started; k++) pthread_join(tids[k], NULL);
     free(tids);
-    for (size_t i = 0; i < files.count; i++) mim_mesh_free(&w.slots[i].mesh);
+    for (size_t i = 0; i < files.count; i++) {
+        mim_mesh_free(&w.slots[i].mesh);
+        free(w.slots[i].encoding);
+    }
     free(w.slots);
     pthread_mutex_destroy(&w.mu);
     pthread_cond_destroy(&w.ready_cv);

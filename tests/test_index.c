@@ -154,12 +154,218 @@ static void test_selection(void **s)
     mim_synth_destroy(&syn);
 }
 
+/* ---- the recognition index: classes, SVMs, k-NN, blob ---- */
+typedef struct {
+    uint32_t n;
+    float *lm;        /* n * 48 */
+    uint64_t *ids;
+    char **subjects, **poses;
+    const char **sp, **pp;
+    mim_landmark_map_t map;
+} synth_set_t;
+
+static void synth_set(synth_set_t *ss, uint32_t subjects, uint32_t poses, uint64_t seed)
+{
+    mim_synth_options_t o = {.subjects = subjects, .poses = poses, .vertices = 1500, .seed = seed};
+    mim_synth_t *syn;
+    assert_int_equal(mim_synth_create(&syn, &o, NULL), 0);
+    float *scratch = malloc(12 * mim_synth_n_vertices(syn));
+    ss->n = subjects * poses;
+    ss->lm = malloc(sizeof(float) * 48 * ss->n);
+    ss->ids = malloc(sizeof(uint64_t) * ss->n);
+    ss->subjects = malloc(sizeof(char *) * ss->n), ss->poses = malloc(sizeof(char *) * ss->n);
+    for (uint32_t s = 0; s < subjects; s++)
+        for (uint32_t p = 0; p < poses; p++) {
+            uint32_t t = s * poses + p;
+            synth_landmarks(syn, s, p, ss->lm + 48 * t, scratch);
+            ss->ids[t] = 100 + t;
+            char buf[32];
+            snprintf(buf, sizeof buf, "s%u", s);
+            ss->subjects[t] = strdup(buf);
+            snprintf(buf, sizeof buf, "p%u", p);
+            ss->poses[t] = strdup(buf);
+        }
+    ss->sp = (const char **)ss->subjects, ss->pp = (const char **)ss->poses;
+    mim_synth_landmarks(syn, &ss->map);
+    free(scratch);
+    mim_synth_destroy(&syn);
+}
+
+static void synth_set_free(synth_set_t *ss)
+{
+    for (uint32_t t = 0; t < ss->n; t++) free(ss->subjects[t]), free(ss->poses[t]);
+    free(ss->lm), free(ss->ids), free(ss->subjects), free(ss->poses);
+}
+
+/* Every template, queried with its own landmarks, returns itself first at
+ * distance 0 in its own class; k results come sorted. */
+static void check_self(const mim_index_t *ix, const synth_set_t *ss, int check_class)
+{
+    mim_index_hit_t hits[3];
+    for (uint32_t t = 0; t < ss->n; t++) {
+        mim_index_answer_t a;
+        mim_index_query_options_t qo = {.k = 3};
+        assert_int_equal(mim_index_query(ix, ss->lm + 48 * t, NULL, &qo, &a, hits, NULL), 0);
+        assert_int_equal(a.n_hits, 3);
+        assert_true(a.probability > 0 && a.probability <= 1);
+        assert_int_equal(hits[0].id, ss->ids[t]);
+        assert_true(hits[0].distance < 1e-5f);
+        assert_true(hits[0].distance <= hits[1].distance && hits[1].distance <= hits[2].distance);
+        if (check_class) {
+            assert_string_equal(mim_index_class_name(ix, a.cls), ss->poses[t]);
+            assert_string_equal(hits[0].pose, ss->poses[t]);
+            assert_string_equal(hits[0].subject, ss->subjects[t]);
+        }
+    }
+}
+
+static void test_build_query_blob(void **s)
+{
+    (void)s;
+    synth_set_t ss;
+    synth_set(&ss, 4, 12, 11);
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_options_t o = {.features = 40};
+    mim_index_report_t rep;
+    mim_index_t *ix = NULL;
+    mim_error_t err = {0};
+    assert_int_equal(mim_index_build(&ix, &in, &o, &rep, &err), 0);
+    fprintf(stderr, "index: %u classes, d %u, C %g, gamma %g, CV accuracy %.3f, %u SVs, %.2f s\n", rep.n_classes,
+            rep.d, rep.C, rep.gamma, rep.cv_accuracy, rep.support_vectors, rep.seconds);
+    assert_int_equal(rep.n_classes, 12);
+    assert_int_equal(rep.class_source, MIM_CLASSES_LABELS);
+    assert_true(rep.C > 0 && rep.gamma > 0 && rep.cv_accuracy >= 0.75);
+    assert_int_equal(rep.exact_classes, 12);
+    check_self(ix, &ss, 1);
+
+    /* --exclude-subject: never returns that subject; the pose is still found */
+    mim_index_hit_t hits[5];
+    mim_index_answer_t a;
+    mim_index_query_options_t qo = {.k = 5, .exclude_subject = "s2"};
+    int right = 0;
+    for (uint32_t t = 24; t < 36; t++) {
+        assert_int_equal(mim_index_query(ix, ss.lm + 48 * t, NULL, &qo, &a, hits, NULL), 0);
+        assert_int_equal(a.n_hits, 3); /* 4 subjects, one left out: 3 of this pose */
+        for (uint32_t i = 0; i < a.n_hits; i++) assert_string_not_equal(hits[i].subject, "s2");
+        right += !strcmp(hits[0].pose, ss.poses[t]);
+    }
+    assert_true(right >= 11);
+
+    /* missing landmarks: still answers, from the angles without them */
+    uint8_t present[16];
+    memset(present, 1, sizeof present);
+    present[7] = present[10] = present[13] = 0;
+    float lm[48];
+    right = 0;
+    for (uint32_t t = 0; t < ss.n; t++) {
+        memcpy(lm, ss.lm + 48 * t, sizeof lm);
+        lm[3 * 7] = NAN; /* a missing landmark's position is ignored */
+        mim_index_query_options_t q1 = {.k = 1};
+        assert_int_equal(mim_index_query(ix, lm, present, &q1, &a, hits, NULL), 0);
+        assert_int_equal(a.missing, 3);
+        right += hits[0].id == ss.ids[t];
+    }
+    assert_true(right >= (int)(0.9 * ss.n));
+    /* a NaN for a present landmark is an error */
+    assert_int_equal(mim_index_query(ix, lm, NULL, &qo, &a, hits, &err), MIM_ENONFINITE);
+    assert_non_null(strstr(err.msg, "landmark 7"));
+
+    /* the blob: a round trip gives the same answers and the same bytes */
+    void *blob = NULL, *blob2 = NULL;
+    size_t len = 0, len2 = 0;
+    assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
+    mim_index_t *ix2 = NULL;
+    assert_int_equal(mim_index_load(&ix2, blob, len, NULL), 0);
+    assert_int_equal(mim_index_save(ix2, &blob2, &len2, NULL), 0);
+    assert_int_equal(len, len2);
+    assert_memory_equal(blob, blob2, len);
+    check_self(ix2, &ss, 1);
+    uint64_t seed = 5;
+    for (uint32_t t = 0; t < ss.n; t++) { /* perturbed frames: identical answers, probabilities included */
+        for (int i = 0; i < 48; i++) {
+            seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+            lm[i] = ss.lm[48 * t + i] + 0.02f * ((float)(seed >> 40) / 16777216.0f - 0.5f);
+        }
+        mim_index_hit_t h1[4], h2[4];
+        mim_index_answer_t a1, a2;
+        mim_index_query_options_t q4 = {.k = 4};
+        assert_int_equal(mim_index_query(ix, lm, NULL, &q4, &a1, h1, NULL), 0);
+        assert_int_equal(mim_index_query(ix2, lm, NULL, &q4, &a2, h2, NULL), 0);
+        assert_int_equal(a1.cls, a2.cls);
+        assert_true(a1.probability == a2.probability);
+        assert_int_equal(a1.n_hits, a2.n_hits);
+        for (uint32_t i = 0; i < a1.n_hits; i++) {
+            assert_int_equal(h1[i].id, h2[i].id);
+            assert_true(h1[i].distance == h2[i].distance);
+        }
+    }
+    mim_index_close(&ix2);
+    /* damage: every flipped byte and every truncation is an error, never a crash */
+    unsigned char *bad = malloc(len);
+    for (size_t i = 0; i < len; i += 1 + len / 97) {
+        memcpy(bad, blob, len);
+        bad[i] ^= 0x5a;
+        mim_error_clear(&err);
+        assert_int_equal(mim_index_load(&ix2, bad, len, &err), MIM_EFORMAT);
+        assert_null(ix2);
+    }
+    for (size_t keep = 0; keep < len; keep += 1 + len / 53) {
+        mim_error_clear(&err);
+        assert_int_equal(mim_index_load(&ix2, blob, keep, &err), MIM_EFORMAT);
+    }
+    assert_non_null(strstr(err.msg, "index blob"));
+    free(bad), free(blob), free(blob2);
+    mim_index_close(&ix);
+    mim_index_close(&ix); /* NULL is fine */
+    synth_set_free(&ss);
+}
+
+/* Without pose labels the store is clustered: k = round(sqrt(n / 2)). */
+static void test_kmeans_classes(void **s)
+{
+    (void)s;
+    synth_set_t ss;
+    synth_set(&ss, 3, 12, 13);
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, NULL, ss.map.mirror};
+    mim_index_report_t rep;
+    mim_index_t *ix = NULL;
+    assert_int_equal(mim_index_build(&ix, &in, NULL, &rep, NULL), 0);
+    assert_int_equal(rep.class_source, MIM_CLASSES_KMEANS);
+    assert_true(rep.n_classes >= 2 && rep.n_classes <= 4); /* round(sqrt(18)) = 4, minus empty clusters */
+    assert_non_null(strstr(mim_index_class_name(ix, 0), "cluster-"));
+    check_self(ix, &ss, 0);
+    mim_index_info_t info;
+    mim_index_get_info(ix, &info);
+    assert_int_equal(info.class_source, MIM_CLASSES_KMEANS);
+    assert_int_equal(info.d, 60);
+    mim_index_close(&ix);
+    /* 4 landmarks work too (12 candidate angles: d is capped) */
+    float lm4[36 * 12];
+    for (uint32_t t = 0; t < 36; t++)
+        for (int l = 0; l < 4; l++) memcpy(lm4 + 12 * t + 3 * l, ss.lm + 48 * t + 3 * (l == 3 ? 7 : l), 12);
+    mim_index_input_t in4 = {36, 4, lm4, ss.ids, ss.sp, ss.pp, NULL};
+    assert_int_equal(mim_index_build(&ix, &in4, NULL, &rep, NULL), 0);
+    assert_int_equal(rep.d, 12);
+    mim_index_close(&ix);
+    /* bad input */
+    mim_error_t err = {0};
+    mim_index_input_t in3 = {36, 3, lm4, ss.ids, NULL, NULL, NULL};
+    assert_int_equal(mim_index_build(&ix, &in3, NULL, NULL, &err), MIM_EINVAL);
+    lm4[5] = NAN;
+    mim_error_clear(&err);
+    assert_int_equal(mim_index_build(&ix, &in4, NULL, NULL, &err), MIM_ENONFINITE);
+    assert_null(ix);
+    synth_set_free(&ss);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_counts_and_indexing),
         cmocka_unit_test(test_invariance_and_mirror),
         cmocka_unit_test(test_selection),
+        cmocka_unit_test(test_build_query_blob),
+        cmocka_unit_test(test_kmeans_classes),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -19,7 +19,10 @@ def load(name):
         return json.load(f)
 
 
-SCHEMAS = {s["$id"]: s for s in map(load, ["info.schema.json", "list.schema.json", "landmarks.schema.json"])}
+SCHEMAS = {s["$id"]: s for s in map(load, ["info.schema.json", "list.schema.json", "landmarks.schema.json",
+                                            "index.schema.json", "query.schema.json", "transfer.schema.json",
+                                            "morph.schema.json", "landmark-frames.schema.json",
+                                            "vest-udp.schema.json", "vest-replay.schema.json"])}
 
 
 def validator(schema_id):
@@ -37,6 +40,101 @@ def run(*args):
     return p.stdout
 
 
+def ply_landmarks(path, landmarks):
+    """The landmark positions of a binary little-endian PLY that mimic synth wrote."""
+    import struct
+    with open(path, "rb") as f:
+        data = f.read()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    nv = next(int(l.split()[2]) for l in data[:end].decode().splitlines() if l.startswith("element vertex"))
+    v = struct.unpack_from("<%df" % (3 * nv), data, end)
+    return [list(v[3 * m["vertex"]:3 * m["vertex"] + 3]) for m in landmarks["landmarks"]]
+
+
+# A tiny BVH (Y up, left +X, T-pose rest) for the simulated vest.
+VEST_BVH = """HIERARCHY
+ROOT Hips
+{
+ OFFSET 0 95 0
+ CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+ JOINT Chest
+ {
+  OFFSET 0 25 0
+  CHANNELS 3 Zrotation Xrotation Yrotation
+  JOINT Head
+  {
+   OFFSET 0 30 0
+   CHANNELS 3 Zrotation Xrotation Yrotation
+   End Site
+   {
+    OFFSET 0 20 0
+   }
+  }
+  JOINT LeftArm
+  {
+   OFFSET 17 25 0
+   CHANNELS 3 Zrotation Xrotation Yrotation
+   End Site
+   {
+    OFFSET 28 0 0
+   }
+  }
+  JOINT RightArm
+  {
+   OFFSET -17 25 0
+   CHANNELS 3 Zrotation Xrotation Yrotation
+   End Site
+   {
+    OFFSET -28 0 0
+   }
+  }
+ }
+ JOINT LeftUpLeg
+ {
+  OFFSET 9 0 0
+  CHANNELS 3 Zrotation Xrotation Yrotation
+  End Site
+  {
+   OFFSET 0 -45 0
+  }
+ }
+ JOINT RightUpLeg
+ {
+  OFFSET -9 0 0
+  CHANNELS 3 Zrotation Xrotation Yrotation
+  End Site
+  {
+   OFFSET 0 -45 0
+  }
+ }
+}
+MOTION
+Frames: 3
+Frame Time: 0.1
+0 95 0 0 0 0 0 0 0 0 0 0 -80 0 0 80 0 0 0 0 0 0 0 0
+0 95 0 0 0 10 0 5 0 0 0 0 -70 10 0 70 -10 0 0 20 0 0 -20 0
+0 95 0 0 0 20 0 10 0 0 0 0 -60 20 0 60 -20 0 0 30 0 0 -30 0
+"""
+
+
+def vest_cases(d):
+    """mimic vest simulate -> recording -> replay (sensor frames and landmarks), and --expected."""
+    bvh, rec, exp = (os.path.join(d, n) for n in ("vest.bvh", "vest.rec", "vest-expected.jsonl"))
+    with open(bvh, "w") as f:
+        f.write(VEST_BVH)
+    run("vest", "simulate", "--motion", bvh, "--rate", "20", "--out", rec, "--expected", exp)
+    sensors = [json.loads(x) for x in run("vest", "replay", rec).splitlines()]
+    marks = [json.loads(x) for x in run("vest", "replay", rec, "--avatar", "synth", "--pose", "t").splitlines()]
+    with open(exp) as f:
+        expected = [json.loads(x) for x in f]
+    if not sensors or not marks or not expected:
+        raise RuntimeError("mimic vest replay printed nothing")
+    return [("/mimic/schemas/vest-replay.schema.json", sensors[0], "vest replay (sensor frame)"),
+            ("/mimic/schemas/vest-replay.schema.json", marks[-1], "vest replay --avatar (landmarks)"),
+            ("/mimic/schemas/vest-udp.schema.json", expected[1], "vest simulate --expected (landmarks)"),
+            ("/mimic/schemas/landmark-frames.schema.json", marks[0], "vest replay landmarks as a query frame")]
+
+
 def main():
     passed = failed = 0
     with tempfile.TemporaryDirectory(prefix="mimic-schemas-") as d:
@@ -48,14 +146,43 @@ def main():
         subprocess.run([MIMIC, "ingest", "--store", empty, os.path.join(d, "nothing")], capture_output=True)
         with open(os.path.join(data, "landmarks.json")) as f:
             landmarks = json.load(f)
+        # recognition: index, then query one frame and a batch with a lost landmark
+        info_before = json.loads(run("info", "--store", store, "--json"))
+        index_doc = json.loads(run("index", "--store", store, "--json", "--features", "20"))
+        frames = {"frames": [{"landmarks": ply_landmarks(os.path.join(data, f), landmarks)}
+                             for f in ("synth_s00_p00.ply", "synth_s01_p01.ply")]}
+        frames["frames"][1]["landmarks"][5] = None
+        frames_path = os.path.join(d, "frames.json")
+        with open(frames_path, "w") as f:
+            json.dump(frames, f)
+        query_doc = json.loads(run("query", "--store", store, "--landmarks", frames_path, "-k", "2", "--json"))
+        # transfer: mode (a), and landmarks alone (the template from the index)
+        one = {"landmarks": frames["frames"][0]["landmarks"]}
+        one_path = os.path.join(d, "one.json")
+        with open(one_path, "w") as f:
+            json.dump(one, f)
+        transfer_a = json.loads(run("transfer", "--store", store, "--avatar", "1", "--template", "4",
+                                    "-o", os.path.join(d, "a.obj"), "--json"))
+        transfer_l = json.loads(run("transfer", "--store", store, "--avatar", "1", "--landmarks", one_path,
+                                    "-o", os.path.join(d, "l.off"), "--json", "--iterations", "1"))
+        morph_doc = json.loads(run("morph", "--store", store, "--avatar", "1", "--keys", "2,3,4",
+                                   "--frames-between", "2", "-o", os.path.join(d, "m.glb"), "--json"))
         cases = [
+            ("/mimic/schemas/transfer.schema.json", transfer_a, "transfer (template only)"),
+            ("/mimic/schemas/transfer.schema.json", transfer_l, "transfer (landmarks only, one iteration)"),
+            ("/mimic/schemas/morph.schema.json", morph_doc, "morph"),
+            ("/mimic/schemas/landmark-frames.schema.json", frames, "landmark frames (batch with a null)"),
+            ("/mimic/schemas/landmark-frames.schema.json", one, "landmark frames (one frame)"),
+            ("/mimic/schemas/info.schema.json", info_before, "info (no index)"),
             ("/mimic/schemas/info.schema.json", json.loads(run("info", "--store", store, "--json")), "info"),
+            ("/mimic/schemas/index.schema.json", index_doc, "index"),
+            ("/mimic/schemas/query.schema.json", query_doc, "query (batch, a missing landmark)"),
             ("/mimic/schemas/info.schema.json", json.loads(run("info", "--store", empty, "--json")), "info (empty store)"),
             ("/mimic/schemas/list.schema.json", json.loads(run("list", "--store", store, "--json")), "list"),
             ("/mimic/schemas/list.schema.json", json.loads(run("list", "--store", store, "--pose", "9", "--json")), "list (none)"),
             ("/mimic/schemas/landmarks.schema.json", landmarks, "synth landmarks.json"),
         ]
-        for schema_id, doc, what in cases:
+        for schema_id, doc, what in cases + vest_cases(d):
             errors = list(validator(schema_id).iter_errors(doc))
             if errors:
                 failed += 1
@@ -72,6 +199,21 @@ def main():
         else:
             failed += 1
             print("FAIL info schema accepted a string template count")
+        bad = dict(query_doc)
+        bad["frames"] = [dict(query_doc["frames"][0], probability=1.5)]
+        if list(validator("/mimic/schemas/query.schema.json").iter_errors(bad)):
+            passed += 1
+            print("ok   query schema rejects a probability of 1.5")
+        else:
+            failed += 1
+            print("FAIL query schema accepted a probability of 1.5")
+        bad = {"frames": [{"landmarks": [[0, 0]] * 16}]}
+        if list(validator("/mimic/schemas/landmark-frames.schema.json").iter_errors(bad)):
+            passed += 1
+            print("ok   landmark-frames schema rejects a 2-component point")
+        else:
+            failed += 1
+            print("FAIL landmark-frames schema accepted a 2-component point")
     print(f"{passed} passed, {failed} failed")
     return 1 if failed else 0
 

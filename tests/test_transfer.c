@@ -250,6 +250,48 @@ static void test_factor_reused(void **state)
     free(a0), free(a1), free(t1), free(t2), free(F), free(W), free(W1), free(out);
 }
 
+/* The least-squares solution through L^c and the rank-c (Woodbury) update
+ * equals the one from factoring the normal matrix itself, in one solve and
+ * through a whole transfer. */
+static void test_low_rank_matches_normal_factor(void **state)
+{
+    (void)state;
+    float *a0 = body(0, 0), *t1 = body(1, 5), *a1 = body(0, 5);
+    double *F = malloc(9 * (size_t)fx.n * sizeof(double));
+    double *W = malloc(3 * (size_t)fx.n * sizeof(double));
+    float *o1 = malloc(3 * (size_t)fx.n * sizeof(float)), *o2 = malloc(3 * (size_t)fx.n * sizeof(float));
+    float u[3 * MIM_LANDMARKS_MAX];
+    mim_xfer_solver_t *lr = NULL, *nm = NULL;
+    mim_xfer_solver_options_t so_lr = {0}, so_nm = {.normal_factor = 1};
+    assert_int_equal(mim_xfer_solver_open(&lr, fx.topo, fx.map.vertex, fx.map.count, &so_lr, NULL), 0);
+    assert_int_equal(mim_xfer_solver_open(&nm, fx.topo, fx.map.vertex, fx.map.count, &so_nm, NULL), 0);
+    mim_xfer_solver_stats_t a, b;
+    mim_xfer_solver_stats(lr, &a);
+    mim_xfer_solver_stats(nm, &b);
+    assert_true(b.factor_nnz > 1.5 * a.factor_nnz); /* the two-ring fill it avoids */
+    mim_xfer_frames(fx.topo, a0, F);
+    mim_xfer_encode(fx.topo, a0, F, W);
+    mim_xfer_frames(fx.topo, t1, F);
+    landmark_positions(a1, u);
+    mim_xfer_options_t one = {.max_iterations = 1};
+    assert_int_equal(mim_xfer_transfer(lr, W, fx.n, F, u, fx.map.count, &one, o1, NULL, NULL), 0);
+    assert_int_equal(mim_xfer_transfer(nm, W, fx.n, F, u, fx.map.count, &one, o2, NULL, NULL), 0);
+    double worst = 0.0;
+    for (size_t i = 0; i < 3 * (size_t)fx.n; i++)
+        worst = fmax(worst, fabs((double)o1[i] - o2[i]));
+    assert_true(worst < 1e-5); /* float output of two double solves */
+    mim_xfer_report_t r1, r2;
+    assert_int_equal(mim_xfer_transfer(lr, W, fx.n, F, u, fx.map.count, NULL, o1, &r1, NULL), 0);
+    assert_int_equal(mim_xfer_transfer(nm, W, fx.n, F, u, fx.map.count, NULL, o2, &r2, NULL), 0);
+    assert_int_equal(r1.iterations, r2.iterations);
+    for (size_t i = 0; i < 3 * (size_t)fx.n; i++)
+        worst = fmax(worst, fabs((double)o1[i] - o2[i]));
+    assert_true(worst < 1e-4);
+    mim_xfer_solver_close(&lr);
+    mim_xfer_solver_close(&nm);
+    free(a0), free(t1), free(a1), free(F), free(W), free(o1), free(o2);
+}
+
 typedef struct acc {
     double sum;
     float *e;
@@ -422,6 +464,7 @@ int main(void)
         cmocka_unit_test(test_round_trip),
         cmocka_unit_test(test_rigid_invariance),
         cmocka_unit_test(test_factor_reused),
+        cmocka_unit_test(test_low_rank_matches_normal_factor),
         cmocka_unit_test(test_accuracy_bounds),
         cmocka_unit_test(test_bad_inputs),
     };

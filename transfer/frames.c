@@ -12,7 +12,13 @@
  *   f3 = f1 x f2.
  * A vertex whose normal vanishes (no faces, or faces cancelling) gets the
  * normal of its neighbours' centroid direction, or +Z as a last resort, so
- * frames are always orthonormal and finite. */
+ * frames are always orthonormal and finite.
+ *
+ * Speed: this runs once per iteration of every transfer. Normals are
+ * gathered per vertex over its incident faces (no scatter, so no
+ * store-to-load stalls between faces sharing a vertex); the transfer
+ * passes a face-normal workspace so each face's cross product is computed
+ * once, the public functions recompute it per corner. */
 #include "internal.h"
 
 #include <math.h>
@@ -21,76 +27,97 @@
 /* a tangent is accepted when |projection| > this fraction of |edge| */
 #define MIM__XFER_TANGENT_MIN 1e-3
 
-static void frames_impl(const mim_xfer_topology_t *t, const float *pf, const double *pd,
-                        double *frames)
+/* One body for float and double positions: POS reads either, and each
+ * caller passes a constant NULL for the other, so after inlining the loops
+ * carry no branch on the element type. fn (3 * n_faces) may be NULL. */
+static inline __attribute__((always_inline)) void frames_impl(const mim_xfer_topology_t *t,
+                                                              const float *pf, const double *pd,
+                                                              double *frames, double *fn)
 {
     const uint32_t n = t->n;
 #define POS(i, c) (pf ? (double)pf[3 * (size_t)(i) + (c)] : pd[3 * (size_t)(i) + (c)])
-    for (uint32_t i = 0; i < n; i++)
-        frames[9 * (size_t)i] = frames[9 * (size_t)i + 1] = frames[9 * (size_t)i + 2] = 0.0;
-    for (uint32_t f = 0; f < t->n_faces; f++) {
-        const uint32_t *c = t->faces + 3 * (size_t)f;
-        double a[3], b[3];
-        for (int k = 0; k < 3; k++) {
-            a[k] = POS(c[1], k) - POS(c[0], k);
-            b[k] = POS(c[2], k) - POS(c[0], k);
-        }
-        double nx = a[1] * b[2] - a[2] * b[1];
-        double ny = a[2] * b[0] - a[0] * b[2];
-        double nz = a[0] * b[1] - a[1] * b[0];
-        for (int k = 0; k < 3; k++) {
-            double *fr = frames + 9 * (size_t)c[k];
-            fr[0] += nx;
-            fr[1] += ny;
-            fr[2] += nz;
-        }
-    }
+#define CROSS(f, out)                                                                                  \
+    do {                                                                                               \
+        const uint32_t *c_ = t->faces + 3 * (size_t)(f);                                               \
+        double ax = POS(c_[1], 0) - POS(c_[0], 0), ay = POS(c_[1], 1) - POS(c_[0], 1),                 \
+               az = POS(c_[1], 2) - POS(c_[0], 2);                                                     \
+        double bx = POS(c_[2], 0) - POS(c_[0], 0), by = POS(c_[2], 1) - POS(c_[0], 1),                 \
+               bz = POS(c_[2], 2) - POS(c_[0], 2);                                                     \
+        (out)[0] = ay * bz - az * by;                                                                  \
+        (out)[1] = az * bx - ax * bz;                                                                  \
+        (out)[2] = ax * by - ay * bx;                                                                  \
+    } while (0)
+    if (fn)
+        for (uint32_t f = 0; f < t->n_faces; f++)
+            CROSS(f, fn + 3 * (size_t)f);
     for (uint32_t i = 0; i < n; i++) {
         double *fr = frames + 9 * (size_t)i;
-        double xi[3] = {POS(i, 0), POS(i, 1), POS(i, 2)};
-        double len = sqrt(fr[0] * fr[0] + fr[1] * fr[1] + fr[2] * fr[2]);
-        uint32_t b = t->adj_start[i], e = t->adj_start[i + 1];
-        if (!(len > 1e-300) || !isfinite(len)) {
-            fr[0] = 0.0, fr[1] = 0.0, fr[2] = 1.0;
-        } else {
-            fr[0] /= len, fr[1] /= len, fr[2] /= len;
+        /* f1: area-weighted normal, gathered over the incident faces */
+        double nx = 0.0, ny = 0.0, nz = 0.0;
+        for (uint32_t k = t->vf_start[i]; k < t->vf_start[i + 1]; k++) {
+            double c[3];
+            if (fn) {
+                const double *q = fn + 3 * (size_t)t->vf[k];
+                c[0] = q[0], c[1] = q[1], c[2] = q[2];
+            } else {
+                CROSS(t->vf[k], c);
+            }
+            nx += c[0], ny += c[1], nz += c[2];
         }
+        double len2 = nx * nx + ny * ny + nz * nz;
+        if (!(len2 > 1e-300) || !isfinite(len2)) {
+            nx = 0.0, ny = 0.0, nz = 1.0;
+        } else {
+            double inv = 1.0 / sqrt(len2);
+            nx *= inv, ny *= inv, nz *= inv;
+        }
+        fr[0] = nx, fr[1] = ny, fr[2] = nz;
+        /* f2: the edge to the fixed (lowest-index) neighbour, projected */
+        const double xi0 = POS(i, 0), xi1 = POS(i, 1), xi2 = POS(i, 2);
         int found = 0;
-        for (uint32_t k = b; k < e && !found; k++) {
+        for (uint32_t k = t->adj_start[i]; k < t->adj_start[i + 1] && !found; k++) {
             uint32_t j = t->adj[k];
-            double ed[3] = {POS(j, 0) - xi[0], POS(j, 1) - xi[1], POS(j, 2) - xi[2]};
-            double el = sqrt(ed[0] * ed[0] + ed[1] * ed[1] + ed[2] * ed[2]);
-            double dn = ed[0] * fr[0] + ed[1] * fr[1] + ed[2] * fr[2];
-            double p[3] = {ed[0] - dn * fr[0], ed[1] - dn * fr[1], ed[2] - dn * fr[2]};
-            double pl = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
-            if (el > 0.0 && pl > MIM__XFER_TANGENT_MIN * el) {
-                fr[3] = p[0] / pl, fr[4] = p[1] / pl, fr[5] = p[2] / pl;
+            double e0 = POS(j, 0) - xi0, e1 = POS(j, 1) - xi1, e2 = POS(j, 2) - xi2;
+            double dn = e0 * nx + e1 * ny + e2 * nz;
+            double p0 = e0 - dn * nx, p1 = e1 - dn * ny, p2 = e2 - dn * nz;
+            double pl2 = p0 * p0 + p1 * p1 + p2 * p2, el2 = e0 * e0 + e1 * e1 + e2 * e2;
+            if (el2 > 0.0 && pl2 > MIM__XFER_TANGENT_MIN * MIM__XFER_TANGENT_MIN * el2) {
+                double inv = 1.0 / sqrt(pl2);
+                fr[3] = p0 * inv, fr[4] = p1 * inv, fr[5] = p2 * inv;
                 found = 1;
             }
         }
         if (!found) {
             /* any axis not along the normal, projected */
             double ax[3] = {1.0, 0.0, 0.0};
-            if (fabs(fr[0]) > 0.9)
+            if (fabs(nx) > 0.9)
                 ax[0] = 0.0, ax[1] = 1.0;
-            double dn = ax[0] * fr[0] + ax[1] * fr[1] + ax[2] * fr[2];
-            double p[3] = {ax[0] - dn * fr[0], ax[1] - dn * fr[1], ax[2] - dn * fr[2]};
-            double pl = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
-            fr[3] = p[0] / pl, fr[4] = p[1] / pl, fr[5] = p[2] / pl;
+            double dn = ax[0] * nx + ax[1] * ny + ax[2] * nz;
+            double p[3] = {ax[0] - dn * nx, ax[1] - dn * ny, ax[2] - dn * nz};
+            double inv = 1.0 / sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+            fr[3] = p[0] * inv, fr[4] = p[1] * inv, fr[5] = p[2] * inv;
         }
-        fr[6] = fr[1] * fr[5] - fr[2] * fr[4];
-        fr[7] = fr[2] * fr[3] - fr[0] * fr[5];
-        fr[8] = fr[0] * fr[4] - fr[1] * fr[3];
+        /* f3 = f1 x f2 */
+        fr[6] = ny * fr[5] - nz * fr[4];
+        fr[7] = nz * fr[3] - nx * fr[5];
+        fr[8] = nx * fr[4] - ny * fr[3];
     }
+#undef CROSS
 #undef POS
 }
 
 void mim_xfer_frames(const mim_xfer_topology_t *t, const float *positions, double *frames)
 {
-    frames_impl(t, positions, NULL, frames);
+    frames_impl(t, positions, NULL, frames, NULL);
 }
 
 void mim_xfer_frames_d(const mim_xfer_topology_t *t, const double *positions, double *frames)
 {
-    frames_impl(t, NULL, positions, frames);
+    frames_impl(t, NULL, positions, frames, NULL);
+}
+
+void mim__xfer_frames_ws(const mim_xfer_topology_t *t, const double *positions, double *frames,
+                         double *face_normals)
+{
+    frames_impl(t, NULL, positions, frames, face_normals);
 }

@@ -9,6 +9,8 @@ struct mim_xfer_topology {
     uint32_t *faces;     /* copy, 3 * n_faces */
     uint32_t *adj_start; /* n + 1 */
     uint32_t *adj;       /* sorted one-ring neighbours */
+    uint32_t *vf_start;  /* n + 1: incident faces of each vertex, */
+    uint32_t *vf;        /* so normals gather instead of scatter */
 };
 
 #include <cholmod.h>
@@ -22,15 +24,32 @@ struct mim_xfer_solver {
     uint32_t *free_v;   /* nf free vertices, increasing */
     cholmod_common cc;
     int cc_started;
+    int low_rank;       /* least squares through L^c + rank-nc update */
     cholmod_factor *L;
     cholmod_dense *B, *X, *Y, *E;
     uint64_t analyses, factorizations, solves;
     double t_analyze, t_factorize;
     /* transfer workspaces: 3n positions (current, previous), 9n frames,
      * 3n right-hand side scratch */
-    double *pos, *prev, *frames, *r;
+    double *pos, *prev, *frames, *r, *fn;
+    double *mframes, *mW; /* morph: frames and W of one in-between pose */
+    /* low-rank least squares: U = L_cf^T has -1 at (j, c) for each free
+     * one-ring neighbour j of constrained vertex c (u_start/u_free, CSR
+     * by c); Zs = (L^c)^-2 U S^-1, n_free x nc row-major, S = I + U^T
+     * (L^c)^-2 U; rc = the constrained rows of the residual target, nc x 3 */
+    uint32_t *u_start, *u_free;
+    /* the constraint terms of the right-hand side, -L_:c U (square: free
+     * rows only): row slot (as slot[]), constraint, coefficient */
+    struct mim__xfer_cterm { int32_t row; uint32_t con; double coef; } *cterm;
+    uint32_t n_cterm;
+    double *Zs, *rc;
 };
 
-/* Solves with s->B filled (nf x 3); the solution is in s->X->x. */
+/* mim_xfer_frames_d with a face-normal workspace (3 * n_faces doubles). */
+void mim__xfer_frames_ws(const mim_xfer_topology_t *t, const double *positions, double *frames,
+                         double *face_normals);
+
+/* Solves with s->B filled (nf x 3) and, for low-rank least squares,
+ * s->rc (nc x 3); the solution is in s->X->x. */
 int mim__xfer_solve(mim_xfer_solver_t *s, mim_error_t *err);
 #endif

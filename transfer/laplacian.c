@@ -85,6 +85,23 @@ int mim_xfer_topology_open(mim_xfer_topology_t **out, uint32_t n_vertices, const
     /* shrink to fit; keep the larger block if the shrink fails */
     uint32_t *shrunk = realloc(tmp, (w ? w : 1) * sizeof *tmp);
     t->adj = shrunk ? shrunk : tmp;
+    /* incident faces per vertex, in face order */
+    t->vf_start = calloc((size_t)n_vertices + 1, sizeof *t->vf_start);
+    t->vf = malloc(3 * (size_t)n_faces * sizeof *t->vf);
+    if (!t->vf_start || !t->vf) {
+        mim_xfer_topology_close(&t);
+        return mim_error_set(err, MIM_ENOMEM, "transfer: out of memory for %u faces", n_faces);
+    }
+    for (uint32_t f = 0; f < 3 * n_faces; f++)
+        t->vf_start[faces[f] + 1]++;
+    for (uint32_t v = 0; v < n_vertices; v++)
+        t->vf_start[v + 1] += t->vf_start[v];
+    for (uint32_t f = 0, k = 0; f < n_faces; f++)
+        for (int c = 0; c < 3; c++, k++)
+            t->vf[t->vf_start[faces[k]]++] = f;
+    for (uint32_t v = n_vertices; v > 0; v--)
+        t->vf_start[v] = t->vf_start[v - 1];
+    t->vf_start[0] = 0;
     *out = t;
     return 0;
 }
@@ -97,6 +114,8 @@ void mim_xfer_topology_close(mim_xfer_topology_t **tp)
     free(t->faces);
     free(t->adj_start);
     free(t->adj);
+    free(t->vf_start);
+    free(t->vf);
     free(t);
     *tp = NULL;
 }

@@ -64,6 +64,17 @@ void mim_xfer_encode(const mim_xfer_topology_t *t, const float *positions, const
 /* delta_i = F(v_i) W_i (3 * n): the Laplacian offsets W asks for in frames. */
 void mim_xfer_decode(uint32_t n_vertices, const double *frames, const double *W, double *delta);
 
+/* The stored encoding of a template (mim_db_encoding_t): frames6 (6 * n
+ * floats: f1 and f2 of each vertex) and W (3 * n floats) of the mesh with
+ * these positions. work: 12 * n doubles of scratch, or NULL to allocate
+ * it. MIM_ENOMEM only. */
+int mim_xfer_encoding_compute(const mim_xfer_topology_t *t, const float *positions, float *frames6, float *W,
+                              double *work, mim_error_t *err);
+/* Back to the solver's form: frames (9 * n doubles, f3 = f1 x f2, made
+ * orthonormal again) and W (3 * n doubles); either pair may be NULL. */
+void mim_xfer_encoding_unpack(uint32_t n_vertices, const float *frames6, const float *W, double *frames,
+                              double *W_out);
+
 /* ---- the constrained solver (solver.c) ---- */
 typedef enum mim_xfer_formulation {
     /* min ||L X - F*W||^2 over the free vertices, constrained vertices fixed:
@@ -77,6 +88,13 @@ typedef enum mim_xfer_formulation {
 typedef struct mim_xfer_solver_options {
     mim_xfer_formulation_t formulation; /* 0: least squares */
     int supernodal;                     /* 0: simplicial (faster at this size) */
+    /* Least squares only. 0 (default): factor L^c and solve the normal
+     * equations through a rank-c update (Woodbury; solver.c), so a solve
+     * costs one L^c solve plus an n_free x c product. 1: factor the normal
+     * matrix L_:f^T L_:f itself (about 2.7x the fill; kept as the
+     * reference the bench compares against; also used when more than
+     * MIM_LANDMARKS_MAX vertices are constrained). */
+    int normal_factor;
 } mim_xfer_solver_options_t;
 
 typedef struct mim_xfer_solver mim_xfer_solver_t;
@@ -99,9 +117,10 @@ typedef struct mim_xfer_solver_stats {
     double factor_nnz;                         /* entries of the Cholesky factor */
 } mim_xfer_solver_stats_t;
 void mim_xfer_solver_stats(const mim_xfer_solver_t *s, mim_xfer_solver_stats_t *st);
-/* One solve of the factored system with a 3-column right-hand side
- * (3 * n_free doubles, column-major x then y then z) into x (same layout).
- * For benchmarks and tests; the transfer uses it internally. */
+/* One plain CHOLMOD solve with the cached factor (L^c, or the normal
+ * matrix with normal_factor) and a 3-column right-hand side (3 * n_free
+ * doubles, column-major x then y then z) into x (same layout): the
+ * reference the bench measures an iteration against. */
 int mim_xfer_solver_solve(mim_xfer_solver_t *s, const double *rhs, double *x, mim_error_t *err);
 
 /* ---- the transfer iteration (transfer.c) ---- */
@@ -136,11 +155,12 @@ typedef struct mim_xfer_report {
 /* Transfers the avatar (its encoding W, 3 * n) to the pose given by the
  * frames `frames0` (9 * n, usually the template's) and the positions of the
  * solver's constrained vertices `targets` (3 * count floats, in the order
- * given to mim_xfer_solver_open). Mode (a) "template only": a solver on the
- * pelvis vertex alone, target = the template's pelvis. Mode (b): a solver
- * on all landmark vertices, targets = the tracked landmarks. (Mode (a) is
- * far less accurate: with one anchor nothing holds the low-frequency drift
- * of the reconstruction; see bench/transfer_accuracy.c.)
+ * given to mim_xfer_solver_open). Mode (b): a solver on all landmark
+ * vertices, targets = the tracked landmarks. Mode (a) "template only": the
+ * same solver, targets = mim_xfer_retarget_landmarks of the template (the
+ * paper's single pelvis anchor also works, a solver on that vertex alone,
+ * but nothing then holds the low frequencies and the body drifts: see
+ * bench/RESULTS.md).
  * n_vertices (the length of W, frames0 and out, in vertices) must be the
  * connectivity's, n_targets the solver's constrained count.
  * Writes 3 * n floats to out. report may be NULL. Returns 0, MIM_EINVAL
@@ -151,6 +171,79 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
                       const double *frames0, const float *targets, uint32_t n_targets,
                       const mim_xfer_options_t *opt, float *out, mim_xfer_report_t *report,
                       mim_error_t *err);
+
+/* ---- mode (a): landmarks from the template alone (retarget.c) ---- */
+/* Landmark positions (3 * map->count floats) in the template's pose with
+ * the avatar's proportions: from the template's pelvis, each segment of the
+ * landmark skeleton (pelvis-spine-chest-head, chest-shoulder-elbow-wrist,
+ * pelvis-hip-knee-ankle) keeps the template's direction and takes the
+ * avatar's rest length; the whole set is then moved so that the midpoint
+ * of its ankles is the template's. avatar_rest and tmpl are full meshes (3 * n
+ * floats). MIM_EUNSUPPORTED when the map is not the 16 default landmarks. */
+int mim_xfer_retarget_landmarks(const mim_landmark_map_t *map, const float *avatar_rest, const float *tmpl,
+                                float *out, mim_error_t *err);
+
+/* ---- morphing between key poses (morph.c; seed 000 Section 3.5) ---- */
+typedef enum mim_xfer_morph_method {
+    MIM_XFER_MORPH_LINEAR = 0, /* the paper: positions interpolated linearly */
+    MIM_XFER_MORPH_FRAMES = 1  /* frames slerped, landmarks lerped, one solve */
+} mim_xfer_morph_method_t;
+/* Each vertex frame's rotation as a unit quaternion (4 * n doubles, x y z w). */
+void mim_xfer_frames_to_quats(uint32_t n_vertices, const double *frames, double *quats);
+/* A key pose: its positions (3 * n floats); for FRAMES also its frames as
+ * quaternions (mim_xfer_frames_to_quats of mim_xfer_frames of the
+ * positions), its own encoding W (mim_xfer_encode with those frames) and
+ * its landmark positions (3 * constrained count, the solver's order). */
+typedef struct mim_xfer_key {
+    const float *positions;
+    const double *quats;
+    const double *W;
+    const float *landmarks;
+} mim_xfer_key_t;
+/* The in-between pose at t in [0, 1] between key poses a and b. LINEAR
+ * lerps positions; FRAMES slerps frames, lerps W and landmarks and solves
+ * once with the solver's cached factor (allocating nothing); both return
+ * the keys themselves at t = 0 and 1. Writes 3 * n floats to out. */
+int mim_xfer_morph(mim_xfer_solver_t *s, mim_xfer_morph_method_t method, const mim_xfer_key_t *a,
+                   const mim_xfer_key_t *b, double t, float *out, mim_error_t *err);
+
+/* ---- writers (write.c, write_openmesh.cpp, write_gltf.cpp) ---- */
+/* Writes one mesh; the format comes from the extension of path (any case):
+ * .ply (binary little-endian), .obj, .off (OpenMesh; text formats print 9
+ * significant digits, so float32 positions read back exactly) or .glb
+ * (tinygltf: POSITION with min/max, area-weighted vertex NORMALs, indices).
+ * Errors: MIM_EINVAL (NULL, empty mesh, face index out of range, unknown
+ * extension: the message lists the known ones), MIM_ENONFINITE (a NaN/inf
+ * position: names the vertex), MIM_EIO (cannot write: names the path and
+ * the reason). Writes to PATH.tmp and renames, so a failure never leaves a
+ * half-written file at path. */
+int mim_xfer_write_mesh(const char *path, const mim_mesh_t *mesh, mim_error_t *err);
+
+/* A sequence of poses of one mesh as a GLB with a morph-target animation:
+ * the base mesh is frame 0; every later frame is a morph target (its
+ * POSITION displacement from frame 0, accessor min/max set, and its NORMAL
+ * displacement); one animation "mimic" with a "weights" channel whose
+ * keyframe i (at times[i] seconds) sets target i-1 to 1 and every other to
+ * 0 (frame 0: all 0), LINEAR interpolation, so a player blends linearly
+ * between consecutive frames (seed 000, Section 3.5, key-pose morphing).
+ * positions holds n_frames * 3 * n_vertices floats (frame after frame);
+ * faces are mesh->faces (mesh->positions is ignored and may be NULL).
+ * times (n_frames seconds, >= 0, strictly increasing also as float32) may
+ * be NULL: frame i at i / fps. names (n_frames strings, may be NULL, UTF-8)
+ * name the frames: names[0] the mesh, names[1..] the targets in the mesh
+ * extras "targetNames" (a common convention players show). One frame gives
+ * a GLB of the mesh without targets or animation. path must end in .glb.
+ * Errors as mim_xfer_write_mesh, plus MIM_EINVAL for n_frames 0, bad times
+ * or fps (naming the frame). */
+typedef struct mim_xfer_sequence {
+    const mim_mesh_t *mesh;     /* faces and n_vertices */
+    uint32_t n_frames;          /* >= 1 */
+    const float *positions;     /* n_frames * 3 * n_vertices */
+    const double *times;        /* NULL: i / fps */
+    double fps;                 /* used when times is NULL; 0 means 30 */
+    const char *const *names;   /* optional frame names */
+} mim_xfer_sequence_t;
+int mim_xfer_write_sequence_glb(const char *path, const mim_xfer_sequence_t *seq, mim_error_t *err);
 
 #ifdef __cplusplus
 }

@@ -22,28 +22,38 @@ static void build_rhs(mim_xfer_solver_t *s, const double *W, const double *F, co
     const mim_xfer_topology_t *t = s->topo;
     const uint32_t nf = s->nf;
     double *B = s->B->x;
-    if (s->formulation == MIM_XFER_SQUARE) {
-        for (uint32_t j = 0; j < nf; j++) {
-            uint32_t v = s->free_v[j];
-            const double *f = F + 9 * (size_t)v, *w = W + 3 * (size_t)v;
-            double b[3];
-            for (int c = 0; c < 3; c++)
-                b[c] = f[c] * w[0] + f[3 + c] * w[1] + f[6 + c] * w[2];
-            /* b^c: -l_vu u_u = +u_u for constrained neighbours */
-            for (uint32_t k = t->adj_start[v]; k < t->adj_start[v + 1]; k++) {
-                int32_t q = s->slot[t->adj[k]];
-                if (q < 0) {
-                    const float *uu = u + 3 * (size_t)(-1 - q);
-                    b[0] += uu[0], b[1] += uu[1], b[2] += uu[2];
-                }
+    if (s->formulation == MIM_XFER_SQUARE || s->low_rank) {
+        /* F*W row by row: free rows into B, constrained rows (least
+         * squares) into rc; then the constraint terms -L_:c U */
+        double *restrict B0 = B, *restrict B1 = B + nf, *restrict B2 = B + 2 * (size_t)nf;
+        for (uint32_t i = 0; i < s->n; i++) {
+            const double *f = F + 9 * (size_t)i, *w = W + 3 * (size_t)i;
+            double r0 = f[0] * w[0] + f[3] * w[1] + f[6] * w[2];
+            double r1 = f[1] * w[0] + f[4] * w[1] + f[7] * w[2];
+            double r2 = f[2] * w[0] + f[5] * w[1] + f[8] * w[2];
+            int32_t q = s->slot[i];
+            if (q >= 0) {
+                B0[q] = r0, B1[q] = r1, B2[q] = r2;
+            } else if (s->low_rank) {
+                double *rc = s->rc + 3 * (size_t)(-1 - q);
+                rc[0] = r0, rc[1] = r1, rc[2] = r2;
             }
-            B[j] = b[0];
-            B[nf + j] = b[1];
-            B[2 * (size_t)nf + j] = b[2];
+        }
+        for (uint32_t e = 0; e < s->n_cterm; e++) {
+            const struct mim__xfer_cterm *ct = &s->cterm[e];
+            const float *uu = u + 3 * (size_t)ct->con;
+            if (ct->row >= 0) {
+                B0[ct->row] += ct->coef * uu[0];
+                B1[ct->row] += ct->coef * uu[1];
+                B2[ct->row] += ct->coef * uu[2];
+            } else {
+                double *rc = s->rc + 3 * (size_t)(-1 - ct->row);
+                rc[0] += ct->coef * uu[0], rc[1] += ct->coef * uu[1], rc[2] += ct->coef * uu[2];
+            }
         }
         return;
     }
-    /* least squares: r = F*W - L_:c U over all rows, then B = (L r)_f */
+    /* least squares on the normal factor: r as above, then B = (L r)_f */
     double *r = s->r;
     for (uint32_t i = 0; i < s->n; i++) {
         const double *f = F + 9 * (size_t)i, *w = W + 3 * (size_t)i;
@@ -184,7 +194,7 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
         pos = prev;
         prev = tmp;
         if (it < maxit) {
-            mim_xfer_frames_d(s->topo, prev, s->frames);
+            mim__xfer_frames_ws(s->topo, prev, s->frames, s->fn);
             F = s->frames;
         }
     }

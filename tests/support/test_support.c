@@ -105,3 +105,63 @@ const char *ts_shared_data(void)
     const char *d = getenv("MIMIC_SHARED_DATA");
     return d && *d ? d : MIMIC_SHARED_DATA_DEFAULT;
 }
+
+/* ---- the Khronos glTF validator (npm gltf-validator, installed by build.sh) ---- */
+char *ts_run_capture(const char *cmd, int *status)
+{
+    FILE *f = popen(cmd, "r");
+    size_t cap = 4096, len = 0;
+    char *buf = malloc(cap);
+    if (!f || !buf) {
+        if (f)
+            pclose(f);
+        free(buf);
+        *status = -1;
+        return strdup("");
+    }
+    size_t got;
+    while ((got = fread(buf + len, 1, cap - len - 1, f)) > 0) {
+        len += got;
+        if (len + 1 == cap) {
+            char *nb = realloc(buf, cap * 2);
+            if (!nb)
+                break;
+            buf = nb, cap *= 2;
+        }
+    }
+    buf[len] = 0;
+    int st = pclose(f);
+    *status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+    return buf;
+}
+
+int ts_gltf_validator_available(void)
+{
+    int st;
+    char *v = ts_run_capture("node --version 2>/dev/null", &st);
+    int node = st == 0 && v[0] == 'v';
+    free(v);
+    char *pkg = ts_path(MIMIC_SOURCE_DIR, "node_modules/gltf-validator/package.json");
+    struct stat sb;
+    int installed = stat(pkg, &sb) == 0;
+    free(pkg);
+    if (!node || !installed) {
+        print_message("skipping the glTF validator: %s (./build.sh installs it with npm ci when npm is present)\n",
+                      !node ? "node is not installed" : "node_modules/gltf-validator is missing");
+        return 0;
+    }
+    return 1;
+}
+
+void ts_gltf_validate(const char *path)
+{
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "node '%s/tests/gltf_validate.mjs' --strict '%s' 2>&1", MIMIC_SOURCE_DIR, path);
+    int st;
+    char *out = ts_run_capture(cmd, &st);
+    if (st != 0)
+        fprintf(stderr, "%s", out);
+    assert_int_equal(st, 0);
+    assert_non_null(strstr(out, ": 0 errors, 0 warnings"));
+    free(out);
+}

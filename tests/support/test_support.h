@@ -24,6 +24,14 @@ const char *ts_mimic_bin(void);
 /* ../shared/data beside the project ($MIMIC_SHARED_DATA overrides). */
 const char *ts_shared_data(void);
 
+/* The Khronos glTF validator (npm gltf-validator, which build.sh installs):
+ * available = node and the package are there (else prints why, for a skip);
+ * validate asserts zero errors and zero warnings for the file. */
+int ts_gltf_validator_available(void);
+/* Runs a shell command; its stdout (malloc'd) and exit status. */
+char *ts_run_capture(const char *cmd, int *status);
+void ts_gltf_validate(const char *path);
+
 /* Reads a whole file (malloc'd, NUL-terminated); NULL if it cannot. */
 char *ts_read_file(const char *path, size_t *len);
 int ts_write_file(const char *path, const void *data, size_t len);

@@ -1,0 +1,126 @@
+/* Shared bench helpers: timing statistics and the datasets (bench_data.h). */
+#include "bench_data.h"
+
+#include "mim_ingest.h"
+#include "mim_synth.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int cmp_d(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+double bench_quantile(double *v, int k, double q)
+{
+    qsort(v, (size_t)k, sizeof *v, cmp_d);
+    int i = (int)ceil(q * k) - 1;
+    return v[i < 0 ? 0 : i >= k ? k - 1 : i];
+}
+
+double bench_median(double *v, int k)
+{
+    qsort(v, (size_t)k, sizeof *v, cmp_d);
+    return v[k / 2];
+}
+
+int bench_load_synth(bench_dataset_t *d, uint32_t subjects, uint32_t poses, uint32_t vertices)
+{
+    mim_error_t err = {0};
+    mim_synth_t *s = NULL;
+    mim_synth_options_t o = {.subjects = subjects, .poses = poses, .vertices = vertices, .seed = 1};
+    memset(d, 0, sizeof *d);
+    if (mim_synth_create(&s, &o, &err)) {
+        fprintf(stderr, "synth: %s\n", mim_error_text(&err));
+        return -1;
+    }
+    d->name = "synth";
+    d->n = mim_synth_n_vertices(s);
+    d->n_faces = mim_synth_n_faces(s);
+    d->subjects = subjects;
+    d->poses = poses;
+    d->faces = malloc(3 * (size_t)d->n_faces * sizeof *d->faces);
+    memcpy(d->faces, mim_synth_faces(s), 3 * (size_t)d->n_faces * sizeof *d->faces);
+    mim_synth_landmarks(s, &d->map);
+    d->pos = calloc((size_t)subjects * poses, sizeof *d->pos);
+    for (uint32_t k = 0; k < subjects * poses; k++) {
+        d->pos[k] = malloc(3 * (size_t)d->n * sizeof(float));
+        mim_synth_body(s, k / poses, k % poses, d->pos[k]);
+    }
+    mim_synth_destroy(&s);
+    return 0;
+}
+
+int bench_load_mh(bench_dataset_t *d, const char *dir)
+{
+    mim_error_t err = {0};
+    char path[4200];
+    memset(d, 0, sizeof *d);
+    snprintf(path, sizeof path, "%s/landmarks.json", dir);
+    FILE *probe = fopen(path, "r");
+    if (!probe)
+        return 1;
+    fclose(probe);
+    if (mim_landmarks_read(&d->map, path, &err)) {
+        fprintf(stderr, "mh-bodies: %s\n", mim_error_text(&err));
+        return -1;
+    }
+    d->name = "mh-bodies";
+    d->subjects = 8;
+    d->poses = 12;
+    d->pos = calloc((size_t)d->subjects * d->poses, sizeof *d->pos);
+    for (uint32_t k = 0; k < d->subjects * d->poses; k++) {
+        mim_mesh_t m = {0};
+        snprintf(path, sizeof path, "%s/mh_s%02u_p%02u.ply", dir, k / d->poses, k % d->poses);
+        if (mim_mesh_read(path, &m, &err)) {
+            fprintf(stderr, "mh-bodies: %s\n", mim_error_text(&err));
+            bench_dataset_free(d);
+            return -1;
+        }
+        if (k == 0) {
+            d->n = m.n_vertices;
+            d->n_faces = m.n_faces;
+            d->faces = malloc(3 * (size_t)m.n_faces * sizeof *d->faces);
+            memcpy(d->faces, m.faces, 3 * (size_t)m.n_faces * sizeof *d->faces);
+        } else if (m.n_vertices != d->n || m.n_faces != d->n_faces ||
+                   memcmp(m.faces, d->faces, 3 * (size_t)m.n_faces * sizeof *d->faces)) {
+            fprintf(stderr, "mh-bodies: %s: connectivity differs\n", path);
+            mim_mesh_free(&m);
+            bench_dataset_free(d);
+            return -1;
+        }
+        d->pos[k] = m.positions;
+        m.positions = NULL;
+        mim_mesh_free(&m);
+    }
+    return 0;
+}
+
+void bench_dataset_free(bench_dataset_t *d)
+{
+    if (d->pos)
+        for (uint32_t k = 0; k < d->subjects * d->poses; k++)
+            free(d->pos[k]);
+    free(d->pos);
+    free(d->faces);
+    memset(d, 0, sizeof *d);
+}
+
+const char *bench_mh_dir(char *buf, size_t size)
+{
+    const char *env = getenv("MIMIC_SHARED_DATA");
+    if (env) {
+        snprintf(buf, size, "%s/mh-bodies", env);
+    } else {
+        snprintf(buf, size, "%s", __FILE__);
+        char *slash = strrchr(buf, '/');
+        if (slash)
+            *slash = 0;
+        strncat(buf, "/../../shared/data/mh-bodies", size - strlen(buf) - 1);
+    }
+    return buf;
+}

@@ -1,0 +1,29 @@
+/* What the bench programs share: statistics of repeated timings, and the two
+ * body datasets with ground truth (synth generated in the run, and
+ * ../shared/data/mh-bodies when present). */
+#ifndef MIM_BENCH_DATA_H
+#define MIM_BENCH_DATA_H
+
+#include "mim_core.h"
+
+typedef struct bench_dataset {
+    const char *name;
+    uint32_t n, n_faces, subjects, poses;
+    uint32_t *faces;
+    mim_landmark_map_t map;
+    float **pos; /* [s * poses + p], 3 * n floats */
+} bench_dataset_t;
+
+/* Median of v[0..k) (sorts v), and the q-quantile (0..1). */
+double bench_median(double *v, int k);
+double bench_quantile(double *v, int k, double q);
+/* synth: subjects x poses at about `vertices` vertices (seed 1). */
+int bench_load_synth(bench_dataset_t *d, uint32_t subjects, uint32_t poses, uint32_t vertices);
+/* mh-bodies: 8 x 12 PLY files from dir; 1 when the folder is absent. */
+int bench_load_mh(bench_dataset_t *d, const char *dir);
+void bench_dataset_free(bench_dataset_t *d);
+/* The mh-bodies folder: $MIMIC_SHARED_DATA/mh-bodies, else the source
+ * tree's sibling ../shared/data/mh-bodies. */
+const char *bench_mh_dir(char *buf, size_t size);
+
+#endif

@@ -1,0 +1,104 @@
+/* mimic index: build the recognition index of a store (seed 000, §3.2-3.3)
+ * and keep it in the store. JSON: schemas/index.schema.json. */
+#include "args.h"
+#include "commands.h"
+#include "mim_query.h"
+
+#include <getopt.h>
+#include <jansson.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+static void help(FILE *out)
+{
+    fprintf(out, "usage: mimic index --store DIR [--features D] [--json]\n\n"
+                 "Builds the pose recognition index of a store and keeps it in the store, so that\n"
+                 "mimic query opens it in milliseconds: the D most salient landmark angles (a\n"
+                 "decision tree on the pose labels, mirrored samples included), one SVM per pose\n"
+                 "class (RBF, C and gamma chosen by cross-validation, probability outputs) and a\n"
+                 "k-NN index inside each class. A store without pose labels is clustered by\n"
+                 "k-means (k = round(sqrt(templates / 2))). Run it again after ingesting more.\n\n"
+                 "  --store DIR     the template store\n"
+                 "  --features D    angles in the descriptor (default 60)\n"
+                 "  --json          one JSON object on stdout (schemas/index.schema.json)\n"
+                 "  -h, --help      this help\n");
+}
+
+int mim_cmd_index(int argc, char **argv)
+{
+    static const struct option longopts[] = {{"store", required_argument, 0, 's'},
+                                              {"features", required_argument, 0, 'd'},
+                                              {"json", no_argument, 0, 'j'},
+                                              {"help", no_argument, 0, 'h'},
+                                              {0, 0, 0, 0}};
+    const char *store = NULL;
+    int as_json = 0, c;
+    mim_index_options_t o = {0};
+    optind = 0;
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, "s:d:jh", longopts, NULL)) != -1) {
+        uint64_t v;
+        if (c == 's') store = optarg;
+        else if (c == 'd') {
+            if (mim_cli_number("index", "features", optarg, 1, 100000, &v)) return 2;
+            o.features = (uint32_t)v;
+        } else if (c == 'j') as_json = 1;
+        else if (c == 'h') return help(stdout), 0;
+        else {
+            fprintf(stderr, "mimic index: unknown or incomplete option '%s' (see mimic index --help)\n",
+                    argv[optind - 1]);
+            return 2;
+        }
+    }
+    if (!store) {
+        fprintf(stderr, "mimic index: --store DIR is required (see mimic index --help)\n");
+        return 2;
+    }
+    mim_error_t err = {0};
+    mim_db_t *db = NULL;
+    mim_db_options_t ro = {.read_only = 1}, rw = {0};
+    /* open read-only first so that a wrong path is not made into a new store */
+    int rc = mim_db_open(&db, store, &ro, &err);
+    mim_db_close(&db);
+    if (!rc) rc = mim_db_open(&db, store, &rw, &err);
+    mim_progress_t pr;
+    o.progress = &pr;
+    mim_index_report_t rep;
+    mim_query_status_t st;
+    if (!rc) rc = mim_query_build_index(db, &o, &rep, &err);
+    if (!rc) rc = mim_query_status(db, &st, &err);
+    if (rc) {
+        fprintf(stderr, "mimic index: %s\n", mim_error_text(&err));
+        mim_db_close(&db);
+        return 2;
+    }
+    const char *source = rep.class_source == MIM_CLASSES_KMEANS ? "kmeans" : "labels";
+    if (as_json) {
+        json_t *root = json_pack("{s:s, s:I, s:I, s:s, s:I, s:f, s:f, s:o, s:I, s:I, s:f}", "store", store, "templates",
+                                 (json_int_t)st.templates, "classes", (json_int_t)rep.n_classes, "class_source", source,
+                                 "features", (json_int_t)rep.d, "C", rep.C, "gamma", rep.gamma, "cv_accuracy",
+                                 rep.cv_accuracy >= 0 ? json_real(rep.cv_accuracy) : json_null(), "support_vectors",
+                                 (json_int_t)rep.support_vectors, "exact_classes", (json_int_t)rep.exact_classes,
+                                 "seconds", rep.seconds);
+        char *s = json_dumps(root, JSON_INDENT(2) | JSON_PRESERVE_ORDER);
+        printf("%s\n", s ? s : "{}");
+        free(s);
+        json_decref(root);
+    } else {
+        printf("index        %s: %llu templates, %u classes (%s), %u angles\n", store,
+               (unsigned long long)st.templates, rep.n_classes,
+               rep.class_source == MIM_CLASSES_KMEANS ? "k-means, no pose labels" : "pose labels", rep.d);
+        if (rep.n_classes < 2)
+            printf("svm          one class: no SVM needed\n");
+        else if (rep.cv_accuracy >= 0)
+            printf("svm          C = %g, gamma = %.4g (cross-validation accuracy %.3f), %u support vectors\n", rep.C,
+                   rep.gamma, rep.cv_accuracy, rep.support_vectors);
+        else
+            printf("svm          C = %g, gamma = %.4g (given), %u support vectors\n", rep.C, rep.gamma,
+                   rep.support_vectors);
+        printf("k-NN         %u of %u classes exact, the rest kd-forests\n", rep.exact_classes, rep.n_classes);
+        printf("built in     %.2f s\n", rep.seconds);
+    }
+    mim_db_close(&db);
+    return 0;
+}

@@ -1,0 +1,198 @@
+/* mimic morph: key poses and the poses between them (seed 000, Section
+ * 3.5) as one GLB with a morph-target animation. */
+#include "args.h"
+#include "commands.h"
+#include "session.h"
+
+#include <getopt.h>
+#include <jansson.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define KEYS_MAX 256
+
+static void help(FILE *out)
+{
+    fprintf(out,
+            "usage: mimic morph --store DIR --avatar (MESH|ID) --keys K1,K2,... --frames-between N\n"
+            "                   [--method linear|frames] [--landmarks FILE.json] [--fps F] [--json] -o OUT.glb\n\n"
+            "Transfers the avatar into the pose of each key template, fills N poses between\n"
+            "consecutive keys, and writes the sequence as a GLB animation (morph targets).\n\n"
+            "  --store DIR          the template store\n"
+            "  --avatar MESH|ID     a mesh file with the store's connectivity, or a template id\n"
+            "  --keys K1,K2,...     template ids of the key poses, in order (2..%d)\n"
+            "  --frames-between N   in-between poses per pair of keys (0..1000)\n"
+            "  --method M           frames (default: per-vertex frames slerped, landmarks lerped,\n"
+            "                       one solve each; no shrinking) or linear (positions, the paper's)\n"
+            "  --landmarks FILE     one landmark frame per key ({\"frames\": [...]}); without it each\n"
+            "                       key's landmarks are retargeted from its template\n"
+            "  --fps F              playback rate of the animation (default 30)\n"
+            "  -o, --output OUT     a .glb file\n"
+            "  --json               a JSON report on stdout (schemas/morph.schema.json)\n"
+            "  -h, --help           this help\n",
+            KEYS_MAX);
+}
+
+static int parse_keys(const char *text, uint64_t *keys, uint32_t *count)
+{
+    char buf[4096];
+    snprintf(buf, sizeof buf, "%s", text);
+    *count = 0;
+    for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+        if (*count == KEYS_MAX) {
+            fprintf(stderr, "mimic morph: --keys: more than %d keys\n", KEYS_MAX);
+            return -1;
+        }
+        if (mim_cli_template_id("morph", tok, &keys[*count])) return -1;
+        (*count)++;
+    }
+    if (*count < 2) {
+        fprintf(stderr, "mimic morph: --keys '%s': give at least two template ids, comma-separated\n", text);
+        return -1;
+    }
+    return 0;
+}
+
+int mim_cmd_morph(int argc, char **argv)
+{
+    static const struct option longopts[] = {
+        {"store", required_argument, 0, 's'},  {"avatar", required_argument, 0, 'a'},
+        {"keys", required_argument, 0, 'k'},   {"frames-between", required_argument, 0, 'n'},
+        {"method", required_argument, 0, 'm'}, {"landmarks", required_argument, 0, 'l'},
+        {"fps", required_argument, 0, 'r'},    {"output", required_argument, 0, 'o'},
+        {"json", no_argument, 0, 'j'},         {"help", no_argument, 0, 'h'},
+        {0, 0, 0, 0}};
+    const char *store = NULL, *avatar = NULL, *keys_arg = NULL, *lm_path = NULL, *outp = NULL;
+    uint64_t between = 0, fps = 30, keys[KEYS_MAX];
+    uint32_t n_keys = 0;
+    int have_between = 0, as_json = 0, c;
+    mim_xfer_morph_method_t method = MIM_XFER_MORPH_FRAMES;
+    optind = 0;
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, "s:a:k:n:m:l:r:o:jh", longopts, NULL)) != -1) {
+        if (c == 's') store = optarg;
+        else if (c == 'a') avatar = optarg;
+        else if (c == 'k') keys_arg = optarg;
+        else if (c == 'l') lm_path = optarg;
+        else if (c == 'o') outp = optarg;
+        else if (c == 'j') as_json = 1;
+        else if (c == 'n') {
+            if (mim_cli_number("morph", "frames-between", optarg, 0, 1000, &between)) return 2;
+            have_between = 1;
+        } else if (c == 'r') {
+            if (mim_cli_number("morph", "fps", optarg, 1, 1000, &fps)) return 2;
+        } else if (c == 'm') {
+            if (!strcmp(optarg, "linear")) method = MIM_XFER_MORPH_LINEAR;
+            else if (!strcmp(optarg, "frames")) method = MIM_XFER_MORPH_FRAMES;
+            else {
+                fprintf(stderr, "mimic morph: --method '%s': use linear or frames\n", optarg);
+                return 2;
+            }
+        } else if (c == 'h') return help(stdout), 0;
+        else {
+            fprintf(stderr, "mimic morph: unknown or incomplete option '%s' (see mimic morph --help)\n",
+                    argv[optind - 1]);
+            return 2;
+        }
+    }
+    if (optind < argc) {
+        fprintf(stderr, "mimic morph: unexpected argument '%s' (see mimic morph --help)\n", argv[optind]);
+        return 2;
+    }
+    if (!store || !avatar || !keys_arg || !have_between || !outp) {
+        fprintf(stderr, "mimic morph: --store, --avatar, --keys, --frames-between and -o are required "
+                        "(see mimic morph --help)\n");
+        return 2;
+    }
+    if (parse_keys(keys_arg, keys, &n_keys)) return 2;
+    size_t olen = strlen(outp);
+    if (olen < 4 || strcasecmp(outp + olen - 4, ".glb")) {
+        fprintf(stderr, "mimic morph: -o '%s': the sequence is written as a .glb file\n", outp);
+        return 2;
+    }
+
+    mim_error_t err = {0};
+    mim_cli_session_t s;
+    int rc = mim_cli_session_open(&s, store, avatar, &err);
+    const uint32_t n = s.mesh.n_vertices, nl = s.map.count;
+    const size_t n_frames = (size_t)(n_keys - 1) * (between + 1) + 1;
+    mim_landmark_frames_t lmf = {0};
+    if (!rc && lm_path) {
+        rc = mim_landmark_frames_read(lm_path, nl, 0, &lmf, &err);
+        if (!rc && lmf.n_frames != n_keys)
+            rc = mim_error_set(&err, MIM_EFORMAT, "%s: has %u frames for %u keys", lm_path, lmf.n_frames, n_keys);
+    }
+    /* per key: positions, frames as quaternions, own W, landmarks */
+    float *kpos = NULL, *klm = NULL, *seq = NULL, *tpos = NULL;
+    double *kq = NULL, *kW = NULL, *F = NULL;
+    if (!rc) {
+        kpos = malloc((size_t)n_keys * 3 * n * sizeof *kpos);
+        klm = malloc((size_t)n_keys * 3 * nl * sizeof *klm);
+        kq = malloc((size_t)n_keys * 4 * n * sizeof *kq);
+        kW = malloc((size_t)n_keys * 3 * n * sizeof *kW);
+        F = malloc(9 * (size_t)n * sizeof *F);
+        tpos = malloc(3 * (size_t)n * sizeof *tpos);
+        seq = malloc(n_frames * 3 * n * sizeof *seq);
+        if (!kpos || !klm || !kq || !kW || !F || !tpos || !seq)
+            rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for %zu frames of %u vertices", n_frames, n);
+    }
+    mim_xfer_solver_t *solver = NULL;
+    if (!rc) rc = mim_xfer_solver_open(&solver, s.topo, s.map.vertex, nl, NULL, &err);
+    double t0 = mim_now();
+    uint32_t iterations = 0;
+    for (uint32_t k = 0; k < n_keys && !rc; k++) {
+        float *u = klm + (size_t)k * 3 * nl, *x = kpos + (size_t)k * 3 * n;
+        rc = mim_cli_session_template(&s, keys[k], tpos, F, NULL, 0, &err);
+        if (!rc) {
+            if (lm_path) memcpy(u, lmf.positions + (size_t)k * 3 * nl, 3 * (size_t)nl * sizeof *u);
+            else rc = mim_xfer_retarget_landmarks(&s.map, s.mesh.positions, tpos, u, &err);
+        }
+        mim_xfer_report_t rep;
+        if (!rc) rc = mim_xfer_transfer(solver, s.W, n, F, u, nl, NULL, x, &rep, &err);
+        if (!rc) {
+            iterations += rep.iterations;
+            /* the key pose's own frames and W, for the frames method */
+            mim_xfer_frames(s.topo, x, F);
+            mim_xfer_frames_to_quats(n, F, kq + (size_t)k * 4 * n);
+            mim_xfer_encode(s.topo, x, F, kW + (size_t)k * 3 * n);
+        }
+    }
+    for (uint32_t k = 0; k + 1 < n_keys && !rc; k++) {
+        mim_xfer_key_t a = {kpos + (size_t)k * 3 * n, kq + (size_t)k * 4 * n, kW + (size_t)k * 3 * n,
+                            klm + (size_t)k * 3 * nl};
+        mim_xfer_key_t b = {kpos + (size_t)(k + 1) * 3 * n, kq + (size_t)(k + 1) * 4 * n,
+                            kW + (size_t)(k + 1) * 3 * n, klm + (size_t)(k + 1) * 3 * nl};
+        size_t f0 = (size_t)k * (between + 1);
+        memcpy(seq + f0 * 3 * n, a.positions, 3 * (size_t)n * sizeof *seq);
+        for (uint64_t j = 1; j <= between && !rc; j++)
+            rc = mim_xfer_morph(solver, method, &a, &b, (double)j / (double)(between + 1), seq + (f0 + j) * 3 * n,
+                                &err);
+    }
+    if (!rc) memcpy(seq + (n_frames - 1) * 3 * n, kpos + (size_t)(n_keys - 1) * 3 * n, 3 * (size_t)n * sizeof *seq);
+    double t_compute = mim_now() - t0;
+    if (!rc) {
+        mim_xfer_sequence_t sq = {.mesh = &s.mesh, .n_frames = (uint32_t)n_frames, .positions = seq, .fps = (double)fps};
+        rc = mim_xfer_write_sequence_glb(outp, &sq, &err);
+    }
+    if (rc) {
+        fprintf(stderr, "mimic morph: %s\n", mim_error_text(&err));
+    } else if (as_json) {
+        json_t *j = json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:i, s:f}", "output", outp, "avatar", s.avatar, "method",
+                              method == MIM_XFER_MORPH_LINEAR ? "linear" : "frames", "keys", (int)n_keys,
+                              "frames_between", (int)between, "frames", (int)n_frames, "key_iterations",
+                              (int)iterations, "seconds", t_compute);
+        char *txt = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
+        printf("%s\n", txt ? txt : "{}");
+        free(txt);
+        json_decref(j);
+    } else {
+        fprintf(stderr, "mimic morph: %s -> %s: %u keys, %zu frames (%s), %.1f ms\n", s.avatar, outp, n_keys, n_frames,
+                method == MIM_XFER_MORPH_LINEAR ? "linear" : "frames", 1e3 * t_compute);
+    }
+    mim_xfer_solver_close(&solver);
+    mim_landmark_frames_free(&lmf);
+    free(kpos), free(klm), free(kq), free(kW), free(F), free(tpos), free(seq);
+    mim_cli_session_close(&s);
+    return rc ? 1 : 0;
+}

@@ -1,0 +1,70 @@
+/* Internal to index/: the recognition index object shared by build, query
+ * and the blob reader/writer. */
+#ifndef MIM_INDEX_INTERNAL_H
+#define MIM_INDEX_INTERNAL_H
+
+#include "mim_index.h"
+
+#include <flann/flann.h>
+
+/* A trained one-vs-rest SVM in dense form: decision value
+ * f(x) = sum_i coef[i] exp(-gamma |x - sv_i|^2) - rho, positive for the
+ * class; P(class | x) = 1 / (1 + exp(prob_a f + prob_b)) (Platt). */
+typedef struct {
+    uint32_t n_sv;
+    double *sv;   /* n_sv * d */
+    double *coef; /* n_sv */
+    double rho, prob_a, prob_b;
+} mim__svm_t;
+
+struct mim_index {
+    uint32_t n_landmarks, d, n_templates, n_classes, n_strings, class_source;
+    double C, gamma, cv_accuracy;
+    uint32_t exact_max, checks;
+    uint32_t d2;           /* d plus the extra angles kept for frames with missing landmarks */
+    uint32_t *selected;    /* d2 candidate angles, ranked: the descriptor is the first d */
+    char **strings;        /* label strings; strings[0] = "" */
+    uint32_t *class_name;  /* n_classes: string index */
+    uint32_t *class_start; /* n_classes + 1: templates are stored grouped by class */
+    uint64_t *ids;         /* n_templates */
+    uint32_t *subject;     /* n_templates: string index */
+    uint32_t *pose;        /* n_templates: string index */
+    float *desc;           /* n_templates * d, radians */
+    float *extra;          /* n_templates * (d2 - d): the further ranked angles */
+    mim__svm_t *svm;       /* n_classes (all n_sv 0 when there is one class) */
+    flann_index_t *flann;  /* n_classes */
+    int *flann_exact;      /* n_classes */
+};
+
+/* A small deterministic generator (splitmix64). */
+static inline uint64_t mim__rng(uint64_t *s)
+{
+    uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+
+/* classes.c: k-means on rows x (n x f, NaN = unknown) into k clusters. */
+int mim__kmeans(const float *x, uint32_t n, uint32_t f, uint32_t k, uint32_t *assign, mim_error_t *err);
+uint32_t mim__kmeans_k(uint32_t n);
+
+/* svm.c */
+typedef struct {
+    const double *x;     /* n * d */
+    const uint32_t *y;   /* class per row */
+    const uint32_t *group; /* subject per row (folds), NULL: none */
+    uint32_t n, d, n_classes, n_groups;
+} mim__svm_data_t;
+int mim__svm_train_all(const mim__svm_data_t *data, const mim_index_options_t *opt, mim__svm_t *out,
+                       double *C, double *gamma, double *cv_accuracy, mim_error_t *err);
+/* Decision value over the features with mask[f] != 0 (NULL: all), the
+ * partial squared distance rescaled by d / available. */
+double mim__svm_decision(const mim__svm_t *m, double gamma, const double *x, const uint8_t *mask, uint32_t d);
+double mim__svm_probability(const mim__svm_t *m, double f);
+void mim__svm_free(mim__svm_t *m);
+
+/* model.c: (re)builds the per-class FLANN indexes of a filled index. */
+int mim__index_build_knn(mim_index_t *ix, mim_error_t *err);
+
+#endif

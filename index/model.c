@@ -1,0 +1,672 @@
+/* Building and querying the recognition index (seed 000, Section 3.3):
+ * classes from pose labels (or k-means), the d salient angles chosen by the
+ * CART tree of Section 3.2, one-vs-rest SVMs, and a FLANN k-NN index inside
+ * each class. The method and its choices are described in mim_index.h. */
+#include "internal.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- a small string table (labels) ---- */
+typedef struct {
+    char **s;
+    uint32_t n, cap;
+    uint32_t *slot; /* open addressing: string index + 1, 0 = empty */
+    uint32_t nslot;
+} strtab_t;
+
+static int strtab_grow(strtab_t *t)
+{
+    uint32_t ns = t->nslot ? t->nslot * 2 : 64;
+    uint32_t *slot = calloc(ns, sizeof *slot);
+    if (!slot) return MIM_ENOMEM;
+    for (uint32_t i = 0; i < t->n; i++) {
+        uint64_t h = mim_hash64(t->s[i], strlen(t->s[i]), 7);
+        uint32_t p = (uint32_t)(h & (ns - 1));
+        while (slot[p]) p = (p + 1) & (ns - 1);
+        slot[p] = i + 1;
+    }
+    free(t->slot);
+    t->slot = slot, t->nslot = ns;
+    return 0;
+}
+
+/* Index of s in the table, added if new; -1 when out of memory. */
+static int64_t strtab_add(strtab_t *t, const char *s)
+{
+    if (!s) s = "";
+    if (2 * (t->n + 1) > t->nslot && strtab_grow(t)) return -1;
+    uint64_t h = mim_hash64(s, strlen(s), 7);
+    uint32_t p = (uint32_t)(h & (t->nslot - 1));
+    while (t->slot[p]) {
+        if (!strcmp(t->s[t->slot[p] - 1], s)) return t->slot[p] - 1;
+        p = (p + 1) & (t->nslot - 1);
+    }
+    if (t->n == t->cap) {
+        uint32_t nc = t->cap ? 2 * t->cap : 16;
+        char **ns = realloc(t->s, sizeof(char *) * nc);
+        if (!ns) return -1;
+        t->s = ns, t->cap = nc;
+    }
+    if (!(t->s[t->n] = strdup(s))) return -1;
+    t->slot[p] = t->n + 1;
+    return t->n++;
+}
+
+/* ---- k-NN ---- */
+static struct FLANNParameters flann_params(const mim_index_t *ix, int exact)
+{
+    struct FLANNParameters p = DEFAULT_FLANN_PARAMETERS;
+    p.algorithm = exact ? FLANN_INDEX_LINEAR : FLANN_INDEX_KDTREE;
+    p.trees = 4;
+    p.checks = (int)ix->checks;
+    p.cores = 1;
+    p.log_level = FLANN_LOG_NONE;
+    p.random_seed = 0x6d696d; /* the same forest on every load */
+    return p;
+}
+
+int mim__index_build_knn(mim_index_t *ix, mim_error_t *err)
+{
+    ix->flann = calloc(ix->n_classes, sizeof *ix->flann);
+    ix->flann_exact = calloc(ix->n_classes, sizeof *ix->flann_exact);
+    if (!ix->flann || !ix->flann_exact) return MIM_ENOMEM;
+    for (uint32_t c = 0; c < ix->n_classes; c++) {
+        uint32_t n = ix->class_start[c + 1] - ix->class_start[c];
+        ix->flann_exact[c] = n <= ix->exact_max;
+        if (!n) continue;
+        struct FLANNParameters p = flann_params(ix, ix->flann_exact[c]);
+        float speedup = 0;
+        ix->flann[c] = flann_build_index_float(ix->desc + (size_t)ix->class_start[c] * ix->d, (int)n, (int)ix->d,
+                                               &speedup, &p);
+        if (!ix->flann[c]) return mim_error_set(err, MIM_ENOMEM, "k-NN index of class %u (%u templates) failed", c, n);
+    }
+    return 0;
+}
+
+void mim_index_close(mim_index_t **pix)
+{
+    if (!pix || !*pix) return;
+    mim_index_t *ix = *pix;
+    if (ix->flann)
+        for (uint32_t c = 0; c < ix->n_classes; c++) {
+            struct FLANNParameters p = flann_params(ix, ix->flann_exact[c]);
+            if (ix->flann[c]) flann_free_index_float(ix->flann[c], &p);
+        }
+    if (ix->svm)
+        for (uint32_t c = 0; c < ix->n_classes; c++) mim__svm_free(&ix->svm[c]);
+    if (ix->strings)
+        for (uint32_t i = 0; i < ix->n_strings; i++) free(ix->strings[i]);
+    free(ix->strings), free(ix->selected), free(ix->class_name), free(ix->class_start), free(ix->ids);
+    free(ix->subject), free(ix->pose), free(ix->desc), free(ix->extra), free(ix->svm), free(ix->flann), free(ix->flann_exact);
+    free(ix);
+    *pix = NULL;
+}
+
+/* ---- build ---- */
+static void full_angles(const mim_index_input_t *in, uint32_t t, float *out)
+{
+    mim_index_angles(in->landmarks + (size_t)t * in->n_landmarks * 3, NULL, in->n_landmarks, out);
+}
+
+/* Nearest of k centres (rows of nf doubles) to the angles a; NaN left out. */
+static uint32_t nearest_centre(const float *a, const double *centres, uint32_t k, uint32_t nf)
+{
+    double best = INFINITY;
+    uint32_t arg = 0;
+    for (uint32_t j = 0; j < k; j++) {
+        double s = 0;
+        for (uint32_t f = 0; f < nf; f++) {
+            double c = centres[(size_t)j * nf + f];
+            if (isnan(a[f]) || isnan(c)) continue;
+            s += (a[f] - c) * (a[f] - c);
+        }
+        if (s < best) best = s, arg = j;
+    }
+    return arg;
+}
+
+/* Class means over all candidate angles of the rows whose class is known
+ * (cls[t] < k), from the angles of those rows. */
+static int class_means(const mim_index_input_t *in, const uint32_t *cls, const uint32_t *rows, uint32_t nrows,
+                       uint32_t k, uint32_t nf, double *centres)
+{
+    uint32_t *cnt = calloc((size_t)k * nf, sizeof *cnt);
+    float *a = malloc(sizeof(float) * nf);
+    if (!cnt || !a) {
+        free(cnt), free(a);
+        return MIM_ENOMEM;
+    }
+    memset(centres, 0, sizeof(double) * (size_t)k * nf);
+    for (uint32_t r = 0; r < nrows; r++) {
+        uint32_t t = rows[r];
+        if (cls[t] >= k) continue;
+        full_angles(in, t, a);
+        for (uint32_t f = 0; f < nf; f++)
+            if (!isnan(a[f])) centres[(size_t)cls[t] * nf + f] += a[f], cnt[(size_t)cls[t] * nf + f]++;
+    }
+    for (size_t i = 0; i < (size_t)k * nf; i++) centres[i] = cnt[i] ? centres[i] / cnt[i] : NAN;
+    free(cnt), free(a);
+    return 0;
+}
+
+/* Assigns class ids: pose labels, else k-means. cls gets n entries; names
+ * gets the class names as string-table indices. */
+static int assign_classes(const mim_index_input_t *in, strtab_t *st, uint32_t *cls, uint32_t **names_out,
+                          uint32_t *nc_out, uint32_t *source, mim_error_t *err)
+{
+    uint32_t n = in->n_templates, nf = mim_index_angle_count(in->n_landmarks);
+    uint32_t *str_class = NULL, n_map = 0, nc = 0, *names = NULL, unlabelled = 0;
+    int rc = 0;
+    /* pose label string index -> class */
+    names = malloc(sizeof(uint32_t) * (n + 64));
+    uint32_t *rows = malloc(sizeof(uint32_t) * n);
+    float *a = malloc(sizeof(float) * nf);
+    double *centres = NULL;
+    if (!names || !rows || !a) {
+        rc = MIM_ENOMEM;
+        goto out;
+    }
+    for (uint32_t t = 0; t < n; t++) {
+        const char *p = in->poses ? in->poses[t] : NULL;
+        if (!p || !*p) {
+            cls[t] = UINT32_MAX;
+            unlabelled++;
+            continue;
+        }
+        int64_t s = strtab_add(st, p);
+        if (s < 0) {
+            rc = MIM_ENOMEM;
+            goto out;
+        }
+        /* class of string s (subject strings share the table: grow the map) */
+        if ((uint32_t)s >= n_map) {
+            uint32_t nn = st->n + 64;
+            uint32_t *m2 = realloc(str_class, sizeof(uint32_t) * nn);
+            if (!m2) {
+                rc = MIM_ENOMEM;
+                goto out;
+            }
+            for (uint32_t i = n_map; i < nn; i++) m2[i] = UINT32_MAX;
+            str_class = m2, n_map = nn;
+        }
+        if (str_class[s] == UINT32_MAX) {
+            if (nc == n + 64) { /* cannot happen: at most one class per template */
+                rc = MIM_EINVAL;
+                goto out;
+            }
+            str_class[s] = nc;
+            names[nc++] = (uint32_t)s;
+        }
+        uint32_t c = str_class[s];
+        cls[t] = c;
+    }
+    *source = MIM_CLASSES_LABELS;
+    if (nc == 0) { /* no labels at all: k-means on a sample, then nearest centre */
+        *source = MIM_CLASSES_KMEANS;
+        uint32_t m = n < 4000 ? n : 4000;
+        uint64_t seed = 0x6b6dULL;
+        for (uint32_t i = 0; i < n; i++) rows[i] = i;
+        for (uint32_t i = 0; i < m && n > m; i++) {
+            uint32_t j = i + (uint32_t)(mim__rng(&seed) % (n - i)), tt = rows[i];
+            rows[i] = rows[j], rows[j] = tt;
+        }
+        float *x = malloc(sizeof(float) * (size_t)m * nf);
+        uint32_t *as = malloc(sizeof(uint32_t) * m);
+        if (!x || !as) {
+            free(x), free(as);
+            rc = MIM_ENOMEM;
+            goto out;
+        }
+        for (uint32_t i = 0; i < m; i++) full_angles(in, rows[i], x + (size_t)i * nf);
+        uint32_t k = mim__kmeans_k(n);
+        if (k > m) k = m;
+        rc = mim__kmeans(x, m, nf, k, as, err);
+        for (uint32_t i = 0; i < m && !rc; i++) cls[rows[i]] = as[i];
+        free(x), free(as);
+        if (rc) goto out;
+        nc = k;
+        unlabelled = n - m;
+    }
+    if (unlabelled) { /* the rest join the nearest class mean */
+        centres = malloc(sizeof(double) * (size_t)nc * nf);
+        if (!centres) {
+            rc = MIM_ENOMEM;
+            goto out;
+        }
+        uint32_t nrows = 0;
+        for (uint32_t t = 0; t < n; t++)
+            if (cls[t] != UINT32_MAX) rows[nrows++] = t;
+        if ((rc = class_means(in, cls, rows, nrows, nc, nf, centres))) goto out;
+        for (uint32_t t = 0; t < n; t++)
+            if (cls[t] == UINT32_MAX) {
+                full_angles(in, t, a);
+                cls[t] = nearest_centre(a, centres, nc, nf);
+            }
+    }
+    /* drop empty clusters; k-means names its classes "cluster-N" */
+    uint32_t *count = calloc(nc, sizeof *count), *remap = malloc(sizeof(uint32_t) * (nc ? nc : 1));
+    if (!count || !remap) {
+        free(count), free(remap);
+        rc = MIM_ENOMEM;
+        goto out;
+    }
+    for (uint32_t t = 0; t < n; t++) count[cls[t]]++;
+    uint32_t used = 0;
+    for (uint32_t c = 0; c < nc; c++) {
+        remap[c] = count[c] ? used : UINT32_MAX;
+        if (!count[c]) continue;
+        if (*source == MIM_CLASSES_KMEANS) {
+            char nm[32];
+            snprintf(nm, sizeof nm, "cluster-%u", used);
+            int64_t s = strtab_add(st, nm);
+            if (s < 0) {
+                rc = MIM_ENOMEM;
+                break;
+            }
+            names[used] = (uint32_t)s;
+        } else {
+            names[used] = names[c];
+        }
+        used++;
+    }
+    for (uint32_t t = 0; t < n && !rc; t++) cls[t] = remap[cls[t]];
+    free(count), free(remap);
+    nc = used;
+out:
+    free(str_class), free(rows), free(a), free(centres);
+    if (rc) {
+        free(names);
+        return rc;
+    }
+    *names_out = names;
+    *nc_out = nc;
+    return 0;
+}
+
+int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_index_options_t *opt_in,
+                    mim_index_report_t *report, mim_error_t *err)
+{
+    *out = NULL;
+    mim_index_options_t opt = opt_in ? *opt_in : (mim_index_options_t){0};
+    double t0 = mim_now();
+    uint32_t n = in->n_templates, L = in->n_landmarks;
+    if (!n) return mim_error_set(err, MIM_EINVAL, "no templates to index (ingest some first)");
+    if (L < MIM_LANDMARKS_MIN || L > MIM_LANDMARKS_MAX)
+        return mim_error_set(err, MIM_EINVAL, "%u landmarks: the index needs %d to %d", L, MIM_LANDMARKS_MIN,
+                             MIM_LANDMARKS_MAX);
+    for (size_t i = 0; i < (size_t)n * L * 3; i++)
+        if (!isfinite(in->landmarks[i]))
+            return mim_error_set(err, MIM_ENONFINITE, "template %llu: landmark %u is not finite",
+                                 (unsigned long long)in->ids[i / (L * 3)], (uint32_t)(i / 3 % L));
+    uint32_t nf = mim_index_angle_count(L), d = opt.features ? opt.features : 60;
+    if (d > nf) d = nf;
+    uint32_t d2 = opt.missing_features ? opt.missing_features : 3 * d;
+    if (d2 < d) d2 = d;
+    if (d2 > nf) d2 = nf;
+    mim_index_t *ix = calloc(1, sizeof *ix);
+    strtab_t st = {0};
+    uint32_t *cls = malloc(sizeof(uint32_t) * n), *names = NULL, nc = 0, source = 0;
+    uint32_t *order = NULL, *rows = NULL, *mmap = NULL, *y = NULL, *grp = NULL;
+    float *x = NULL, *desc = NULL;
+    double *sx = NULL;
+    int rc = 0;
+    mim_progress_t *progress = NULL; /* set once begun */
+    if (!ix || !cls || strtab_add(&st, "") != 0) {
+        rc = MIM_ENOMEM;
+        goto out;
+    }
+    ix->n_landmarks = L, ix->d = d, ix->d2 = d2, ix->n_templates = n;
+    ix->exact_max = opt.exact_max ? opt.exact_max : 8192;
+    ix->checks = opt.checks ? opt.checks : 128;
+    if ((rc = assign_classes(in, &st, cls, &names, &nc, &source, err))) goto out;
+    ix->n_classes = nc, ix->class_source = source;
+    progress = opt.progress;
+    if (progress) mim_progress_begin(progress, "index", (nc > 1 && !(opt.C > 0 && opt.gamma > 0) ? 16 : 0) + nc);
+
+    /* the tree chooses the d angles, on a sample of at most select_max */
+    uint32_t smax = opt.select_max_samples ? opt.select_max_samples : 4000, m = n < smax ? n : smax;
+    rows = malloc(sizeof(uint32_t) * n);
+    x = malloc(sizeof(float) * (size_t)m * nf);
+    y = malloc(sizeof(uint32_t) * (m > n ? m : n));
+    ix->selected = malloc(sizeof(uint32_t) * d2);
+    if (in->mirror) mmap = malloc(sizeof(uint32_t) * nf);
+    if (!rows || !x || !y || !ix->selected || (in->mirror && !mmap)) {
+        rc = MIM_ENOMEM;
+        goto out;
+    }
+    for (uint32_t i = 0; i < n; i++) rows[i] = i;
+    uint64_t seed = 0x73656cULL;
+    for (uint32_t i = 0; i < m && n > m; i++) {
+        uint32_t j = i + (uint32_t)(mim__rng(&seed) % (n - i)), tt = rows[i];
+        rows[i] = rows[j], rows[j] = tt;
+    }
+    for (uint32_t i = 0; i < m; i++) {
+        full_angles(in, rows[i], x + (size_t)i * nf);
+        y[i] = cls[rows[i]];
+    }
+    if (mmap) mim_index_angle_mirror(L, in->mirror, mmap);
+    mim_select_options_t so = {.features = d2}; /* ranked: the first d are the descriptor */
+    mim_select_report_t srep = {0};
+    if (nc > 1) {
+        if ((rc = mim_index_select(x, y, m, nf, nc, mmap, &so, ix->selected, &srep, err))) goto out;
+    } else { /* one class: nothing to separate; keep the first d angles */
+        for (uint32_t s = 0; s < d2; s++) ix->selected[s] = s * (nf / d2);
+    }
+    free(x), x = NULL;
+
+    /* templates grouped by class (counting sort), descriptors, labels */
+    ix->class_start = calloc(nc + 1, sizeof(uint32_t));
+    ix->class_name = malloc(sizeof(uint32_t) * (nc ? nc : 1));
+    order = malloc(sizeof(uint32_t) * n);
+    ix->ids = malloc(sizeof(uint64_t) * n);
+    ix->subject = malloc(sizeof(uint32_t) * n);
+    ix->pose = malloc(sizeof(uint32_t) * n);
+    ix->desc = malloc(sizeof(float) * (size_t)n * d);
+    ix->extra = malloc(sizeof(float) * ((size_t)n * (d2 - d) + 1));
+    desc = malloc(sizeof(float) * d2);
+    if (!ix->extra || !desc || !ix->class_start || !ix->class_name || !order || !ix->ids || !ix->subject || !ix->pose || !ix->desc) {
+        rc = MIM_ENOMEM;
+        goto out;
+    }
+    memcpy(ix->class_name, names, sizeof(uint32_t) * nc);
+    for (uint32_t t = 0; t < n; t++) ix->class_start[cls[t] + 1]++;
+    for (uint32_t c = 0; c < nc; c++) ix->class_start[c + 1] += ix->class_start[c];
+    {
+        uint32_t *fill = malloc(sizeof(uint32_t) * (nc ? nc : 1));
+        if (!fill) {
+            rc = MIM_ENOMEM;
+            goto out;
+        }
+        memcpy(fill, ix->class_start, sizeof(uint32_t) * nc);
+        for (uint32_t t = 0; t < n; t++) order[fill[cls[t]]++] = t;
+        free(fill);
+    }
+    for (uint32_t r = 0; r < n; r++) {
+        uint32_t t = order[r];
+        int64_t sj = strtab_add(&st, in->subjects ? in->subjects[t] : "");
+        int64_t sp = strtab_add(&st, in->poses ? in->poses[t] : "");
+        if (sj < 0 || sp < 0) {
+            rc = MIM_ENOMEM;
+            goto out;
+        }
+        ix->ids[r] = in->ids[t];
+        ix->subject[r] = (uint32_t)sj, ix->pose[r] = (uint32_t)sp;
+        mim_index_descriptor(in->landmarks + (size_t)t * L * 3, NULL, L, ix->selected, d2, desc);
+        memcpy(ix->desc + (size_t)r * d, desc, sizeof(float) * d);
+        memcpy(ix->extra + (size_t)r * (d2 - d), desc + d, sizeof(float) * (d2 - d));
+    }
+    /* an undefined angle (coincident landmarks) takes its class mean */
+    for (uint32_t c = 0; c < nc; c++)
+        for (uint32_t f = 0; f < d2; f++) {
+            float *col = f < d ? ix->desc + f : ix->extra + (f - d);
+            size_t stride = f < d ? d : d2 - d;
+            double s = 0;
+            uint32_t cnt = 0, nan = 0;
+            for (uint32_t r = ix->class_start[c]; r < ix->class_start[c + 1]; r++) {
+                float v = col[r * stride];
+                if (isnan(v)) nan++;
+                else s += v, cnt++;
+            }
+            if (!nan) continue;
+            for (uint32_t r = ix->class_start[c]; r < ix->class_start[c + 1]; r++)
+                if (isnan(col[r * stride])) col[r * stride] = cnt ? (float)(s / cnt) : 0.5f * 3.14159265f;
+        }
+
+    /* SVMs on a uniform sample of at most 2 * svm_max templates */
+    ix->svm = calloc(nc ? nc : 1, sizeof *ix->svm);
+    uint32_t vmax = 2 * (opt.svm_max_samples ? opt.svm_max_samples : 4000), sm = n < vmax ? n : vmax;
+    sx = malloc(sizeof(double) * (size_t)sm * d);
+    grp = malloc(sizeof(uint32_t) * sm);
+    if (!ix->svm || !sx || !grp) {
+        rc = MIM_ENOMEM;
+        goto out;
+    }
+    for (uint32_t i = 0; i < n; i++) rows[i] = i; /* rows of the class-sorted arrays */
+    seed = 0x73766dULL;
+    for (uint32_t i = 0; i < sm && n > sm; i++) {
+        uint32_t j = i + (uint32_t)(mim__rng(&seed) % (n - i)), tt = rows[i];
+        rows[i] = rows[j], rows[j] = tt;
+    }
+    uint32_t n_groups = 0;
+    {
+        /* subjects renumbered 0.. in order of appearance for the folds */
+        uint32_t *gmap = malloc(sizeof(uint32_t) * st.n);
+        if (!gmap) {
+            rc = MIM_ENOMEM;
+            goto out;
+        }
+        for (uint32_t i = 0; i < st.n; i++) gmap[i] = UINT32_MAX;
+        for (uint32_t i = 0; i < sm; i++) {
+            uint32_t r = rows[i], c = 0;
+            while (ix->class_start[c + 1] <= r) c++;
+            y[i] = c;
+            uint32_t sj = ix->subject[r];
+            if (gmap[sj] == UINT32_MAX) gmap[sj] = n_groups++;
+            grp[i] = gmap[sj];
+            for (uint32_t f = 0; f < d; f++) sx[(size_t)i * d + f] = ix->desc[(size_t)r * d + f];
+        }
+        free(gmap);
+    }
+    mim__svm_data_t sd = {sx, y, grp, sm, d, nc, n_groups};
+    if ((rc = mim__svm_train_all(&sd, &opt, ix->svm, &ix->C, &ix->gamma, &ix->cv_accuracy, err))) goto out;
+    if ((rc = mim__index_build_knn(ix, err))) goto out;
+    ix->strings = st.s, ix->n_strings = st.n;
+    st.s = NULL, st.n = 0;
+    if (report) {
+        memset(report, 0, sizeof *report);
+        report->n_classes = nc, report->d = d, report->class_source = source;
+        report->C = ix->C, report->gamma = ix->gamma, report->cv_accuracy = ix->cv_accuracy;
+        for (uint32_t c = 0; c < nc; c++) {
+            report->support_vectors += ix->svm[c].n_sv;
+            report->exact_classes += ix->flann_exact[c] != 0;
+        }
+        report->select = srep;
+        report->seconds = mim_now() - t0;
+    }
+    *out = ix;
+    ix = NULL;
+out:
+    if (progress) mim_progress_end(progress);
+    for (uint32_t i = 0; i < st.n; i++) free(st.s[i]);
+    free(st.s), free(st.slot);
+    mim_index_close(&ix);
+    free(cls), free(names), free(order), free(rows), free(mmap), free(y), free(grp), free(x), free(desc), free(sx);
+    return rc;
+}
+
+void mim_index_get_info(const mim_index_t *ix, mim_index_info_t *o)
+{
+    memset(o, 0, sizeof *o);
+    o->n_templates = ix->n_templates, o->n_landmarks = ix->n_landmarks, o->d = ix->d, o->d2 = ix->d2;
+    o->n_classes = ix->n_classes, o->class_source = ix->class_source;
+    o->C = ix->C, o->gamma = ix->gamma, o->cv_accuracy = ix->cv_accuracy;
+}
+
+const char *mim_index_class_name(const mim_index_t *ix, uint32_t c)
+{
+    return c < ix->n_classes ? ix->strings[ix->class_name[c]] : "";
+}
+
+const uint32_t *mim_index_selected(const mim_index_t *ix) { return ix->selected; }
+
+/* ---- query ---- */
+enum { SCAN_PER_CLASS = 256 };
+typedef struct {
+    float d2;
+    uint32_t row;
+} cand_t;
+
+/* Keeps the k smallest in a sorted array (insertion). */
+static void keep(cand_t *best, uint32_t *nb, uint32_t k, float d2, uint32_t row)
+{
+    if (*nb == k && d2 >= best[k - 1].d2) return;
+    uint32_t i = *nb < k ? (*nb)++ : k - 1;
+    while (i > 0 && best[i - 1].d2 > d2) {
+        best[i] = best[i - 1];
+        i--;
+    }
+    best[i] = (cand_t){d2, row};
+}
+
+static int query_desc(const mim_index_t *ix, const float *positions, const uint8_t *present,
+                      const mim_index_query_options_t *opt, uint32_t k, float *q, double *xd, uint8_t *mask,
+                      float *w, mim_index_answer_t *ans, mim_index_hit_t *hits, cand_t *best_st, int *ind_st,
+                      float *dist_st, mim_error_t *err);
+
+/* Squared distance over the angles with mask[f] set: the first d from desc,
+ * the next de from extra. */
+static float masked_d2(const float *desc, const float *extra, const float *q, const float *w, uint32_t d,
+                       uint32_t de)
+{
+    float s = 0, t = 0; /* weights 0/1 rather than branches: the loops vectorise */
+    for (uint32_t f = 0; f < d; f++) s += w[f] * (q[f] - desc[f]) * (q[f] - desc[f]);
+    for (uint32_t f = 0; f < de; f++) t += w[d + f] * (q[d + f] - extra[f]) * (q[d + f] - extra[f]);
+    return s + t;
+}
+
+int mim_index_query(const mim_index_t *ix, const float *positions, const uint8_t *present,
+                    const mim_index_query_options_t *opt, mim_index_answer_t *ans, mim_index_hit_t *hits,
+                    mim_error_t *err)
+{
+    uint32_t k = opt && opt->k ? opt->k : 1, d = ix->d2, L = ix->n_landmarks;
+    memset(ans, 0, sizeof *ans);
+    if (present)
+        for (uint32_t l = 0; l < L; l++) ans->missing += !present[l];
+    for (uint32_t l = 0; l < L; l++)
+        for (int c = 0; c < 3; c++)
+            if ((!present || present[l]) && !isfinite(positions[3 * l + c]))
+                return mim_error_set(err, MIM_ENONFINITE, "landmark %u is not a finite position", l);
+    /* scratch on the stack for the usual d, on the heap for a large one */
+    float q_st[256];
+    double xd_st[256];
+    uint8_t mask_st[256];
+    float w_st[256];
+    cand_t best_st[64];
+    int ind_st[64];
+    float dist_st[64];
+    float *q = q_st;
+    double *xd = xd_st;
+    uint8_t *mask = mask_st;
+    float *w = w_st;
+    void *heap = NULL;
+    if (d > 256) {
+        heap = malloc((2 * sizeof(float) + sizeof(double) + 1) * (size_t)d);
+        if (!heap) return MIM_ENOMEM;
+        xd = heap, q = (float *)(xd + d), w = q + d, mask = (uint8_t *)(w + d);
+    }
+    int rc = query_desc(ix, positions, present, opt, k, q, xd, mask, w, ans, hits, best_st, ind_st, dist_st, err);
+    free(heap);
+    return rc;
+}
+
+static int query_desc(const mim_index_t *ix, const float *positions, const uint8_t *present,
+                      const mim_index_query_options_t *opt, uint32_t k, float *q, double *xd, uint8_t *mask,
+                      float *w, mim_index_answer_t *ans, mim_index_hit_t *hits, cand_t *best_st, int *ind_st,
+                      float *dist_st, mim_error_t *err)
+{
+    uint32_t d = ix->d, d2 = ix->d2, de = d2 - d, L = ix->n_landmarks;
+    mim_index_descriptor(positions, present, L, ix->selected, d2, q);
+    uint32_t avail = 0, avail2 = 0;
+    for (uint32_t f = 0; f < d2; f++) {
+        mask[f] = !isnan(q[f]);
+        w[f] = mask[f];
+        avail2 += mask[f];
+        if (f < d) avail += mask[f];
+        if (f < d) xd[f] = mask[f] ? q[f] : 0;
+        if (!mask[f]) q[f] = 0;
+    }
+    if (!avail2)
+        return mim_error_set(err, MIM_EINVAL, "none of the %u kept angles survives the %u missing landmarks", d2,
+                             ans->missing);
+    int masked = avail < d;
+    int64_t ex = -1; /* the subject left out, as a string index */
+    if (opt && opt->exclude_subject)
+        for (uint32_t s = 0; s < ix->n_strings; s++)
+            if (!strcmp(ix->strings[s], opt->exclude_subject)) ex = s;
+    if (masked) {
+        /* missing landmarks: the SVMs were trained on all d angles, and a
+         * kernel over the remaining ones misjudges the class (measured:
+         * bench/RESULTS.md). Complete the descriptor instead with the
+         * missing angles of the nearest template over the available ones of
+         * the d2 kept, then classify. The scan covers every template of an
+         * index up to exact_max templates; a larger index scans the first
+         * SCAN_PER_CLASS templates of each class (contiguous in memory), so
+         * the cost stays bounded: the completion needs a template of the
+         * right pose, not the nearest one. */
+        float bd = INFINITY;
+        uint32_t br = 0;
+        int all = ix->n_templates <= ix->exact_max;
+        for (uint32_t c = 0; c < ix->n_classes; c++) {
+            uint32_t lo = ix->class_start[c], hi = ix->class_start[c + 1];
+            if (!all && hi - lo > SCAN_PER_CLASS) hi = lo + SCAN_PER_CLASS;
+            for (uint32_t r = lo; r < hi; r++) {
+                if (ex >= 0 && ix->subject[r] == (uint32_t)ex) continue;
+                float s2 = masked_d2(ix->desc + (size_t)r * d, ix->extra + (size_t)r * de, q, w, d, de);
+                if (s2 < bd) bd = s2, br = r;
+            }
+        }
+        for (uint32_t f = 0; f < d; f++)
+            if (!mask[f]) q[f] = ix->desc[(size_t)br * d + f], xd[f] = q[f];
+    }
+    /* the class: the SVM with the highest probability */
+    uint32_t cls = 0;
+    double prob = 1;
+    if (ix->n_classes > 1) {
+        double sum = 0, best = -1;
+        for (uint32_t c = 0; c < ix->n_classes; c++) {
+            double p = mim__svm_probability(&ix->svm[c], mim__svm_decision(&ix->svm[c], ix->gamma, xd, NULL, d));
+            sum += p;
+            if (p > best) best = p, cls = c;
+        }
+        prob = sum > 0 ? best / sum : 0;
+    }
+    ans->cls = cls, ans->probability = prob;
+    /* k nearest inside the class */
+    uint32_t lo = ix->class_start[cls], hi = ix->class_start[cls + 1], nc = hi - lo;
+    uint32_t n_ex = 0;
+    if (ex >= 0)
+        for (uint32_t r = lo; r < hi; r++) n_ex += ix->subject[r] == (uint32_t)ex;
+    uint32_t want = k + n_ex < nc ? k + n_ex : nc;
+    if (!want) return 0;
+    cand_t *best = want <= 64 ? best_st : malloc(sizeof(cand_t) * want);
+    if (!best) return MIM_ENOMEM;
+    uint32_t nb = 0;
+    if (masked && ix->flann_exact[cls]) { /* exact scan over the available kept angles, rescaled */
+        double scale = (double)d / avail2;
+        for (uint32_t r = lo; r < hi; r++) {
+            if (ex >= 0 && ix->subject[r] == (uint32_t)ex) continue;
+            float s2 = masked_d2(ix->desc + (size_t)r * d, ix->extra + (size_t)r * de, q, w, d, de);
+            keep(best, &nb, want, (float)(s2 * scale), r);
+        }
+    } else {
+        int *ind = want <= 64 ? ind_st : malloc(sizeof(int) * want);
+        float *dist = want <= 64 ? dist_st : malloc(sizeof(float) * want);
+        struct FLANNParameters p = flann_params(ix, ix->flann_exact[cls]);
+        if (opt && opt->checks) p.checks = (int)opt->checks;
+        int frc = ind && dist ? flann_find_nearest_neighbors_index_float(ix->flann[cls], q, 1, ind, dist, (int)want, &p) : -1;
+        if (frc == 0)
+            for (uint32_t i = 0; i < want; i++) {
+                if (ind[i] < 0 || (uint32_t)ind[i] >= nc) continue;
+                uint32_t r = lo + (uint32_t)ind[i];
+                if (ex >= 0 && ix->subject[r] == (uint32_t)ex) continue;
+                best[nb++] = (cand_t){dist[i], r};
+            }
+        if (want > 64) free(ind), free(dist);
+        if (frc) {
+            if (best != best_st) free(best);
+            return mim_error_set(err, MIM_ENOMEM, "k-NN search in class %u failed", cls);
+        }
+    }
+    if (nb > k) nb = k;
+    for (uint32_t i = 0; i < nb; i++) {
+        uint32_t r = best[i].row;
+        hits[i] = (mim_index_hit_t){ix->ids[r], ix->strings[ix->subject[r]], ix->strings[ix->pose[r]],
+                                    sqrtf(best[i].d2 > 0 ? best[i].d2 : 0)};
+    }
+    ans->n_hits = nb;
+    if (best != best_st) free(best);
+    return 0;
+}

@@ -1,0 +1,51 @@
+/* mimic query: nearest-pose query against a template store (seed 000,
+ * Section 3.3): landmark frame -> descriptor -> class (SVMs) -> k nearest
+ * templates (FLANN). Composes db/ (the stored index blob) and index/ (the
+ * computation). Building the index from a store lives here too, since it
+ * reads every template and writes the blob back. */
+#ifndef MIM_QUERY_H
+#define MIM_QUERY_H
+
+#include "mim_core.h"
+#include "mim_db.h"
+#include "mim_index.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Reads every template's landmarks (the store's landmark map), builds the
+ * index and stores it with its build record, replacing any older one.
+ * MIM_ENOLANDMARKS for a store without a landmark map. */
+int mim_query_build_index(mim_db_t *db, const mim_index_options_t *opt, mim_index_report_t *report,
+                          mim_error_t *err);
+
+typedef struct mim_query_status {
+    int has_index;           /* the store holds an index */
+    int stale;               /* templates were added since it was built */
+    mim_db_index_meta_t built; /* the build record (when has_index) */
+    uint64_t templates;      /* the store's template count now */
+} mim_query_status_t;
+int mim_query_status(mim_db_t *db, mim_query_status_t *out, mim_error_t *err);
+
+typedef struct mim_query mim_query_t;
+/* Loads the stored index (MIM_ENOTFOUND when there is none: run mimic
+ * index). The query keeps no transaction open. */
+int mim_query_open(mim_query_t **out, mim_db_t *db, mim_error_t *err);
+void mim_query_close(mim_query_t **q); /* accepts NULL; nulls the pointer */
+const mim_query_status_t *mim_query_get_status(const mim_query_t *q);
+const mim_index_t *mim_query_index(const mim_query_t *q);
+uint32_t mim_query_landmark_count(const mim_query_t *q);
+
+/* One frame (3 * landmark count floats; present NULL = all present), or a
+ * batch: answers[n_frames], hits[n_frames * k]. Thread-safe. */
+int mim_query_frame(const mim_query_t *q, const float *positions, const uint8_t *present,
+                    const mim_index_query_options_t *opt, mim_index_answer_t *ans, mim_index_hit_t *hits,
+                    mim_error_t *err);
+int mim_query_batch(const mim_query_t *q, const mim_landmark_frames_t *frames, const mim_index_query_options_t *opt,
+                    mim_index_answer_t *answers, mim_index_hit_t *hits, mim_error_t *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,202 @@
+/* Building the stored index from a store, opening it, and querying frames. */
+#include "mim_query.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+struct mim_query {
+    mim_index_t *ix;
+    mim_query_status_t status;
+};
+
+typedef struct {
+    const mim_landmark_map_t *map;
+    uint32_t n, cap;
+    float *lm;
+    uint64_t *ids;
+    char **subjects, **poses;
+    mim_progress_t *progress;
+    mim_error_t *err;
+} gather_t;
+
+static int gather(const mim_template_view_t *t, void *user)
+{
+    gather_t *g = user;
+    const mim_landmark_map_t *map = g->map;
+    for (uint32_t l = 0; l < map->count; l++)
+        if (map->vertex[l] >= t->n_vertices)
+            return mim_error_set(g->err, MIM_ESTORE, "template %llu: %u vertices, landmark %s is vertex %u",
+                                 (unsigned long long)t->id, t->n_vertices, map->names[l], map->vertex[l]);
+    if (g->n == g->cap) {
+        uint32_t nc = g->cap ? 2 * g->cap : 256;
+        float *lm = realloc(g->lm, sizeof(float) * 3 * map->count * nc);
+        if (lm) g->lm = lm;
+        uint64_t *ids = realloc(g->ids, sizeof(uint64_t) * nc);
+        if (ids) g->ids = ids;
+        char **s = realloc(g->subjects, sizeof(char *) * nc);
+        if (s) g->subjects = s;
+        char **p = realloc(g->poses, sizeof(char *) * nc);
+        if (p) g->poses = p;
+        if (!lm || !ids || !s || !p) return MIM_ENOMEM;
+        g->cap = nc;
+    }
+    for (uint32_t l = 0; l < map->count; l++)
+        memcpy(g->lm + ((size_t)g->n * map->count + l) * 3, t->positions + 3 * (size_t)map->vertex[l], 12);
+    g->ids[g->n] = t->id;
+    g->subjects[g->n] = strdup(t->subject);
+    g->poses[g->n] = strdup(t->pose);
+    if (!g->subjects[g->n] || !g->poses[g->n]) {
+        free(g->subjects[g->n]), free(g->poses[g->n]);
+        return MIM_ENOMEM;
+    }
+    g->n++;
+    if (g->progress) mim_progress_update(g->progress, g->n);
+    return 0;
+}
+
+int mim_query_build_index(mim_db_t *db, const mim_index_options_t *opt, mim_index_report_t *report, mim_error_t *err)
+{
+    mim_db_txn_t *t = NULL;
+    mim_landmark_map_t map;
+    mim_db_meta_t meta;
+    gather_t g = {0};
+    mim_index_t *ix = NULL;
+    void *blob = NULL;
+    size_t len = 0;
+    mim_progress_t pr;
+    int rc = mim_db_begin(db, 0, &t, err);
+    if (rc) return rc;
+    if ((rc = mim_db_meta_get(t, &meta, err))) goto out;
+    rc = mim_db_landmarks_get(t, &map, err);
+    if (rc == MIM_ENOTFOUND) {
+        rc = mim_error_set(err, MIM_ENOLANDMARKS, "%s: store has no landmark map (ingest with --landmarks)",
+                           mim_db_path(db));
+        goto out;
+    }
+    if (rc) goto out;
+    g.map = &map, g.err = err;
+    if (opt && opt->progress) {
+        g.progress = &pr;
+        mim_progress_begin(&pr, "reading templates", meta.templates);
+    }
+    rc = mim_db_template_each(t, gather, &g, err);
+    if (g.progress) mim_progress_end(&pr);
+    mim_db_abort(&t);
+    if (rc) goto out;
+    if (!g.n) {
+        rc = mim_error_set(err, MIM_EEMPTY, "%s: store has no templates to index", mim_db_path(db));
+        goto out;
+    }
+    mim_index_input_t in = {g.n, map.count, g.lm, g.ids, (const char *const *)g.subjects,
+                            (const char *const *)g.poses, map.mirror};
+    if ((rc = mim_index_build(&ix, &in, opt, report, err))) goto out;
+    if ((rc = mim_index_save(ix, &blob, &len, err))) goto out;
+    mim_index_info_t info;
+    mim_index_get_info(ix, &info);
+    mim_db_index_meta_t bm = {meta.next_id, meta.templates, info.class_source, info.n_classes, info.d,
+                              (double)time(NULL)};
+    if ((rc = mim_db_begin(db, 1, &t, err))) goto out;
+    if ((rc = mim_db_index_put(t, blob, len, &bm, err))) goto out;
+    rc = mim_db_commit(&t, err);
+out:
+    mim_db_abort(&t);
+    for (uint32_t i = 0; i < g.n; i++) free(g.subjects[i]), free(g.poses[i]);
+    free(g.lm), free(g.ids), free(g.subjects), free(g.poses), free(blob);
+    mim_index_close(&ix);
+    return rc;
+}
+
+static int status_in(mim_db_txn_t *t, mim_query_status_t *out, mim_error_t *err)
+{
+    memset(out, 0, sizeof *out);
+    mim_db_meta_t meta;
+    int rc = mim_db_meta_get(t, &meta, err);
+    if (rc) return rc;
+    out->templates = meta.templates;
+    rc = mim_db_index_get(t, NULL, NULL, &out->built, NULL);
+    if (rc == MIM_ENOTFOUND) return 0;
+    if (rc) return mim_db_index_get(t, NULL, NULL, &out->built, err);
+    out->has_index = 1;
+    out->stale = out->built.next_id != meta.next_id || out->built.templates != meta.templates;
+    return 0;
+}
+
+int mim_query_status(mim_db_t *db, mim_query_status_t *out, mim_error_t *err)
+{
+    mim_db_txn_t *t = NULL;
+    int rc = mim_db_begin(db, 0, &t, err);
+    if (!rc) rc = status_in(t, out, err);
+    mim_db_abort(&t);
+    return rc;
+}
+
+int mim_query_open(mim_query_t **out, mim_db_t *db, mim_error_t *err)
+{
+    *out = NULL;
+    mim_query_t *q = calloc(1, sizeof *q);
+    if (!q) return MIM_ENOMEM;
+    mim_db_txn_t *t = NULL;
+    const void *blob;
+    size_t len;
+    mim_db_index_meta_t bm;
+    int rc = mim_db_begin(db, 0, &t, err);
+    if (!rc) rc = status_in(t, &q->status, err);
+    if (!rc) rc = mim_db_index_get(t, &blob, &len, &bm, err);
+    if (!rc) rc = mim_index_load(&q->ix, blob, len, err); /* copies out of the map */
+    mim_db_abort(&t);
+    if (rc) {
+        mim_query_close(&q);
+        return rc;
+    }
+    *out = q;
+    return 0;
+}
+
+void mim_query_close(mim_query_t **pq)
+{
+    if (!pq || !*pq) return;
+    mim_index_close(&(*pq)->ix);
+    free(*pq);
+    *pq = NULL;
+}
+
+const mim_query_status_t *mim_query_get_status(const mim_query_t *q) { return &q->status; }
+const mim_index_t *mim_query_index(const mim_query_t *q) { return q->ix; }
+
+uint32_t mim_query_landmark_count(const mim_query_t *q)
+{
+    mim_index_info_t info;
+    mim_index_get_info(q->ix, &info);
+    return info.n_landmarks;
+}
+
+int mim_query_frame(const mim_query_t *q, const float *positions, const uint8_t *present,
+                    const mim_index_query_options_t *opt, mim_index_answer_t *ans, mim_index_hit_t *hits,
+                    mim_error_t *err)
+{
+    return mim_index_query(q->ix, positions, present, opt, ans, hits, err);
+}
+
+int mim_query_batch(const mim_query_t *q, const mim_landmark_frames_t *f, const mim_index_query_options_t *opt,
+                    mim_index_answer_t *answers, mim_index_hit_t *hits, mim_error_t *err)
+{
+    uint32_t L = mim_query_landmark_count(q), k = opt && opt->k ? opt->k : 1;
+    if (f->n_landmarks != L)
+        return mim_error_set(err, MIM_EINVAL, "frames have %u landmarks, the index has %u", f->n_landmarks, L);
+    for (uint32_t i = 0; i < f->n_frames; i++) {
+        int rc = mim_index_query(q->ix, f->positions + (size_t)i * L * 3, f->present ? f->present + (size_t)i * L : NULL, opt,
+                                 &answers[i], hits + (size_t)i * k, err);
+        if (rc) {
+            if (err && err->code == rc) { /* name the frame */
+                char msg[sizeof err->msg + 32];
+                snprintf(msg, sizeof msg, "frame %u: %s", i, err->msg);
+                memcpy(err->msg, msg, sizeof err->msg - 1);
+                err->msg[sizeof err->msg - 1] = 0;
+            }
+            return rc;
+        }
+    }
+    return 0;
+}

@@ -1,0 +1,351 @@
+/* query/ and the recognition index in the store: build -> store -> open
+ * round trip, exact self-answers on a small synth store, staleness, bad
+ * input, and the `mimic index` / `mimic query` / `mimic info` commands. */
+#include "mim_query.h"
+#include "test_support.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static char *g_dir, *g_bodies, *g_store;
+
+static int run(char **out, char **err, const char *const *args) { return ts_run_mimic(out, err, args); }
+
+/* A synth store of 3 subjects x 12 poses, ingested through the CLI. */
+static int setup(void **s)
+{
+    (void)s;
+    g_dir = ts_tempdir("query");
+    g_bodies = ts_path(g_dir, "bodies");
+    g_store = ts_path(g_dir, "store");
+    const char *a1[] = {"synth", "--out", g_bodies, "--subjects", "3", "--poses", "12", "--vertices", "1500", NULL};
+    const char *a2[] = {"ingest", "--store", g_store, g_bodies, NULL};
+    if (run(NULL, NULL, a1) || run(NULL, NULL, a2)) return -1;
+    return 0;
+}
+
+static int teardown(void **s)
+{
+    (void)s;
+    ts_rmtree(g_dir);
+    free(g_dir), free(g_bodies), free(g_store);
+    return 0;
+}
+
+typedef struct {
+    const mim_landmark_map_t *map;
+    uint32_t n;
+    float lm[256][48];
+    uint64_t ids[256];
+    char subjects[256][16], poses[256][16];
+} store_lm_t;
+
+static int grab(const mim_template_view_t *t, void *user)
+{
+    store_lm_t *s = user;
+    if (s->n == 256) return 1;
+    for (uint32_t l = 0; l < s->map->count; l++) memcpy(s->lm[s->n] + 3 * l, t->positions + 3 * s->map->vertex[l], 12);
+    s->ids[s->n] = t->id;
+    snprintf(s->subjects[s->n], 16, "%s", t->subject);
+    snprintf(s->poses[s->n], 16, "%s", t->pose);
+    s->n++;
+    return 0;
+}
+
+static void read_store(mim_db_t *db, store_lm_t *s, mim_landmark_map_t *map)
+{
+    mim_db_txn_t *t;
+    assert_int_equal(mim_db_begin(db, 0, &t, NULL), 0);
+    assert_int_equal(mim_db_landmarks_get(t, map, NULL), 0);
+    s->map = map;
+    s->n = 0;
+    assert_int_equal(mim_db_template_each(t, grab, s, NULL), 0);
+    mim_db_abort(&t);
+}
+
+/* Writes frames (one per template listed) as a landmark-frames file. */
+static void write_frames(const char *path, store_lm_t *s, const uint32_t *which, uint32_t n, int null_landmark)
+{
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fprintf(f, "{\"frames\": [\n");
+    for (uint32_t i = 0; i < n; i++) {
+        fprintf(f, "  {\"landmarks\": [");
+        for (uint32_t l = 0; l < 16; l++) {
+            if ((int)l == null_landmark) fprintf(f, "%snull", l ? ", " : "");
+            else {
+                const float *p = s->lm[which[i]] + 3 * l;
+                fprintf(f, "%s[%.9g, %.9g, %.9g]", l ? ", " : "", p[0], p[1], p[2]);
+            }
+        }
+        fprintf(f, "]}%s\n", i + 1 < n ? "," : "");
+    }
+    fprintf(f, "]}\n");
+    fclose(f);
+}
+
+static void test_no_index_then_round_trip(void **st)
+{
+    (void)st;
+    mim_db_t *db;
+    mim_error_t err = {0};
+    assert_int_equal(mim_db_open(&db, g_store, NULL, NULL), 0);
+    /* no index yet: status says so, open is an error that names the fix */
+    mim_query_status_t qs;
+    assert_int_equal(mim_query_status(db, &qs, NULL), 0);
+    assert_false(qs.has_index);
+    mim_query_t *q = NULL;
+    assert_int_equal(mim_query_open(&q, db, &err), MIM_ENOTFOUND);
+    assert_non_null(strstr(err.msg, "mimic index"));
+    assert_null(q);
+
+    /* build and store; then the stored index answers exactly like the one
+     * built in memory from the same templates */
+    mim_index_options_t o = {.features = 30};
+    mim_index_report_t rep;
+    assert_int_equal(mim_query_build_index(db, &o, &rep, NULL), 0);
+    assert_int_equal(rep.n_classes, 12);
+    assert_int_equal(mim_query_status(db, &qs, NULL), 0);
+    assert_true(qs.has_index && !qs.stale);
+    assert_int_equal(qs.built.templates, 36);
+    assert_int_equal(qs.built.d, 30);
+    assert_int_equal(mim_query_open(&q, db, NULL), 0);
+    assert_int_equal(mim_query_landmark_count(q), 16);
+
+    static store_lm_t s;
+    mim_landmark_map_t map;
+    read_store(db, &s, &map);
+    assert_int_equal(s.n, 36);
+    const char *sp[36], *pp[36];
+    for (uint32_t t = 0; t < 36; t++) sp[t] = s.subjects[t], pp[t] = s.poses[t];
+    mim_index_input_t in = {36, 16, &s.lm[0][0], s.ids, sp, pp, map.mirror};
+    mim_index_t *mem = NULL;
+    assert_int_equal(mim_index_build(&mem, &in, &o, NULL, NULL), 0);
+    for (uint32_t t = 0; t < 36; t++) {
+        mim_index_query_options_t qo = {.k = 4};
+        mim_index_answer_t a1, a2;
+        mim_index_hit_t h1[4], h2[4];
+        assert_int_equal(mim_query_frame(q, s.lm[t], NULL, &qo, &a1, h1, NULL), 0);
+        assert_int_equal(mim_index_query(mem, s.lm[t], NULL, &qo, &a2, h2, NULL), 0);
+        /* exact: every template finds itself first, in its own pose class */
+        assert_int_equal(h1[0].id, s.ids[t]);
+        assert_true(h1[0].distance == 0);
+        assert_string_equal(mim_index_class_name(mim_query_index(q), a1.cls), s.poses[t]);
+        assert_int_equal(a1.cls, a2.cls);
+        assert_true(a1.probability == a2.probability);
+        assert_int_equal(a1.n_hits, 3); /* 3 subjects per pose class */
+        for (uint32_t i = 0; i < a1.n_hits; i++) {
+            assert_int_equal(h1[i].id, h2[i].id);
+            assert_true(h1[i].distance == h2[i].distance);
+        }
+    }
+    /* a batch with a wrong landmark count is refused */
+    mim_landmark_frames_t f = {1, 15, &s.lm[0][0], (uint8_t[15]){0}};
+    mim_index_answer_t a;
+    mim_index_hit_t h;
+    assert_int_equal(mim_query_batch(q, &f, NULL, &a, &h, &err), MIM_EINVAL);
+    mim_index_close(&mem);
+    mim_query_close(&q);
+    mim_query_close(&q);
+
+    /* a damaged blob in the store is an error, not a crash */
+    mim_db_txn_t *t;
+    const void *blob;
+    size_t len;
+    mim_db_index_meta_t bm;
+    assert_int_equal(mim_db_begin(db, 0, &t, NULL), 0);
+    assert_int_equal(mim_db_index_get(t, &blob, &len, &bm, NULL), 0);
+    unsigned char *copy = malloc(len);
+    memcpy(copy, blob, len);
+    mim_db_abort(&t);
+    copy[len / 2] ^= 1;
+    assert_int_equal(mim_db_begin(db, 1, &t, NULL), 0);
+    assert_int_equal(mim_db_index_put(t, copy, len, &bm, NULL), 0);
+    assert_int_equal(mim_db_commit(&t, NULL), 0);
+    mim_error_clear(&err);
+    assert_int_equal(mim_query_open(&q, db, &err), MIM_EFORMAT);
+    assert_non_null(strstr(err.msg, "checksum"));
+    copy[len / 2] ^= 1; /* put it back */
+    assert_int_equal(mim_db_begin(db, 1, &t, NULL), 0);
+    assert_int_equal(mim_db_index_put(t, copy, len, &bm, NULL), 0);
+    assert_int_equal(mim_db_commit(&t, NULL), 0);
+    free(copy);
+    assert_int_equal(mim_query_open(&q, db, NULL), 0);
+    mim_query_close(&q);
+    mim_db_close(&db);
+}
+
+static void test_cli_query_and_bad_input(void **st)
+{
+    (void)st;
+    char *out = NULL, *err = NULL;
+    const char *h1[] = {"index", "--help", NULL}, *h2[] = {"query", "--help", NULL};
+    assert_int_equal(run(&out, NULL, h1), 0);
+    assert_non_null(strstr(out, "usage: mimic index"));
+    free(out);
+    assert_int_equal(run(&out, NULL, h2), 0);
+    assert_non_null(strstr(out, "--exclude-subject"));
+    free(out);
+    const char *ix[] = {"index", "--store", g_store, NULL};
+    assert_int_equal(run(&out, NULL, ix), 0);
+    assert_non_null(strstr(out, "12 classes (pose labels)"));
+    assert_non_null(strstr(out, "C = "));
+    free(out);
+
+    mim_db_t *db;
+    assert_int_equal(mim_db_open(&db, g_store, &(mim_db_options_t){.read_only = 1}, NULL), 0);
+    static store_lm_t s;
+    mim_landmark_map_t map;
+    read_store(db, &s, &map);
+    mim_db_close(&db);
+    char *frames = ts_path(g_dir, "frames.json");
+    uint32_t which[3] = {5, 17, 30};
+    write_frames(frames, &s, which, 3, -1);
+    const char *q[] = {"query", "--store", g_store, "--landmarks", frames, "-k", "2", "--json", NULL};
+    assert_int_equal(run(&out, &err, q), 0);
+    for (int i = 0; i < 3; i++) { /* each frame's first result is its own template */
+        char needle[64];
+        snprintf(needle, sizeof needle, "\"id\": %llu,", (unsigned long long)s.ids[which[i]]);
+        assert_non_null(strstr(out, needle));
+    }
+    assert_null(strstr(err, "stale"));
+    free(out), free(err);
+    /* leave-one-subject-out: the subject never comes back */
+    const char *qx[] = {"query", "--store", g_store, "--landmarks", frames, "-k", "3", "--exclude-subject",
+                        s.subjects[5], "--json", NULL};
+    assert_int_equal(run(&out, NULL, qx), 0);
+    char needle[64];
+    snprintf(needle, sizeof needle, "\"subject\": \"%s\"", s.subjects[5]);
+    assert_null(strstr(out, needle));
+    free(out);
+    /* one missing landmark still answers */
+    write_frames(frames, &s, which, 1, 7);
+    const char *q1[] = {"query", "--store", g_store, "--landmarks", frames, NULL};
+    assert_int_equal(run(&out, NULL, q1), 0);
+    assert_non_null(strstr(out, "1 landmark missing"));
+    free(out);
+
+    /* bad input: wrong count, not finite, malformed JSON (line and column), too many nulls */
+    struct {
+        const char *text, *expect;
+    } bad[] = {
+        {"{\"landmarks\": [[0,0,0],[1,0,0],[0,1,0]]}", "has 3 landmarks"},
+        {"{\"frames\": [{\"landmarks\": [[0,0,0],[1,0,0],[0,1,0],[0,0,1e999]]}]}", NULL},
+        {"{\"frames\": [\n  {\"landmarks\": [1, 2,]}\n]}", ":2:"},
+        {"{\"landmarks\": [null, null, null, null, [0,0,0], [1,0,0], [0,1,0], [0,0,1], [1,1,0], [1,0,1], [0,1,1], "
+         "[1,1,1], [2,0,0], [0,2,0], [0,0,2], [2,2,2]]}",
+         "missing"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        assert_int_equal(ts_write_file(frames, bad[i].text, strlen(bad[i].text)), 0);
+        assert_int_equal(run(NULL, &err, q1), 1);
+        assert_non_null(strstr(err, "frames.json"));
+        if (bad[i].expect) assert_non_null(strstr(err, bad[i].expect));
+        free(err);
+    }
+    /* NaN in a coordinate: JSON has no NaN, so the file is malformed at that spot */
+    const char *nan_text = "{\"landmarks\": [[0, 0, NaN]]}";
+    assert_int_equal(ts_write_file(frames, nan_text, strlen(nan_text)), 0);
+    assert_int_equal(run(NULL, &err, q1), 1);
+    assert_non_null(strstr(err, "frames.json:1:"));
+    free(err);
+    free(frames);
+}
+
+static void test_stale_and_info(void **st)
+{
+    (void)st;
+    char *out = NULL, *err = NULL;
+    const char *ix[] = {"index", "--store", g_store, "--features", "25", NULL};
+    assert_int_equal(run(NULL, NULL, ix), 0);
+    const char *info[] = {"info", "--store", g_store, NULL};
+    assert_int_equal(run(&out, NULL, info), 0);
+    assert_non_null(strstr(out, "from pose labels, 25 angles, built over 36 templates"));
+    assert_null(strstr(out, "STALE"));
+    free(out);
+    /* more templates: the index is stale until mimic index runs again */
+    char *more = ts_path(g_dir, "more");
+    const char *a1[] = {"synth", "--out", more, "--subjects", "1", "--poses", "3", "--vertices", "1500", "--seed", "77", NULL};
+    const char *a2[] = {"ingest", "--store", g_store, more, NULL};
+    assert_int_equal(run(NULL, NULL, a1), 0);
+    assert_int_equal(run(NULL, NULL, a2), 0);
+    assert_int_equal(run(&out, NULL, info), 0);
+    assert_non_null(strstr(out, "STALE"));
+    free(out);
+    const char *infoj[] = {"info", "--store", g_store, "--json", NULL};
+    assert_int_equal(run(&out, NULL, infoj), 0);
+    assert_non_null(strstr(out, "\"stale\": true"));
+    free(out);
+    char *frames = ts_path(g_dir, "one.json");
+    const char *one = "{\"landmarks\": [[0,1.6,0],[0,1.3,0],[0,1,0],[0.2,1.4,0],[-0.2,1.4,0],[0.45,1.4,0],[-0.45,1.4,0],"
+                      "[0.7,1.4,0],[-0.7,1.4,0],[0.1,0.95,0],[-0.1,0.95,0],[0.1,0.5,0.02],[-0.1,0.5,0.02],[0.1,0.08,0],"
+                      "[-0.1,0.08,0],[0,1.15,-0.05]]}";
+    assert_int_equal(ts_write_file(frames, one, strlen(one)), 0);
+    const char *q[] = {"query", "--store", g_store, "--landmarks", frames, NULL};
+    assert_int_equal(run(&out, &err, q), 0);
+    assert_non_null(strstr(err, "stale"));
+    assert_non_null(strstr(out, "frame 0: class"));
+    free(out), free(err);
+    assert_int_equal(run(NULL, NULL, ix), 0);
+    assert_int_equal(run(&out, NULL, info), 0);
+    assert_non_null(strstr(out, "built over 39 templates"));
+    assert_null(strstr(out, "STALE"));
+    free(out);
+    assert_int_equal(run(&out, &err, q), 0);
+    assert_null(strstr(err, "stale"));
+    free(out), free(err);
+    free(more), free(frames);
+}
+
+/* A store without pose labels is clustered, and info says so; a query on a
+ * store without an index is an error that names the fix. */
+static void test_unlabelled_store(void **st)
+{
+    (void)st;
+    char *dir = ts_path(g_dir, "plain"), *store = ts_path(g_dir, "plain-store");
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd,
+             "mkdir -p '%s' && cp '%s/landmarks.json' '%s/' && i=0 && for f in '%s'/*.ply; do i=$((i+1)); "
+             "cp \"$f\" '%s'/body$i.ply; done",
+             dir, g_bodies, dir, g_bodies, dir);
+    assert_int_equal(system(cmd), 0);
+    const char *a2[] = {"ingest", "--store", store, dir, NULL};
+    assert_int_equal(run(NULL, NULL, a2), 0);
+    char *out = NULL, *err = NULL;
+    char *frames = ts_path(g_dir, "one.json");
+    const char *q[] = {"query", "--store", store, "--landmarks", frames, NULL};
+    assert_int_equal(run(NULL, &err, q), 2);
+    assert_non_null(strstr(err, "no index (run mimic index)"));
+    free(err);
+    const char *ix[] = {"index", "--store", store, "--json", NULL};
+    assert_int_equal(run(&out, NULL, ix), 0);
+    assert_non_null(strstr(out, "\"class_source\": \"kmeans\""));
+    free(out);
+    const char *info[] = {"info", "--store", store, NULL};
+    assert_int_equal(run(&out, NULL, info), 0);
+    assert_non_null(strstr(out, "k-means (no pose labels)"));
+    free(out);
+    assert_int_equal(run(&out, NULL, q), 0);
+    assert_non_null(strstr(out, "class cluster-"));
+    free(out);
+    /* index on a path that is not a store does not create one */
+    char *none = ts_path(g_dir, "nothing-here");
+    const char *ixn[] = {"index", "--store", none, NULL};
+    assert_int_equal(run(NULL, &err, ixn), 2);
+    assert_non_null(strstr(err, "nothing-here"));
+    free(err);
+    free(dir), free(store), free(frames), free(none);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_no_index_then_round_trip),
+        cmocka_unit_test(test_cli_query_and_bad_input),
+        cmocka_unit_test(test_stale_and_info),
+        cmocka_unit_test(test_unlabelled_store),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}

@@ -1,0 +1,334 @@
+/* mimic transfer and mimic morph end to end, on a synth store made here:
+ * encodings stored by ingest, every output format read back, landmarks held
+ * exactly, accuracy against ground truth, GLBs through the Khronos
+ * validator, and a clear error for each bad input. */
+#include "test_support.h"
+
+#include "mim_db.h"
+#include "mim_ingest.h"
+#include "mim_transfer.h"
+
+#include <jansson.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static char *dir, *bodies, *store;
+static mim_landmark_map_t map;
+
+/* synth naming: subject s pose p is template 1 + s * POSES + p (file order) */
+#define SUBJECTS 3
+#define POSES 4
+
+static int setup(void **state)
+{
+    (void)state;
+    dir = ts_tempdir("xfercli");
+    bodies = ts_path(dir, "bodies");
+    store = ts_path(dir, "store");
+    char *out, *err;
+    const char *synth[] = {"synth", "--out", bodies, "--subjects", "3", "--poses", "4", "--vertices", "1500", NULL};
+    const char *ingest[] = {"ingest", "--store", store, bodies, NULL};
+    int rc = ts_run_mimic(&out, &err, synth);
+    free(out), free(err);
+    if (rc == 0) {
+        rc = ts_run_mimic(&out, &err, ingest);
+        free(out), free(err);
+    }
+    char *lm = ts_path(bodies, "landmarks.json");
+    if (rc == 0)
+        rc = mim_landmarks_read(&map, lm, NULL);
+    free(lm);
+    return rc;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    ts_rmtree(dir);
+    free(dir), free(bodies), free(store);
+    return 0;
+}
+
+static char *body_path(int s, int p)
+{
+    char name[64];
+    snprintf(name, sizeof name, "synth_s%02d_p%02d.ply", s, p);
+    return ts_path(bodies, name);
+}
+
+static void read_mesh(const char *path, mim_mesh_t *m)
+{
+    mim_error_t e = {0};
+    if (mim_mesh_read(path, m, &e))
+        fail_msg("%s", e.msg);
+}
+
+/* Landmarks of a mesh as a landmark-frame file. */
+static char *write_landmarks(const char *name, const float *x, const char *override)
+{
+    char *path = ts_path(dir, name);
+    if (override) {
+        assert_int_equal(ts_write_file(path, override, strlen(override)), 0);
+        return path;
+    }
+    json_t *arr = json_array();
+    for (uint32_t k = 0; k < map.count; k++) {
+        const float *p = x + 3 * (size_t)map.vertex[k];
+        json_array_append_new(arr, json_pack("[f, f, f]", (double)p[0], (double)p[1], (double)p[2]));
+    }
+    json_t *root = json_pack("{s:o}", "landmarks", arr);
+    assert_int_equal(json_dump_file(root, path, 0), 0);
+    json_decref(root);
+    return path;
+}
+
+static double mean_error(const mim_mesh_t *a, const mim_mesh_t *b)
+{
+    double sum = 0;
+    for (uint32_t i = 0; i < a->n_vertices; i++) {
+        double d2 = 0;
+        for (int c = 0; c < 3; c++) {
+            double d = (double)a->positions[3 * i + c] - b->positions[3 * i + c];
+            d2 += d * d;
+        }
+        sum += sqrt(d2);
+    }
+    return sum / a->n_vertices;
+}
+
+/* Ingest kept each template's encoding, equal to one computed now. */
+static void test_encodings_stored(void **s)
+{
+    (void)s;
+    mim_error_t e = {0};
+    mim_db_t *db = NULL;
+    mim_db_options_t o = {.read_only = 1};
+    mim_db_txn_t *t = NULL;
+    assert_int_equal(mim_db_open(&db, store, &o, &e), 0);
+    assert_int_equal(mim_db_begin(db, 0, &t, &e), 0);
+    mim_db_topology_t topo;
+    assert_int_equal(mim_db_topology_get(t, &topo, &e), 0);
+    mim_xfer_topology_t *xt = NULL;
+    assert_int_equal(mim_xfer_topology_open(&xt, topo.n_vertices, topo.faces, topo.n_faces, &e), 0);
+    const uint32_t n = topo.n_vertices;
+    float *f6 = malloc(6 * (size_t)n * sizeof *f6), *W = malloc(3 * (size_t)n * sizeof *W);
+    for (uint64_t id = 1; id <= SUBJECTS * POSES; id++) {
+        mim_template_view_t v;
+        mim_db_encoding_t enc;
+        assert_int_equal(mim_db_template_get(t, id, &v, &e), 0);
+        assert_int_equal(mim_db_encoding_get(t, id, &enc, &e), 0);
+        assert_int_equal(enc.n_vertices, n);
+        assert_int_equal(mim_xfer_encoding_compute(xt, v.positions, f6, W, NULL, &e), 0);
+        for (size_t i = 0; i < 6 * (size_t)n; i++)
+            assert_true(fabsf(f6[i] - enc.frames[i]) < 1e-6f);
+        for (size_t i = 0; i < 3 * (size_t)n; i++)
+            assert_true(fabsf(W[i] - enc.W[i]) < 1e-6f);
+    }
+    assert_int_equal(mim_db_encoding_get(t, 999, &(mim_db_encoding_t){0}, NULL), MIM_ENOTFOUND);
+    free(f6), free(W);
+    mim_xfer_topology_close(&xt);
+    mim_db_abort(&t);
+    mim_db_close(&db);
+}
+
+/* Mode (b): avatar = subject 0 at rest (template 1), landmarks of subject 0
+ * in pose 2, template = subject 1 in pose 2. The output holds the landmarks
+ * exactly, is closer to the truth than the template moved onto the
+ * landmarks, and reads back the same from every format. */
+static void test_transfer_formats(void **s)
+{
+    (void)s;
+    char *truth_path = body_path(0, 2), *tmpl_path = body_path(1, 2);
+    mim_mesh_t truth = {0}, tmpl = {0};
+    read_mesh(truth_path, &truth);
+    read_mesh(tmpl_path, &tmpl);
+    char *lm = write_landmarks("lm.json", truth.positions, NULL);
+    const char *exts[] = {"ply", "obj", "off", "glb"};
+    mim_mesh_t first = {0};
+    for (int k = 0; k < 4; k++) {
+        char name[32];
+        snprintf(name, sizeof name, "out.%s", exts[k]);
+        char *outp = ts_path(dir, name), *o, *e;
+        const char *args[] = {"transfer", "--store", store, "--avatar", "1", "--template", "7",
+                              "--landmarks", lm, "-o", outp, "--json", NULL};
+        int rc = ts_run_mimic(&o, &e, args);
+        if (rc)
+            fail_msg("%s", e);
+        json_error_t je;
+        json_t *rep = json_loads(o, 0, &je);
+        assert_non_null(rep);
+        assert_string_equal(json_string_value(json_object_get(rep, "mode")), "template+landmarks");
+        assert_true(json_integer_value(json_object_get(rep, "iterations")) >= 1);
+        json_decref(rep);
+        mim_mesh_t m = {0};
+        read_mesh(outp, &m);
+        assert_int_equal(m.n_vertices, truth.n_vertices);
+        assert_int_equal(m.n_faces, truth.n_faces);
+        for (uint32_t l = 0; l < map.count; l++)
+            for (int c = 0; c < 3; c++)
+                assert_true(fabsf(m.positions[3 * (size_t)map.vertex[l] + c] - truth.positions[3 * (size_t)map.vertex[l] + c]) < 1e-5f);
+        if (k == 0) {
+            first = m;
+            /* baseline 1: the template moved onto the landmark centroid */
+            double ct[3] = {0}, cb[3] = {0};
+            for (uint32_t l = 0; l < map.count; l++)
+                for (int c = 0; c < 3; c++) {
+                    ct[c] += truth.positions[3 * (size_t)map.vertex[l] + c] / map.count;
+                    cb[c] += tmpl.positions[3 * (size_t)map.vertex[l] + c] / map.count;
+                }
+            for (uint32_t i = 0; i < tmpl.n_vertices; i++)
+                for (int c = 0; c < 3; c++)
+                    tmpl.positions[3 * i + c] += (float)(ct[c] - cb[c]);
+            double e_out = mean_error(&m, &truth), e_base = mean_error(&tmpl, &truth);
+            print_message("transfer %.1f mm, template moved %.1f mm\n", 1e3 * e_out, 1e3 * e_base);
+            assert_true(e_out < e_base);
+        } else {
+            /* every format carries the same mesh (text formats print 9 digits) */
+            for (size_t i = 0; i < 3 * (size_t)m.n_vertices; i++)
+                assert_true(fabsf(m.positions[i] - first.positions[i]) < 1e-6f);
+            mim_mesh_free(&m);
+        }
+        if (k == 3 && ts_gltf_validator_available())
+            ts_gltf_validate(outp);
+        free(outp), free(o), free(e);
+    }
+    mim_mesh_free(&first);
+    mim_mesh_free(&truth);
+    mim_mesh_free(&tmpl);
+    free(lm), free(truth_path), free(tmpl_path);
+}
+
+/* Mode (a) from a mesh file avatar, and (b) with landmarks alone picking
+ * the template through mimic query when the store has an index. */
+static void test_template_only_and_file_avatar(void **s)
+{
+    (void)s;
+    char *avatar = body_path(2, 0), *outp = ts_path(dir, "a.obj"), *o, *e;
+    const char *args[] = {"transfer", "--store", store, "--avatar", avatar, "--template", "6", "-o", outp, NULL};
+    int rc = ts_run_mimic(&o, &e, args);
+    if (rc)
+        fail_msg("%s", e);
+    assert_non_null(strstr(e, "in the pose of template 6"));
+    mim_mesh_t m = {0}, truth = {0};
+    read_mesh(outp, &m);
+    char *tp = body_path(2, 1);
+    read_mesh(tp, &truth);
+    /* subject 2 in template 6's pose (subject 1, pose 1) must be nearer to
+     * subject 2 in pose 1 than the template itself is */
+    mim_mesh_t tm = {0};
+    char *tmp = body_path(1, 1);
+    read_mesh(tmp, &tm);
+    double err = mean_error(&m, &truth), base = mean_error(&tm, &truth);
+    print_message("template-only transfer: %.1f mm from the truth (the template: %.1f mm)\n", 1e3 * err, 1e3 * base);
+    assert_true(err < 0.5 * base);
+    mim_mesh_free(&m), mim_mesh_free(&truth), mim_mesh_free(&tm);
+    free(tmp);
+    free(avatar), free(outp), free(o), free(e), free(tp);
+}
+
+static void test_morph(void **s)
+{
+    (void)s;
+    const char *methods[] = {"frames", "linear"};
+    for (int k = 0; k < 2; k++) {
+        char name[32];
+        snprintf(name, sizeof name, "morph_%s.glb", methods[k]);
+        char *outp = ts_path(dir, name), *o, *e;
+        const char *args[] = {"morph", "--store", store, "--avatar", "1", "--keys", "2,3,4", "--frames-between",
+                              "3", "--method", methods[k], "-o", outp, "--json", NULL};
+        int rc = ts_run_mimic(&o, &e, args);
+        if (rc)
+            fail_msg("%s", e);
+        json_t *rep = json_loads(o, 0, NULL);
+        assert_int_equal(json_integer_value(json_object_get(rep, "frames")), 9);
+        json_decref(rep);
+        /* the GLB: 9 frames = the base mesh and 8 morph targets */
+        size_t len;
+        unsigned char *b = (unsigned char *)ts_read_file(outp, &len);
+        assert_non_null(b);
+        assert_true(len > 20 && memcmp(b, "glTF", 4) == 0);
+        uint32_t jlen;
+        memcpy(&jlen, b + 12, 4);
+        json_t *g = json_loadb((const char *)b + 20, jlen, 0, NULL);
+        assert_non_null(g);
+        json_t *prim = json_array_get(json_object_get(json_array_get(json_object_get(g, "meshes"), 0), "primitives"), 0);
+        assert_int_equal(json_array_size(json_object_get(prim, "targets")), 8);
+        json_decref(g);
+        free(b);
+        mim_mesh_t m = {0};
+        read_mesh(outp, &m); /* the base mesh: key 1 */
+        assert_int_equal(m.n_vertices, map.topology_vertices);
+        mim_mesh_free(&m);
+        if (ts_gltf_validator_available())
+            ts_gltf_validate(outp);
+        free(outp), free(o), free(e);
+    }
+}
+
+static void test_bad_inputs(void **s)
+{
+    (void)s;
+    char *outp = ts_path(dir, "bad.ply");
+    char *wrong_count = write_landmarks("wc.json", NULL, "{\"landmarks\": [[0,0,0],[1,0,0],[0,1,0],[0,0,1]]}");
+    char *overflow = write_landmarks("ov.json", NULL, "{\"landmarks\": [[0,0,0],[1,0,0],[0,1,0],[0,0,1e999]]}");
+    char *malformed = write_landmarks("mf.json", NULL, "{\"landmarks\": [\n  [0,0,0],,\n]}");
+    /* a mesh with another connectivity */
+    char *other = ts_path(dir, "other");
+    char *o, *e;
+    const char *synth[] = {"synth", "--out", other, "--subjects", "1", "--poses", "1", "--vertices", "900", NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, synth), 0);
+    free(o), free(e);
+    char *other_mesh = ts_path(other, "synth_s00_p00.ply");
+    struct {
+        const char *args[12];
+        int status;
+        const char *phrase;
+    } cases[] = {
+        {{"transfer", "--store", store, "--avatar", "1", "--landmarks", wrong_count, "--template", "2", "-o", outp}, 1,
+         "frame 0 has 4 landmarks, the landmark map has 16"},
+        {{"transfer", "--store", store, "--avatar", "1", "--landmarks", overflow, "--template", "2", "-o", outp}, 1,
+         "ov.json:1:"},
+        {{"transfer", "--store", store, "--avatar", "1", "--landmarks", malformed, "--template", "2", "-o", outp}, 1,
+         "mf.json:2:"},
+        {{"transfer", "--store", store, "--avatar", "1", "--template", "4242", "-o", outp}, 1, "no template 4242"},
+        {{"transfer", "--store", store, "--avatar", "77", "--template", "2", "-o", outp}, 1, "no template 77"},
+        {{"transfer", "--store", store, "--avatar", other_mesh, "--template", "2", "-o", outp}, 1, "vertices"},
+        {{"transfer", "--store", store, "--avatar", "1", "--template", "x2", "-o", outp}, 2, "not a template id"},
+        {{"transfer", "--store", store, "--avatar", "1", "-o", outp}, 2, "--template and/or --landmarks"},
+        {{"transfer", "--store", store, "--avatar", "1", "--template", "2", "-o", "x.stl"}, 1, "x.stl"},
+        {{"morph", "--store", store, "--avatar", "1", "--keys", "2", "--frames-between", "2", "-o", "m.glb"}, 2,
+         "at least two template ids"},
+        {{"morph", "--store", store, "--avatar", "1", "--keys", "2,3", "--frames-between", "2", "-o", "m.ply"}, 2,
+         ".glb"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        int rc = ts_run_mimic(&o, &e, cases[k].args);
+        if (rc != cases[k].status || !strstr(e, cases[k].phrase))
+            fail_msg("case %zu: exit %d, stderr '%s' (wanted %d and '%s')", k, rc, e, cases[k].status, cases[k].phrase);
+        /* one line, and nothing written */
+        assert_true(strchr(e, '\n') == e + strlen(e) - 1);
+        free(o), free(e);
+    }
+    assert_null(ts_read_file(outp, NULL));
+    const char *help[][3] = {{"transfer", "--help", NULL}, {"morph", "--help", NULL}};
+    for (int k = 0; k < 2; k++) {
+        assert_int_equal(ts_run_mimic(&o, &e, help[k]), 0);
+        assert_non_null(strstr(o, "usage: mimic"));
+        free(o), free(e);
+    }
+    free(outp), free(wrong_count), free(overflow), free(malformed), free(other), free(other_mesh);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_encodings_stored),
+        cmocka_unit_test(test_transfer_formats),
+        cmocka_unit_test(test_template_only_and_file_avatar),
+        cmocka_unit_test(test_morph),
+        cmocka_unit_test(test_bad_inputs),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}

@@ -1,0 +1,76 @@
+/* Mode (a), "template only": the pose comes from the template alone, the
+ * proportions from the avatar. The paper (seed 000, Section 3.4) fixes one
+ * vertex and lets the template's frames carry the pose; measured on synth
+ * and mh-bodies, one anchor leaves the low frequencies free and the body
+ * drifts (bench/transfer_accuracy.c). So mimic retargets the landmarks
+ * first: it walks the landmark skeleton from the pelvis, taking each
+ * segment's direction from the template and its length from the avatar's
+ * rest pose, places the result where the template stands (same ankle
+ * midpoint), and then solves as in mode (b) with those positions. */
+#include "internal.h"
+
+#include <math.h>
+#include <string.h>
+
+/* The landmark skeleton over the default names: child, parent. Parents
+ * come before their children. */
+static const char *const tree[][2] = {
+    {"spine", "pelvis"},          {"chest", "spine"},         {"head", "chest"},
+    {"l_shoulder", "chest"},      {"r_shoulder", "chest"},    {"l_elbow", "l_shoulder"},
+    {"r_elbow", "r_shoulder"},    {"l_wrist", "l_elbow"},     {"r_wrist", "r_elbow"},
+    {"l_hip", "pelvis"},          {"r_hip", "pelvis"},        {"l_knee", "l_hip"},
+    {"r_knee", "r_hip"},          {"l_ankle", "l_knee"},      {"r_ankle", "r_knee"},
+};
+
+static int find(const mim_landmark_map_t *map, const char *name)
+{
+    for (uint32_t i = 0; i < map->count; i++)
+        if (strcmp(map->names[i], name) == 0)
+            return (int)i;
+    return -1;
+}
+
+int mim_xfer_retarget_landmarks(const mim_landmark_map_t *map, const float *avatar_rest, const float *tmpl,
+                                float *out, mim_error_t *err)
+{
+    int root = find(map, "pelvis");
+    if (root < 0 || map->count != sizeof tree / sizeof tree[0] + 1)
+        return mim_error_set(err, MIM_EUNSUPPORTED,
+                             "transfer: retargeting needs the 16 default landmarks (pelvis, spine, ...)");
+    int child[sizeof tree / sizeof tree[0]], parent[sizeof tree / sizeof tree[0]];
+    for (size_t k = 0; k < sizeof tree / sizeof tree[0]; k++) {
+        child[k] = find(map, tree[k][0]);
+        parent[k] = find(map, tree[k][1]);
+        if (child[k] < 0 || parent[k] < 0)
+            return mim_error_set(err, MIM_EUNSUPPORTED, "transfer: retargeting needs landmark '%s'",
+                                 child[k] < 0 ? tree[k][0] : tree[k][1]);
+    }
+    /* the template's landmark positions at landmark vertices */
+    for (int c = 0; c < 3; c++)
+        out[3 * root + c] = tmpl[3 * (size_t)map->vertex[root] + c];
+    for (size_t k = 0; k < sizeof tree / sizeof tree[0]; k++) {
+        const uint32_t vc = map->vertex[child[k]], vp = map->vertex[parent[k]];
+        double dir[3], len = 0.0, d2 = 0.0;
+        for (int c = 0; c < 3; c++) {
+            dir[c] = (double)tmpl[3 * (size_t)vc + c] - tmpl[3 * (size_t)vp + c];
+            d2 += dir[c] * dir[c];
+            double a = (double)avatar_rest[3 * (size_t)vc + c] - avatar_rest[3 * (size_t)vp + c];
+            len += a * a;
+        }
+        double scale = d2 > 0.0 ? sqrt(len / d2) : 0.0;
+        for (int c = 0; c < 3; c++)
+            out[3 * child[k] + c] = (float)(out[3 * parent[k] + c] + scale * dir[c]);
+    }
+    /* placed where the template stands: the midpoints of the ankles
+     * coincide (the template's pelvis would sink or lift a body with
+     * other leg lengths) */
+    const int la = find(map, "l_ankle"), ra = find(map, "r_ankle");
+    double shift[3];
+    for (int c = 0; c < 3; c++)
+        shift[c] = 0.5 * ((double)tmpl[3 * (size_t)map->vertex[la] + c] + tmpl[3 * (size_t)map->vertex[ra] + c] -
+                          out[3 * la + c] - out[3 * ra + c]);
+    for (uint32_t l = 0; l < map->count; l++)
+        for (int c = 0; c < 3; c++)
+            out[3 * l + c] = (float)(out[3 * l + c] + shift[c]);
+    return 0;
+}

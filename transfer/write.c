@@ -1,0 +1,281 @@
+/* Mesh and pose-sequence writers: argument checks, vertex normals, the
+ * format dispatch by extension, and the atomic write (PATH.tmp, fsync,
+ * rename) of what the OpenMesh and tinygltf shims encode. A sequence
+ * becomes a morph-target animation that a player blends linearly between
+ * key poses (seed 000, Section 3.5). */
+#include "mim_transfer.h"
+#include "write_shim.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <unistd.h>
+
+#define KNOWN_EXTENSIONS ".ply, .obj, .off, .glb"
+
+/* The format of path by its extension (any case), or NULL. */
+static const char *format_of(const char *path)
+{
+    static const char *const formats[] = {"ply", "obj", "off", "glb"};
+    const char *dot = strrchr(path, '.');
+    const char *slash = strrchr(path, '/');
+    if (!dot || (slash && dot < slash))
+        return NULL;
+    for (size_t i = 0; i < sizeof formats / sizeof *formats; i++)
+        if (!strcasecmp(dot + 1, formats[i]))
+            return formats[i];
+    return NULL;
+}
+
+static int check_faces(const char *path, const mim_mesh_t *mesh, mim_error_t *err)
+{
+    if (!mesh->faces)
+        return mim_error_set(err, MIM_EINVAL, "%s: mesh without a face array", path);
+    for (size_t i = 0; i < 3 * (size_t)mesh->n_faces; i++)
+        if (mesh->faces[i] >= mesh->n_vertices)
+            return mim_error_set(err, MIM_EINVAL, "%s: face %zu: vertex index %u out of range (%u vertices)", path,
+                                 i / 3, mesh->faces[i], mesh->n_vertices);
+    return 0;
+}
+
+static int check_finite(const char *path, const float *p, uint32_t n, uint32_t frame, int in_sequence,
+                        mim_error_t *err)
+{
+    for (uint32_t v = 0; v < n; v++)
+        for (int c = 0; c < 3; c++)
+            if (!isfinite(p[3 * (size_t)v + c])) {
+                if (in_sequence)
+                    return mim_error_set(err, MIM_ENONFINITE, "%s: frame %u, vertex %u: position is not finite",
+                                         path, frame, v);
+                return mim_error_set(err, MIM_ENONFINITE, "%s: vertex %u: position is not finite", path, v);
+            }
+    return 0;
+}
+
+/* 1 if s is well-formed UTF-8 (no overlongs, surrogates or code points
+ * past U+10FFFF): the names go into the GLB's JSON, which must be UTF-8. */
+static int utf8_valid(const char *s)
+{
+    const unsigned char *p = (const unsigned char *)s;
+    while (*p) {
+        unsigned c = *p++;
+        int more;
+        unsigned cp, min;
+        if (c < 0x80)
+            continue;
+        if ((c & 0xE0) == 0xC0)
+            more = 1, cp = c & 0x1F, min = 0x80;
+        else if ((c & 0xF0) == 0xE0)
+            more = 2, cp = c & 0x0F, min = 0x800;
+        else if ((c & 0xF8) == 0xF0)
+            more = 3, cp = c & 0x07, min = 0x10000;
+        else
+            return 0;
+        for (; more > 0; more--, p++) {
+            if ((*p & 0xC0) != 0x80)
+                return 0;
+            cp = cp << 6 | (*p & 0x3F);
+        }
+        if (cp < min || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF))
+            return 0;
+    }
+    return 1;
+}
+
+/* Area-weighted vertex normals: the sum of the un-normalised face normals
+ * (whose length is twice the face area), normalised. A vertex on no face of
+ * non-zero area gets +Y, since glTF wants every NORMAL of unit length. */
+static void vertex_normals(const mim_mesh_t *mesh, const float *pos, float *nrm, double *acc)
+{
+    uint32_t n = mesh->n_vertices;
+    memset(acc, 0, 3 * (size_t)n * sizeof *acc);
+    for (uint32_t f = 0; f < mesh->n_faces; f++) {
+        const uint32_t *t = mesh->faces + 3 * (size_t)f;
+        const float *a = pos + 3 * (size_t)t[0], *b = pos + 3 * (size_t)t[1], *c = pos + 3 * (size_t)t[2];
+        mim_vec3 e1 = mim_v3(b[0] - a[0], b[1] - a[1], b[2] - a[2]);
+        mim_vec3 e2 = mim_v3(c[0] - a[0], c[1] - a[1], c[2] - a[2]);
+        mim_vec3 fn = mim_v3_cross(e1, e2);
+        for (int k = 0; k < 3; k++) {
+            double *s = acc + 3 * (size_t)t[k];
+            s[0] += fn.x;
+            s[1] += fn.y;
+            s[2] += fn.z;
+        }
+    }
+    for (uint32_t v = 0; v < n; v++) {
+        const double *s = acc + 3 * (size_t)v;
+        double len = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+        float *o = nrm + 3 * (size_t)v;
+        if (len > 0 && isfinite(len)) {
+            o[0] = (float)(s[0] / len);
+            o[1] = (float)(s[1] / len);
+            o[2] = (float)(s[2] / len);
+        } else {
+            o[0] = 0.0f;
+            o[1] = 1.0f;
+            o[2] = 0.0f;
+        }
+    }
+}
+
+/* Writes bytes to path through path.tmp: the file appears whole or not at
+ * all, and nothing is left behind on failure. */
+static int write_atomic(const char *path, const unsigned char *data, size_t size, mim_error_t *err)
+{
+    size_t len = strlen(path);
+    char *tmp = malloc(len + 5);
+    if (!tmp)
+        return mim_error_set(err, MIM_ENOMEM, "%s: out of memory", path);
+    memcpy(tmp, path, len);
+    memcpy(tmp + len, ".tmp", 5);
+    int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (fd < 0) {
+        int e = errno;
+        free(tmp);
+        return mim_error_set(err, MIM_EIO, "%s: cannot write: %s", path, strerror(e));
+    }
+    int e = 0;
+    for (size_t done = 0; done < size && !e;) {
+        ssize_t w = write(fd, data + done, size - done);
+        if (w < 0) {
+            if (errno != EINTR)
+                e = errno;
+        } else {
+            done += (size_t)w;
+        }
+    }
+    if (!e && fsync(fd) != 0)
+        e = errno;
+    if (close(fd) != 0 && !e)
+        e = errno;
+    if (!e && rename(tmp, path) != 0)
+        e = errno;
+    if (e) {
+        unlink(tmp);
+        free(tmp);
+        return mim_error_set(err, MIM_EIO, "%s: cannot write: %s", path, strerror(e));
+    }
+    free(tmp);
+    return 0;
+}
+
+static int encoded(const char *path, int rc, const char *msg, mim__bytes_t *b, mim_error_t *err)
+{
+    if (rc == MIM_ENOMEM)
+        return mim_error_set(err, rc, "%s: out of memory while encoding", path);
+    if (rc)
+        return mim_error_set(err, rc, "%s: %s", path, msg[0] ? msg : mim_strerror(rc));
+    rc = write_atomic(path, b->data, b->size, err);
+    free(b->data);
+    b->data = NULL;
+    return rc;
+}
+
+static int write_glb(const char *path, const mim_mesh_t *mesh, uint32_t n_frames, const float *positions,
+                     const float *times, const char *const *names, mim_error_t *err)
+{
+    size_t per = 3 * (size_t)mesh->n_vertices;
+    float *normals = malloc(per * n_frames * sizeof *normals);
+    double *acc = malloc(per * sizeof *acc);
+    if (!normals || !acc) {
+        free(normals);
+        free(acc);
+        return mim_error_set(err, MIM_ENOMEM, "%s: out of memory", path);
+    }
+    for (uint32_t f = 0; f < n_frames; f++)
+        vertex_normals(mesh, positions + f * per, normals + f * per, acc);
+    free(acc);
+    mim__gltf_frames_t in = {
+        .mesh = mesh, .n_frames = n_frames, .positions = positions, .normals = normals, .times = times,
+        .names = names};
+    mim__bytes_t b = {0};
+    char msg[256] = "";
+    int rc = mim__gltf_encode(&in, &b, msg, sizeof msg);
+    free(normals);
+    return encoded(path, rc, msg, &b, err);
+}
+
+static int check_mesh_shape(const char *path, const mim_mesh_t *mesh, mim_error_t *err)
+{
+    if (!mesh)
+        return mim_error_set(err, MIM_EINVAL, "%s: no mesh", path);
+    if (mesh->n_vertices == 0 || mesh->n_faces == 0)
+        return mim_error_set(err, MIM_EINVAL, "%s: empty mesh (%u vertices, %u faces)", path, mesh->n_vertices,
+                             mesh->n_faces);
+    return check_faces(path, mesh, err);
+}
+
+int mim_xfer_write_mesh(const char *path, const mim_mesh_t *mesh, mim_error_t *err)
+{
+    if (!path || !path[0])
+        return mim_error_set(err, MIM_EINVAL, "write: no output path");
+    const char *format = format_of(path);
+    if (!format)
+        return mim_error_set(err, MIM_EINVAL, "%s: unknown extension; known: " KNOWN_EXTENSIONS, path);
+    int rc = check_mesh_shape(path, mesh, err);
+    if (rc)
+        return rc;
+    if (!mesh->positions)
+        return mim_error_set(err, MIM_EINVAL, "%s: mesh without positions", path);
+    if ((rc = check_finite(path, mesh->positions, mesh->n_vertices, 0, 0, err)))
+        return rc;
+    if (!strcmp(format, "glb"))
+        return write_glb(path, mesh, 1, mesh->positions, NULL, NULL, err);
+    mim__bytes_t b = {0};
+    char msg[256] = "";
+    rc = mim__openmesh_encode(mesh, format, &b, msg, sizeof msg);
+    return encoded(path, rc, msg, &b, err);
+}
+
+int mim_xfer_write_sequence_glb(const char *path, const mim_xfer_sequence_t *seq, mim_error_t *err)
+{
+    if (!path || !path[0])
+        return mim_error_set(err, MIM_EINVAL, "write: no output path");
+    const char *format = format_of(path);
+    if (!format || strcmp(format, "glb"))
+        return mim_error_set(err, MIM_EINVAL, "%s: a pose sequence is written as .glb", path);
+    if (!seq)
+        return mim_error_set(err, MIM_EINVAL, "%s: no sequence", path);
+    int rc = check_mesh_shape(path, seq->mesh, err);
+    if (rc)
+        return rc;
+    if (seq->n_frames == 0)
+        return mim_error_set(err, MIM_EINVAL, "%s: sequence without frames", path);
+    if (!seq->positions)
+        return mim_error_set(err, MIM_EINVAL, "%s: sequence without positions", path);
+    uint32_t nf = seq->n_frames, nv = seq->mesh->n_vertices;
+    for (uint32_t f = 0; f < nf; f++)
+        if ((rc = check_finite(path, seq->positions + 3 * (size_t)nv * f, nv, f, 1, err)))
+            return rc;
+    for (uint32_t f = 0; seq->names && f < nf; f++)
+        if (seq->names[f] && !utf8_valid(seq->names[f]))
+            return mim_error_set(err, MIM_EINVAL, "%s: frame %u: name is not valid UTF-8", path, f);
+    double fps = seq->fps == 0 ? 30.0 : seq->fps;
+    if (!seq->times && !(isfinite(fps) && fps > 0))
+        return mim_error_set(err, MIM_EINVAL, "%s: fps %g is not a positive number", path, seq->fps);
+    float *times = malloc((size_t)nf * sizeof *times);
+    if (!times)
+        return mim_error_set(err, MIM_ENOMEM, "%s: out of memory", path);
+    /* The file holds float32 times; they must increase as floats too. */
+    for (uint32_t f = 0; f < nf; f++) {
+        double t = seq->times ? seq->times[f] : f / fps;
+        times[f] = (float)t;
+        if (!isfinite(t) || !isfinite(times[f]) || t < 0) {
+            free(times);
+            return mim_error_set(err, MIM_EINVAL, "%s: frame %u: time %g is not a finite number >= 0", path, f, t);
+        }
+        if (f > 0 && !(times[f] > times[f - 1])) {
+            free(times);
+            return mim_error_set(err, MIM_EINVAL,
+                                 "%s: frame %u: time %.9g does not increase (previous frame at %.9g)", path, f, t,
+                                 seq->times ? seq->times[f - 1] : (f - 1) / fps);
+        }
+    }
+    rc = write_glb(path, seq->mesh, nf, seq->positions, times, seq->names, err);
+    free(times);
+    return rc;
+}

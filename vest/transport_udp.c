@@ -1,0 +1,129 @@
+/* UDP transport: landmark frames from optical trackers or remote vests, one
+ * JSON datagram each (schemas/vest-udp.schema.json):
+ * {"t": microseconds, "landmarks": [[x, y, z] | null, ...]}. */
+#include "transport_internal.h"
+
+#include <errno.h>
+#include <jansson.h>
+#include <math.h>
+#include <netdb.h>
+#include <poll.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+int mim__udp_open(mim_vest_transport_t *t, const char *hostport, mim_error_t *err)
+{
+    char host[256];
+    const char *colon = strrchr(hostport, ':');
+    if (!colon || (size_t)(colon - hostport) >= sizeof host || !colon[1])
+        return mim_error_set(err, MIM_EINVAL, "vest: 'udp:%s' is not udp:HOST:PORT", hostport);
+    memcpy(host, hostport, (size_t)(colon - hostport));
+    host[colon - hostport] = 0;
+    struct addrinfo hints = {0}, *ai = NULL;
+    hints.ai_socktype = SOCK_DGRAM;
+    hints.ai_flags = AI_PASSIVE;
+    int g = getaddrinfo(host[0] ? host : NULL, colon + 1, &hints, &ai);
+    if (g) return mim_error_set(err, MIM_EINVAL, "%s: %s", t->desc, gai_strerror(g));
+    int fd = socket(ai->ai_family, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    if (fd < 0 || bind(fd, ai->ai_addr, ai->ai_addrlen)) {
+        int e = errno;
+        if (fd >= 0) close(fd);
+        freeaddrinfo(ai);
+        return mim_error_set(err, -e, "%s: cannot listen (%s)", t->desc, strerror(e));
+    }
+    freeaddrinfo(ai);
+    t->sock = fd;
+    return 0;
+}
+
+int mim__udp_read(mim_vest_transport_t *t, mim_vest_chunk_t *c, mim_error_t *err)
+{
+    struct pollfd p = {t->sock, POLLIN, 0};
+    int r = poll(&p, 1, t->o.timeout_ms);
+    if (r < 0) return mim_error_set(err, -errno, "%s: poll: %s", t->desc, strerror(errno));
+    if (r == 0) return mim_error_set(err, -ETIMEDOUT, "%s: no data for %d ms", t->desc, t->o.timeout_ms);
+    ssize_t n = recv(t->sock, t->buf, sizeof t->buf, 0);
+    if (n < 0) return mim_error_set(err, -errno, "%s: read error: %s", t->desc, strerror(errno));
+    c->kind = MIM_VEST_CHUNK_LANDMARKS;
+    c->t_us = mim__now_us();
+    c->data = t->buf, c->len = (size_t)n;
+    c->restart = 0;
+    return 1;
+}
+
+void mim__udp_close(mim_vest_transport_t *t)
+{
+    if (t->sock >= 0) close(t->sock);
+    t->sock = -1;
+}
+
+int mim_vest_udp_parse(const char *text, size_t len, uint64_t *t_us, float *xyz, uint8_t *present, uint32_t max,
+                       uint32_t *count, mim_error_t *err)
+{
+    json_error_t je;
+    json_t *root = json_loadb(text, len, JSON_REJECT_DUPLICATES, &je);
+    if (!root) return mim_error_set(err, MIM_EFORMAT, "udp frame:%d:%d: %s", je.line, je.column, je.text);
+    int rc = 0;
+    json_t *t = json_object_get(root, "t"), *lm = json_object_get(root, "landmarks");
+    if (!json_is_object(root) || !json_is_integer(t) || json_integer_value(t) < 0 || !json_is_array(lm)) {
+        rc = mim_error_set(err, MIM_EFORMAT, "udp frame: needs {\"t\": microseconds >= 0, \"landmarks\": [...]}");
+        goto done;
+    }
+    size_t n = json_array_size(lm);
+    if (n > max) {
+        rc = mim_error_set(err, MIM_EFORMAT, "udp frame: %zu landmarks (at most %u)", n, max);
+        goto done;
+    }
+    *t_us = (uint64_t)json_integer_value(t);
+    for (size_t i = 0; i < n; i++) {
+        json_t *p = json_array_get(lm, i);
+        if (json_is_null(p)) {
+            xyz[3 * i] = xyz[3 * i + 1] = xyz[3 * i + 2] = NAN;
+            present[i] = 0;
+            continue;
+        }
+        if (!json_is_array(p) || json_array_size(p) != 3) {
+            rc = mim_error_set(err, MIM_EFORMAT, "udp frame: landmark %zu is not [x, y, z] or null", i);
+            goto done;
+        }
+        for (int c = 0; c < 3; c++) {
+            json_t *v = json_array_get(p, (size_t)c);
+            double d = json_number_value(v);
+            if (!json_is_number(v) || !isfinite(d)) {
+                rc = mim_error_set(err, MIM_EFORMAT, "udp frame: landmark %zu has a non-number coordinate", i);
+                goto done;
+            }
+            xyz[3 * i + (size_t)c] = (float)d;
+        }
+        present[i] = 1;
+    }
+    *count = (uint32_t)n;
+done:
+    json_decref(root);
+    return rc;
+}
+
+char *mim_vest_udp_format(uint64_t t_us, const float *xyz, const uint8_t *present, uint32_t count)
+{
+    json_t *root = json_object(), *lm = json_array();
+    if (!root || !lm) {
+        json_decref(root), json_decref(lm);
+        return NULL;
+    }
+    json_object_set_new(root, "t", json_integer((json_int_t)t_us));
+    for (uint32_t i = 0; i < count; i++) {
+        if (!present[i]) {
+            json_array_append_new(lm, json_null());
+            continue;
+        }
+        json_t *p = json_array();
+        for (int c = 0; c < 3; c++) json_array_append_new(p, json_real(xyz[3 * i + (uint32_t)c]));
+        json_array_append_new(lm, p);
+    }
+    json_object_set_new(root, "landmarks", lm);
+    char *s = json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(9));
+    json_decref(root);
+    return s;
+}
