@@ -18,14 +18,14 @@ static int cmp_d(const void *a, const void *b)
 double bench_quantile(double *v, int k, double q)
 {
     qsort(v, (size_t)k, sizeof *v, cmp_d);
-    int i = (int)ceil(q * k) - 1;
+    int i = (int)floor(q * (k - 1));
     return v[i < 0 ? 0 : i >= k ? k - 1 : i];
 }
 
 double bench_median(double *v, int k)
 {
     qsort(v, (size_t)k, sizeof *v, cmp_d);
-    return v[k / 2];
+    return k % 2 ? v[k / 2] : 0.5 * (v[k / 2 - 1] + v[k / 2]);
 }
 
 int bench_load_synth(bench_dataset_t *d, uint32_t subjects, uint32_t poses, uint32_t vertices)
@@ -123,4 +123,46 @@ const char *bench_mh_dir(char *buf, size_t size)
         strncat(buf, "/../../shared/data/mh-bodies", size - strlen(buf) - 1);
     }
     return buf;
+}
+
+void bench_sets_init(bench_sets_t *s)
+{
+    memset(s, 0, sizeof *s);
+    s->vertices = 7000;
+}
+
+int bench_sets_arg(bench_sets_t *s, int argc, char **argv, int *i)
+{
+    if (!strcmp(argv[*i], "--vertices") && *i + 1 < argc)
+        s->vertices = (uint32_t)strtoul(argv[++*i], NULL, 10);
+    else if (!strcmp(argv[*i], "--mh") && *i + 1 < argc)
+        s->mh = argv[++*i];
+    else if (!strcmp(argv[*i], "--no-mh"))
+        s->no_mh = 1;
+    else
+        return 0;
+    return 1;
+}
+
+int bench_sets_run(bench_sets_t *s, uint32_t subjects, uint32_t poses, bench_set_fn fn, void *user)
+{
+    mim_log_level = 0;
+    bench_dataset_t d = {0};
+    if (bench_load_synth(&d, subjects, poses, s->vertices))
+        return 1;
+    int rc = fn(&d, user);
+    bench_dataset_free(&d);
+    if (rc || s->no_mh)
+        return rc ? 1 : 0;
+    const char *mh = s->mh ? s->mh : bench_mh_dir(s->mh_buf, sizeof s->mh_buf);
+    int lr = bench_load_mh(&d, mh);
+    if (lr > 0) {
+        printf("\nmh-bodies: %s not found, skipped\n", mh);
+        return 0;
+    }
+    if (lr < 0)
+        return 1;
+    rc = fn(&d, user);
+    bench_dataset_free(&d);
+    return rc ? 1 : 0;
 }

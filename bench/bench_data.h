@@ -26,4 +26,20 @@ void bench_dataset_free(bench_dataset_t *d);
  * tree's sibling ../shared/data/mh-bodies. */
 const char *bench_mh_dir(char *buf, size_t size);
 
+/* The options every body-set bench takes: --vertices N (synth, default
+ * 7000), --mh DIR, --no-mh. */
+typedef struct bench_sets {
+    uint32_t vertices;
+    const char *mh;
+    int no_mh;
+    char mh_buf[4096];
+} bench_sets_t;
+void bench_sets_init(bench_sets_t *s);
+/* Takes argv[*i] (and its value) if it is one of those; 1 if taken. */
+int bench_sets_arg(bench_sets_t *s, int argc, char **argv, int *i);
+/* Runs fn on synth (subjects x poses), then on mh-bodies unless --no-mh
+ * (a line says when it is absent). 0, or 1 when loading or fn failed. */
+typedef int (*bench_set_fn)(const bench_dataset_t *d, void *user);
+int bench_sets_run(bench_sets_t *s, uint32_t subjects, uint32_t poses, bench_set_fn fn, void *user);
+
 #endif

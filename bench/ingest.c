@@ -10,6 +10,7 @@
  * it is beside the project.
  *
  * usage: bench_ingest [--meshes N] [--runs R] [--vertices V] [--shared DIR] */
+#include "bench_data.h"
 #include "mim_db.h"
 #include "mim_ingest.h"
 #include "mim_synth.h"
@@ -29,17 +30,6 @@ static int rm_one(const char *p, const struct stat *st, int f, struct FTW *w)
     return remove(p);
 }
 static void rmtree(const char *p) { nftw(p, rm_one, 16, FTW_DEPTH | FTW_PHYS); }
-
-static int cmp_d(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-static double median(double *v, int n)
-{
-    qsort(v, (size_t)n, sizeof *v, cmp_d);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 /* Reference: read every file's bytes, nothing else. */
 static double read_bytes_seconds(const mim_file_list_t *files)
@@ -110,9 +100,9 @@ static int measure(const char *label, const char *data, const char *manifest, in
         }
     }
     rmtree(store);
-    r->rate_1core = median(one, runs);
-    r->rate_all = median(all, runs);
-    r->ref_rate = median(ref, runs);
+    r->rate_1core = bench_median(one, runs);
+    r->rate_all = bench_median(all, runs);
+    r->ref_rate = bench_median(ref, runs);
     double raw = 12.0 * r->n_vertices;
     printf("%-22s %6zu meshes  %6u verts  1 core: %7.1f meshes/s  all cores: %7.1f meshes/s  "
            "(fread-only reference %8.1f files/s: ingest at %.3f of it)  store: %.0f B/template = %.2f%% over raw %.0f B "

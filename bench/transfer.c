@@ -149,22 +149,19 @@ static int run(const bench_dataset_t *d, int runs)
     return 0;
 }
 
+static int run_set(const bench_dataset_t *d, void *user) { return run(d, *(const int *)user); }
+
 int main(int argc, char **argv)
 {
-    uint32_t vertices = 7000;
-    int runs = 201, no_mh = 0;
-    const char *mh = NULL;
-    char buf[4096];
+    bench_sets_t sets;
+    bench_sets_init(&sets);
+    int runs = 201;
     for (int i = 1; i < argc; i++) {
-        if (!strcmp(argv[i], "--vertices") && i + 1 < argc)
-            vertices = (uint32_t)strtoul(argv[++i], NULL, 10);
-        else if (!strcmp(argv[i], "--runs") && i + 1 < argc)
+        if (bench_sets_arg(&sets, argc, argv, &i))
+            continue;
+        if (!strcmp(argv[i], "--runs") && i + 1 < argc) {
             runs = atoi(argv[++i]);
-        else if (!strcmp(argv[i], "--mh") && i + 1 < argc)
-            mh = argv[++i];
-        else if (!strcmp(argv[i], "--no-mh"))
-            no_mh = 1;
-        else {
+        } else {
             fprintf(stderr, "usage: %s [--vertices N] [--runs R (1..%d)] [--mh DIR | --no-mh]\n", argv[0],
                     RUNS_MAX);
             return 2;
@@ -174,23 +171,5 @@ int main(int argc, char **argv)
         fprintf(stderr, "bench_transfer: --runs %d outside 1..%d\n", runs, RUNS_MAX);
         return 2;
     }
-    if (!mh)
-        mh = bench_mh_dir(buf, sizeof buf);
-    mim_log_level = 0;
-    bench_dataset_t d = {0};
-    if (bench_load_synth(&d, 2, 4, vertices))
-        return 1;
-    int rc = run(&d, runs);
-    bench_dataset_free(&d);
-    if (!rc && !no_mh) {
-        int lr = bench_load_mh(&d, mh);
-        if (lr > 0)
-            printf("\nmh-bodies: %s not found, skipped\n", mh);
-        else if (lr < 0)
-            rc = -1;
-        else
-            rc = run(&d, runs);
-        bench_dataset_free(&d);
-    }
-    return rc ? 1 : 0;
+    return bench_sets_run(&sets, 2, 4, run_set, &runs);
 }

@@ -263,44 +263,25 @@ fail:
     return -1;
 }
 
+static int run_set(const bench_dataset_t *d, void *user)
+{
+    return run_accuracy(d, *(const uint32_t *)user) ? 1 : 0;
+}
+
 int main(int argc, char **argv)
 {
-    uint32_t vertices = 7000, pairs_max = 0;
-    const char *mh = NULL;
-    int no_mh = 0;
-    char buf[4096];
+    bench_sets_t sets;
+    bench_sets_init(&sets);
+    uint32_t pairs_max = 0;
     for (int i = 1; i < argc; i++) {
-        if (!strcmp(argv[i], "--vertices") && i + 1 < argc)
-            vertices = (uint32_t)strtoul(argv[++i], NULL, 10);
-        else if (!strcmp(argv[i], "--mh") && i + 1 < argc)
-            mh = argv[++i];
-        else if (!strcmp(argv[i], "--no-mh"))
-            no_mh = 1;
-        else if (!strcmp(argv[i], "--pairs-max") && i + 1 < argc)
+        if (bench_sets_arg(&sets, argc, argv, &i))
+            continue;
+        if (!strcmp(argv[i], "--pairs-max") && i + 1 < argc) {
             pairs_max = (uint32_t)strtoul(argv[++i], NULL, 10);
-        else {
+        } else {
             fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--pairs-max K]\n", argv[0]);
             return 2;
         }
     }
-    if (!mh)
-        mh = bench_mh_dir(buf, sizeof buf);
-    mim_log_level = 0;
-    bench_dataset_t d = {0};
-    if (bench_load_synth(&d, 4, 12, vertices))
-        return 1;
-    run_accuracy(&d, pairs_max);
-    bench_dataset_free(&d);
-    if (!no_mh) {
-        int rc = bench_load_mh(&d, mh);
-        if (rc > 0) {
-            printf("\nmh-bodies: %s not found, skipped\n", mh);
-            return 0;
-        }
-        if (rc < 0)
-            return 1;
-        run_accuracy(&d, pairs_max);
-        bench_dataset_free(&d);
-    }
-    return 0;
+    return bench_sets_run(&sets, 4, 12, run_set, &pairs_max);
 }

@@ -12,6 +12,7 @@
  * synthetic avatar). Each figure is the median of several runs.
  *
  * usage: bench_vest [--frames N] [--runs R] */
+#include "bench_data.h"
 #include "mim_synth.h"
 #include "mim_vest.h"
 
@@ -22,22 +23,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
-
-static int cmp_d(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-static double median(double *v, int n)
-{
-    qsort(v, (size_t)n, sizeof *v, cmp_d);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-static double quantile(double *v, int n, double q)
-{
-    qsort(v, (size_t)n, sizeof *v, cmp_d);
-    return v[(int)floor(q * (n - 1))];
-}
 
 static double now(void)
 {
@@ -189,18 +174,18 @@ int main(int argc, char **argv)
             at = frame_end[k];
         }
         mim_vest_decoder_close(&d);
-        lat_med[r] = median(lat + 2, frames - 2) * 1e6;
-        lat_p99[r] = quantile(lat + 2, frames - 2, 0.99) * 1e6;
+        lat_med[r] = bench_median(lat + 2, frames - 2) * 1e6;
+        lat_p99[r] = bench_quantile(lat + 2, frames - 2, 0.99) * 1e6;
     }
     sched_setaffinity(0, sizeof saved, &saved);
     (void)sink;
     printf("vest stream: %d frames x 3 packets (17 sensors), %zu bytes, %d runs, one core\n", frames, n, runs);
-    double m_thr = median(thr, runs), m_ref = median(ref, runs);
+    double m_thr = bench_median(thr, runs), m_ref = bench_median(ref, runs);
     printf("decoder throughput        %.3g packets/s  (%.1f MB/s)   target >= 1e6\n", m_thr, m_thr * (double)n / (3.0 * frames) / 1e6);
     printf("additive-pass reference   %.3g packets/s  decoder/reference = %.2f\n", m_ref, m_thr / m_ref);
-    printf("decode + landmarks        %.3g frames/s\n", median(e2e, runs));
+    printf("decode + landmarks        %.3g frames/s\n", bench_median(e2e, runs));
     printf("latency last byte -> 16 landmarks: median %.2f us, p99 %.2f us (median over runs)   target < 20 us\n",
-           median(lat_med, runs), median(lat_p99, runs));
+           bench_median(lat_med, runs), bench_median(lat_p99, runs));
     free(lat), free(stream), free(frame_end);
     mim_mesh_free(&mesh);
     mim_synth_destroy(&s);

@@ -10,6 +10,7 @@
 #include <getopt.h>
 #include <math.h>
 #include <signal.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -47,11 +48,25 @@ static int real_arg(const char *cmd, const char *name, const char *text, double 
     return 0;
 }
 
-static int bad_option(const char *cmd, char **argv)
+/* A usage error: what is wrong and where the help is; exit status 2. */
+__attribute__((format(printf, 2, 3))) static int usage_error(const char *cmd, const char *fmt, ...)
 {
-    fprintf(stderr, "mimic vest %s: unknown or incomplete option '%s' (see mimic vest %s --help)\n", cmd,
-            argv[optind - 1], cmd);
+    char what[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(what, sizeof what, fmt, ap);
+    va_end(ap);
+    fprintf(stderr, "mimic vest %s: %s (see mimic vest %s --help)\n", cmd, what, cmd);
     return 2;
+}
+
+/* What getopt returned past a command's own options: -h/--help prints the
+ * help (exit 0), anything else is a bad option (exit 2). */
+static int help_or_bad_option(int c, const char *cmd, const char *help, char **argv)
+{
+    if (c != 'h') return usage_error(cmd, "unknown or incomplete option '%s'", argv[optind - 1]);
+    fputs(help, stdout);
+    return 0;
 }
 
 /* The avatar rig: a mesh and its landmark map, or "synth[:S]" for subject S
@@ -109,7 +124,26 @@ static int pose_arg(const char *cmd, const char *text, int *pose)
     return 0;
 }
 
+/* A stream chunk goes to the decoder, restarted after a reconnect; returns 0
+ * for a datagram, which the caller handles. */
+static int feed_stream(mim_vest_decoder_t *dec, const mim_vest_chunk_t *ch)
+{
+    if (ch->kind != MIM_VEST_CHUNK_STREAM) return 0;
+    if (ch->restart) mim_vest_decoder_reset(dec);
+    mim_vest_decoder_feed(dec, ch->data, ch->len, ch->t_us);
+    return 1;
+}
+
 /* ---------------------------------------------------------------- list */
+
+static const char list_help[] =
+    "usage: mimic vest list [--no-hid] [--sysfs DIR]\n\n"
+    "Lists devices that look like a PrioVR / YOST 3-Space vest: serial ports\n"
+    "/dev/ttyACM* and /dev/ttyUSB* whose USB vendor id is 2476, and HID devices of\n"
+    "vendor 0x2476 (hidapi). Each line is a --device SPEC and a description.\n\n"
+    "  --no-hid      skip the HID enumeration\n"
+    "  --sysfs DIR   read the serial ports' USB ids under DIR instead of /sys\n"
+    "  -h, --help    this help\n";
 
 static int cmd_list(int argc, char **argv)
 {
@@ -121,16 +155,7 @@ static int cmd_list(int argc, char **argv)
     while ((c = getopt_long(argc, argv, ":h", lo, NULL)) != -1) {
         if (c == 's') sysfs = optarg;
         else if (c == 'n') hid = 0;
-        else if (c == 'h') {
-            printf("usage: mimic vest list [--no-hid] [--sysfs DIR]\n\n"
-                   "Lists devices that look like a PrioVR / YOST 3-Space vest: serial ports\n"
-                   "/dev/ttyACM* and /dev/ttyUSB* whose USB vendor id is 2476, and HID devices of\n"
-                   "vendor 0x2476 (hidapi). Each line is a --device SPEC and a description.\n\n"
-                   "  --no-hid      skip the HID enumeration\n"
-                   "  --sysfs DIR   read the serial ports' USB ids under DIR instead of /sys\n"
-                   "  -h, --help    this help\n");
-            return 0;
-        } else return bad_option("list", argv);
+        else return help_or_bad_option(c, "list", list_help, argv);
     }
     mim_vest_device_t dev[64];
     mim_error_t err = {0};
@@ -160,6 +185,20 @@ static void count_packets(void *user, const mim_vest_packet_info_t *info, const 
     ((count_t *)user)->packets++;
 }
 
+static const char record_help[] =
+    "usage: mimic vest record --device SPEC [--duration S] -o FILE [--no-setup] [--timeout S]\n\n"
+    "Records what a vest sends, as it arrives and with its timing, into FILE\n"
+    "(schemas/vest-recording.md); `mimic vest replay FILE` plays it back. Stops after\n"
+    "--duration seconds, on Ctrl-C, or when the device stays unplugged for 10 s\n"
+    "(a live device is reconnected with backoff meanwhile).\n\n"
+    "  --device SPEC  serial:PATH | hid:VID:PID[:SERIAL] (hex) | udp:HOST:PORT (listen)\n"
+    "  --duration S   seconds to record (default: until stopped)\n"
+    "  -o, --out FILE the recording\n"
+    "  --no-setup     do not send the stream set-up commands to a serial/HID device\n"
+    "                 (response header, slots, timing, start)\n"
+    "  --timeout S    report a silent link after S seconds (default 1)\n"
+    "  -h, --help     this help\n";
+
 static int cmd_record(int argc, char **argv)
 {
     static const struct option lo[] = {
@@ -176,26 +215,9 @@ static int cmd_record(int argc, char **argv)
         else if (c == 'n') setup = 0;
         else if (c == 't') { if (real_arg("record", "duration", optarg, 0.001, 1e7, &duration)) return 2; }
         else if (c == 'w') { if (real_arg("record", "timeout", optarg, 0.01, 3600, &timeout)) return 2; }
-        else if (c == 'h') {
-            printf("usage: mimic vest record --device SPEC [--duration S] -o FILE [--no-setup] [--timeout S]\n\n"
-                   "Records what a vest sends, as it arrives and with its timing, into FILE\n"
-                   "(schemas/vest-recording.md); `mimic vest replay FILE` plays it back. Stops after\n"
-                   "--duration seconds, on Ctrl-C, or when the device stays unplugged for 10 s\n"
-                   "(a live device is reconnected with backoff meanwhile).\n\n"
-                   "  --device SPEC  serial:PATH | hid:VID:PID[:SERIAL] (hex) | udp:HOST:PORT (listen)\n"
-                   "  --duration S   seconds to record (default: until stopped)\n"
-                   "  -o, --out FILE the recording\n"
-                   "  --no-setup     do not send the stream set-up commands to a serial/HID device\n"
-                   "                 (response header, slots, timing, start)\n"
-                   "  --timeout S    report a silent link after S seconds (default 1)\n"
-                   "  -h, --help     this help\n");
-            return 0;
-        } else return bad_option("record", argv);
+        else return help_or_bad_option(c, "record", record_help, argv);
     }
-    if (!spec || !out) {
-        fprintf(stderr, "mimic vest record: --device SPEC and -o FILE are required (see mimic vest record --help)\n");
-        return 2;
-    }
+    if (!spec || !out) return usage_error("record", "--device SPEC and -o FILE are required");
     catch_signals();
     mim_error_t err = {0};
     mim_vest_transport_options_t to = {0};
@@ -239,12 +261,7 @@ static int cmd_record(int argc, char **argv)
             status = 1;
             break;
         }
-        if (ch.kind == MIM_VEST_CHUNK_STREAM) {
-            if (ch.restart) mim_vest_decoder_reset(dec);
-            mim_vest_decoder_feed(dec, ch.data, ch.len, ch.t_us);
-        } else {
-            cnt.packets++;
-        }
+        if (!feed_stream(dec, &ch)) cnt.packets++; /* a datagram is one packet */
         if (mim_vest_recorder_write(rec, &ch, &err)) {
             fprintf(stderr, "mimic vest record: %s\n", mim_error_text(&err));
             status = 1;
@@ -313,6 +330,24 @@ static void on_packet(void *user, const mim_vest_packet_info_t *info, const mim_
     for (; k < done; k++) print_frame(r, t[k], m[k]);
 }
 
+static const char replay_help[] =
+    "usage: mimic vest replay FILE|SPEC [--realtime] [--avatar MESH --map landmarks.json]\n"
+    "                          [--pose rest|t|a] [--timeout S]\n\n"
+    "Decodes a recording (or a live device SPEC, as for record) and prints one JSON\n"
+    "object per vest frame (schemas/vest-replay.schema.json): {\"t\": us, \"sensors\":\n"
+    "[{\"id\", \"name\", \"q\": [x, y, z, w]}, ...]}. Given an avatar, prints its\n"
+    "landmarks in map order instead: {\"t\": us, \"landmarks\": [[x, y, z] | null, ...]};\n"
+    "a landmark is null when its sensor (or one above it) has been silent for longer\n"
+    "than --timeout. Counts of rejected packets go to stderr.\n\n"
+    "  --realtime        keep the recorded timing (default: as fast as possible)\n"
+    "  --avatar MESH     the avatar mesh (any format mimic reads), or synth[:S] for a\n"
+    "                    synthetic body (subject S, rest pose) with its own landmarks\n"
+    "  --map FILE        the avatar's landmark map (schemas/landmarks.schema.json)\n"
+    "  --pose P          the pose the wearer stood in at the tare: rest (as the\n"
+    "                    avatar), t or a (default rest)\n"
+    "  --timeout S       a sensor silent this long is missing (default 0.25)\n"
+    "  -h, --help        this help\n";
+
 static int cmd_replay(int argc, char **argv)
 {
     static const struct option lo[] = {
@@ -329,30 +364,9 @@ static int cmd_replay(int argc, char **argv)
         else if (c == 'm') map = optarg;
         else if (c == 'p') { if (pose_arg("replay", optarg, &pose)) return 2; }
         else if (c == 'w') { if (real_arg("replay", "timeout", optarg, 0.001, 3600, &timeout)) return 2; }
-        else if (c == 'h') {
-            printf("usage: mimic vest replay FILE|SPEC [--realtime] [--avatar MESH --map landmarks.json]\n"
-                   "                          [--pose rest|t|a] [--timeout S]\n\n"
-                   "Decodes a recording (or a live device SPEC, as for record) and prints one JSON\n"
-                   "object per vest frame (schemas/vest-replay.schema.json): {\"t\": us, \"sensors\":\n"
-                   "[{\"id\", \"name\", \"q\": [x, y, z, w]}, ...]}. Given an avatar, prints its\n"
-                   "landmarks in map order instead: {\"t\": us, \"landmarks\": [[x, y, z] | null, ...]};\n"
-                   "a landmark is null when its sensor (or one above it) has been silent for longer\n"
-                   "than --timeout. Counts of rejected packets go to stderr.\n\n"
-                   "  --realtime        keep the recorded timing (default: as fast as possible)\n"
-                   "  --avatar MESH     the avatar mesh (any format mimic reads), or synth[:S] for a\n"
-                   "                    synthetic body (subject S, rest pose) with its own landmarks\n"
-                   "  --map FILE        the avatar's landmark map (schemas/landmarks.schema.json)\n"
-                   "  --pose P          the pose the wearer stood in at the tare: rest (as the\n"
-                   "                    avatar), t or a (default rest)\n"
-                   "  --timeout S       a sensor silent this long is missing (default 0.25)\n"
-                   "  -h, --help        this help\n");
-            return 0;
-        } else return bad_option("replay", argv);
+        else return help_or_bad_option(c, "replay", replay_help, argv);
     }
-    if (optind != argc - 1) {
-        fprintf(stderr, "mimic vest replay: give one FILE or SPEC (see mimic vest replay --help)\n");
-        return 2;
-    }
+    if (optind != argc - 1) return usage_error("replay", "give one FILE or SPEC");
     const char *src = argv[optind];
     static mim_vest_rig_t rig;
     if (avatar) {
@@ -393,22 +407,18 @@ static int cmd_replay(int argc, char **argv)
             status = 1;
             break;
         }
-        if (ch.kind == MIM_VEST_CHUNK_STREAM) {
-            if (ch.restart) mim_vest_decoder_reset(dec);
-            mim_vest_decoder_feed(dec, ch.data, ch.len, ch.t_us);
-        } else {
-            uint64_t tu;
-            float xyz[3 * MIM_LANDMARKS_MAX];
-            uint8_t present[MIM_LANDMARKS_MAX];
-            uint32_t n;
-            if (mim_vest_udp_parse((const char *)ch.data, ch.len, &tu, xyz, present, MIM_LANDMARKS_MAX, &n, NULL)) {
-                bad_udp++;
-                continue;
-            }
-            char *js = mim_vest_udp_format(tu, xyz, present, n);
-            if (js) puts(js), rp->frames_out++;
-            free(js);
+        if (feed_stream(dec, &ch)) continue;
+        uint64_t tu;
+        float xyz[3 * MIM_LANDMARKS_MAX];
+        uint8_t present[MIM_LANDMARKS_MAX];
+        uint32_t n;
+        if (mim_vest_udp_parse((const char *)ch.data, ch.len, &tu, xyz, present, MIM_LANDMARKS_MAX, &n, NULL)) {
+            bad_udp++;
+            continue;
         }
+        char *js = mim_vest_udp_format(tu, xyz, present, n);
+        if (js) puts(js), rp->frames_out++;
+        free(js);
     }
     uint64_t tl, ml;
     if (mim_vest_assembler_flush(&rp->as, &tl, &ml)) print_frame(rp, tl, ml);
@@ -483,6 +493,35 @@ static int write_expected(const char *path, mim_vest_sim_t *sim, const mim_vest_
     return 0;
 }
 
+static const char simulate_help[] =
+    "usage: mimic vest simulate --motion FILE.(bvh|amc) [--asf FILE] [--rate HZ]\n"
+    "         [--faults drop=P,corrupt=P,disconnect=T[,down=S]] [--loop] [--seed K]\n"
+    "         --out (pty[:LINK]|udp:HOST:PORT|FILE) [--avatar MESH --map FILE] [--pose P]\n"
+    "         [--expected FILE] [--realtime]\n\n"
+    "A simulated PrioVR vest driven by motion data: each of the 17 sensors reports its\n"
+    "segment's rotation since the motion's rest pose (where the simulated wearer\n"
+    "tared), in the exact hub wire protocol (schemas/vest-protocol.md).\n"
+    "With --out pty it opens a pseudo-terminal, prints its path as the first line of\n"
+    "stdout (pty:LINK also keeps a symlink LINK to it, across simulated reconnects)\n"
+    "and streams at the rate until the motion ends (--loop repeats it). udp:HOST:PORT\n"
+    "sends the avatar's landmarks as JSON datagrams (schemas/vest-udp.schema.json);\n"
+    "FILE writes a recording (as fast as possible unless --realtime).\n\n"
+    "  --motion FILE   BVH, or AMC with --asf (CMU)\n"
+    "  --asf FILE      the ASF skeleton of an AMC motion\n"
+    "  --rate HZ       stream frames per second, 1..2000 (default 60)\n"
+    "  --faults LIST   drop=P and corrupt=P per packet (0..1), disconnect=T seconds\n"
+    "                  into the stream for down=S seconds (default 0.5)\n"
+    "  --loop          repeat the motion until stopped\n"
+    "  --seed K        seed of the fault randomness (default 0)\n"
+    "  --avatar MESH   avatar for udp output and --expected: a mesh, or synth[:S]\n"
+    "                  (default synth)\n"
+    "  --map FILE      the avatar's landmark map\n"
+    "  --pose P        tare pose of the avatar rig: rest, t or a (default: t or a,\n"
+    "                  whichever the motion's rest pose is nearer)\n"
+    "  --expected FILE write the landmarks each frame should give (the avatar's\n"
+    "                  forward kinematics of the motion), one JSON object per line\n"
+    "  -h, --help      this help\n";
+
 static int cmd_simulate(int argc, char **argv)
 {
     static const struct option lo[] = {
@@ -511,41 +550,9 @@ static int cmd_simulate(int argc, char **argv)
         else if (c == 'r') { if (real_arg("simulate", "rate", optarg, 1, 2000, &so.rate_hz)) return 2; }
         else if (c == 'f') { if (faults_arg(optarg, &so)) return 2; }
         else if (c == 'k') { if (mim_cli_number("vest simulate", "seed", optarg, 0, UINT64_MAX, &v)) return 2; so.seed = v; }
-        else if (c == 'h') {
-            printf("usage: mimic vest simulate --motion FILE.(bvh|amc) [--asf FILE] [--rate HZ]\n"
-                   "         [--faults drop=P,corrupt=P,disconnect=T[,down=S]] [--loop] [--seed K]\n"
-                   "         --out (pty[:LINK]|udp:HOST:PORT|FILE) [--avatar MESH --map FILE] [--pose P]\n"
-                   "         [--expected FILE] [--realtime]\n\n"
-                   "A simulated PrioVR vest driven by motion data: each of the 17 sensors reports its\n"
-                   "segment's rotation since the motion's rest pose (where the simulated wearer\n"
-                   "tared), in the exact hub wire protocol (schemas/vest-protocol.md).\n"
-                   "With --out pty it opens a pseudo-terminal, prints its path as the first line of\n"
-                   "stdout (pty:LINK also keeps a symlink LINK to it, across simulated reconnects)\n"
-                   "and streams at the rate until the motion ends (--loop repeats it). udp:HOST:PORT\n"
-                   "sends the avatar's landmarks as JSON datagrams (schemas/vest-udp.schema.json);\n"
-                   "FILE writes a recording (as fast as possible unless --realtime).\n\n"
-                   "  --motion FILE   BVH, or AMC with --asf (CMU)\n"
-                   "  --asf FILE      the ASF skeleton of an AMC motion\n"
-                   "  --rate HZ       stream frames per second, 1..2000 (default 60)\n"
-                   "  --faults LIST   drop=P and corrupt=P per packet (0..1), disconnect=T seconds\n"
-                   "                  into the stream for down=S seconds (default 0.5)\n"
-                   "  --loop          repeat the motion until stopped\n"
-                   "  --seed K        seed of the fault randomness (default 0)\n"
-                   "  --avatar MESH   avatar for udp output and --expected: a mesh, or synth[:S]\n"
-                   "                  (default synth)\n"
-                   "  --map FILE      the avatar's landmark map\n"
-                   "  --pose P        tare pose of the avatar rig: rest, t or a (default: t or a,\n"
-                   "                  whichever the motion's rest pose is nearer)\n"
-                   "  --expected FILE write the landmarks each frame should give (the avatar's\n"
-                   "                  forward kinematics of the motion), one JSON object per line\n"
-                   "  -h, --help      this help\n");
-            return 0;
-        } else return bad_option("simulate", argv);
+        else return help_or_bad_option(c, "simulate", simulate_help, argv);
     }
-    if (!motion || !out) {
-        fprintf(stderr, "mimic vest simulate: --motion FILE and --out are required (see mimic vest simulate --help)\n");
-        return 2;
-    }
+    if (!motion || !out) return usage_error("simulate", "--motion FILE and --out are required");
     mim_error_t err = {0};
     mim_vest_motion_t m;
     size_t ml = strlen(motion);

@@ -140,28 +140,14 @@ out:
 
 int mim_landmarks_read(mim_landmark_map_t *map, const char *path, mim_error_t *err)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f) return mim_error_set(err, MIM_ENOTFOUND, "%s: cannot open landmark map: %s", path, strerror(errno));
-    char *buf = NULL;
-    size_t len = 0, cap = 0;
-    int rc = 0;
-    for (;;) {
-        if (len + 4096 > cap) {
-            cap = cap ? cap * 2 : 8192;
-            char *nb = realloc(buf, cap);
-            if (!nb) {
-                rc = MIM_ENOMEM;
-                break;
-            }
-            buf = nb;
-        }
-        size_t got = fread(buf + len, 1, cap - len, f);
-        len += got;
-        if (got == 0) break;
-    }
-    if (!rc && ferror(f)) rc = mim_error_set(err, MIM_EIO, "%s: read error", path);
-    fclose(f);
-    if (!rc) rc = mim_landmarks_parse(map, buf, len, path, err);
+    char *buf;
+    size_t len;
+    mim_error_t e = {0};
+    int rc = mim_file_read(path, 0, &buf, &len, &e);
+    if (rc == MIM_EIO || rc == MIM_ENOMEM) return mim_error_set(err, rc, "%s", e.msg);
+    /* Callers expect any open failure as MIM_ENOTFOUND, named as the landmark map. */
+    if (rc) return mim_error_set(err, MIM_ENOTFOUND, "%s: cannot open landmark map: %s", path, mim_strerror(rc));
+    rc = mim_landmarks_parse(map, buf, len, path, err);
     free(buf);
     return rc;
 }

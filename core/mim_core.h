@@ -1,6 +1,7 @@
 /* mimic core: what every module shares and nothing else.
  * Error codes and mim_strerror, an error context with detail, the mesh
- * arrays type, small vector/quaternion math, hashing, progress and logging.
+ * arrays type, reading a file, small vector/quaternion math, hashing,
+ * progress and logging.
  * Uses nothing of mimic. */
 #ifndef MIM_CORE_H
 #define MIM_CORE_H
@@ -64,6 +65,14 @@ typedef struct mim_mesh {
 
 int mim_mesh_alloc(mim_mesh_t *m, uint32_t n_vertices, uint32_t n_faces);
 void mim_mesh_free(mim_mesh_t *m); /* accepts a zeroed mesh; zeroes it */
+
+/* ---- files ---- */
+/* Reads a file into a NUL-terminated buffer (*text, malloc'd, the caller
+ * frees; *len excludes the NUL). max_bytes 0 reads it all; otherwise at most
+ * max_bytes, the head of a longer file (to refuse a longer file, ask for one
+ * byte more than allowed and check *len). Errors, one line naming the path:
+ * cannot open (-errno), read error (MIM_EIO), out of memory (MIM_ENOMEM). */
+int mim_file_read(const char *path, size_t max_bytes, char **text, size_t *len, mim_error_t *err);
 
 /* ---- landmark map: which vertex is each landmark, and the mirror table ----
  * File format (DESIGN.md, schemas/landmarks.schema.json):

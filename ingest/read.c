@@ -29,29 +29,6 @@ static const char *format_name(int f)
 
 int mim_mesh_format_known(const char *path) { return mim__format_of(path) != FMT_UNKNOWN; }
 
-/* Reads the whole file (text formats) or its head (binary ones). */
-static int slurp(const char *path, size_t max, unsigned char **buf, size_t *len, mim_error_t *err)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f) return mim_error_set(err, -errno, "%s: cannot open: %s", path, strerror(errno));
-    unsigned char *b = malloc(max + 1);
-    if (!b) {
-        fclose(f);
-        return MIM_ENOMEM;
-    }
-    size_t n = fread(b, 1, max, f);
-    int bad = ferror(f);
-    fclose(f);
-    if (bad) {
-        free(b);
-        return mim_error_set(err, MIM_EIO, "%s: read error", path);
-    }
-    b[n] = 0;
-    *buf = b;
-    *len = n;
-    return 0;
-}
-
 static int validate(const char *path, int fmt, const mim__decl_t *d, mim__raw_mesh_t *raw, int shim_rc,
                     mim_error_t *err)
 {
@@ -113,28 +90,28 @@ int mim_mesh_read(const char *path, mim_mesh_t *out, mim_error_t *err)
 
     /* The head tells what the file declares; text files are then read whole
      * for the nan/inf scan (binary ones are checked by size and by value). */
-    unsigned char *buf = NULL;
+    char *buf = NULL;
     size_t len = 0;
-    int rc = slurp(path, HEAD_BYTES, &buf, &len, err);
+    int rc = mim_file_read(path, HEAD_BYTES, &buf, &len, err);
     if (rc) return rc;
     mim__decl_t d;
-    rc = mim__decl_parse(path, fmt, buf, len, (uint64_t)st.st_size, &d, err);
+    rc = mim__decl_parse(path, fmt, (const unsigned char *)buf, len, (uint64_t)st.st_size, &d, err);
     int text = !d.binary && fmt != FMT_GLTF && fmt != FMT_GLB;
     if (!rc && text && (uint64_t)st.st_size > len) {
         free(buf);
         buf = NULL;
-        rc = slurp(path, (size_t)st.st_size, &buf, &len, err);
+        rc = mim_file_read(path, (size_t)st.st_size, &buf, &len, err);
     }
     if (!rc && text) {
         char tok[32];
-        const char *body = fmt == FMT_PLY ? (const char *)buf + d.header_bytes : NULL;
-        uint64_t line = mim__text_nonfinite((const char *)buf, len, fmt, body, tok, sizeof tok);
+        const char *body = fmt == FMT_PLY ? buf + d.header_bytes : NULL;
+        uint64_t line = mim__text_nonfinite(buf, len, fmt, body, tok, sizeof tok);
         if (line)
             rc = mim_error_set(err, MIM_ENONFINITE, "%s:%llu: '%s' is not a finite coordinate", path,
                                (unsigned long long)line, tok);
-        else if (fmt == FMT_OBJ && mim__obj_last_line_cut((const char *)buf, len))
+        else if (fmt == FMT_OBJ && mim__obj_last_line_cut(buf, len))
             rc = mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: the last line stops part-way", path);
-        else if (fmt == FMT_OBJ && (line = mim__obj_bad_face_line((const char *)buf, len)))
+        else if (fmt == FMT_OBJ && (line = mim__obj_bad_face_line(buf, len)))
             rc = mim_error_set(err, MIM_EFORMAT, "%s:%llu: a face needs at least 3 vertex references like 7, 7/2 or 7//3",
                                path, (unsigned long long)line);
         else if (fmt == FMT_OFF && memchr(buf, '#', len))
@@ -142,8 +119,8 @@ int mim_mesh_read(const char *path, mim_mesh_t *out, mim_error_t *err)
             rc = mim_error_set(err, MIM_EUNSUPPORTED, "%s: OFF with '#' comment lines is not supported; remove the comments",
                                path);
         else if (fmt == FMT_OFF)
-            rc = mim__off_check(path, (const char *)buf, len, &d, err);
-        else if (fmt == FMT_STL && !mim__stl_ascii_complete((const char *)buf, len))
+            rc = mim__off_check(path, buf, len, &d, err);
+        else if (fmt == FMT_STL && !mim__stl_ascii_complete(buf, len))
             rc = mim_error_set(err, MIM_ETRUNCATED, "%s: truncated: ASCII STL without its closing endsolid", path);
     }
     /* Before the library reads: a body too short for the header's counts is
@@ -157,7 +134,7 @@ int mim_mesh_read(const char *path, mim_mesh_t *out, mim_error_t *err)
                                path, (unsigned long long)d.file_bytes, (long long)d.n_vertices, (long long)d.n_faces,
                                (unsigned long long)need);
     } else if (!rc && fmt == FMT_PLY && !d.binary) {
-        rc = mim__ply_ascii_check(path, (const char *)buf, len, &d, err);
+        rc = mim__ply_ascii_check(path, buf, len, &d, err);
     } else if (!rc && fmt == FMT_OFF && d.binary) {
         rc = mim_error_set(err, MIM_EUNSUPPORTED, "%s: binary OFF is not supported; use PLY", path);
     }

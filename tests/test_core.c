@@ -1,6 +1,7 @@
-/* core/: error texts and contexts, hashing, math, landmark maps. */
+/* core/: error texts and contexts, hashing, math, landmark maps, file reading. */
 #include "test_support.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -112,6 +113,40 @@ static void test_landmarks(void **s)
     assert_non_null(strstr(e.msg, "/nonexistent/landmarks.json"));
 }
 
+/* Reading a file: whole, its head, past a size hint, and a missing one. */
+static void test_file_read(void **s)
+{
+    (void)s;
+    char *dir = ts_tempdir("core-file"), *path = ts_path(dir, "f.bin");
+    size_t n = 200000, len;
+    char *data = malloc(n), *text;
+    for (size_t i = 0; i < n; i++) data[i] = (char)(i * 7 + 1);
+    assert_int_equal(ts_write_file(path, data, n), 0);
+    assert_int_equal(mim_file_read(path, 0, &text, &len, NULL), 0);
+    assert_int_equal(len, n);
+    assert_memory_equal(text, data, n);
+    assert_int_equal(text[n], 0);
+    free(text);
+    assert_int_equal(mim_file_read(path, 1000, &text, &len, NULL), 0);
+    assert_int_equal(len, 1000);
+    assert_memory_equal(text, data, 1000);
+    assert_int_equal(text[1000], 0);
+    free(text);
+    assert_int_equal(mim_file_read(path, n + 1, &text, &len, NULL), 0);
+    assert_int_equal(len, n);
+    free(text);
+    /* a file whose size says 0 is read to its end all the same */
+    assert_int_equal(mim_file_read("/proc/self/status", 0, &text, &len, NULL), 0);
+    assert_true(len > 0 && strlen(text) == len);
+    free(text);
+    mim_error_t e = {0};
+    assert_int_equal(mim_file_read("/nonexistent/f", 0, &text, &len, &e), -ENOENT);
+    assert_null(text);
+    assert_non_null(strstr(e.msg, "/nonexistent/f: cannot open: "));
+    ts_rmtree(dir);
+    free(data), free(path), free(dir);
+}
+
 /* Landmark frames: both layouts, nulls, and each bad input with where. */
 static void test_landmark_frames(void **s)
 {
@@ -175,6 +210,7 @@ int main(void)
         cmocka_unit_test(test_hash),
         cmocka_unit_test(test_quaternions),
         cmocka_unit_test(test_landmarks),
+        cmocka_unit_test(test_file_read),
         cmocka_unit_test(test_landmark_frames),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

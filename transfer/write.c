@@ -163,6 +163,15 @@ static int write_atomic(const char *path, const unsigned char *data, size_t size
     return 0;
 }
 
+int mim__bytes_copy(mim__bytes_t *out, const void *data, size_t size)
+{
+    out->data = malloc(size ? size : 1);
+    if (!out->data) return MIM_ENOMEM;
+    memcpy(out->data, data, size);
+    out->size = size;
+    return 0;
+}
+
 static int encoded(const char *path, int rc, const char *msg, mim__bytes_t *b, mim_error_t *err)
 {
     if (rc == MIM_ENOMEM)

@@ -186,11 +186,7 @@ extern "C" int mim__gltf_encode(const mim__gltf_frames_t *in, mim__bytes_t *out,
         if (!writer.WriteGltfSceneToStream(&m, os, false, true) || !os)
             return fail(msg, msg_size, MIM_EIO, "tinygltf could not encode the GLB");
         std::string s = os.str();
-        out->data = static_cast<unsigned char *>(std::malloc(s.size() ? s.size() : 1));
-        if (!out->data) return MIM_ENOMEM;
-        std::memcpy(out->data, s.data(), s.size());
-        out->size = s.size();
-        return 0;
+        return mim__bytes_copy(out, s.data(), s.size());
     } catch (const std::bad_alloc &) {
         return MIM_ENOMEM;
     } catch (const std::exception &e) {

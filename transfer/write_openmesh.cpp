@@ -28,6 +28,17 @@ namespace {
 using namespace OpenMesh;
 using namespace OpenMesh::IO;
 
+// The colour and status queries of one kind of element: mimic writes
+// neither (the exporter's has_*_colors() and has_*_status() stay false).
+#define NO_COLORS_OR_STATUS(Handle)                                                                 \
+    Vec3uc color(Handle) const override { return Vec3uc(0, 0, 0); }                                 \
+    Vec4uc colorA(Handle) const override { return Vec4uc(0, 0, 0, 0); }                             \
+    Vec3ui colori(Handle) const override { return Vec3ui(0, 0, 0); }                                \
+    Vec4ui colorAi(Handle) const override { return Vec4ui(0, 0, 0, 0); }                            \
+    Vec3f colorf(Handle) const override { return Vec3f(0, 0, 0); }                                  \
+    Vec4f colorAf(Handle) const override { return Vec4f(0, 0, 0, 0); }                              \
+    Attributes::StatusInfo status(Handle) const override { return Attributes::StatusInfo(); }
+
 // Positions and triangles of a mim_mesh_t; everything else is absent.
 class ArrayExporter : public BaseExporter {
 public:
@@ -47,15 +58,9 @@ public:
     Vec3f normal(VertexHandle) const override { return Vec3f(0, 0, 0); }
     Vec3d normald(VertexHandle) const override { return Vec3d(0, 0, 0); }
     bool is_normal_double() const override { return false; }
-    Vec3uc color(VertexHandle) const override { return Vec3uc(0, 0, 0); }
-    Vec4uc colorA(VertexHandle) const override { return Vec4uc(0, 0, 0, 0); }
-    Vec3ui colori(VertexHandle) const override { return Vec3ui(0, 0, 0); }
-    Vec4ui colorAi(VertexHandle) const override { return Vec4ui(0, 0, 0, 0); }
-    Vec3f colorf(VertexHandle) const override { return Vec3f(0, 0, 0); }
-    Vec4f colorAf(VertexHandle) const override { return Vec4f(0, 0, 0, 0); }
+    NO_COLORS_OR_STATUS(VertexHandle)
     Vec2f texcoord(VertexHandle) const override { return Vec2f(0, 0); }
     Vec2f texcoord(HalfedgeHandle) const override { return Vec2f(0, 0); }
-    Attributes::StatusInfo status(VertexHandle) const override { return Attributes::StatusInfo(); }
 
     unsigned int get_vhandles(FaceHandle f, std::vector<VertexHandle> &vh) const override
     {
@@ -72,21 +77,8 @@ public:
     }
     Vec3f normal(FaceHandle) const override { return Vec3f(0, 0, 0); }
     Vec3d normald(FaceHandle) const override { return Vec3d(0, 0, 0); }
-    Vec3uc color(FaceHandle) const override { return Vec3uc(0, 0, 0); }
-    Vec4uc colorA(FaceHandle) const override { return Vec4uc(0, 0, 0, 0); }
-    Vec3ui colori(FaceHandle) const override { return Vec3ui(0, 0, 0); }
-    Vec4ui colorAi(FaceHandle) const override { return Vec4ui(0, 0, 0, 0); }
-    Vec3f colorf(FaceHandle) const override { return Vec3f(0, 0, 0); }
-    Vec4f colorAf(FaceHandle) const override { return Vec4f(0, 0, 0, 0); }
-    Attributes::StatusInfo status(FaceHandle) const override { return Attributes::StatusInfo(); }
-
-    Vec3uc color(EdgeHandle) const override { return Vec3uc(0, 0, 0); }
-    Vec4uc colorA(EdgeHandle) const override { return Vec4uc(0, 0, 0, 0); }
-    Vec3ui colori(EdgeHandle) const override { return Vec3ui(0, 0, 0); }
-    Vec4ui colorAi(EdgeHandle) const override { return Vec4ui(0, 0, 0, 0); }
-    Vec3f colorf(EdgeHandle) const override { return Vec3f(0, 0, 0); }
-    Vec4f colorAf(EdgeHandle) const override { return Vec4f(0, 0, 0, 0); }
-    Attributes::StatusInfo status(EdgeHandle) const override { return Attributes::StatusInfo(); }
+    NO_COLORS_OR_STATUS(FaceHandle)
+    NO_COLORS_OR_STATUS(EdgeHandle)
 
     // Half-edge queries serve only the OM format, which mimic does not write.
     int get_halfedge_id(VertexHandle) override { return -1; }
@@ -112,6 +104,7 @@ public:
 private:
     const mim_mesh_t *m_;
 };
+#undef NO_COLORS_OR_STATUS
 
 // A stream buffer that accepts and drops every character (see the reader:
 // OpenMesh's log streams are not thread-safe and deadlock on long messages).
@@ -168,11 +161,7 @@ extern "C" int mim__openmesh_encode(const mim_mesh_t *mesh, const char *format, 
             return MIM_EIO;
         }
         std::string s = os.str();
-        out->data = static_cast<unsigned char *>(std::malloc(s.size() ? s.size() : 1));
-        if (!out->data) return MIM_ENOMEM;
-        std::memcpy(out->data, s.data(), s.size());
-        out->size = s.size();
-        return 0;
+        return mim__bytes_copy(out, s.data(), s.size());
     } catch (const std::bad_alloc &) {
         std::free(out->data);
         out->data = nullptr;

@@ -20,6 +20,10 @@ typedef struct mim__bytes {
     size_t size;
 } mim__bytes_t;
 
+/* Copies what a shim encoded into out (malloc'd, never NULL when it
+ * succeeds, even for 0 bytes). Returns 0 or MIM_ENOMEM. */
+int mim__bytes_copy(mim__bytes_t *out, const void *data, size_t size);
+
 /* PLY (binary little-endian), OBJ or OFF through OpenMesh's writers;
  * format is "ply", "obj" or "off". Text formats print 9 significant digits
  * (float32 reads back exactly). Returns 0, MIM_ENOMEM, or MIM_EIO with what

@@ -5,7 +5,6 @@
  * beside right hip) and mapped to mimic's +Y and +X. */
 #include "motion_internal.h"
 
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -41,35 +40,14 @@ mim_quat mim__axis_rot(int axis, double deg)
 
 int mim__read_text(const char *path, char **text, size_t *len, mim_error_t *err)
 {
-    *text = NULL;
-    FILE *f = fopen(path, "rb");
-    if (!f) return mim_error_set(err, -errno, "%s: %s", path, strerror(errno));
-    size_t cap = 1 << 16, n = 0;
-    char *b = malloc(cap);
-    for (;;) {
-        if (!b) {
-            fclose(f);
-            return mim_error_set(err, MIM_ENOMEM, "%s: out of memory", path);
-        }
-        n += fread(b + n, 1, cap - n - 1, f);
-        if (n < cap - 1) break;
-        if (cap > (1u << 30)) {
-            free(b), fclose(f);
-            return mim_error_set(err, MIM_EFORMAT, "%s: motion file over 1 GiB", path);
-        }
-        char *nb = realloc(b, cap *= 2);
-        if (!nb) free(b);
-        b = nb;
+    const size_t limit = (size_t)1 << 30;
+    int rc = mim_file_read(path, limit + 1, text, len, err);
+    if (!rc && *len > limit) {
+        free(*text);
+        *text = NULL;
+        rc = mim_error_set(err, MIM_EFORMAT, "%s: motion file over 1 GiB", path);
     }
-    int bad = ferror(f);
-    fclose(f);
-    if (bad) {
-        free(b);
-        return mim_error_set(err, MIM_EIO, "%s: read error", path);
-    }
-    b[n] = 0;
-    *text = b, *len = n;
-    return 0;
+    return rc;
 }
 
 static int find_joint(const mim__motion_src_t *src, uint32_t s)

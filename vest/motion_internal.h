@@ -25,7 +25,7 @@ typedef struct mim__motion_src {
 int mim__motion_build(mim_vest_motion_t *m, const mim__motion_src_t *src, const char *origin, mim_error_t *err);
 /* Rotation of `deg` degrees about axis 0 (X), 1 (Y) or 2 (Z). */
 mim_quat mim__axis_rot(int axis, double deg);
-/* Reads a whole file (malloc'd, NUL-terminated). */
+/* Reads a whole file (malloc'd, NUL-terminated); over 1 GiB is MIM_EFORMAT. */
 int mim__read_text(const char *path, char **text, size_t *len, mim_error_t *err);
 
 #endif

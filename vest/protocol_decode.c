@@ -221,19 +221,24 @@ static int check_wired(mim_vest_decoder_t *d, const uint8_t *p, uint64_t now_us)
     return -1;
 }
 
+/* How far to move on past a candidate packet of `total` bytes that check
+ * returned r for: a rejection (r >= 0) is counted and the scan resyncs from
+ * the next byte; an accepted packet is skipped whole. */
+static size_t advance(mim_vest_decoder_t *d, int r, size_t total, uint32_t *accepted)
+{
+    if (r >= 0) {
+        d->st.rejected[r]++;
+        d->st.skipped_bytes++;
+        return 1;
+    }
+    (*accepted)++;
+    return total;
+}
+
 static size_t scan_wired(mim_vest_decoder_t *d, const uint8_t *p, size_t n, uint64_t now_us, uint32_t *accepted)
 {
     size_t i = 0, total = d->hs + MIM_VEST_SLOT_BYTES;
-    while (n - i >= total) {
-        int r = check_wired(d, p + i, now_us);
-        if (r >= 0) {
-            d->st.rejected[r]++;
-            d->st.skipped_bytes++, i++;
-            continue;
-        }
-        (*accepted)++;
-        i += total;
-    }
+    while (n - i >= total) i += advance(d, check_wired(d, p + i, now_us), total, accepted);
     return i;
 }
 
@@ -253,19 +258,11 @@ static size_t scan(mim_vest_decoder_t *d, const uint8_t *p, size_t n, uint64_t n
         for (int b = 0; b < 8; b++) ns += (uint32_t)__builtin_popcount(hub[11 + b]);
         size_t total = fixed + (size_t)ns * MIM_VEST_SLOT_BYTES;
         if (total > MIM_VEST_MAX_PACKET) {
-            d->st.rejected[MIM_VEST_REJ_LENGTH]++;
-            d->st.skipped_bytes++, i++;
+            i += advance(d, MIM_VEST_REJ_LENGTH, total, accepted);
             continue;
         }
         if (n - i < total) break;
-        int r = check_and_emit(d, p + i, total, ns, now_us);
-        if (r >= 0) {
-            d->st.rejected[r]++;
-            d->st.skipped_bytes++, i++;
-            continue;
-        }
-        (*accepted)++;
-        i += total;
+        i += advance(d, check_and_emit(d, p + i, total, ns, now_us), total, accepted);
     }
     return i;
 }

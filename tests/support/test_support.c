@@ -47,16 +47,10 @@ const char *ts_mimic_bin(void)
 
 char *ts_read_file(const char *path, size_t *len)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *b = malloc((size_t)n + 1);
-    size_t got = fread(b, 1, (size_t)n, f);
-    fclose(f);
-    b[got] = 0;
-    if (len) *len = got;
+    char *b;
+    size_t n;
+    if (mim_file_read(path, 0, &b, &n, NULL)) return NULL;
+    if (len) *len = n;
     return b;
 }
 
