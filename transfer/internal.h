@@ -33,11 +33,11 @@ struct mim_xfer_solver {
      * 3n right-hand side scratch */
     double *pos, *prev, *frames, *r, *fn;
     double *mframes, *mW; /* morph: frames and W of one in-between pose */
-    /* low-rank least squares: U = L_cf^T has -1 at (j, c) for each free
-     * one-ring neighbour j of constrained vertex c (u_start/u_free, CSR
-     * by c); Zs = (L^c)^-2 U S^-1, n_free x nc row-major, S = I + U^T
-     * (L^c)^-2 U; rc = the constrained rows of the residual target, nc x 3 */
-    uint32_t *u_start, *u_free;
+    /* low-rank least squares: K = L_cf^T has -1 at (j, c) for each free
+     * one-ring neighbour j of constrained vertex c (k_start/k_free, CSR
+     * by c); Zs = (L^c)^-2 K S^-1, n_free x nc column-major, S = I + K^T
+     * (L^c)^-2 K; rc = the constrained rows of the residual target, nc x 3 */
+    uint32_t *k_start, *k_free;
     /* the constraint terms of the right-hand side, -L_:c U (square: free
      * rows only): row slot (as slot[]), constraint, coefficient */
     struct mim__xfer_cterm { int32_t row; uint32_t con; double coef; } *cterm;

@@ -10,20 +10,21 @@
  * ||L_:f X_f + L_:c U - F*W||^2, whose normal matrix L_:f^T L_:f = L_f: L_:f
  * is SPD too.
  * The normal matrix has the two-ring pattern, and its factor about 2.7x
- * the fill of L^c's. But L_:f^T L_:f = (L^c)^2 + U U^T with U = L_cf^T,
+ * the fill of L^c's. But L_:f^T L_:f = (L^c)^2 + K K^T with K = L_cf^T,
  * only nc (16) columns: so by the Woodbury identity the least-squares
  * solution is
- *     x = y + Z S^-1 (r_c - U^T y),   y = (L^c)^-1 r_f,
- *     Z = (L^c)^-2 U,  S = I + U^T Z   (nc x nc),
+ *     x = y + Z S^-1 (r_c - K^T y),   y = (L^c)^-1 r_f,
+ *     Z = (L^c)^-2 K,  S = I + K^T Z   (nc x nc),
  * where r is the residual target F*W - L_:c U split into free rows r_f and
- * constrained rows r_c (check: (L^c^2 + U U^T) x = L^c r_f + U r_c, the
+ * constrained rows r_c (check: ((L^c)^2 + K K^T) x = L^c r_f + K r_c, the
  * normal equations' right-hand side). Z S^-1 is computed once at open, so
  * a least-squares solve costs one L^c solve plus an n_free x nc product.
  * Either way the factor depends only on the connectivity and the
  * constrained set, so it is analysed and factored once here and every
- * transfer (any avatar, any template, any landmark positions) reuses it. Factors are simplicial
- * (faster than supernodal at 5-20k vertices); B, X and the solve workspaces
- * Y, E are allocated once and reused through cholmod_solve2. */
+ * transfer (any avatar, any template, any landmark positions) reuses it.
+ * Factors are simplicial (faster than supernodal at 5-20k vertices); B, X
+ * and the solve workspaces Y, E are allocated once and reused through
+ * cholmod_solve2. */
 #include "internal.h"
 
 #include <math.h>
@@ -160,62 +161,62 @@ static int check_components(mim_xfer_solver_t *s, mim_error_t *err)
     return rc;
 }
 
-/* The low-rank least-squares terms (see the top of this file): U as CSR
- * by constraint, Zs = Z S^-1 row-major, and the r_c workspace. */
+/* The low-rank least-squares terms (see the top of this file): K as CSR
+ * by constraint, Zs = Z S^-1 (column-major), and the r_c workspace. */
 static int setup_low_rank(mim_xfer_solver_t *s, mim_error_t *err)
 {
     const mim_xfer_topology_t *t = s->topo;
     const uint32_t nc = s->nc, nf = s->nf;
-    s->u_start = malloc(((size_t)nc + 1) * sizeof *s->u_start);
+    s->k_start = malloc(((size_t)nc + 1) * sizeof *s->k_start);
     s->Zs = malloc((size_t)nf * nc * sizeof *s->Zs);
     s->rc = malloc(6 * (size_t)nc * sizeof *s->rc); /* r_c, then d */
     double *S = malloc((size_t)nc * nc * sizeof *S);
-    if (!s->u_start || !s->Zs || !s->rc || !S) {
+    if (!s->k_start || !s->Zs || !s->rc || !S) {
         free(S);
         return mim_error_set(err, MIM_ENOMEM, "transfer: out of memory");
     }
     size_t cnt = 0;
     for (uint32_t c = 0; c < nc; c++) {
-        s->u_start[c] = (uint32_t)cnt;
+        s->k_start[c] = (uint32_t)cnt;
         uint32_t v = s->cons[c];
         for (uint32_t k = t->adj_start[v]; k < t->adj_start[v + 1]; k++)
             cnt += s->slot[t->adj[k]] >= 0;
     }
-    s->u_start[nc] = (uint32_t)cnt;
-    s->u_free = malloc((cnt ? cnt : 1) * sizeof *s->u_free);
-    cholmod_dense *U = cholmod_zeros(nf, nc, CHOLMOD_REAL, &s->cc);
-    if (!s->u_free || !U) {
+    s->k_start[nc] = (uint32_t)cnt;
+    s->k_free = malloc((cnt ? cnt : 1) * sizeof *s->k_free);
+    cholmod_dense *K = cholmod_zeros(nf, nc, CHOLMOD_REAL, &s->cc);
+    if (!s->k_free || !K) {
         free(S);
-        cholmod_free_dense(&U, &s->cc);
+        cholmod_free_dense(&K, &s->cc);
         return mim_error_set(err, MIM_ENOMEM, "transfer: out of memory");
     }
-    double *Ux = U->x;
+    double *Kx = K->x;
     for (uint32_t c = 0, w = 0; c < nc; c++) {
         uint32_t v = s->cons[c];
         for (uint32_t k = t->adj_start[v]; k < t->adj_start[v + 1]; k++) {
             int32_t q = s->slot[t->adj[k]];
             if (q >= 0) {
-                s->u_free[w++] = (uint32_t)q;
-                Ux[(size_t)c * nf + (uint32_t)q] = -1.0;
+                s->k_free[w++] = (uint32_t)q;
+                Kx[(size_t)c * nf + (uint32_t)q] = -1.0;
             }
         }
     }
-    cholmod_dense *Z1 = cholmod_solve(CHOLMOD_A, s->L, U, &s->cc);
+    cholmod_dense *Z1 = cholmod_solve(CHOLMOD_A, s->L, K, &s->cc);
     cholmod_dense *Z = Z1 ? cholmod_solve(CHOLMOD_A, s->L, Z1, &s->cc) : NULL;
     cholmod_free_dense(&Z1, &s->cc);
-    cholmod_free_dense(&U, &s->cc);
+    cholmod_free_dense(&K, &s->cc);
     if (!Z) {
         free(S);
         return mim_error_set(err, MIM_EUNSUPPORTED, "transfer: CHOLMOD solve failed: %s",
                              chol_status(s->cc.status));
     }
     const double *Zx = Z->x; /* nf x nc, column-major */
-    /* S = I + U^T Z, then its Cholesky factor in place (lower) */
+    /* S = I + K^T Z, then its Cholesky factor in place (lower) */
     for (uint32_t a = 0; a < nc; a++)
         for (uint32_t b = 0; b < nc; b++) {
             double v = a == b ? 1.0 : 0.0;
-            for (uint32_t k = s->u_start[a]; k < s->u_start[a + 1]; k++)
-                v -= Zx[(size_t)b * nf + s->u_free[k]];
+            for (uint32_t k = s->k_start[a]; k < s->k_start[a + 1]; k++)
+                v -= Zx[(size_t)b * nf + s->k_free[k]];
             S[a * nc + b] = v;
         }
     int rc = 0;
@@ -450,8 +451,8 @@ void mim_xfer_solver_close(mim_xfer_solver_t **sp)
     free(s->mframes);
     free(s->mW);
     free(s->cterm);
-    free(s->u_start);
-    free(s->u_free);
+    free(s->k_start);
+    free(s->k_free);
     free(s->Zs);
     free(s->rc);
     free(s);
@@ -472,14 +473,14 @@ int mim__xfer_solve(mim_xfer_solver_t *s, mim_error_t *err)
     int rc = plain_solve(s, err);
     if (rc || !s->low_rank)
         return rc;
-    /* x = y + Zs d,  d = r_c - U^T y (U's entries are -1) */
+    /* x = y + Zs d,  d = r_c - K^T y (K's entries are -1) */
     const uint32_t nc = s->nc, nf = s->nf;
     double *X = s->X->x, *d = s->rc + 3 * (size_t)nc;
     for (uint32_t c = 0; c < nc; c++)
         for (uint32_t k = 0; k < 3; k++) {
             double v = s->rc[3 * c + k];
-            for (uint32_t q = s->u_start[c]; q < s->u_start[c + 1]; q++)
-                v += X[(size_t)k * nf + s->u_free[q]];
+            for (uint32_t q = s->k_start[c]; q < s->k_start[c + 1]; q++)
+                v += X[(size_t)k * nf + s->k_free[q]];
             d[3 * c + k] = v;
         }
     /* column by column: three axpys of length nf per constraint, which
