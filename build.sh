@@ -14,7 +14,7 @@ PACKAGES=(
   libopenmesh-dev libtinygltf-dev
   liblmdb-dev libjansson-dev libcmocka-dev
   libsuitesparse-dev libopenblas-dev libflann-dev libsvm-dev
-  libhidapi-dev
+  libhidapi-dev libcivetweb-dev
   python3-jsonschema
 )
 

@@ -44,7 +44,7 @@ static int parse_keys(const char *text, uint64_t *keys, uint32_t *count)
             fprintf(stderr, "mimic morph: --keys: more than %d keys\n", KEYS_MAX);
             return -1;
         }
-        if (mim_cli_template_id("morph", tok, &keys[*count])) return -1;
+        if (mim_serve_template_id("morph", tok, &keys[*count])) return -1;
         (*count)++;
     }
     if (*count < 2) {
@@ -113,8 +113,8 @@ int mim_cmd_morph(int argc, char **argv)
     }
 
     mim_error_t err = {0};
-    mim_cli_session_t s;
-    int rc = mim_cli_session_open(&s, store, avatar, &err);
+    mim_serve_session_t s;
+    int rc = mim_serve_session_open(&s, store, avatar, &err);
     const uint32_t n = s.mesh.n_vertices, nl = s.map.count;
     const size_t n_frames = (size_t)(n_keys - 1) * (between + 1) + 1;
     mim_landmark_frames_t lmf = {0};
@@ -143,7 +143,7 @@ int mim_cmd_morph(int argc, char **argv)
     uint32_t iterations = 0;
     for (uint32_t k = 0; k < n_keys && !rc; k++) {
         float *u = klm + (size_t)k * 3 * nl, *x = kpos + (size_t)k * 3 * n;
-        rc = mim_cli_session_template(&s, keys[k], tpos, F, NULL, 0, &err);
+        rc = mim_serve_session_template(&s, keys[k], tpos, F, NULL, 0, &err);
         if (!rc) {
             if (lm_path) memcpy(u, lmf.positions + (size_t)k * 3 * nl, 3 * (size_t)nl * sizeof *u);
             else rc = mim_xfer_retarget_landmarks(&s.map, s.mesh.positions, tpos, u, &err);
@@ -193,6 +193,6 @@ int mim_cmd_morph(int argc, char **argv)
     mim_xfer_solver_close(&solver);
     mim_landmark_frames_free(&lmf);
     free(kpos), free(klm), free(kq), free(kW), free(F), free(tpos), free(seq);
-    mim_cli_session_close(&s);
+    mim_serve_session_close(&s);
     return rc ? 1 : 0;
 }

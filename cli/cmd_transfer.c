@@ -114,12 +114,12 @@ int mim_cmd_transfer(int argc, char **argv)
                         "(see mimic transfer --help)\n");
         return 2;
     }
-    if (tmpl_arg && mim_cli_template_id("transfer", tmpl_arg, &tmpl_id)) return 2;
+    if (tmpl_arg && mim_serve_template_id("transfer", tmpl_arg, &tmpl_id)) return 2;
 
     mim_error_t err = {0};
-    mim_cli_session_t s;
+    mim_serve_session_t s;
     double t0 = mim_now();
-    int rc = mim_cli_session_open(&s, store, avatar, &err);
+    int rc = mim_serve_session_open(&s, store, avatar, &err);
     const uint32_t n = s.mesh.n_vertices, nl = s.map.count;
     float u[3 * MIM_LANDMARKS_MAX];
     mim_landmark_frames_t frames = {0};
@@ -136,7 +136,7 @@ int mim_cmd_transfer(int argc, char **argv)
     double *F = malloc(9 * (size_t)(n ? n : 1) * sizeof *F);
     char label[256] = "";
     if (!rc && (!tpos || !out || !F)) rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for %u vertices", n);
-    if (!rc) rc = mim_cli_session_template(&s, tmpl_id, tpos, F, label, sizeof label, &err);
+    if (!rc) rc = mim_serve_session_template(&s, tmpl_id, tpos, F, label, sizeof label, &err);
     /* mode (a): no landmarks given, so they come from the template */
     if (!rc && !lm_path) rc = mim_xfer_retarget_landmarks(&s.map, s.mesh.positions, tpos, u, &err);
     double t_load = mim_now() - t0;
@@ -180,6 +180,6 @@ int mim_cmd_transfer(int argc, char **argv)
     mim_xfer_solver_close(&solver);
     mim_landmark_frames_free(&frames);
     free(tpos), free(out), free(F);
-    mim_cli_session_close(&s);
+    mim_serve_session_close(&s);
     return rc ? 1 : 0;
 }

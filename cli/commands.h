@@ -13,5 +13,6 @@ int mim_cmd_query(int argc, char **argv);
 int mim_cmd_vest(int argc, char **argv);
 int mim_cmd_transfer(int argc, char **argv);
 int mim_cmd_morph(int argc, char **argv);
+int mim_cmd_serve(int argc, char **argv);
 
 #endif

@@ -19,6 +19,7 @@ static const struct {
     {"transfer", mim_cmd_transfer, "deform an avatar into a template's pose and/or landmarks"},
     {"morph", mim_cmd_morph, "key poses and the poses between them, as a GLB animation"},
     {"vest", mim_cmd_vest, "list, record, replay or simulate a tracking vest"},
+    {"serve", mim_cmd_serve, "serve pose transfer over HTTP (JSON API, metrics)"},
 };
 
 static void usage(FILE *out)

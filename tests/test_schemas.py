@@ -22,7 +22,9 @@ def load(name):
 SCHEMAS = {s["$id"]: s for s in map(load, ["info.schema.json", "list.schema.json", "landmarks.schema.json",
                                             "index.schema.json", "query.schema.json", "transfer.schema.json",
                                             "morph.schema.json", "landmark-frames.schema.json",
-                                            "vest-udp.schema.json", "vest-replay.schema.json"])}
+                                            "vest-udp.schema.json", "vest-replay.schema.json",
+                                            "serve-status.schema.json", "serve-avatar.schema.json",
+                                            "serve-transfer-request.schema.json", "serve-error.schema.json"])}
 
 
 def validator(schema_id):
@@ -135,6 +137,49 @@ def vest_cases(d):
             ("/mimic/schemas/landmark-frames.schema.json", marks[0], "vest replay landmarks as a query frame")]
 
 
+def serve_cases(store, one, vest_rec):
+    """mimic serve's JSON answers (and a transfer request), fetched over HTTP;
+    then its status with a vest recording played to the end."""
+    import time
+    import urllib.error
+    import urllib.request
+    p = subprocess.Popen([MIMIC, "serve", "--store", store, "--avatar", "1", "--listen", "127.0.0.1:0"],
+                         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    v = subprocess.Popen([MIMIC, "serve", "--store", store, "--avatar", "1", "--listen", "127.0.0.1:0",
+                          "--vest", vest_rec, "--vest-pose", "t"],
+                         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        url = p.stdout.readline().strip().rstrip("/")
+
+        def fetch(path, body=None):
+            data = None if body is None else body.encode()
+            try:
+                with urllib.request.urlopen(urllib.request.Request(url + path, data=data), timeout=60) as r:
+                    return json.loads(r.read())
+            except urllib.error.HTTPError as e:
+                return json.loads(e.read())
+        cases = [("/mimic/schemas/serve-status.schema.json", fetch("/api/status"), "serve /api/status"),
+                 ("/mimic/schemas/serve-avatar.schema.json", fetch("/api/avatar"), "serve /api/avatar"),
+                 ("/mimic/schemas/query.schema.json", fetch("/api/query?k=3", json.dumps(one)), "serve /api/query"),
+                 ("/mimic/schemas/serve-error.schema.json", fetch("/api/query", "{\"landmarks\": ["),
+                  "serve error (malformed JSON)"),
+                 ("/mimic/schemas/serve-error.schema.json", fetch("/nothing"), "serve error (unknown route)"),
+                 ("/mimic/schemas/serve-transfer-request.schema.json", dict(one, template=4),
+                  "serve transfer request")]
+        url = v.stdout.readline().strip().rstrip("/")
+        for _ in range(600):
+            status = fetch("/api/status")
+            if status["vest"]["state"] != "streaming":
+                break
+            time.sleep(0.1)
+        cases.append(("/mimic/schemas/serve-status.schema.json", status, "serve /api/status (vest ended)"))
+    finally:
+        for proc in (p, v):
+            proc.terminate()
+            proc.wait(timeout=60)
+    return cases
+
+
 def main():
     passed = failed = 0
     with tempfile.TemporaryDirectory(prefix="mimic-schemas-") as d:
@@ -182,7 +227,7 @@ def main():
             ("/mimic/schemas/list.schema.json", json.loads(run("list", "--store", store, "--pose", "9", "--json")), "list (none)"),
             ("/mimic/schemas/landmarks.schema.json", landmarks, "synth landmarks.json"),
         ]
-        for schema_id, doc, what in cases + vest_cases(d):
+        for schema_id, doc, what in cases + vest_cases(d) + serve_cases(store, one, os.path.join(d, "vest.rec")):
             errors = list(validator(schema_id).iter_errors(doc))
             if errors:
                 failed += 1

@@ -1,4 +1,4 @@
-/* Store, avatar and templates for transfer and morph (session.h). */
+/* Store, avatar and templates for transfer, morph and serve (session.h). */
 #include "session.h"
 
 #include "mim_ingest.h"
@@ -17,7 +17,7 @@ static int all_digits(const char *s)
     return 1;
 }
 
-int mim_cli_template_id(const char *cmd, const char *text, uint64_t *id)
+int mim_serve_template_id(const char *cmd, const char *text, uint64_t *id)
 {
     char *end = NULL;
     unsigned long long v = all_digits(text) ? strtoull(text, &end, 10) : 0;
@@ -29,7 +29,7 @@ int mim_cli_template_id(const char *cmd, const char *text, uint64_t *id)
     return 0;
 }
 
-void mim_cli_landmarks_of(const mim_landmark_map_t *map, const float *positions, float *out)
+void mim_serve_landmarks_of(const mim_landmark_map_t *map, const float *positions, float *out)
 {
     for (uint32_t k = 0; k < map->count; k++)
         for (int c = 0; c < 3; c++)
@@ -37,7 +37,7 @@ void mim_cli_landmarks_of(const mim_landmark_map_t *map, const float *positions,
 }
 
 /* Reads the store's connectivity and landmark map into s. */
-static int load_store(mim_cli_session_t *s, const char *store, mim_error_t *err)
+static int load_store(mim_serve_session_t *s, const char *store, mim_error_t *err)
 {
     mim_db_options_t o = {.read_only = 1};
     int rc = mim_db_open(&s->db, store, &o, err);
@@ -58,7 +58,7 @@ static int load_store(mim_cli_session_t *s, const char *store, mim_error_t *err)
     return rc;
 }
 
-int mim_cli_session_open(mim_cli_session_t *s, const char *store, const char *avatar, mim_error_t *err)
+int mim_serve_session_open(mim_serve_session_t *s, const char *store, const char *avatar, mim_error_t *err)
 {
     memset(s, 0, sizeof *s);
     int rc = load_store(s, store, err);
@@ -73,7 +73,7 @@ int mim_cli_session_open(mim_cli_session_t *s, const char *store, const char *av
         double *F = malloc(9 * (size_t)n * sizeof *F);
         if (!F)
             return mim_error_set(err, MIM_ENOMEM, "out of memory for %u vertices", n);
-        rc = mim_cli_session_template(s, id, s->mesh.positions, F, NULL, 0, err);
+        rc = mim_serve_session_template(s, id, s->mesh.positions, F, NULL, 0, err);
         if (!rc)
             mim_xfer_encode(s->topo, s->mesh.positions, F, s->W);
         free(F);
@@ -99,7 +99,7 @@ int mim_cli_session_open(mim_cli_session_t *s, const char *store, const char *av
     return rc;
 }
 
-int mim_cli_session_template(mim_cli_session_t *s, uint64_t id, float *positions, double *frames, char *label,
+int mim_serve_session_template(mim_serve_session_t *s, uint64_t id, float *positions, double *frames, char *label,
                              size_t label_size, mim_error_t *err)
 {
     mim_db_txn_t *t = NULL;
@@ -130,7 +130,7 @@ int mim_cli_session_template(mim_cli_session_t *s, uint64_t id, float *positions
     return rc;
 }
 
-void mim_cli_session_close(mim_cli_session_t *s)
+void mim_serve_session_close(mim_serve_session_t *s)
 {
     mim_xfer_topology_close(&s->topo);
     mim_mesh_free(&s->mesh);

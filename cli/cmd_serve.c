@@ -1,0 +1,118 @@
+/* mimic serve: the HTTP JSON API over a store and an avatar (mim_serve.h),
+ * until SIGINT or SIGTERM. */
+#include "args.h"
+#include "commands.h"
+#include "mim_serve.h"
+#include "mim_vest.h"
+
+#include <getopt.h>
+#include <signal.h>
+#include <stdio.h>
+#include <string.h>
+
+static void help(FILE *out)
+{
+    fprintf(out,
+            "usage: mimic serve --store DIR --avatar (MESH|ID) [--vest SPEC [--vest-pose rest|t|a]]\n"
+            "                   [--listen HOST:PORT] [--max-body BYTES]\n\n"
+            "Serves pose transfer over HTTP until Ctrl-C or SIGTERM. Prints the URL on stdout.\n"
+            "With --vest, each complete vest frame becomes landmarks on the avatar, then (when\n"
+            "the store has an index) a key frame: nearest template, then transfer.\n\n"
+            "  --store DIR          the template store (its index, if built, answers /api/query)\n"
+            "  --avatar MESH|ID     a mesh file with the store's connectivity, or a template id\n"
+            "  --vest SPEC          a recording (played in real time), serial:PATH, hid:VID:PID or\n"
+            "                       udp:HOST:PORT (as mimic vest replay takes)\n"
+            "  --vest-pose P        the wearer's pose at the tare: rest (as the avatar), t or a\n"
+            "                       (default rest)\n"
+            "  --listen HOST:PORT   where to listen (default %s; port 0: any free port)\n"
+            "  --max-body BYTES     request body limit (default %zu; larger bodies get 413)\n"
+            "  -h, --help           this help\n\n"
+            "Routes (schemas/serve-*.schema.json):\n"
+            "  GET  /api/status     store, avatar, index, uptime, frames\n"
+            "  GET  /api/avatar     the avatar's rest mesh\n"
+            "  POST /api/query      one landmark frame -> nearest templates (?k=N)\n"
+            "  POST /api/transfer   {\"template\": ID} and/or {\"landmarks\": [...]} -> GLB\n"
+            "  GET  /metrics        Prometheus text (mimic_*)\n",
+            MIM_SERVE_DEFAULT_LISTEN, MIM_SERVE_DEFAULT_MAX_BODY);
+}
+
+int mim_cmd_serve(int argc, char **argv)
+{
+    static const struct option longopts[] = {{"store", required_argument, 0, 's'},
+                                              {"avatar", required_argument, 0, 'a'},
+                                              {"listen", required_argument, 0, 'l'},
+                                              {"max-body", required_argument, 0, 'b'},
+                                              {"vest", required_argument, 0, 'v'},
+                                              {"vest-pose", required_argument, 0, 'p'},
+                                              {"help", no_argument, 0, 'h'},
+                                              {0, 0, 0, 0}};
+    const char *store = NULL, *avatar = NULL;
+    mim_serve_options_t o = {0};
+    int c;
+    optind = 0;
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, "s:a:l:b:v:p:h", longopts, NULL)) != -1) {
+        uint64_t v;
+        if (c == 's') store = optarg;
+        else if (c == 'a') avatar = optarg;
+        else if (c == 'l') o.listen = optarg;
+        else if (c == 'v') o.vest = optarg;
+        else if (c == 'p') {
+            if (!strcmp(optarg, "rest")) o.vest_pose = MIM_VEST_POSE_REST;
+            else if (!strcmp(optarg, "t") || !strcmp(optarg, "T")) o.vest_pose = MIM_VEST_POSE_T;
+            else if (!strcmp(optarg, "a") || !strcmp(optarg, "A")) o.vest_pose = MIM_VEST_POSE_A;
+            else {
+                fprintf(stderr, "mimic serve: --vest-pose '%s' is not rest, t or a\n", optarg);
+                return 2;
+            }
+        }
+        else if (c == 'b') {
+            if (mim_cli_number("serve", "max-body", optarg, 1, (uint64_t)1 << 30, &v)) return 2;
+            o.max_body = (size_t)v;
+        } else if (c == 'h') return help(stdout), 0;
+        else {
+            fprintf(stderr, "mimic serve: unknown or incomplete option '%s' (see mimic serve --help)\n",
+                    argv[optind - 1]);
+            return 2;
+        }
+    }
+    if (optind < argc) {
+        fprintf(stderr, "mimic serve: unexpected argument '%s' (see mimic serve --help)\n", argv[optind]);
+        return 2;
+    }
+    if (!store || !avatar) {
+        fprintf(stderr, "mimic serve: --store and --avatar are required (see mimic serve --help)\n");
+        return 2;
+    }
+    const char *listen = o.listen ? o.listen : MIM_SERVE_DEFAULT_LISTEN;
+    const char *colon = strrchr(listen, ':');
+    if (!colon || colon == listen || !colon[1] || strspn(colon + 1, "0123456789") != strlen(colon + 1)) {
+        fprintf(stderr, "mimic serve: --listen '%s' is not HOST:PORT (e.g. 127.0.0.1:8080)\n", listen);
+        return 2;
+    }
+
+    /* Blocked before the server's threads start, so they inherit the mask
+     * and the signals reach sigwait below: shutdown runs in plain code. */
+    sigset_t stop;
+    sigemptyset(&stop);
+    sigaddset(&stop, SIGINT);
+    sigaddset(&stop, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &stop, NULL);
+    signal(SIGPIPE, SIG_IGN); /* a client that hangs up is a write error, not a crash */
+
+    mim_error_t err = {0};
+    mim_serve_t *sv = NULL;
+    if (mim_serve_open(&sv, store, avatar, &o, &err)) {
+        fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
+        return 1;
+    }
+    printf("http://%.*s:%d/\n", (int)(colon - listen), listen, mim_serve_port(sv));
+    fflush(stdout);
+    fprintf(stderr, "mimic serve: %s with avatar %s on port %d (Ctrl-C stops)\n", store, avatar,
+            mim_serve_port(sv));
+    int sig = 0;
+    sigwait(&stop, &sig);
+    fprintf(stderr, "mimic serve: %s: stopping\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+    mim_serve_close(&sv);
+    return 0;
+}

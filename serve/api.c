@@ -1,0 +1,234 @@
+/* The JSON API handlers of mimic serve (mim_serve.h lists the routes and
+ * their schemas). Bodies are untrusted: every problem is a 400 with the
+ * reason (jansson's line and column for malformed JSON). */
+#include "internal.h"
+
+#include <civetweb.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+/* A store or avatar error caused by the request (bad input) or by us. */
+static int status_of(int rc)
+{
+    return rc == MIM_EFORMAT || rc == MIM_ENONFINITE || rc == MIM_EINVAL || rc == MIM_ENOTFOUND ? 400 : 500;
+}
+
+int mim__api_status(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len)
+{
+    (void)body, (void)len;
+    json_t *index = json_pack("{s:b, s:b, s:I}", "present", sv->qs.has_index, "stale", sv->qs.stale,
+                              "templates", (json_int_t)(sv->qs.has_index ? sv->qs.built.templates : 0));
+    json_t *j = json_pack("{s:s, s:s, s:I, s:i, s:i, s:i, s:o, s:f, s:I, s:I, s:o}", "store", sv->store, "avatar",
+                          sv->s.avatar, "templates", (json_int_t)sv->qs.templates, "vertices",
+                          (int)sv->s.mesh.n_vertices, "faces", (int)sv->s.mesh.n_faces, "landmarks",
+                          (int)sv->s.map.count, "index", index, "uptime_s", mim_now() - sv->t_start, "frames",
+                          (json_int_t)mim__metrics_get(&sv->m, MIM__C_FRAMES), "key_frames",
+                          (json_int_t)mim__metrics_get(&sv->m, MIM__C_KEY_FRAMES), "vest",
+                          mim__loop_status(sv->loop));
+    return mim__reply_json(c, 200, j);
+}
+
+int mim__api_avatar(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len)
+{
+    (void)body, (void)len;
+    const mim_mesh_t *m = &sv->s.mesh;
+    json_t *pos = json_array(), *faces = json_array();
+    for (size_t i = 0; pos && i < 3 * (size_t)m->n_vertices; i++)
+        json_array_append_new(pos, json_real(m->positions[i]));
+    for (size_t i = 0; faces && i < 3 * (size_t)m->n_faces; i++)
+        json_array_append_new(faces, json_integer(m->faces[i]));
+    json_t *j = json_pack("{s:s, s:i, s:i, s:o, s:o}", "avatar", sv->s.avatar, "vertices", (int)m->n_vertices,
+                          "faces", (int)m->n_faces, "positions", pos, "indices", faces);
+    return mim__reply_json(c, 200, j);
+}
+
+/* k from the query string (?k=N, 1..1000), else 1. 0 if malformed. */
+static uint32_t query_k(struct mg_connection *c)
+{
+    const struct mg_request_info *ri = mg_get_request_info(c);
+    char v[32];
+    if (!ri->query_string || mg_get_var(ri->query_string, strlen(ri->query_string), "k", v, sizeof v) < 0)
+        return 1;
+    char *end = NULL;
+    unsigned long k = strtoul(v, &end, 10);
+    return *v && !*end && k >= 1 && k <= 1000 ? (uint32_t)k : 0;
+}
+
+int mim__api_query(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len)
+{
+    if (!sv->q)
+        return mim__reply_error(c, 503, "%s: the store has no index (run mimic index, then restart serve)",
+                                sv->store);
+    mim_index_query_options_t qo = {.k = query_k(c)};
+    if (!qo.k)
+        return mim__reply_error(c, 400, "query string: k must be a whole number from 1 to 1000");
+    mim_error_t err = {0};
+    mim_landmark_frames_t f = {0};
+    int rc = mim_landmark_frames_parse(body, len, "request body", mim_query_landmark_count(sv->q), 3, &f, &err);
+    if (!rc && f.n_frames != 1)
+        rc = mim_error_set(&err, MIM_EFORMAT, "request body: has %u frames; /api/query takes one", f.n_frames);
+    mim_index_answer_t a;
+    mim_index_hit_t *hits = rc ? NULL : calloc(qo.k, sizeof *hits);
+    if (!rc && !hits)
+        rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for %u results", qo.k);
+    double t0 = mim_now();
+    if (!rc)
+        rc = mim_query_batch(sv->q, &f, &qo, &a, hits, &err);
+    int status;
+    if (rc) {
+        status = mim__reply_error(c, status_of(rc), "%s", mim_error_text(&err));
+    } else {
+        mim__metrics_observe(&sv->m, MIM__H_QUERY, mim_now() - t0);
+        mim__metrics_add(&sv->m, MIM__C_QUERIES, 1);
+        json_t *res = json_array();
+        for (uint32_t j = 0; j < a.n_hits; j++)
+            json_array_append_new(res, json_pack("{s:I, s:s, s:s, s:f}", "id", (json_int_t)hits[j].id, "subject",
+                                                 hits[j].subject, "pose", hits[j].pose, "distance",
+                                                 (double)hits[j].distance));
+        json_t *fr = json_pack("{s:s, s:f, s:o}", "class", mim_index_class_name(mim_query_index(sv->q), a.cls),
+                               "probability", a.probability, "results", res);
+        status = mim__reply_json(c, 200, json_pack("{s:[o]}", "frames", fr));
+    }
+    free(hits);
+    mim_landmark_frames_free(&f);
+    return status;
+}
+
+/* The request of /api/transfer: {"template": ID} and/or {"landmarks": [...]}. */
+typedef struct xfer_req {
+    uint64_t id;                       /* 0: the nearest template of the landmarks */
+    int has_landmarks;
+    float u[3 * MIM_LANDMARKS_MAX];
+} xfer_req_t;
+
+static int parse_transfer(mim_serve_t *sv, const char *body, size_t len, xfer_req_t *r, mim_error_t *err)
+{
+    json_error_t je;
+    json_t *root = json_loadb(body, len, JSON_REJECT_DUPLICATES, &je);
+    if (!root)
+        return mim_error_set(err, MIM_EFORMAT, "request body:%d:%d: %s", je.line, je.column, je.text);
+    int rc = 0;
+    const char *key;
+    json_t *v;
+    if (!json_is_object(root))
+        rc = mim_error_set(err, MIM_EFORMAT, "request body: expected an object with \"template\" and/or "
+                                             "\"landmarks\"");
+    else
+        json_object_foreach(root, key, v) if (!rc && strcmp(key, "template") && strcmp(key, "landmarks")) rc =
+            mim_error_set(err, MIM_EFORMAT, "request body: unknown member \"%s\" (use template, landmarks)", key);
+    json_t *t = rc ? NULL : json_object_get(root, "template");
+    if (t && (!json_is_integer(t) || json_integer_value(t) < 1))
+        rc = mim_error_set(err, MIM_EFORMAT, "request body: \"template\" must be a template id (an integer >= 1)");
+    else if (t)
+        r->id = (uint64_t)json_integer_value(t);
+    json_t *l = rc ? NULL : json_object_get(root, "landmarks");
+    if (l) {
+        /* the landmark-frame parser owns that format: hand it the member alone */
+        json_t *one = json_pack("{s:O}", "landmarks", l);
+        char *txt = one ? json_dumps(one, JSON_COMPACT) : NULL;
+        mim_landmark_frames_t f = {0};
+        rc = txt ? mim_landmark_frames_parse(txt, strlen(txt), "request body", sv->s.map.count, 0, &f, err)
+                 : mim_error_set(err, MIM_ENOMEM, "out of memory");
+        if (!rc)
+            memcpy(r->u, f.positions, 3 * (size_t)sv->s.map.count * sizeof(float));
+        r->has_landmarks = !rc;
+        mim_landmark_frames_free(&f);
+        free(txt);
+        json_decref(one);
+    }
+    if (!rc && !t && !l)
+        rc = mim_error_set(err, MIM_EFORMAT, "request body: give \"template\" and/or \"landmarks\"");
+    if (!rc && !t && !sv->q)
+        rc = mim_error_set(err, MIM_EINVAL, "%s: \"landmarks\" without \"template\" needs the store's index "
+                                            "(run mimic index)", sv->store);
+    json_decref(root);
+    return rc;
+}
+
+/* Writes the mesh as a GLB in the temp folder and reads it back: the
+ * writer is file-based (tinygltf), and a GLB is small next to a solve. */
+static int glb_bytes(mim_serve_t *sv, const mim_mesh_t *m, char **out, size_t *len, mim_error_t *err)
+{
+    char path[4200];
+    snprintf(path, sizeof path, "%s/transfer-%llu.glb", sv->tmpdir,
+             (unsigned long long)atomic_fetch_add(&sv->seq, 1));
+    int rc = mim_xfer_write_mesh(path, m, err);
+    if (!rc)
+        rc = mim_file_read(path, 0, out, len, err);
+    unlink(path);
+    return rc;
+}
+
+int mim__api_transfer(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len)
+{
+    mim_error_t err = {0};
+    xfer_req_t *r = calloc(1, sizeof *r);
+    const uint32_t n = sv->s.mesh.n_vertices, nl = sv->s.map.count;
+    float *tpos = malloc(3 * (size_t)n * sizeof *tpos), *out = malloc(3 * (size_t)n * sizeof *out);
+    double *F = malloc(9 * (size_t)n * sizeof *F);
+    int rc = r && tpos && out && F ? 0 : mim_error_set(&err, MIM_ENOMEM, "out of memory for %u vertices", n);
+    if (!rc)
+        rc = parse_transfer(sv, body, len, r, &err);
+    if (!rc && !r->id) {
+        mim_index_query_options_t qo = {.k = 1};
+        mim_index_answer_t a;
+        mim_index_hit_t hit;
+        rc = mim_query_frame(sv->q, r->u, NULL, &qo, &a, &hit, &err);
+        if (!rc && !a.n_hits)
+            rc = mim_error_set(&err, MIM_ENOTFOUND, "%s: the index returned no template", sv->store);
+        if (!rc)
+            r->id = hit.id;
+    }
+    char label[256] = "";
+    mim_xfer_report_t rep = {0};
+    double t0 = 0.0;
+    if (!rc) {
+        pthread_mutex_lock(&sv->lock); /* one solver, one factor: transfers take turns */
+        rc = mim_serve_session_template(&sv->s, r->id, tpos, F, label, sizeof label, &err);
+        if (!rc && !r->has_landmarks) /* mode (a): the template's landmarks on the avatar's proportions */
+            rc = mim_xfer_retarget_landmarks(&sv->s.map, sv->s.mesh.positions, tpos, r->u, &err);
+        t0 = mim_now();
+        mim_xfer_options_t o = {0};
+        if (!rc)
+            rc = mim_xfer_transfer(sv->solver, sv->s.W, n, F, r->u, nl, &o, out, &rep, &err);
+        pthread_mutex_unlock(&sv->lock);
+    }
+    char *glb = NULL;
+    size_t glen = 0;
+    if (!rc) {
+        mim__metrics_observe(&sv->m, MIM__H_TRANSFER, mim_now() - t0);
+        mim__metrics_add(&sv->m, MIM__C_TRANSFERS, 1);
+        mim_mesh_t m = {n, sv->s.mesh.n_faces, out, sv->s.mesh.faces};
+        rc = glb_bytes(sv, &m, &glb, &glen, &err);
+        if (rc && status_of(rc) == 400)
+            rc = MIM_EIO; /* a writer failure is ours, not the client's */
+    }
+    int status;
+    if (rc) {
+        status = mim__reply_error(c, status_of(rc), "%s", mim_error_text(&err));
+    } else {
+        /* the label is "subject/pose" from the store: keep header-safe bytes */
+        for (char *p = label; *p; p++)
+            if ((unsigned char)*p < 0x20 || *p == 0x7f) *p = '?';
+        char hdr[512];
+        snprintf(hdr, sizeof hdr, "X-Mimic-Template: %llu\r\nX-Mimic-Template-Label: %s\r\nX-Mimic-Iterations: %u\r\n",
+                 (unsigned long long)r->id, label, rep.iterations);
+        status = mim__reply(c, 200, "model/gltf-binary", glb, glen, hdr);
+    }
+    free(glb), free(r), free(tpos), free(out), free(F);
+    return status;
+}
+
+int mim__api_metrics(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len)
+{
+    (void)body, (void)len;
+    char *txt = mim__metrics_text(&sv->m);
+    if (!txt)
+        return mim__reply_error(c, 500, "out of memory for the metrics");
+    int status = mim__reply(c, 200, "text/plain; version=0.0.4; charset=utf-8", txt, strlen(txt), NULL);
+    free(txt);
+    return status;
+}

@@ -1,0 +1,176 @@
+/* Counters and latency histograms, exposed in the Prometheus text format
+ * (https://prometheus.io/docs/instrumenting/exposition_formats/). One mutex:
+ * a handful of increments per request costs nothing next to a solve. */
+#include "internal.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* seconds; sub-millisecond buckets because a key frame must fit in ~16 ms */
+static const double bounds[MIM__BUCKETS] = {0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.0075, 0.01,
+                                            0.025,   0.05,   0.1,   0.25,   0.5,   1.0,    2.5};
+static const int statuses[MIM__STATUSES - 1] = {200, 400, 404, 405, 413, 500, 503};
+static const char *const route_names[MIM__R_COUNT] = {"status", "avatar", "query", "transfer", "metrics", "other"};
+static const struct {
+    const char *name, *help;
+} counter_info[MIM__C_COUNT] = {
+    {"mimic_queries_total", "Landmark frames answered by the recognition index."},
+    {"mimic_transfers_total", "Avatar transfers computed."},
+    {"mimic_frames_total", "Vest frames turned into landmarks."},
+    {"mimic_key_frames_total", "Vest frames that became key frames (query + transfer)."},
+    {"mimic_frames_dropped_total", "Frames dropped for clients that did not keep up."},
+    {"mimic_vest_errors_total", "Vest read or decode errors."},
+};
+static const struct {
+    const char *name, *help;
+} hist_info[MIM__H_COUNT] = {
+    {"mimic_query_seconds", "Time to answer one landmark frame."},
+    {"mimic_transfer_seconds", "Time of one transfer (solves only)."},
+    {"mimic_key_frame_seconds", "Time from a complete vest frame to its transferred avatar."},
+};
+
+void mim__metrics_init(mim__metrics_t *m)
+{
+    memset(m, 0, sizeof *m);
+    pthread_mutex_init(&m->lock, NULL);
+}
+
+void mim__metrics_destroy(mim__metrics_t *m)
+{
+    pthread_mutex_destroy(&m->lock);
+}
+
+void mim__metrics_add(mim__metrics_t *m, mim__counter_t c, uint64_t n)
+{
+    pthread_mutex_lock(&m->lock);
+    m->counters[c] += n;
+    pthread_mutex_unlock(&m->lock);
+}
+
+uint64_t mim__metrics_get(mim__metrics_t *m, mim__counter_t c)
+{
+    pthread_mutex_lock(&m->lock);
+    uint64_t v = m->counters[c];
+    pthread_mutex_unlock(&m->lock);
+    return v;
+}
+
+static void observe(mim__histogram_t *h, double s)
+{
+    int b = 0;
+    while (b < MIM__BUCKETS && s > bounds[b])
+        b++;
+    h->counts[b]++;
+    h->n++;
+    h->sum += s;
+}
+
+void mim__metrics_observe(mim__metrics_t *m, mim__hist_t h, double seconds)
+{
+    pthread_mutex_lock(&m->lock);
+    observe(&m->hist[h], seconds);
+    pthread_mutex_unlock(&m->lock);
+}
+
+void mim__metrics_request(mim__metrics_t *m, mim__route_t r, int status, double seconds)
+{
+    int k = 0;
+    while (k < MIM__STATUSES - 1 && statuses[k] != status)
+        k++;
+    pthread_mutex_lock(&m->lock);
+    m->requests[r][k]++;
+    observe(&m->request_seconds[r], seconds);
+    pthread_mutex_unlock(&m->lock);
+}
+
+/* A growing text buffer; on out of memory it stays failed and text() is NULL. */
+typedef struct buf {
+    char *p;
+    size_t len, cap;
+    int failed;
+} buf_t;
+
+static void put(buf_t *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void put(buf_t *b, const char *fmt, ...)
+{
+    if (b->failed)
+        return;
+    for (;;) {
+        va_list ap;
+        va_start(ap, fmt);
+        int n = vsnprintf(b->p ? b->p + b->len : NULL, b->p ? b->cap - b->len : 0, fmt, ap);
+        va_end(ap);
+        if (n < 0) {
+            b->failed = 1;
+            return;
+        }
+        if (b->p && b->len + (size_t)n < b->cap) {
+            b->len += (size_t)n;
+            return;
+        }
+        size_t cap = (b->cap ? 2 * b->cap : 4096) + (size_t)n;
+        char *p = realloc(b->p, cap);
+        if (!p) {
+            b->failed = 1;
+            return;
+        }
+        b->p = p, b->cap = cap;
+    }
+}
+
+static void put_hist(buf_t *b, const char *name, const char *labels, const mim__histogram_t *h)
+{
+    uint64_t cum = 0;
+    const char *sep = labels[0] ? "," : "";
+    for (int i = 0; i < MIM__BUCKETS; i++) {
+        cum += h->counts[i];
+        put(b, "%s_bucket{%s%sle=\"%g\"} %llu\n", name, labels, sep, bounds[i], (unsigned long long)cum);
+    }
+    cum += h->counts[MIM__BUCKETS];
+    put(b, "%s_bucket{%s%sle=\"+Inf\"} %llu\n", name, labels, sep, (unsigned long long)cum);
+    put(b, "%s_sum%s%s%s %.9g\n", name, labels[0] ? "{" : "", labels, labels[0] ? "}" : "", h->sum);
+    put(b, "%s_count%s%s%s %llu\n", name, labels[0] ? "{" : "", labels, labels[0] ? "}" : "",
+        (unsigned long long)h->n);
+}
+
+char *mim__metrics_text(mim__metrics_t *m)
+{
+    mim__metrics_t c;
+    pthread_mutex_lock(&m->lock);
+    memcpy(&c, m, sizeof c); /* a consistent snapshot; the copied mutex is never used */
+    pthread_mutex_unlock(&m->lock);
+
+    buf_t b = {0};
+    for (int i = 0; i < MIM__C_COUNT; i++)
+        put(&b, "# HELP %s %s\n# TYPE %s counter\n%s %llu\n", counter_info[i].name, counter_info[i].help,
+            counter_info[i].name, counter_info[i].name, (unsigned long long)c.counters[i]);
+    put(&b, "# HELP mimic_http_requests_total HTTP requests by route and status.\n"
+            "# TYPE mimic_http_requests_total counter\n");
+    for (int r = 0; r < MIM__R_COUNT; r++)
+        for (int k = 0; k < MIM__STATUSES; k++)
+            if (c.requests[r][k]) {
+                char code[16] = "other";
+                if (k < MIM__STATUSES - 1)
+                    snprintf(code, sizeof code, "%d", statuses[k]);
+                put(&b, "mimic_http_requests_total{route=\"%s\",code=\"%s\"} %llu\n", route_names[r], code,
+                    (unsigned long long)c.requests[r][k]);
+            }
+    put(&b, "# HELP mimic_http_request_seconds Time from a request's start to its last byte sent.\n"
+            "# TYPE mimic_http_request_seconds histogram\n");
+    for (int r = 0; r < MIM__R_COUNT; r++) {
+        char labels[64];
+        snprintf(labels, sizeof labels, "route=\"%s\"", route_names[r]);
+        put_hist(&b, "mimic_http_request_seconds", labels, &c.request_seconds[r]);
+    }
+    for (int h = 0; h < MIM__H_COUNT; h++) {
+        put(&b, "# HELP %s %s\n# TYPE %s histogram\n", hist_info[h].name, hist_info[h].help, hist_info[h].name);
+        put_hist(&b, hist_info[h].name, "", &c.hist[h]);
+    }
+    if (b.failed) {
+        free(b.p);
+        return NULL;
+    }
+    return b.p;
+}
