@@ -24,7 +24,7 @@ static void help(FILE *out)
             "  --keys K1,K2,...     template ids of the key poses, in order (2..%d)\n"
             "  --frames-between N   in-between poses per pair of keys (0..1000)\n"
             "  --method M           frames (default: per-vertex frames slerped, landmarks lerped,\n"
-            "                       one solve each; no shrinking) or linear (positions, the paper's)\n"
+            "                       one solve each; about half the shrinking) or linear (positions, the paper's)\n"
             "  --landmarks FILE     one landmark frame per key ({\"frames\": [...]}); without it each\n"
             "                       key's landmarks are retargeted from its template\n"
             "  --fps F              playback rate of the animation (default 30)\n"

@@ -41,10 +41,7 @@ static void help(FILE *out)
 static int nearest_template(mim_db_t *db, const float *u, uint64_t *id, mim_error_t *err)
 {
     mim_query_t *q = NULL;
-    int rc = mim_query_open(&q, db, err);
-    if (rc == MIM_ENOTFOUND)
-        return mim_error_set(err, rc, "%s: --landmarks without --template needs the store's index (run mimic index)",
-                             mim_db_path(db));
+    int rc = mim_query_open(&q, db, err); /* without an index: "...: store has no index (run mimic index)" */
     if (rc)
         return rc;
     mim_index_query_options_t o = {.k = 1};

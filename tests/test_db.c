@@ -391,6 +391,73 @@ static void test_kill_during_ingest(void **s)
     free(out), free(errs), free(store), free(data);
 }
 
+/* Encodings: a round trip, zero-copy and aligned, and a damaged record
+ * (bad magic, a layout past its end) gets an error naming the template. */
+static void test_encodings(void **s)
+{
+    (void)s;
+    char *store = ts_path(dir, "encodings");
+    mim_db_t *db;
+    mim_db_txn_t *t;
+    mim_error_t err = {0};
+    enum { N = 100 };
+    float frames[6 * N], W[3 * N];
+    for (int i = 0; i < 6 * N; i++) frames[i] = (float)i * 0.5f;
+    for (int i = 0; i < 3 * N; i++) W[i] = -(float)i;
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
+    assert_int_equal(mim_db_encoding_put(t, 7, frames, W, N, &err), 0);
+    assert_int_equal(mim_db_commit(&t, &err), 0);
+    assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    mim_db_encoding_t e;
+    assert_int_equal(mim_db_encoding_get(t, 7, &e, &err), 0);
+    assert_int_equal(e.n_vertices, N);
+    assert_int_equal((uintptr_t)e.frames % 16, 0);
+    assert_memory_equal(e.frames, frames, sizeof frames);
+    assert_memory_equal(e.W, W, sizeof W);
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_encoding_get(t, 8, &e, &err), MIM_ENOTFOUND);
+    assert_non_null(strstr(err.msg, "template 8: no encoding stored"));
+    mim_db_abort(&t);
+    mim_db_close(&db);
+
+    /* damage records underneath, as a disk or another program could */
+    MDB_env *env;
+    MDB_txn *txn;
+    MDB_dbi dbi;
+    assert_int_equal(mdb_env_create(&env), 0);
+    mdb_env_set_maxdbs(env, 16);
+    assert_int_equal(mdb_env_open(env, store, 0, 0664), 0);
+    assert_int_equal(mdb_txn_begin(env, NULL, 0, &txn), 0);
+    assert_int_equal(mdb_dbi_open(txn, "encodings", MDB_INTEGERKEY, &dbi), 0);
+    unsigned char rec[4096] = {0};
+    memcpy(rec, "XXXX", 4);
+    size_t key = 9;
+    MDB_val k = {sizeof key, &key}, d = {sizeof rec, rec};
+    assert_int_equal(mdb_put(txn, dbi, &k, &d, 0), 0);
+    /* right magic, but n_vertices says more than the record holds */
+    uint32_t hdr = 32, n = 1000, fo = 32, wo = 32 + 24 * 1000;
+    uint64_t id = 10;
+    memcpy(rec, "MEN1", 4), memcpy(rec + 4, &hdr, 4), memcpy(rec + 8, &id, 8);
+    memcpy(rec + 16, &n, 4), memcpy(rec + 20, &fo, 4), memcpy(rec + 24, &wo, 4);
+    key = 10;
+    assert_int_equal(mdb_put(txn, dbi, &k, &d, 0), 0);
+    assert_int_equal(mdb_txn_commit(txn), 0);
+    mdb_env_close(env);
+
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_encoding_get(t, 9, &e, &err), MIM_ESTORE);
+    assert_non_null(strstr(err.msg, "template 9: encoding record has a bad magic"));
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_encoding_get(t, 10, &e, &err), MIM_ESTORE);
+    assert_non_null(strstr(err.msg, "template 10: encoding record layout is inconsistent"));
+    mim_db_abort(&t);
+    mim_db_close(&db);
+    free(store);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -400,6 +467,7 @@ int main(void)
         cmocka_unit_test(test_not_a_store),
         cmocka_unit_test(test_readers_while_writing),
         cmocka_unit_test(test_kill_during_ingest),
+        cmocka_unit_test(test_encodings),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

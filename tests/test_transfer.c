@@ -11,6 +11,7 @@
 #include "mim_transfer.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -292,6 +293,76 @@ static void test_low_rank_matches_normal_factor(void **state)
     free(a0), free(t1), free(a1), free(F), free(W), free(o1), free(o2);
 }
 
+/* Morphing returns the keys at t = 0 and 1 (both methods), and its bad
+ * inputs and those of retargeting get a clear error. */
+static void test_morph_and_retarget(void **state)
+{
+    (void)state;
+    const uint32_t n = fx.n, c = fx.map.count;
+    float *xa = body(0, 3), *xb = body(0, 7), *out = malloc(3 * (size_t)n * sizeof(float));
+    double *F = malloc(9 * (size_t)n * sizeof(double));
+    double *qa = malloc(4 * (size_t)n * sizeof(double)), *qb = malloc(4 * (size_t)n * sizeof(double));
+    double *Wa = malloc(3 * (size_t)n * sizeof(double)), *Wb = malloc(3 * (size_t)n * sizeof(double));
+    float ua[3 * MIM_LANDMARKS_MAX], ub[3 * MIM_LANDMARKS_MAX];
+    mim_xfer_frames(fx.topo, xa, F);
+    mim_xfer_frames_to_quats(n, F, qa);
+    mim_xfer_encode(fx.topo, xa, F, Wa);
+    mim_xfer_frames(fx.topo, xb, F);
+    mim_xfer_frames_to_quats(n, F, qb);
+    mim_xfer_encode(fx.topo, xb, F, Wb);
+    landmark_positions(xa, ua);
+    landmark_positions(xb, ub);
+    mim_xfer_solver_t *s = NULL;
+    assert_int_equal(mim_xfer_solver_open(&s, fx.topo, fx.map.vertex, c, NULL, NULL), 0);
+    mim_xfer_key_t a = {xa, qa, Wa, ua}, b = {xb, qb, Wb, ub};
+    for (int m = 0; m < 2; m++)
+        for (int k = 0; k < 2; k++) {
+            assert_int_equal(mim_xfer_morph(s, (mim_xfer_morph_method_t)m, &a, &b, k, out, NULL), 0);
+            const float *key = k ? xb : xa;
+            double worst = 0.0;
+            for (size_t i = 0; i < 3 * (size_t)n; i++)
+                worst = fmax(worst, fabs((double)out[i] - key[i]));
+            assert_true(worst < 1e-4);
+        }
+    mim_error_t e = {0};
+    assert_int_equal(mim_xfer_morph(s, MIM_XFER_MORPH_FRAMES, &a, &b, 1.5, out, &e), MIM_EINVAL);
+    assert_non_null(strstr(e.msg, "t = 1.5 outside [0, 1]"));
+    e = (mim_error_t){0};
+    assert_int_equal(mim_xfer_morph(s, (mim_xfer_morph_method_t)7, &a, &b, 0.5, out, &e), MIM_EINVAL);
+    assert_non_null(strstr(e.msg, "unknown method 7"));
+    mim_xfer_key_t bare = {xb, NULL, NULL, NULL};
+    e = (mim_error_t){0};
+    assert_int_equal(mim_xfer_morph(s, MIM_XFER_MORPH_FRAMES, &a, &bare, 0.5, out, &e), MIM_EINVAL);
+    assert_non_null(strstr(e.msg, "needs each key's frames, W and landmarks"));
+    /* linear needs only positions */
+    assert_int_equal(mim_xfer_morph(s, MIM_XFER_MORPH_LINEAR, &a, &bare, 0.5, out, NULL), 0);
+
+    /* retargeting keeps each segment's avatar length */
+    float r[3 * MIM_LANDMARKS_MAX];
+    float *rest = body(2, 0);
+    assert_int_equal(mim_xfer_retarget_landmarks(&fx.map, rest, xb, r, NULL), 0);
+    uint32_t li = 5, lj = 7; /* l_elbow - l_wrist: a segment of the landmark skeleton */
+    double d_rest = 0, d_out = 0;
+    for (int q = 0; q < 3; q++) {
+        double dr = (double)rest[3 * (size_t)fx.map.vertex[li] + q] - rest[3 * (size_t)fx.map.vertex[lj] + q];
+        double dq = (double)r[3 * li + q] - r[3 * lj + q];
+        d_rest += dr * dr, d_out += dq * dq;
+    }
+    assert_true(fabs(sqrt(d_out) - sqrt(d_rest)) < 1e-5);
+    mim_landmark_map_t four = fx.map;
+    four.count = 4;
+    e = (mim_error_t){0};
+    assert_int_equal(mim_xfer_retarget_landmarks(&four, rest, xb, r, &e), MIM_EUNSUPPORTED);
+    assert_non_null(strstr(e.msg, "retargeting needs the 16 default landmarks"));
+    mim_landmark_map_t renamed = fx.map;
+    snprintf(renamed.names[13], sizeof renamed.names[13], "l_foot");
+    e = (mim_error_t){0};
+    assert_int_equal(mim_xfer_retarget_landmarks(&renamed, rest, xb, r, &e), MIM_EUNSUPPORTED);
+    assert_non_null(strstr(e.msg, "retargeting needs landmark 'l_ankle'"));
+    mim_xfer_solver_close(&s);
+    free(xa), free(xb), free(out), free(F), free(qa), free(qb), free(Wa), free(Wb), free(rest);
+}
+
 typedef struct acc {
     double sum;
     float *e;
@@ -465,6 +536,7 @@ int main(void)
         cmocka_unit_test(test_rigid_invariance),
         cmocka_unit_test(test_factor_reused),
         cmocka_unit_test(test_low_rank_matches_normal_factor),
+        cmocka_unit_test(test_morph_and_retarget),
         cmocka_unit_test(test_accuracy_bounds),
         cmocka_unit_test(test_bad_inputs),
     };

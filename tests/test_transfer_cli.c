@@ -281,8 +281,26 @@ static void test_bad_inputs(void **s)
     assert_int_equal(ts_run_mimic(&o, &e, synth), 0);
     free(o), free(e);
     char *other_mesh = ts_path(other, "synth_s00_p00.ply");
+    /* two frames where transfer takes one; one frame for two morph keys */
+    char *truth_path = body_path(0, 2);
+    mim_mesh_t truth = {0};
+    read_mesh(truth_path, &truth);
+    char *lm = write_landmarks("lm_bad.json", truth.positions, NULL);
+    mim_mesh_free(&truth);
+    char *frame = ts_read_file(lm, NULL), *batch = malloc(2 * strlen(frame) + 64);
+    sprintf(batch, "{\"frames\": [%s, %s]}", frame, frame);
+    char *two = write_landmarks("two.json", NULL, batch);
+    free(frame), free(batch);
+    char many[2048] = "2";
+    for (int k = 0; k < 260; k++)
+        strcat(many, ",2");
+    /* a store with nothing in it */
+    char *empty = ts_path(dir, "empty_store");
+    mim_db_t *edb = NULL;
+    assert_int_equal(mim_db_open(&edb, empty, NULL, NULL), 0);
+    mim_db_close(&edb);
     struct {
-        const char *args[12];
+        const char *args[14];
         int status;
         const char *phrase;
     } cases[] = {
@@ -302,6 +320,24 @@ static void test_bad_inputs(void **s)
          "at least two template ids"},
         {{"morph", "--store", store, "--avatar", "1", "--keys", "2,3", "--frames-between", "2", "-o", "m.ply"}, 2,
          ".glb"},
+        {{"transfer", "--store", store, "--avatar", "1", "--template", "2", "--tol", "-1", "-o", outp}, 2,
+         "--tol '-1' is not a positive number of metres"},
+        {{"transfer", "--store", store, "--avatar", "1", "--template", "2", "--formulation", "cubic", "-o", outp},
+         2, "--formulation 'cubic': use least-squares or square"},
+        {{"transfer", "--store", store, "--avatar", "1", "--template", "2", "-o", outp, "extra"}, 2,
+         "unexpected argument 'extra'"},
+        {{"transfer", "--store", store, "--avatar", "1", "--landmarks", two, "--template", "2", "-o", outp}, 1,
+         "two.json: has 2 frames; transfer takes one"},
+        {{"transfer", "--store", store, "--avatar", "1", "--landmarks", lm, "-o", outp}, 1,
+         "store has no index (run mimic index)"},
+        {{"transfer", "--store", empty, "--avatar", "1", "--template", "2", "-o", outp}, 1,
+         "the store is empty (run mimic ingest first)"},
+        {{"morph", "--store", store, "--avatar", "1", "--keys", "2,3", "--frames-between", "2", "--method", "cubic",
+          "-o", "m.glb"}, 2, "--method 'cubic': use linear or frames"},
+        {{"morph", "--store", store, "--avatar", "1", "--keys", many, "--frames-between", "2", "-o", "m.glb"}, 2,
+         "more than 256 keys"},
+        {{"morph", "--store", store, "--avatar", "1", "--keys", "2,3", "--frames-between", "2", "--landmarks", lm,
+          "-o", "m.glb"}, 1, "lm_bad.json: has 1 frames for 2 keys"},
     };
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
         int rc = ts_run_mimic(&o, &e, cases[k].args);
@@ -319,6 +355,7 @@ static void test_bad_inputs(void **s)
         free(o), free(e);
     }
     free(outp), free(wrong_count), free(overflow), free(malformed), free(other), free(other_mesh);
+    free(two), free(truth_path), free(lm), free(empty);
 }
 
 int main(void)
