@@ -5,6 +5,7 @@
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 int mim_cli_number(const char *cmd, const char *name, const char *text, uint64_t lo, uint64_t hi, uint64_t *out)
 {
@@ -20,4 +21,21 @@ int mim_cli_number(const char *cmd, const char *name, const char *text, uint64_t
         fprintf(stderr, "mimic %s: --%s '%s' is not a number in %" PRIu64 "..%" PRIu64 "\n", cmd, name, text ? text : "",
                 lo, hi);
     return ok ? 0 : -1;
+}
+
+int mim_cli_key_rate(const char *cmd, const char *text, double *out)
+{
+    if (!strcmp(text, "auto")) {
+        *out = 0.0;
+        return 0;
+    }
+    char *end;
+    errno = 0;
+    double v = strtod(text, &end);
+    if (errno || end == text || *end || !(v > 0.0 && v <= 1000.0)) {
+        fprintf(stderr, "mimic %s: --key-rate '%s' is neither auto nor a rate in (0, 1000] Hz\n", cmd, text);
+        return -1;
+    }
+    *out = v;
+    return 0;
 }

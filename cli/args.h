@@ -9,4 +9,8 @@
  * "mimic CMD: --NAME 'TEXT' is not a number in LO..HI", and returns -1. */
 int mim_cli_number(const char *cmd, const char *name, const char *text, uint64_t lo, uint64_t hi, uint64_t *out);
 
+/* --key-rate: "auto" (0) or key frames per second in (0, 1000]. Prints one
+ * line and returns -1 otherwise. */
+int mim_cli_key_rate(const char *cmd, const char *text, double *out);
+
 #endif

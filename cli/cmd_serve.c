@@ -1,5 +1,6 @@
-/* mimic serve: the HTTP JSON API over a store and an avatar (mim_serve.h),
- * until SIGINT or SIGTERM. */
+/* mimic serve: the real-time service over a store and an avatar
+ * (mim_serve.h): viewer, WebSocket stream, HTTP JSON API, until SIGINT or
+ * SIGTERM. */
 #include "args.h"
 #include "commands.h"
 #include "mim_serve.h"
@@ -14,26 +15,34 @@ static void help(FILE *out)
 {
     fprintf(out,
             "usage: mimic serve --store DIR --avatar (MESH|ID) [--vest SPEC [--vest-pose rest|t|a]]\n"
-            "                   [--listen HOST:PORT] [--max-body BYTES]\n\n"
-            "Serves pose transfer over HTTP until Ctrl-C or SIGTERM. Prints the URL on stdout.\n"
-            "With --vest, each complete vest frame becomes landmarks on the avatar, then (when\n"
-            "the store has an index) a key frame: nearest template, then transfer.\n\n"
+            "                   [--key-rate auto|HZ] [--listen HOST:PORT] [--max-body BYTES]\n"
+            "                   [--max-clients N]\n\n"
+            "Serves pose transfer until Ctrl-C or SIGTERM: the web viewer at /, the avatar\n"
+            "stream at /ws and the JSON API. Prints the viewer's URL on stdout.\n"
+            "With --vest, every vest frame becomes landmarks on the avatar and one avatar\n"
+            "frame on the stream: a key frame (nearest template, then transfer with the\n"
+            "cached factor) as often as the measured compute time allows, morphs between.\n\n"
             "  --store DIR          the template store (its index, if built, answers /api/query)\n"
             "  --avatar MESH|ID     a mesh file with the store's connectivity, or a template id\n"
             "  --vest SPEC          a recording (played in real time), serial:PATH, hid:VID:PID or\n"
             "                       udp:HOST:PORT (as mimic vest replay takes)\n"
             "  --vest-pose P        the wearer's pose at the tare: rest (as the avatar), t or a\n"
             "                       (default rest)\n"
+            "  --key-rate auto|HZ   key frames per second; auto (default): one at every vest\n"
+            "                       frame the compute time affords, fewer when it cannot\n"
             "  --listen HOST:PORT   where to listen (default %s; port 0: any free port)\n"
             "  --max-body BYTES     request body limit (default %zu; larger bodies get 413)\n"
+            "  --max-clients N      WebSocket clients at once (default %u)\n"
             "  -h, --help           this help\n\n"
-            "Routes (schemas/serve-*.schema.json):\n"
+            "Routes (schemas/serve-*.schema.json, schemas/serve-ws-frame.md):\n"
+            "  GET  /               the web viewer\n"
+            "  GET  /ws             WebSocket avatar stream (?format=f32|i16)\n"
             "  GET  /api/status     store, avatar, index, uptime, frames\n"
             "  GET  /api/avatar     the avatar's rest mesh\n"
             "  POST /api/query      one landmark frame -> nearest templates (?k=N)\n"
             "  POST /api/transfer   {\"template\": ID} and/or {\"landmarks\": [...]} -> GLB\n"
             "  GET  /metrics        Prometheus text (mimic_*)\n",
-            MIM_SERVE_DEFAULT_LISTEN, MIM_SERVE_DEFAULT_MAX_BODY);
+            MIM_SERVE_DEFAULT_LISTEN, MIM_SERVE_DEFAULT_MAX_BODY, MIM_SERVE_DEFAULT_MAX_CLIENTS);
 }
 
 int mim_cmd_serve(int argc, char **argv)
@@ -44,6 +53,8 @@ int mim_cmd_serve(int argc, char **argv)
                                               {"max-body", required_argument, 0, 'b'},
                                               {"vest", required_argument, 0, 'v'},
                                               {"vest-pose", required_argument, 0, 'p'},
+                                              {"key-rate", required_argument, 0, 'k'},
+                                              {"max-clients", required_argument, 0, 'c'},
                                               {"help", no_argument, 0, 'h'},
                                               {0, 0, 0, 0}};
     const char *store = NULL, *avatar = NULL;
@@ -51,7 +62,7 @@ int mim_cmd_serve(int argc, char **argv)
     int c;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "s:a:l:b:v:p:h", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "s:a:l:b:v:p:k:c:h", longopts, NULL)) != -1) {
         uint64_t v;
         if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
@@ -65,6 +76,13 @@ int mim_cmd_serve(int argc, char **argv)
                 fprintf(stderr, "mimic serve: --vest-pose '%s' is not rest, t or a\n", optarg);
                 return 2;
             }
+        }
+        else if (c == 'k') {
+            if (mim_cli_key_rate("serve", optarg, &o.key_rate)) return 2;
+        }
+        else if (c == 'c') {
+            if (mim_cli_number("serve", "max-clients", optarg, 1, 1000, &v)) return 2;
+            o.max_clients = (unsigned)v;
         }
         else if (c == 'b') {
             if (mim_cli_number("serve", "max-body", optarg, 1, (uint64_t)1 << 30, &v)) return 2;

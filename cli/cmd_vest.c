@@ -494,7 +494,7 @@ static int write_expected(const char *path, mim_vest_sim_t *sim, const mim_vest_
 }
 
 static const char simulate_help[] =
-    "usage: mimic vest simulate --motion FILE.(bvh|amc) [--asf FILE] [--rate HZ]\n"
+    "usage: mimic vest simulate --motion (FILE.(bvh|amc)|demo) [--asf FILE] [--rate HZ]\n"
     "         [--faults drop=P,corrupt=P,disconnect=T[,down=S]] [--loop] [--seed K]\n"
     "         --out (pty[:LINK]|udp:HOST:PORT|FILE) [--avatar MESH --map FILE] [--pose P]\n"
     "         [--expected FILE] [--realtime]\n\n"
@@ -506,7 +506,8 @@ static const char simulate_help[] =
     "and streams at the rate until the motion ends (--loop repeats it). udp:HOST:PORT\n"
     "sends the avatar's landmarks as JSON datagrams (schemas/vest-udp.schema.json);\n"
     "FILE writes a recording (as fast as possible unless --realtime).\n\n"
-    "  --motion FILE   BVH, or AMC with --asf (CMU)\n"
+    "  --motion FILE   BVH, or AMC with --asf (CMU); 'demo': the built-in motion\n"
+    "                  (eight poses in 12 s, T-pose rest)\n"
     "  --asf FILE      the ASF skeleton of an AMC motion\n"
     "  --rate HZ       stream frames per second, 1..2000 (default 60)\n"
     "  --faults LIST   drop=P and corrupt=P per packet (0..1), disconnect=T seconds\n"
@@ -557,7 +558,9 @@ static int cmd_simulate(int argc, char **argv)
     mim_vest_motion_t m;
     size_t ml = strlen(motion);
     int rc;
-    if (ml > 4 && !strcasecmp(motion + ml - 4, ".amc")) {
+    if (!strcmp(motion, "demo")) {
+        rc = mim_vest_motion_demo(&m, &err);
+    } else if (ml > 4 && !strcasecmp(motion + ml - 4, ".amc")) {
         if (!asf) {
             fprintf(stderr, "mimic vest simulate: an AMC motion needs --asf FILE\n");
             return 2;

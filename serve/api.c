@@ -21,13 +21,15 @@ int mim__api_status(mim_serve_t *sv, struct mg_connection *c, const char *body, 
     (void)body, (void)len;
     json_t *index = json_pack("{s:b, s:b, s:I}", "present", sv->qs.has_index, "stale", sv->qs.stale,
                               "templates", (json_int_t)(sv->qs.has_index ? sv->qs.built.templates : 0));
-    json_t *j = json_pack("{s:s, s:s, s:I, s:i, s:i, s:i, s:o, s:f, s:I, s:I, s:o}", "store", sv->store, "avatar",
-                          sv->s.avatar, "templates", (json_int_t)sv->qs.templates, "vertices",
+    json_t *j = json_pack("{s:s, s:s, s:I, s:i, s:i, s:i, s:o, s:f, s:I, s:I, s:I, s:I, s:o, s:o}", "store",
+                          sv->store, "avatar", sv->s.avatar, "templates", (json_int_t)sv->qs.templates, "vertices",
                           (int)sv->s.mesh.n_vertices, "faces", (int)sv->s.mesh.n_faces, "landmarks",
-                          (int)sv->s.map.count, "index", index, "uptime_s", mim_now() - sv->t_start, "frames",
+                          (int)sv->s.map.count, "index", index, "uptime_s", mim_now() - sv->t_start, "vest_frames",
+                          (json_int_t)mim__metrics_get(&sv->m, MIM__C_VEST_FRAMES), "frames",
                           (json_int_t)mim__metrics_get(&sv->m, MIM__C_FRAMES), "key_frames",
-                          (json_int_t)mim__metrics_get(&sv->m, MIM__C_KEY_FRAMES), "vest",
-                          mim__loop_status(sv->loop));
+                          (json_int_t)mim__metrics_get(&sv->m, MIM__C_KEY_FRAMES), "frames_dropped",
+                          (json_int_t)mim__metrics_get(&sv->m, MIM__C_DROPS), "stream", mim__ws_status(sv->ws),
+                          "vest", mim__loop_status(sv->loop));
     return mim__reply_json(c, 200, j);
 }
 
@@ -225,6 +227,7 @@ int mim__api_transfer(mim_serve_t *sv, struct mg_connection *c, const char *body
 int mim__api_metrics(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len)
 {
     (void)body, (void)len;
+    mim__metrics_set(&sv->m, MIM__G_WS_CLIENTS, mim__ws_clients(sv->ws));
     char *txt = mim__metrics_text(&sv->m);
     if (!txt)
         return mim__reply_error(c, 500, "out of memory for the metrics");

@@ -1,20 +1,51 @@
-/* The real-time loop of mimic serve (issue 6, part 1): a thread reads the
- * vest, turns each whole vest frame into landmarks (calibrated rig, forward
- * kinematics), and makes it a key frame when every landmark is present and
- * the store has an index: query -> nearest template -> transfer with the
- * cached solver. Morphing between key frames, the adaptive key rate and the
- * WebSocket stream come with part 2; for now every complete frame is a key
- * frame and the latest pose is kept for them. */
+/* The real-time loop of mimic serve: a thread reads the vest, turns each
+ * whole vest frame into the avatar's landmarks (calibrated rig, forward
+ * kinematics) and publishes one avatar frame for it:
+ *
+ *  - a key frame (seed 000, Fig. 1): the nearest template of the landmarks
+ *    (query/), then the transfer with the cached factor (transfer/). When
+ *    the template is the one of the previous key frame, the iteration is
+ *    warm-started from that key frame's solution, so a pose that changed
+ *    little stops after fewer solves;
+ *  - between key frames, morphs (Section 3.5): with key interval k, the k
+ *    frames after key i show the frames-method morph from key i-1 to key i
+ *    at t = 1/k ... 1 (one solve each with the same factor), so the last
+ *    of them is key i itself.
+ *
+ * The paper fixed k by hand and left an adaptive k as future work. Here k
+ * follows the loop's own measured costs: with vest period P, key-frame
+ * cost c_k and morph cost c_m (moving averages), k = 1 while c_k fits in
+ * 80 % of P, else the smallest k with c_k + (k - 1) c_m <= 0.8 k P. A fixed
+ * key rate (--key-rate) overrides it. Lost landmarks are held at their last
+ * position, so a short dropout does not stop the stream. */
 #include "internal.h"
 
+#include <civetweb.h>
 #include <errno.h>
+#include <limits.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
+#define BUDGET_FRACTION 0.8 /* of the vest period, for one frame's compute */
+#define K_MAX 30u           /* never fewer key frames than one every 30 vest frames */
+#define EWMA 0.2            /* weight of a new cost sample */
+
+typedef struct key {
+    int valid, morph_ready;
+    float *pos;     /* 3 * n: the transferred avatar */
+    double *quats;  /* 4 * n and */
+    double *W;      /* 3 * n: its frames and encoding, made when a morph needs them */
+    float u[3 * MIM_LANDMARKS_MAX];
+    uint64_t template_id;
+    char label[32];
+} key_pose_t;
+
 struct mim__loop {
     mim_serve_t *sv;
+    mim_serve_options_t opt;
     mim_vest_rig_t rig;
     mim_vest_transport_t *t;
     mim_vest_decoder_t *dec;
@@ -24,12 +55,26 @@ struct mim__loop {
     int started;
     atomic_int stop;
     char spec[1024];
-    float *tpos, *out; /* key frame work arrays, 3 * n */
-    double *F;         /* 9 * n */
+    float *tpos, *out; /* a template's positions; a morphed frame (3 * n) */
+    double *F;         /* 9 * n: a template's frames, or a key's */
+    key_pose_t keys[2];
+    int cur;           /* keys[cur] is the latest key, keys[!cur] the one before */
+    uint32_t k;        /* key interval chosen at the latest key */
+    uint32_t since_key; /* frames published since the latest key */
+    float last_u[3 * MIM_LANDMARKS_MAX];
+    uint8_t have_u[MIM_LANDMARKS_MAX];
+    double period, c_key, c_morph; /* seconds: vest period, costs (moving averages) */
+    uint64_t t_prev_vest;
+    double arrival;    /* mim_now() when the chunk being decoded arrived */
+    uint64_t number;
+    double window_start;
+    uint32_t window_frames, window_keys;
     pthread_mutex_t lock; /* guards what /api/status reads: */
-    char state[16];    /* "streaming", "ended" or "failed" */
+    char state[16];
     char error[512];
-    uint64_t last_template;
+    uint64_t last_template, warm_starts, iterations, key_frames;
+    char last_label[32];
+    double key_rate_hz, frame_rate_hz;
 };
 
 static void set_state(mim__loop_t *l, const char *state, const char *error)
@@ -41,50 +86,213 @@ static void set_state(mim__loop_t *l, const char *state, const char *error)
     pthread_mutex_unlock(&l->lock);
 }
 
-/* One vest frame's landmarks: counted, and a key frame when complete. */
-static void landmarks_frame(mim__loop_t *l, const float *xyz, uint32_t present_count)
+static void set_error(mim__loop_t *l, const char *error)
+{
+    pthread_mutex_lock(&l->lock);
+    snprintf(l->error, sizeof l->error, "%s", error);
+    pthread_mutex_unlock(&l->lock);
+}
+
+static void ewma(double *avg, double sample)
+{
+    *avg = *avg > 0.0 ? (1.0 - EWMA) * *avg + EWMA * sample : sample;
+}
+
+/* The key interval for the costs measured so far (see the top of the file). */
+static uint32_t choose_interval(const mim__loop_t *l)
+{
+    const double P = l->period > 0.0 ? l->period : 1.0 / 60.0;
+    if (l->opt.key_rate > 0.0) {
+        double k = round(1.0 / (l->opt.key_rate * P));
+        return k < 1.0 ? 1u : k > K_MAX ? K_MAX : (uint32_t)k;
+    }
+    const double budget = BUDGET_FRACTION * P, cm = l->c_morph > 0.0 ? l->c_morph : 0.5 * l->c_key;
+    if (l->c_key <= budget)
+        return 1;
+    if (budget <= cm)
+        return K_MAX;
+    double k = ceil((l->c_key - cm) / (budget - cm));
+    return k > K_MAX ? K_MAX : (uint32_t)k;
+}
+
+/* A key's frames (as quaternions) and encoding, which the frames morph needs. */
+static void morph_ready(mim__loop_t *l, key_pose_t *k)
+{
+    if (k->morph_ready)
+        return;
+    const mim_xfer_topology_t *t = l->sv->s.topo;
+    mim_xfer_frames(t, k->pos, l->F);
+    mim_xfer_frames_to_quats(l->sv->s.mesh.n_vertices, l->F, k->quats);
+    mim_xfer_encode(t, k->pos, l->F, k->W);
+    k->morph_ready = 1;
+}
+
+/* A new key frame from complete landmarks u into keys[!cur]. */
+static int make_key(mim__loop_t *l, const float *u, mim_error_t *err)
 {
     mim_serve_t *sv = l->sv;
+    const uint32_t n = sv->s.mesh.n_vertices, L = sv->s.map.count;
     double t0 = mim_now();
-    mim__metrics_add(&sv->m, MIM__C_FRAMES, 1);
-    if (!sv->q || present_count < sv->s.map.count)
-        return; /* transfer holds every landmark exactly: it needs them all */
-    mim_error_t err = {0};
     mim_index_query_options_t qo = {.k = 1};
     mim_index_answer_t a;
     mim_index_hit_t hit;
-    int rc = mim_query_frame(sv->q, xyz, NULL, &qo, &a, &hit, &err);
+    int rc = mim_query_frame(sv->q, u, NULL, &qo, &a, &hit, err);
     if (!rc && !a.n_hits)
-        rc = mim_error_set(&err, MIM_ENOTFOUND, "the index returned no template");
+        rc = mim_error_set(err, MIM_ENOTFOUND, "the index returned no template");
+    if (rc)
+        return rc;
+    mim__metrics_add(&sv->m, MIM__C_QUERIES, 1);
+    key_pose_t *prev = &l->keys[l->cur], *k = &l->keys[!l->cur];
+    mim_xfer_options_t o = {0};
+    if (prev->valid && prev->template_id == hit.id)
+        o.start = prev->pos; /* warm start: the same template as the last key frame */
+    mim_xfer_report_t rep;
+    pthread_mutex_lock(&sv->lock); /* the solver is shared with /api/transfer */
+    rc = mim_serve_session_template(&sv->s, hit.id, l->tpos, l->F, NULL, 0, err);
+    if (!rc)
+        rc = mim_xfer_transfer(sv->solver, sv->s.W, n, l->F, u, L, &o, k->pos, &rep, err);
+    pthread_mutex_unlock(&sv->lock);
+    if (rc)
+        return rc;
+    k->valid = 1, k->morph_ready = 0;
+    k->template_id = hit.id;
+    snprintf(k->label, sizeof k->label, "%s", mim_index_class_name(mim_query_index(sv->q), a.cls));
+    memcpy(k->u, u, 3 * (size_t)L * sizeof *u);
+    l->cur = !l->cur;
+    double c = mim_now() - t0;
+    ewma(&l->c_key, c);
+    mim__metrics_add(&sv->m, MIM__C_TRANSFERS, 1);
+    mim__metrics_add(&sv->m, MIM__C_KEY_FRAMES, 1);
+    mim__metrics_observe(&sv->m, MIM__H_KEY_FRAME, c);
+    pthread_mutex_lock(&l->lock);
+    l->last_template = hit.id;
+    snprintf(l->last_label, sizeof l->last_label, "%s", k->label);
+    l->warm_starts += o.start != NULL;
+    l->iterations += rep.iterations;
+    l->key_frames++;
+    pthread_mutex_unlock(&l->lock);
+    return 0;
+}
+
+/* The frame between keys a and b at t in (0, 1), into l->out. */
+static int make_morph(mim__loop_t *l, key_pose_t *a, key_pose_t *b, double t, mim_error_t *err)
+{
+    mim_serve_t *sv = l->sv;
+    double t0 = mim_now();
+    morph_ready(l, a);
+    morph_ready(l, b);
+    mim_xfer_key_t ka = {a->pos, a->quats, a->W, a->u}, kb = {b->pos, b->quats, b->W, b->u};
+    pthread_mutex_lock(&sv->lock);
+    int rc = mim_xfer_morph(sv->solver, MIM_XFER_MORPH_FRAMES, &ka, &kb, t, l->out, err);
+    pthread_mutex_unlock(&sv->lock);
     if (!rc) {
-        mim__metrics_add(&sv->m, MIM__C_QUERIES, 1);
-        pthread_mutex_lock(&sv->lock);
-        rc = mim_serve_session_template(&sv->s, hit.id, l->tpos, l->F, NULL, 0, &err);
-        mim_xfer_options_t o = {0};
+        double c = mim_now() - t0;
+        ewma(&l->c_morph, c);
+        mim__metrics_add(&sv->m, MIM__C_MORPH_FRAMES, 1);
+        mim__metrics_observe(&sv->m, MIM__H_MORPH_FRAME, c);
+    }
+    return rc;
+}
+
+/* Key and frame rates over the last second, for status and metrics. */
+static void count_rates(mim__loop_t *l, int key)
+{
+    double now = mim_now();
+    if (l->window_start == 0.0)
+        l->window_start = now;
+    l->window_frames++, l->window_keys += key != 0;
+    double dt = now - l->window_start;
+    if (dt < 1.0)
+        return;
+    pthread_mutex_lock(&l->lock);
+    l->key_rate_hz = l->window_keys / dt, l->frame_rate_hz = l->window_frames / dt;
+    pthread_mutex_unlock(&l->lock);
+    mim__metrics_set(&l->sv->m, MIM__G_KEY_RATE, l->window_keys / dt);
+    mim__metrics_set(&l->sv->m, MIM__G_FRAME_RATE, l->window_frames / dt);
+    l->window_start = now, l->window_frames = l->window_keys = 0;
+}
+
+/* One vest frame's landmarks (present[i] = 0 for a lost one): a key frame
+ * or a morph, published. */
+static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *present, uint64_t t_vest)
+{
+    mim_serve_t *sv = l->sv;
+    const uint32_t L = sv->s.map.count;
+    mim__metrics_add(&sv->m, MIM__C_VEST_FRAMES, 1);
+    float u[3 * MIM_LANDMARKS_MAX], shown[3 * MIM_LANDMARKS_MAX];
+    int complete = 1, lost = 0;
+    for (uint32_t i = 0; i < L; i++) {
+        if (present[i]) {
+            memcpy(l->last_u + 3 * i, xyz + 3 * i, 3 * sizeof *xyz);
+            l->have_u[i] = 1;
+        }
+        lost |= !present[i];
+        complete &= l->have_u[i];
+        for (int c = 0; c < 3; c++) {
+            u[3 * i + c] = l->last_u[3 * i + c];
+            shown[3 * i + c] = present[i] ? xyz[3 * i + c] : NAN;
+        }
+    }
+    if (lost)
+        mim__metrics_add(&sv->m, MIM__C_INCOMPLETE, 1);
+    if (l->t_prev_vest && t_vest > l->t_prev_vest && t_vest - l->t_prev_vest < 1000000)
+        ewma(&l->period, (double)(t_vest - l->t_prev_vest) * 1e-6);
+    l->t_prev_vest = t_vest;
+    if (!complete || !sv->q)
+        return; /* the transfer holds every landmark: it needs them all, and an index */
+
+    mim_error_t err = {0};
+    int key = 0, rc = 0;
+    if (!l->keys[l->cur].valid || l->since_key >= l->k) {
+        rc = make_key(l, u, &err);
         if (!rc)
-            rc = mim_xfer_transfer(sv->solver, sv->s.W, sv->s.mesh.n_vertices, l->F, xyz, sv->s.map.count, &o,
-                                   l->out, NULL, &err);
-        pthread_mutex_unlock(&sv->lock);
+            l->k = choose_interval(l), l->since_key = 0, key = 1;
     }
     if (rc) {
         mim__metrics_add(&sv->m, MIM__C_VEST_ERRORS, 1);
-        set_state(l, "streaming", mim_error_text(&err));
+        set_error(l, mim_error_text(&err));
         return;
     }
-    mim__metrics_add(&sv->m, MIM__C_TRANSFERS, 1);
-    mim__metrics_add(&sv->m, MIM__C_KEY_FRAMES, 1);
-    mim__metrics_observe(&sv->m, MIM__H_KEY_FRAME, mim_now() - t0);
-    pthread_mutex_lock(&l->lock);
-    l->last_template = hit.id;
-    pthread_mutex_unlock(&l->lock);
+    key_pose_t *b = &l->keys[l->cur], *a = &l->keys[!l->cur];
+    const float *pos = b->pos;
+    double t = (double)(l->since_key + 1) / l->k;
+    if (a->valid && t < 1.0) {
+        if ((rc = make_morph(l, a, b, t, &err))) {
+            mim__metrics_add(&sv->m, MIM__C_VEST_ERRORS, 1);
+            set_error(l, mim_error_text(&err));
+            return;
+        }
+        pos = l->out;
+    }
+    l->since_key++;
+    double now = mim_now();
+    mim_serve_frame_t f = {.number = ++l->number,
+                           .t_vest_us = t_vest,
+                           .arrival_us = (uint64_t)(l->arrival * 1e6),
+                           .template_id = b->template_id,
+                           .compute_us = (uint32_t)((now - l->arrival) * 1e6),
+                           .key_interval = l->k,
+                           .key = pos == b->pos,
+                           .n_vertices = sv->s.mesh.n_vertices,
+                           .n_landmarks = L,
+                           .positions = pos,
+                           .landmarks = shown};
+    snprintf(f.label, sizeof f.label, "%s", b->label);
+    mim__ws_publish(sv->ws, &f);
+    if (l->opt.on_frame)
+        l->opt.on_frame(l->opt.user, &f);
+    mim__metrics_add(&sv->m, MIM__C_FRAMES, 1);
+    mim__metrics_observe(&sv->m, MIM__H_FRAME, mim_now() - l->arrival);
+    mim__metrics_set(&sv->m, MIM__G_KEY_INTERVAL, l->k);
+    count_rates(l, key);
 }
 
 static void sensor_frame(mim__loop_t *l, uint64_t t)
 {
     float xyz[3 * MIM_LANDMARKS_MAX];
     uint8_t present[MIM_LANDMARKS_MAX];
-    uint32_t n = mim_vest_fk(&l->rig, &l->st, t, 0, xyz, present);
-    landmarks_frame(l, xyz, n);
+    mim_vest_fk(&l->rig, &l->st, t, 0, xyz, present);
+    landmarks_frame(l, xyz, present, t);
 }
 
 static void on_packet(void *user, const mim_vest_packet_info_t *info, const mim_vest_frame_t *f, uint32_t n)
@@ -102,6 +310,20 @@ static void on_packet(void *user, const mim_vest_packet_info_t *info, const mim_
         sensor_frame(l, t[k]);
 }
 
+/* The vest's link state, told once per change (status, metrics, log). */
+static void link_state(mim__loop_t *l, int up, const char *why)
+{
+    pthread_mutex_lock(&l->lock);
+    int was_up = !strcmp(l->state, "streaming");
+    pthread_mutex_unlock(&l->lock);
+    if (up == was_up)
+        return;
+    set_state(l, up ? "streaming" : "reconnecting", why);
+    mim__metrics_add(&l->sv->m, up ? MIM__C_VEST_RECONNECTS : MIM__C_VEST_DISCONNECTS, 1);
+    mim__metrics_set(&l->sv->m, MIM__G_VEST_UP, up);
+    mim_log("vest %s: %s", l->spec, up ? "streaming again" : "lost; waiting for it to come back");
+}
+
 static void *run(void *arg)
 {
     mim__loop_t *l = arg;
@@ -110,23 +332,33 @@ static void *run(void *arg)
         mim_vest_chunk_t ch;
         mim_error_t err = {0};
         int r = mim_vest_transport_read(l->t, &ch, &err);
-        if (r == -ETIMEDOUT)
+        l->arrival = mim_now();
+        if (r == -ETIMEDOUT) {
+            if (!mim_vest_transport_connected(l->t))
+                link_state(l, 0, mim_error_text(&err));
             continue;
+        }
         if (r == 0) {
             uint64_t tl, ml;
             if (mim_vest_assembler_flush(&l->as, &tl, &ml))
                 sensor_frame(l, tl);
             set_state(l, "ended", NULL);
+            mim__metrics_set(&sv->m, MIM__G_VEST_UP, 0);
             return NULL;
         }
         if (r < 0) {
             mim__metrics_add(&sv->m, MIM__C_VEST_ERRORS, 1);
+            mim__metrics_set(&sv->m, MIM__G_VEST_UP, 0);
             set_state(l, "failed", mim_error_text(&err));
             return NULL;
         }
+        if (ch.restart || !mim_vest_transport_connected(l->t))
+            link_state(l, 1, NULL);
         if (ch.kind == MIM_VEST_CHUNK_STREAM) {
-            if (ch.restart)
+            if (ch.restart) {
                 mim_vest_decoder_reset(l->dec);
+                memset(&l->as, 0, sizeof l->as);
+            }
             mim_vest_decoder_feed(l->dec, ch.data, ch.len, ch.t_us);
             continue;
         }
@@ -134,51 +366,67 @@ static void *run(void *arg)
         uint64_t tu;
         float xyz[3 * MIM_LANDMARKS_MAX];
         uint8_t present[MIM_LANDMARKS_MAX];
-        uint32_t n = 0, have = 0;
-        if (mim_vest_udp_parse((const char *)ch.data, ch.len, &tu, xyz, present, MIM_LANDMARKS_MAX, &n, NULL) ||
+        uint32_t n = 0;
+        if (mim_vest_udp_parse((const char *)ch.data, ch.len, &tu, xyz, present, MIM_LANDMARKS_MAX, &n, &err) ||
             n != sv->s.map.count) {
+            if (!err.code)
+                mim_error_set(&err, MIM_EFORMAT, "udp frame: %u landmarks, the avatar has %u", n, sv->s.map.count);
             mim__metrics_add(&sv->m, MIM__C_VEST_ERRORS, 1);
+            set_error(l, mim_error_text(&err));
             continue;
         }
-        for (uint32_t k = 0; k < n; k++)
-            have += present[k] != 0;
-        landmarks_frame(l, xyz, have);
+        landmarks_frame(l, xyz, present, tu);
     }
     set_state(l, "stopped", NULL);
     return NULL;
 }
 
-int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const char *spec, int pose, mim_error_t *err)
+int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t *opt, mim_error_t *err)
 {
     *out = NULL;
     mim__loop_t *l = calloc(1, sizeof *l);
     mim_vest_skeleton_t *sk = malloc(sizeof *sk);
     const size_t n = sv->s.mesh.n_vertices;
-    int rc = 0;
+    int rc = 0, ok = l && sk;
     if (l) {
         l->tpos = malloc(3 * n * sizeof *l->tpos);
         l->out = malloc(3 * n * sizeof *l->out);
         l->F = malloc(9 * n * sizeof *l->F);
+        ok = ok && l->tpos && l->out && l->F;
+        for (int i = 0; i < 2; i++) {
+            key_pose_t *k = &l->keys[i];
+            k->pos = malloc(3 * n * sizeof *k->pos);
+            k->quats = malloc(4 * n * sizeof *k->quats);
+            k->W = malloc(3 * n * sizeof *k->W);
+            ok = ok && k->pos && k->quats && k->W;
+        }
     }
-    if (!l || !sk || !l->tpos || !l->out || !l->F)
+    if (!ok)
         rc = mim_error_set(err, MIM_ENOMEM, "out of memory for the vest loop");
-    if (!rc) {
+    if (l) {
         l->sv = sv;
+        l->opt = *opt;
+        l->k = 1;
         pthread_mutex_init(&l->lock, NULL);
-        snprintf(l->spec, sizeof l->spec, "%s", spec);
+        snprintf(l->spec, sizeof l->spec, "%s", opt->vest);
         snprintf(l->state, sizeof l->state, "streaming");
+    }
+    if (!rc) {
         mim_vest_state_reset(&l->st);
-        mim_vest_calib_options_t co = {pose};
+        mim_vest_calib_options_t co = {opt->vest_pose};
         rc = mim_vest_skeleton_estimate(sk, &sv->s.mesh, &sv->s.map, err);
         if (!rc)
             rc = mim_vest_calibrate(&l->rig, sk, &co, NULL, err);
-        mim_vest_transport_options_t to = {.timeout_ms = 200, .realtime = 1};
+        /* a service waits for its vest to come back, however long it is away */
+        mim_vest_transport_options_t to = {.timeout_ms = 200, .realtime = 1, .reconnect_limit_ms = INT_MAX};
         if (!rc)
-            rc = mim_vest_transport_open(&l->t, spec, &to, err);
+            rc = mim_vest_transport_open(&l->t, opt->vest, &to, err);
         mim_vest_decoder_options_t dopt = {.header_flags = l->t ? mim_vest_transport_header_flags(l->t) : 0};
         if (!rc && mim_vest_decoder_open(&l->dec, &dopt, on_packet, l))
             rc = mim_error_set(err, MIM_ENOMEM, "out of memory for the vest decoder");
     }
+    if (!rc)
+        mim__metrics_set(&sv->m, MIM__G_VEST_UP, 1);
     if (!rc && (rc = -pthread_create(&l->thread, NULL, run, l)) != 0)
         rc = mim_error_set(err, rc, "cannot start the vest thread: %s", strerror(-rc));
     if (l)
@@ -206,8 +454,21 @@ void mim__loop_close(mim__loop_t **pl)
     if (l->sv)
         pthread_mutex_destroy(&l->lock);
     free(l->tpos), free(l->out), free(l->F);
+    for (int i = 0; i < 2; i++)
+        free(l->keys[i].pos), free(l->keys[i].quats), free(l->keys[i].W);
     free(l);
     *pl = NULL;
+}
+
+const char *mim__loop_state(mim__loop_t *l)
+{
+    static _Thread_local char state[16];
+    if (!l)
+        return "none";
+    pthread_mutex_lock(&l->lock);
+    snprintf(state, sizeof state, "%s", l->state);
+    pthread_mutex_unlock(&l->lock);
+    return state;
 }
 
 json_t *mim__loop_status(mim__loop_t *l)
@@ -215,10 +476,15 @@ json_t *mim__loop_status(mim__loop_t *l)
     if (!l)
         return json_null();
     pthread_mutex_lock(&l->lock);
-    json_t *j = json_pack("{s:s, s:s, s:o, s:o, s:I}", "spec", l->spec, "state", l->state, "error",
-                          l->error[0] ? json_string(l->error) : json_null(), "last_template",
-                          l->last_template ? json_integer((json_int_t)l->last_template) : json_null(), "reconnects",
-                          (json_int_t)mim_vest_transport_reconnects(l->t));
+    json_t *j = json_pack(
+        "{s:s, s:s, s:o, s:o, s:o, s:I, s:s, s:i, s:f, s:f, s:f, s:f, s:I, s:f}", "spec", l->spec, "state", l->state,
+        "error", l->error[0] ? json_string(l->error) : json_null(), "last_template",
+        l->last_template ? json_integer((json_int_t)l->last_template) : json_null(), "last_label",
+        l->last_label[0] ? json_string(l->last_label) : json_null(), "reconnects",
+        (json_int_t)mim_vest_transport_reconnects(l->t), "key_rate_mode", l->opt.key_rate > 0.0 ? "fixed" : "auto",
+        "key_interval", (int)l->k, "key_rate_hz", l->key_rate_hz, "frame_rate_hz", l->frame_rate_hz, "key_ms",
+        l->c_key * 1e3, "morph_ms", l->c_morph * 1e3, "warm_starts", (json_int_t)l->warm_starts,
+        "iterations_per_key", l->key_frames ? (double)l->iterations / (double)l->key_frames : 0.0);
     pthread_mutex_unlock(&l->lock);
     return j;
 }

@@ -12,23 +12,45 @@
 static const double bounds[MIM__BUCKETS] = {0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.0075, 0.01,
                                             0.025,   0.05,   0.1,   0.25,   0.5,   1.0,    2.5};
 static const int statuses[MIM__STATUSES - 1] = {200, 400, 404, 405, 413, 500, 503};
-static const char *const route_names[MIM__R_COUNT] = {"status", "avatar", "query", "transfer", "metrics", "other"};
+static const char *const route_names[MIM__R_COUNT] = {"status", "avatar", "query", "transfer", "metrics", "viewer",
+                                                           "other"};
 static const struct {
     const char *name, *help;
 } counter_info[MIM__C_COUNT] = {
     {"mimic_queries_total", "Landmark frames answered by the recognition index."},
     {"mimic_transfers_total", "Avatar transfers computed."},
-    {"mimic_frames_total", "Vest frames turned into landmarks."},
-    {"mimic_key_frames_total", "Vest frames that became key frames (query + transfer)."},
-    {"mimic_frames_dropped_total", "Frames dropped for clients that did not keep up."},
+    {"mimic_vest_frames_total", "Vest frames turned into landmarks."},
+    {"mimic_frames_total", "Avatar frames published to the stream."},
+    {"mimic_key_frames_total", "Key frames made (nearest template, then transfer)."},
+    {"mimic_morph_frames_total", "Frames morphed between two key frames."},
+    {"mimic_vest_incomplete_frames_total", "Vest frames with lost landmarks (held at their last position)."},
+    {"mimic_frames_dropped_total", "Frames dropped for WebSocket clients that did not keep up."},
     {"mimic_vest_errors_total", "Vest read or decode errors."},
+    {"mimic_vest_disconnects_total", "Times the vest went away."},
+    {"mimic_vest_reconnects_total", "Times the vest came back."},
+    {"mimic_ws_joined_total", "WebSocket clients that joined."},
+    {"mimic_ws_left_total", "WebSocket clients that left."},
+    {"mimic_ws_frames_sent_total", "Binary avatar frames sent to WebSocket clients."},
+    {"mimic_ws_messages_total", "Messages received from WebSocket clients."},
+    {"mimic_ws_bad_messages_total", "Client messages that were malformed (answered with an error)."},
+};
+static const struct {
+    const char *name, *help;
+} gauge_info[MIM__G_COUNT] = {
+    {"mimic_key_interval", "Vest frames per key frame now (1: every vest frame is a key frame)."},
+    {"mimic_key_rate_hz", "Key frames per second over the last second."},
+    {"mimic_frame_rate_hz", "Frames published per second over the last second."},
+    {"mimic_vest_up", "1 while the vest streams, 0 while it is away or without one."},
+    {"mimic_ws_clients", "WebSocket clients connected now."},
 };
 static const struct {
     const char *name, *help;
 } hist_info[MIM__H_COUNT] = {
     {"mimic_query_seconds", "Time to answer one landmark frame."},
     {"mimic_transfer_seconds", "Time of one transfer (solves only)."},
-    {"mimic_key_frame_seconds", "Time from a complete vest frame to its transferred avatar."},
+    {"mimic_key_frame_seconds", "Compute time of one key frame (query + transfer)."},
+    {"mimic_morph_frame_seconds", "Compute time of one morphed frame."},
+    {"mimic_frame_latency_seconds", "From the arrival of a vest frame's last bytes to its avatar frame being published."},
 };
 
 void mim__metrics_init(mim__metrics_t *m)
@@ -71,6 +93,13 @@ void mim__metrics_observe(mim__metrics_t *m, mim__hist_t h, double seconds)
 {
     pthread_mutex_lock(&m->lock);
     observe(&m->hist[h], seconds);
+    pthread_mutex_unlock(&m->lock);
+}
+
+void mim__metrics_set(mim__metrics_t *m, mim__gauge_t g, double v)
+{
+    pthread_mutex_lock(&m->lock);
+    m->gauges[g] = v;
     pthread_mutex_unlock(&m->lock);
 }
 
@@ -146,6 +175,9 @@ char *mim__metrics_text(mim__metrics_t *m)
     for (int i = 0; i < MIM__C_COUNT; i++)
         put(&b, "# HELP %s %s\n# TYPE %s counter\n%s %llu\n", counter_info[i].name, counter_info[i].help,
             counter_info[i].name, counter_info[i].name, (unsigned long long)c.counters[i]);
+    for (int i = 0; i < MIM__G_COUNT; i++)
+        put(&b, "# HELP %s %s\n# TYPE %s gauge\n%s %.6g\n", gauge_info[i].name, gauge_info[i].help,
+            gauge_info[i].name, gauge_info[i].name, c.gauges[i]);
     put(&b, "# HELP mimic_http_requests_total HTTP requests by route and status.\n"
             "# TYPE mimic_http_requests_total counter\n");
     for (int r = 0; r < MIM__R_COUNT; r++)

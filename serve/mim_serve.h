@@ -1,21 +1,25 @@
-/* mimic serve: the real-time service (DESIGN.md, serve/). This part is the
- * HTTP JSON API over a store and an avatar, on civetweb:
+/* mimic serve: the real-time service (DESIGN.md, serve/), on civetweb:
+ *   GET  /               the web viewer (three.js, embedded at build time)
+ *   GET  /ws             WebSocket avatar stream, schemas/serve-ws-frame.md
  *   GET  /api/status     schemas/serve-status.schema.json
  *   GET  /api/avatar     schemas/serve-avatar.schema.json
  *   POST /api/query      one landmark frame -> schemas/query.schema.json
  *   POST /api/transfer   schemas/serve-transfer-request.schema.json -> GLB
  *   GET  /metrics        Prometheus text, names prefixed mimic_
  * Errors are JSON, schemas/serve-error.schema.json. With a vest, a thread
- * turns each vest frame into landmarks and each complete one into a key
- * frame (query, then transfer); the WebSocket stream, morphing between key
- * frames and the adaptive key rate are still to come. serve composes db/,
- * query/, transfer/ and vest/; cli/ sits above it. */
+ * turns each vest frame into landmarks, makes key frames (query, then
+ * transfer with the cached factor, warm-started from the last key frame)
+ * as often as its measured compute time allows, fills the frames between
+ * by morphing (seed 000 Section 3.5) and publishes every frame to the
+ * stream. serve composes db/, query/, transfer/ and vest/; cli/ sits above
+ * it. */
 #ifndef MIM_SERVE_H
 #define MIM_SERVE_H
 
 #include "mim_core.h"
 
 #include <stddef.h>
+#include <stdint.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -24,6 +28,22 @@ extern "C" {
 #define MIM_SERVE_DEFAULT_LISTEN "127.0.0.1:8080"
 #define MIM_SERVE_DEFAULT_MAX_BODY ((size_t)1 << 20)
 
+/* One frame the real-time loop publishes (what a /ws binary message holds).
+ * The arrays are lent for the duration of the on_frame call only. */
+typedef struct mim_serve_frame {
+    uint64_t number;       /* from 1, every published frame */
+    uint64_t t_vest_us;    /* the vest frame's time, as the transport gives it */
+    uint64_t arrival_us;   /* CLOCK_MONOTONIC us when its last vest bytes arrived */
+    uint64_t template_id;  /* of the latest key frame */
+    uint32_t compute_us;   /* arrival to ready */
+    uint32_t key_interval; /* vest frames per key frame when it was made */
+    int key;               /* 1: a key pose itself; 0: morphed between two */
+    char label[32];        /* the recognised pose class */
+    uint32_t n_vertices, n_landmarks;
+    const float *positions; /* 3 * n_vertices */
+    const float *landmarks; /* 3 * n_landmarks, NaN where the vest lost one */
+} mim_serve_frame_t;
+
 typedef struct mim_serve_options {
     const char *listen; /* HOST:PORT (port 0: any free port); NULL: MIM_SERVE_DEFAULT_LISTEN */
     size_t max_body;    /* request body limit in bytes (413 above it); 0: MIM_SERVE_DEFAULT_MAX_BODY */
@@ -31,7 +51,16 @@ typedef struct mim_serve_options {
     const char *vest;   /* NULL: no vest; else a vest spec (mim_vest_transport_open: a recording,
                            serial:PATH, hid:..., udp:HOST:PORT), read by the real-time loop */
     int vest_pose;      /* the wearer's pose at the tare: MIM_VEST_POSE_* (0: as the avatar rests) */
+    double key_rate;    /* key frames per second; 0: adaptive, a key frame at every vest frame the
+                           measured compute time affords */
+    unsigned max_clients; /* WebSocket clients at once; 0: MIM_SERVE_DEFAULT_MAX_CLIENTS */
+    /* Called on the loop thread for every published frame (may be NULL),
+     * e.g. to record the served sequence; it must return quickly. */
+    void (*on_frame)(void *user, const mim_serve_frame_t *frame);
+    void *user;
 } mim_serve_options_t;
+
+#define MIM_SERVE_DEFAULT_MAX_CLIENTS 64u
 
 typedef struct mim_serve mim_serve_t;
 
@@ -44,6 +73,13 @@ int mim_serve_open(mim_serve_t **out, const char *store, const char *avatar, con
                    mim_error_t *err);
 /* The port actually bound (useful with port 0). */
 int mim_serve_port(const mim_serve_t *s);
+/* The vest loop's state: "streaming", "reconnecting", "ended", "failed",
+ * "stopped", or "none" without a vest. */
+const char *mim_serve_vest_state(mim_serve_t *s);
+/* The service's store, avatar mesh (the store's faces, the avatar's rest
+ * positions) and the number of frames published so far. */
+const mim_mesh_t *mim_serve_avatar_mesh(const mim_serve_t *s);
+uint64_t mim_serve_frames(mim_serve_t *s);
 /* Stops listening (waits for requests in flight) and frees everything.
  * Accepts NULL; nulls the pointer. */
 void mim_serve_close(mim_serve_t **s);

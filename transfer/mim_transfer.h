@@ -141,6 +141,12 @@ typedef struct mim_xfer_options {
     int no_early_stop;       /* 1: do not stop when the move per iteration grows */
     double stop_ratio;       /* 0: MIM_XFER_DEFAULT_STOP_RATIO; early stop when
                                 move_k > stop_ratio * move_{k-1} (k >= 3) */
+    /* Warm start (3 * n, optional): a previous solution, e.g. the last key
+     * frame's of a real-time stream. It is iterate 0: the first solve uses
+     * its frames instead of frames0, and that solve's step is damped and
+     * measured against it, so a pose that changed little stops after fewer
+     * solves. NULL: start from frames0 (the template's frames, the paper). */
+    const float *start;
     const float *truth;      /* optional ground truth (3 * n) for error_by_iteration */
     double *error_by_iteration; /* optional: max_iterations entries, mean |x - truth| */
 } mim_xfer_options_t;

@@ -10,7 +10,9 @@
  * and an early stop when the largest move stops shrinking fast (move_k >
  * stop_ratio * move_{k-1}, default 0.5), i.e. the iteration has started to
  * drift or oscillate; it then returns the mean of the last two iterates,
- * the middle of an oscillation. Nothing is allocated here: all
+ * the middle of an oscillation. A warm start (opt->start, a previous
+ * solution) enters as iterate 0: its frames replace step 1's F_T and the
+ * damping and move tests count it as one more iterate. Nothing is allocated here: all
  * workspaces live in the solver. */
 #include "internal.h"
 
@@ -145,14 +147,25 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
     double *pos = s->pos, *prev = s->prev;
     const double *F = frames0;
     double last_prev_move = INFINITY, move = INFINITY;
-    uint32_t it = 0;
+    uint32_t it = 0, warm = 0;
     int converged = 0, early = 0;
+    if (o.start) {
+        for (size_t i = 0; i < 3 * (size_t)n; i++) {
+            if (!isfinite(o.start[i]))
+                return mim_error_set(err, MIM_ENONFINITE, "transfer: warm start of vertex %zu is not finite", i / 3);
+            prev[i] = o.start[i];
+        }
+        mim__xfer_frames_ws(s->topo, prev, s->frames, s->fn);
+        F = s->frames;
+        warm = 1;
+    }
     while (it < maxit) {
         build_rhs(s, W, F, targets);
         int rc = mim__xfer_solve(s, err);
         if (rc)
             return rc;
         it++;
+        const uint32_t k = it + warm; /* iterates so far, counting a warm start */
         const double *X = s->X->x;
         double mv = 0.0;
         for (uint32_t j = 0; j < nf; j++) {
@@ -161,7 +174,7 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
             double m2 = 0.0;
             for (int c = 0; c < 3; c++) {
                 double x = X[(size_t)c * nf + j];
-                if (it > 1) {
+                if (k > 1) {
                     x = q[c] + alpha * (x - q[c]);
                     m2 += (x - q[c]) * (x - q[c]);
                 }
@@ -174,8 +187,8 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
             for (int k = 0; k < 3; k++)
                 pos[3 * (size_t)s->cons[c] + k] = targets[3 * (size_t)c + k];
         last_prev_move = move;
-        move = it > 1 ? sqrt(mv) : INFINITY;
-        if (it > 2 && !o.no_early_stop && move > ratio * last_prev_move) {
+        move = k > 1 ? sqrt(mv) : INFINITY;
+        if (k > 2 && !o.no_early_stop && move > ratio * last_prev_move) {
             /* oscillation: return the middle of the last two iterates */
             for (size_t i = 0; i < 3 * (size_t)n; i++)
                 pos[i] = 0.5 * (pos[i] + prev[i]);

@@ -343,6 +343,9 @@ int mim_vest_transport_read(mim_vest_transport_t *t, mim_vest_chunk_t *chunk, mi
 int mim_vest_transport_write(mim_vest_transport_t *t, const void *data, size_t len, mim_error_t *err);
 uint32_t mim_vest_transport_header_flags(const mim_vest_transport_t *t);
 uint32_t mim_vest_transport_reconnects(const mim_vest_transport_t *t);
+/* 0 while a serial or HID vest is unplugged (between a failed read and its
+ * reconnection); 1 otherwise. */
+int mim_vest_transport_connected(const mim_vest_transport_t *t);
 /* 1 for serial and HID (they take commands). */
 int mim_vest_transport_is_device(const mim_vest_transport_t *t);
 
@@ -393,6 +396,10 @@ int mim_vest_motion_read_amc(mim_vest_motion_t *m, const char *asf_path, const c
 int mim_vest_motion_parse_bvh(mim_vest_motion_t *m, const char *text, size_t len, const char *origin,
                               mim_error_t *err);
 void mim_vest_motion_free(mim_vest_motion_t *m);
+/* The built-in demo motion (motion_demo.c): eight poses a synth store also
+ * holds (rest, T, arms up, wave, reach, squat, walk, bow), 12 s, T-pose
+ * rest. Free with mim_vest_motion_free. MIM_ENOMEM only. */
+int mim_vest_motion_demo(mim_vest_motion_t *m, mim_error_t *err);
 /* Orientations at time t (slerp between frames; clamped to the ends). */
 void mim_vest_motion_sample(const mim_vest_motion_t *m, double t, mim_quat q[MIM_VEST_SEGMENTS]);
 

@@ -104,6 +104,11 @@ void mim_vest_transport_close(mim_vest_transport_t **tp)
 
 uint32_t mim_vest_transport_header_flags(const mim_vest_transport_t *t) { return t ? t->header_flags : 0; }
 uint32_t mim_vest_transport_reconnects(const mim_vest_transport_t *t) { return t ? t->reconnects : 0; }
+int mim_vest_transport_connected(const mim_vest_transport_t *t)
+{
+    if (!t) return 0;
+    return (t->kind != MIM__T_SERIAL && t->kind != MIM__T_HID) || t->connected;
+}
 int mim_vest_transport_is_device(const mim_vest_transport_t *t)
 {
     return t && (t->kind == MIM__T_SERIAL || t->kind == MIM__T_HID);
