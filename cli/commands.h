@@ -14,5 +14,6 @@ int mim_cmd_vest(int argc, char **argv);
 int mim_cmd_transfer(int argc, char **argv);
 int mim_cmd_morph(int argc, char **argv);
 int mim_cmd_serve(int argc, char **argv);
+int mim_cmd_demo(int argc, char **argv);
 
 #endif

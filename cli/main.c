@@ -19,7 +19,8 @@ static const struct {
     {"transfer", mim_cmd_transfer, "deform an avatar into a template's pose and/or landmarks"},
     {"morph", mim_cmd_morph, "key poses and the poses between them, as a GLB animation"},
     {"vest", mim_cmd_vest, "list, record, replay or simulate a tracking vest"},
-    {"serve", mim_cmd_serve, "serve pose transfer over HTTP (JSON API, metrics)"},
+    {"serve", mim_cmd_serve, "serve pose transfer: viewer, WebSocket avatar stream, JSON API"},
+    {"demo", mim_cmd_demo, "everything end to end on synthetic data: store, index, vest, serve"},
 };
 
 static void usage(FILE *out)

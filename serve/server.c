@@ -3,6 +3,7 @@
  * civetweb (Debian libcivetweb-dev) gives HTTP/1.1 and WebSocket in one C
  * library with its own worker threads, so handlers are plain functions. */
 #include "internal.h"
+#include "viewer.h"
 
 #include <civetweb.h>
 #include <dlfcn.h>
@@ -147,7 +148,10 @@ static int handle(struct mg_connection *c, void *cbdata)
     size_t i = 0, n = sizeof routes / sizeof routes[0];
     while (i < n && strcmp(routes[i].path, path))
         i++;
-    if (i == n) {
+    if (i == n && (!strcmp(ri->request_method, "GET") || !strcmp(ri->request_method, "HEAD")) &&
+        (status = mim__viewer_serve(c, path)) != 0) {
+        route = MIM__R_VIEWER;
+    } else if (i == n) {
         status = mim__reply_error(c, 404, "%s: no such route (see schemas/ for the API)", path);
     } else if (route = routes[i].route, strcmp(ri->request_method, routes[i].method)) {
         char allow[64];
@@ -203,18 +207,27 @@ int mim_serve_open(mim_serve_t **out, const char *store, const char *avatar, con
         mim_xfer_solver_options_t so = {0};
         rc = mim_xfer_solver_open(&sv->solver, sv->s.topo, sv->s.map.vertex, sv->s.map.count, &so, err);
     }
+    const unsigned max_clients = o.max_clients ? o.max_clients : MIM_SERVE_DEFAULT_MAX_CLIENTS;
+    if (!rc)
+        rc = mim__ws_open(&sv->ws, sv, max_clients, err);
     if (!rc && o.vest)
-        rc = mim__loop_open(&sv->loop, sv, o.vest, o.vest_pose, err);
+        rc = mim__loop_open(&sv->loop, sv, &o, err);
     if (rc) {
         mim_serve_close(&sv);
         return rc;
     }
 
+    /* civetweb gives every WebSocket connection a worker thread for its
+     * life: room for max_clients of them plus the HTTP workers. A write
+     * to a client that stopped reading gives up after request_timeout_ms;
+     * websocket_timeout_ms is how often an idle read loop looks at the
+     * stop flag, so shutdown waits at most that long. */
     char threads[16];
-    snprintf(threads, sizeof threads, "%u", o.threads ? o.threads : 4);
+    snprintf(threads, sizeof threads, "%u", (o.threads ? o.threads : 4) + max_clients);
     const char *options[] = {"listening_ports", o.listen ? o.listen : MIM_SERVE_DEFAULT_LISTEN,
                              "num_threads", threads,
-                             "request_timeout_ms", "30000",
+                             "request_timeout_ms", "10000",
+                             "websocket_timeout_ms", "500",
                              NULL};
     struct mg_callbacks cb = {.log_message = quiet_log};
     struct mg_init_data init = {.callbacks = &cb, .user_data = sv, .configuration_options = options};
@@ -230,6 +243,7 @@ int mim_serve_open(mim_serve_t **out, const char *store, const char *avatar, con
         return rc;
     }
     mg_set_request_handler(sv->ctx, "/", handle, sv);
+    mim__ws_attach(sv->ws, sv->ctx);
     struct mg_server_port ports[4];
     int np = mg_get_server_ports(sv->ctx, 4, ports);
     sv->port = np > 0 ? ports[0].port : 0;
@@ -242,6 +256,21 @@ int mim_serve_port(const mim_serve_t *s)
     return s ? s->port : 0;
 }
 
+const char *mim_serve_vest_state(mim_serve_t *s)
+{
+    return mim__loop_state(s ? s->loop : NULL);
+}
+
+const mim_mesh_t *mim_serve_avatar_mesh(const mim_serve_t *s)
+{
+    return s ? &s->s.mesh : NULL;
+}
+
+uint64_t mim_serve_frames(mim_serve_t *s)
+{
+    return s ? mim__metrics_get(&s->m, MIM__C_FRAMES) : 0;
+}
+
 void mim_serve_close(mim_serve_t **ps)
 {
     mim_serve_t *sv = ps ? *ps : NULL;
@@ -252,6 +281,7 @@ void mim_serve_close(mim_serve_t **ps)
         mg_exit_library();
     }
     mim__loop_close(&sv->loop); /* after the workers: /api/status reads the loop */
+    mim__ws_close(&sv->ws);     /* after the loop, which publishes to it */
     mim_xfer_solver_close(&sv->solver);
     mim_query_close(&sv->q);
     mim_serve_session_close(&sv->s);

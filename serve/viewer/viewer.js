@@ -1,0 +1,330 @@
+// mimic web viewer: the avatar of `mimic serve`, moving with the vest.
+//
+// GET /api/avatar gives the rest mesh once (schemas/serve-avatar.schema.json);
+// the WebSocket /ws then sends the avatar's vertex positions for every frame
+// the service's real-time loop publishes (schemas/serve-ws-frame.md). This
+// page draws the mesh with three.js (embedded in the mimic binary), updates
+// its positions in place for each binary frame, draws the tracked landmarks
+// and shows the stream's state in an overlay.
+
+// What the page has seen, for people (the overlay) and for tests
+// (tests/viewer_test.mjs reads window.mimicViewer). Always the same object.
+const state = {
+  connected: false,   // the socket is open
+  frames: 0,          // binary frames decoded since the page loaded
+  lastFrameNumber: 0, // the header's frame number of the latest frame
+  templateId: 0,      // template id of the latest key frame (0: none yet)
+  poseLabel: '',      // its recognised pose class
+  keyFrame: false,    // the latest frame was a key frame (else a morph frame)
+  computeMs: 0,       // the server's compute time for the latest frame
+  fps: 0,             // frames received per second, measured here
+  dropped: 0,         // frames the server skipped for us (frame number gaps)
+  format: 'f32',      // the position encoding the server says it sends
+  keyInterval: 0,      // vest frames per key frame
+  landmarkCount: 0,    // landmarks in the latest frame
+  landmarksTracked: 0, // of which the vest tracks (the others are NaN)
+  errors: [],         // one line each: bad frames, server error messages
+};
+window.mimicViewer = state;
+
+const HEADER = 112; // bytes before the positions
+const LITTLE_ENDIAN = new Uint8Array(new Uint16Array([1]).buffer)[0] === 1; // as the wire
+const $ = (id) => document.getElementById(id);
+
+function report(msg) {
+  state.errors.push(msg);
+  if (state.errors.length > 50) state.errors.shift();
+  $('o-error').textContent = msg;
+  console.warn('mimic viewer: ' + msg);
+}
+
+// ---- three.js, or why it is missing -------------------------------------
+// Imported dynamically so that a missing or placeholder three.js (a build
+// without npm ci, serve/CMakeLists.txt) still lets the page explain itself.
+let THREE, OrbitControls;
+try {
+  THREE = await import('three');
+  ({ OrbitControls } = await import('three/addons/controls/OrbitControls.js'));
+} catch (e) {
+  THREE = { MIMIC_PLACEHOLDER: 'three.js failed to load: ' + e.message };
+}
+function fatal(msg) {
+  $('o-conn').textContent = 'not started';
+  $('o-error').textContent = msg;
+  throw new Error(msg); // stop here: nothing to draw with
+}
+if (!THREE.WebGLRenderer || !OrbitControls) fatal(THREE.MIMIC_PLACEHOLDER || 'three.js failed to load');
+
+// ---- the scene ------------------------------------------------------------
+const canvas = $('view');
+let renderer;
+try {
+  renderer = new THREE.WebGLRenderer({ canvas, antialias: true });
+} catch (e) {
+  fatal('this browser gives the page no WebGL: ' + e.message);
+}
+renderer.setPixelRatio(window.devicePixelRatio);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0x20242b);
+const camera = new THREE.PerspectiveCamera(35, 1, 0.01, 100);
+const controls = new OrbitControls(camera, canvas);
+controls.enableDamping = true;
+
+// A sky/ground fill, a key light from the front-left-above and a rim light
+// from behind, so the body reads as a solid from any side.
+scene.add(new THREE.HemisphereLight(0xdde6f0, 0x3a3430, 1.2));
+const key = new THREE.DirectionalLight(0xffffff, 2.6);
+key.position.set(-2, 3, 3);
+scene.add(key);
+const rim = new THREE.DirectionalLight(0xb8c8ff, 1.0);
+rim.position.set(2, 2, -3);
+scene.add(rim);
+
+function resize() {
+  const w = canvas.clientWidth, h = canvas.clientHeight;
+  renderer.setSize(w, h, false);
+  camera.aspect = w / Math.max(h, 1);
+  camera.updateProjectionMatrix();
+}
+window.addEventListener('resize', resize);
+resize();
+
+let mesh = null;          // the avatar
+let positions = null;     // its position attribute's Float32Array (3 N)
+let vertexCount = 0;
+let normalsDirty = false; // new positions since the last normal update
+const landmarks = [];     // one small sphere per landmark
+const landmarkGeometry = new THREE.SphereGeometry(1, 12, 8);
+const landmarkMaterial = new THREE.MeshBasicMaterial({ color: 0xff8a3d, depthTest: false, transparent: true, opacity: 0.9 });
+
+// Builds the avatar from GET /api/avatar and points the camera at it.
+function buildAvatar(a) {
+  vertexCount = a.vertices;
+  positions = new Float32Array(a.positions);
+  const geometry = new THREE.BufferGeometry();
+  const attr = new THREE.BufferAttribute(positions, 3);
+  attr.setUsage(THREE.DynamicDrawUsage); // rewritten every frame
+  geometry.setAttribute('position', attr);
+  geometry.setIndex(new THREE.BufferAttribute(vertexCount > 65535 ? new Uint32Array(a.indices) : new Uint16Array(a.indices), 1));
+  geometry.computeVertexNormals();
+  geometry.computeBoundingSphere();
+  const material = new THREE.MeshStandardMaterial({ color: 0xc9b4a2, roughness: 0.65, metalness: 0.0 });
+  mesh = new THREE.Mesh(geometry, material);
+  scene.add(mesh);
+
+  // Frame the rest pose: look at the middle of its box from the front (+z),
+  // far enough back that its height fills about 70% of the view.
+  geometry.computeBoundingBox();
+  const box = geometry.boundingBox, size = new THREE.Vector3(), mid = new THREE.Vector3();
+  box.getSize(size);
+  box.getCenter(mid);
+  const extent = Math.max(size.y, size.x / camera.aspect);
+  const dist = extent / 0.7 / (2 * Math.tan(THREE.MathUtils.degToRad(camera.fov / 2))) + size.z / 2;
+  camera.position.set(mid.x, mid.y + 0.1 * size.y, mid.z + dist);
+  controls.target.copy(mid);
+  controls.update();
+
+  // The floor, under the feet.
+  const grid = new THREE.GridHelper(4, 16, 0x59606b, 0x3a404a);
+  grid.position.set(mid.x, box.min.y, mid.z);
+  scene.add(grid);
+}
+
+function setLandmarkCount(n, radius) {
+  while (landmarks.length < n) {
+    const s = new THREE.Mesh(landmarkGeometry, landmarkMaterial);
+    s.scale.setScalar(radius);
+    s.renderOrder = 1; // drawn over the body
+    s.visible = false;
+    scene.add(s);
+    landmarks.push(s);
+  }
+}
+
+// ---- decoding a binary frame (schemas/serve-ws-frame.md) ------------------
+const labelDecoder = new TextDecoder();
+
+// Decodes one frame into `positions` (in place) and the landmark spheres.
+// Returns the header fields, or throws with a one-line reason.
+function decodeFrame(buf) {
+  if (buf.byteLength < HEADER) throw new Error(`frame of ${buf.byteLength} bytes: shorter than its header`);
+  const dv = new DataView(buf), bytes = new Uint8Array(buf);
+  if (labelDecoder.decode(bytes.subarray(0, 4)) !== 'MIMF') throw new Error('frame without the MIMF magic');
+  const version = dv.getUint16(4, true);
+  if (version !== 1) throw new Error(`frame version ${version} (this page reads 1)`);
+  const flags = dv.getUint16(6, true);
+  const h = {
+    key: (flags & 1) !== 0,
+    i16: (flags & 2) !== 0,
+    frame: Number(dv.getBigUint64(8, true)),
+    templateId: Number(dv.getBigUint64(24, true)),
+    n: dv.getUint32(32, true),
+    l: dv.getUint32(36, true),
+    computeUs: dv.getUint32(40, true),
+    keyInterval: dv.getUint32(44, true),
+  };
+  const label = bytes.subarray(56, 88), nul = label.indexOf(0);
+  h.label = labelDecoder.decode(nul < 0 ? label : label.subarray(0, nul));
+  const lo = [0, 1, 2].map((i) => dv.getFloat32(88 + 4 * i, true));
+  const hi = [0, 1, 2].map((i) => dv.getFloat32(100 + 4 * i, true));
+
+  const posBytes = h.i16 ? 6 * h.n + (h.n % 2 ? 2 : 0) : 12 * h.n;
+  const want = HEADER + posBytes + 12 * h.l;
+  if (buf.byteLength !== want) throw new Error(`frame ${h.frame}: ${buf.byteLength} bytes, expected ${want}`);
+  if (h.n !== vertexCount) throw new Error(`frame ${h.frame}: ${h.n} vertices, the avatar has ${vertexCount}`);
+
+  if (h.i16) {
+    // q = round((x - min) / (max - min) * 65535) - 32768, per axis
+    const scale = [0, 1, 2].map((a) => (hi[a] - lo[a]) / 65535);
+    for (let i = 0, off = HEADER; i < 3 * h.n; i++, off += 2) {
+      const a = i % 3;
+      positions[i] = lo[a] + (dv.getInt16(off, true) + 32768) * scale[a];
+    }
+  } else if (LITTLE_ENDIAN) {
+    positions.set(new Float32Array(buf, HEADER, 3 * h.n)); // the wire's order: one copy
+  } else {
+    for (let i = 0, off = HEADER; i < 3 * h.n; i++, off += 4) positions[i] = dv.getFloat32(off, true);
+  }
+
+  // Landmarks: x y z float32 each, NaN when the vest lost it.
+  setLandmarkCount(h.l, 0.012 * Math.max(hi[1] - lo[1], 0.5));
+  let tracked = 0;
+  for (let j = 0, off = HEADER + posBytes; j < landmarks.length; j++, off += 12) {
+    const s = landmarks[j];
+    if (j >= h.l) { s.visible = false; continue; }
+    const x = dv.getFloat32(off, true), y = dv.getFloat32(off + 4, true), z = dv.getFloat32(off + 8, true);
+    s.visible = Number.isFinite(x) && Number.isFinite(y) && Number.isFinite(z);
+    if (s.visible) { s.position.set(x, y, z); tracked++; }
+  }
+  h.tracked = tracked;
+  return h;
+}
+
+function onFrame(buf) {
+  if (!mesh) return; // the avatar is not built yet: nothing to update
+  let h;
+  try {
+    h = decodeFrame(buf);
+  } catch (e) {
+    report(e.message);
+    return;
+  }
+  mesh.geometry.attributes.position.needsUpdate = true;
+  mesh.geometry.computeBoundingSphere();
+  normalsDirty = true;
+  // A gap in frame numbers is frames the server dropped for this client.
+  // The first frame of a connection, or a restarted server, is a new start.
+  if (state.lastFrameNumber && h.frame > state.lastFrameNumber + 1) state.dropped += h.frame - state.lastFrameNumber - 1;
+  state.lastFrameNumber = h.frame;
+  state.frames++;
+  state.templateId = h.templateId;
+  state.poseLabel = h.label;
+  state.keyFrame = h.key;
+  state.keyInterval = h.keyInterval;
+  state.computeMs = h.computeUs / 1000;
+  state.landmarksTracked = h.tracked;
+  state.landmarkCount = h.l;
+}
+
+function onText(text) {
+  let m;
+  try {
+    m = JSON.parse(text);
+  } catch {
+    report('a text message that is not JSON');
+    return;
+  }
+  if (m.type === 'hello') {
+    state.format = m.format;
+    if (vertexCount && m.vertices !== vertexCount) report(`the stream has ${m.vertices} vertices, the avatar ${vertexCount}`);
+  } else if (m.type === 'format') {
+    state.format = m.format;
+  } else if (m.type === 'error') {
+    report('server: ' + m.error);
+  }
+}
+
+// ---- the socket, reconnecting with backoff --------------------------------
+let ws = null;
+let retryMs = 500;
+const i16Box = $('o-i16');
+const wanted = () => (i16Box.checked ? 'i16' : 'f32');
+
+function connect() {
+  const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws`;
+  setConnection('connecting');
+  ws = new WebSocket(url);
+  ws.binaryType = 'arraybuffer';
+  ws.onopen = () => {
+    state.connected = true;
+    state.lastFrameNumber = 0; // joining mid-stream is not a drop
+    retryMs = 500;
+    setConnection('connected');
+    if (wanted() !== 'f32') ws.send(JSON.stringify({ format: wanted() }));
+  };
+  ws.onmessage = (ev) => (typeof ev.data === 'string' ? onText(ev.data) : onFrame(ev.data));
+  ws.onclose = () => {
+    state.connected = false;
+    setConnection(`closed, retrying in ${(retryMs / 1000).toFixed(1)} s`);
+    setTimeout(connect, retryMs);
+    retryMs = Math.min(retryMs * 2, 10000);
+  };
+}
+
+i16Box.addEventListener('change', () => {
+  if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify({ format: wanted() }));
+});
+
+function setConnection(text) {
+  const el = $('o-conn');
+  el.textContent = text;
+  el.className = state.connected ? 'up' : 'down';
+}
+
+// ---- the overlay, five times a second -------------------------------------
+let fpsFrames = 0, fpsTime = performance.now();
+setInterval(() => {
+  const now = performance.now();
+  if (now - fpsTime >= 1000) {
+    state.fps = ((state.frames - fpsFrames) * 1000) / (now - fpsTime);
+    fpsFrames = state.frames;
+    fpsTime = now;
+  }
+  if (!state.frames) return;
+  $('o-template').textContent = state.templateId ? String(state.templateId) : 'none yet';
+  $('o-pose').textContent = state.poseLabel || '-';
+  $('o-frame').textContent = `#${state.lastFrameNumber} ${state.keyFrame ? 'key' : 'morph'}`;
+  $('o-interval').textContent = state.keyInterval === 1 ? 'every frame' : `1 frame in ${state.keyInterval}`;
+  $('o-latency').textContent = `${state.computeMs.toFixed(2)} ms`;
+  $('o-fps').textContent = `${state.fps.toFixed(1)} frames/s, ${state.format}`;
+  $('o-dropped').textContent = String(state.dropped);
+  $('o-landmarks').textContent = `${state.landmarksTracked} of ${state.landmarkCount} tracked`;
+}, 200);
+
+// ---- start ----------------------------------------------------------------
+function render() {
+  if (normalsDirty) { // at most once per displayed frame, however many arrived
+    mesh.geometry.computeVertexNormals();
+    normalsDirty = false;
+  }
+  controls.update();
+  renderer.render(scene, camera);
+  requestAnimationFrame(render);
+}
+
+async function loadAvatar() {
+  for (let wait = 500; ; wait = Math.min(wait * 2, 10000)) {
+    try {
+      const r = await fetch('/api/avatar');
+      if (!r.ok) throw new Error(`GET /api/avatar: HTTP ${r.status}`);
+      return await r.json();
+    } catch (e) {
+      $('o-conn').textContent = `${e.message}; retrying`;
+      await new Promise((ok) => setTimeout(ok, wait));
+    }
+  }
+}
+
+buildAvatar(await loadAvatar());
+requestAnimationFrame(render);
+connect();
