@@ -4,9 +4,11 @@
  *
  *  - a key frame (seed 000, Fig. 1): the nearest template of the landmarks
  *    (query/), then the transfer with the cached factor (transfer/). When
- *    the template is the one of the previous key frame, the iteration is
- *    warm-started from that key frame's solution, so a pose that changed
- *    little stops after fewer solves;
+ *    the template is the one of the previous key frame, the iteration can
+ *    be warm-started from that key frame's solution: about 0.6x the time
+ *    for about 13 % more error (bench/warm_start.c), so by default (auto)
+ *    the loop warm-starts only when cold key frames no longer fit its
+ *    budget, before it lowers the key rate;
  *  - between key frames, morphs (Section 3.5): with key interval k, the k
  *    frames after key i show the frames-method morph from key i-1 to key i
  *    at t = 1/k ... 1 (one solve each with the same factor), so the last
@@ -15,7 +17,8 @@
  * The paper fixed k by hand and left an adaptive k as future work. Here k
  * follows the loop's own measured costs: with vest period P, key-frame
  * cost c_k and morph cost c_m (moving averages), k = 1 while c_k fits in
- * 80 % of P, else the smallest k with c_k + (k - 1) c_m <= 0.8 k P. A fixed
+ * 80 % of P, else the smallest k with c_k + (k - 1) c_m <= 0.8 k P (c_k
+ * is then the warm-started cost if auto has switched to it). A fixed
  * key rate (--key-rate) overrides it. Lost landmarks are held at their last
  * position, so a short dropout does not stop the stream. */
 #include "internal.h"
@@ -63,7 +66,7 @@ struct mim__loop {
     uint32_t since_key; /* frames published since the latest key */
     float last_u[3 * MIM_LANDMARKS_MAX];
     uint8_t have_u[MIM_LANDMARKS_MAX];
-    double period, c_key, c_morph; /* seconds: vest period, costs (moving averages) */
+    double period, c_key, c_cold, c_warm, c_morph; /* seconds: vest period, costs (moving averages) */
     uint64_t t_prev_vest;
     double arrival;    /* mim_now() when the chunk being decoded arrived */
     uint64_t number;
@@ -98,20 +101,36 @@ static void ewma(double *avg, double sample)
     *avg = *avg > 0.0 ? (1.0 - EWMA) * *avg + EWMA * sample : sample;
 }
 
+static double budget(const mim__loop_t *l)
+{
+    return BUDGET_FRACTION * (l->period > 0.0 ? l->period : 1.0 / 60.0);
+}
+
+/* Whether the next key frame warm-starts (when its template allows). */
+static int want_warm(const mim__loop_t *l)
+{
+    if (l->opt.warm_start)
+        return l->opt.warm_start > 0;
+    return l->c_cold > budget(l); /* auto: only when cold key frames do not fit */
+}
+
 /* The key interval for the costs measured so far (see the top of the file). */
 static uint32_t choose_interval(const mim__loop_t *l)
 {
-    const double P = l->period > 0.0 ? l->period : 1.0 / 60.0;
     if (l->opt.key_rate > 0.0) {
-        double k = round(1.0 / (l->opt.key_rate * P));
+        double k = round(1.0 / (l->opt.key_rate * (l->period > 0.0 ? l->period : 1.0 / 60.0)));
         return k < 1.0 ? 1u : k > K_MAX ? K_MAX : (uint32_t)k;
     }
-    const double budget = BUDGET_FRACTION * P, cm = l->c_morph > 0.0 ? l->c_morph : 0.5 * l->c_key;
-    if (l->c_key <= budget)
+    const double B = budget(l);
+    double ck = l->c_cold;
+    if (want_warm(l))
+        ck = l->c_warm > 0.0 ? l->c_warm : 0.6 * l->c_cold;
+    const double cm = l->c_morph > 0.0 ? l->c_morph : 0.5 * ck;
+    if (ck <= B)
         return 1;
-    if (budget <= cm)
+    if (B <= cm)
         return K_MAX;
-    double k = ceil((l->c_key - cm) / (budget - cm));
+    double k = ceil((ck - cm) / (B - cm));
     return k > K_MAX ? K_MAX : (uint32_t)k;
 }
 
@@ -144,7 +163,7 @@ static int make_key(mim__loop_t *l, const float *u, mim_error_t *err)
     mim__metrics_add(&sv->m, MIM__C_QUERIES, 1);
     key_pose_t *prev = &l->keys[l->cur], *k = &l->keys[!l->cur];
     mim_xfer_options_t o = {0};
-    if (prev->valid && prev->template_id == hit.id)
+    if (prev->valid && prev->template_id == hit.id && want_warm(l))
         o.start = prev->pos; /* warm start: the same template as the last key frame */
     mim_xfer_report_t rep;
     pthread_mutex_lock(&sv->lock); /* the solver is shared with /api/transfer */
@@ -161,6 +180,7 @@ static int make_key(mim__loop_t *l, const float *u, mim_error_t *err)
     l->cur = !l->cur;
     double c = mim_now() - t0;
     ewma(&l->c_key, c);
+    ewma(o.start ? &l->c_warm : &l->c_cold, c);
     mim__metrics_add(&sv->m, MIM__C_TRANSFERS, 1);
     mim__metrics_add(&sv->m, MIM__C_KEY_FRAMES, 1);
     mim__metrics_observe(&sv->m, MIM__H_KEY_FRAME, c);
@@ -477,13 +497,14 @@ json_t *mim__loop_status(mim__loop_t *l)
         return json_null();
     pthread_mutex_lock(&l->lock);
     json_t *j = json_pack(
-        "{s:s, s:s, s:o, s:o, s:o, s:I, s:s, s:i, s:f, s:f, s:f, s:f, s:I, s:f}", "spec", l->spec, "state", l->state,
+        "{s:s, s:s, s:o, s:o, s:o, s:I, s:s, s:i, s:f, s:f, s:f, s:f, s:s, s:I, s:f}", "spec", l->spec, "state", l->state,
         "error", l->error[0] ? json_string(l->error) : json_null(), "last_template",
         l->last_template ? json_integer((json_int_t)l->last_template) : json_null(), "last_label",
         l->last_label[0] ? json_string(l->last_label) : json_null(), "reconnects",
         (json_int_t)mim_vest_transport_reconnects(l->t), "key_rate_mode", l->opt.key_rate > 0.0 ? "fixed" : "auto",
         "key_interval", (int)l->k, "key_rate_hz", l->key_rate_hz, "frame_rate_hz", l->frame_rate_hz, "key_ms",
-        l->c_key * 1e3, "morph_ms", l->c_morph * 1e3, "warm_starts", (json_int_t)l->warm_starts,
+        l->c_key * 1e3, "morph_ms", l->c_morph * 1e3, "warm_start",
+        l->opt.warm_start ? (l->opt.warm_start > 0 ? "on" : "off") : "auto", "warm_starts", (json_int_t)l->warm_starts,
         "iterations_per_key", l->key_frames ? (double)l->iterations / (double)l->key_frames : 0.0);
     pthread_mutex_unlock(&l->lock);
     return j;

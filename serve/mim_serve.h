@@ -8,8 +8,8 @@
  *   GET  /metrics        Prometheus text, names prefixed mimic_
  * Errors are JSON, schemas/serve-error.schema.json. With a vest, a thread
  * turns each vest frame into landmarks, makes key frames (query, then
- * transfer with the cached factor, warm-started from the last key frame)
- * as often as its measured compute time allows, fills the frames between
+ * transfer with the cached factor, warm-started from the last key frame
+ * when time is short) as often as its measured compute time allows, fills the frames between
  * by morphing (seed 000 Section 3.5) and publishes every frame to the
  * stream. serve composes db/, query/, transfer/ and vest/; cli/ sits above
  * it. */
@@ -53,6 +53,11 @@ typedef struct mim_serve_options {
     int vest_pose;      /* the wearer's pose at the tare: MIM_VEST_POSE_* (0: as the avatar rests) */
     double key_rate;    /* key frames per second; 0: adaptive, a key frame at every vest frame the
                            measured compute time affords */
+    /* Warm-start key frames from the previous key frame's solution (same
+     * template): 0 auto (only when cold key frames do not fit the vest
+     * period), 1 always, -1 never. It costs ~0.6x the time for ~13 % more
+     * error (bench/warm_start.c). */
+    int warm_start;
     unsigned max_clients; /* WebSocket clients at once; 0: MIM_SERVE_DEFAULT_MAX_CLIENTS */
     /* Called on the loop thread for every published frame (may be NULL),
      * e.g. to record the served sequence; it must return quickly. */

@@ -11,8 +11,12 @@
  * stop_ratio * move_{k-1}, default 0.5), i.e. the iteration has started to
  * drift or oscillate; it then returns the mean of the last two iterates,
  * the middle of an oscillation. A warm start (opt->start, a previous
- * solution) enters as iterate 0: its frames replace step 1's F_T and the
- * damping and move tests count it as one more iterate. Nothing is allocated here: all
+ * solution) enters as iterate 0: the first solve still uses F_T, but its
+ * step is damped from the warm start and the move tests count it as one
+ * more iterate, so it stops about one solve sooner. (Taking the warm
+ * start's own frames for the first solve instead was worse: the template
+ * then no longer guides the pose and the error grew 35-50 % over a stream;
+ * bench/warm_start.c.) Nothing is allocated here: all
  * workspaces live in the solver. */
 #include "internal.h"
 
@@ -155,8 +159,6 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
                 return mim_error_set(err, MIM_ENONFINITE, "transfer: warm start of vertex %zu is not finite", i / 3);
             prev[i] = o.start[i];
         }
-        mim__xfer_frames_ws(s->topo, prev, s->frames, s->fn);
-        F = s->frames;
         warm = 1;
     }
     while (it < maxit) {
