@@ -1,0 +1,1054 @@
+/* bench/serve: `mimic serve` under load (issue 6).
+ *
+ * One simulated vest at 60 Hz, N WebSocket clients on loopback (default 50)
+ * for S seconds (default 60). Everything runs as the real binary: the bench
+ * makes a synth store in a temp dir (`mimic synth`, `ingest`, `index`),
+ * starts `mimic vest simulate --motion demo --loop --out pty:D/vest` and
+ * `mimic serve --vest serial:D/vest --listen 127.0.0.1:0` as child
+ * processes and kills them at the end.
+ *
+ * The clients are this process: a minimal RFC 6455 client over raw sockets,
+ * one epoll loop per thread (--threads, default 1), which keeps only the
+ * 112-byte header of each binary frame (the positions are read from the
+ * socket and discarded). Per frame it records the end-to-end latency (its
+ * CLOCK_MONOTONIC when the recv that completed the frame returned, minus the
+ * header's arrival field: when the vest bytes that completed the frame
+ * reached the server), the server's compute time field, the frame number
+ * (gaps are drops) and the key flag, in arrays allocated before the run.
+ *
+ * The reference, measured in the same run: the same stream with 1 client
+ * for --ref-seconds (default 10), before the main phase; the latency with N
+ * clients is printed as a ratio to it. Each figure is over all frames of a
+ * phase (one long run, not a median of runs). CPU: the serve process's and
+ * the vest simulator's utime + stime from /proc/PID/stat, and this
+ * process's (the clients) from getrusage, over each phase, as % of one core.
+ *
+ * It never passes or fails on time: exit 0 when it ran, 1 when it could not
+ * (a child failed, no frames), 2 on bad usage.
+ *
+ * usage: bench_serve [--clients N] [--seconds S] [--ref-seconds R]
+ *                    [--format f32|i16] [--threads T] [--keep DIR] */
+#include "bench_data.h"
+
+#include <arpa/inet.h>
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <getopt.h>
+#include <jansson.h>
+#include <limits.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <poll.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/epoll.h>
+#include <sys/prctl.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#ifndef MIMIC_BIN_DEFAULT
+#define MIMIC_BIN_DEFAULT ""
+#endif
+
+#define HEAD 112
+#define RECV_BUF (256 * 1024)
+
+static double now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static uint64_t now_us(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
+}
+
+static uint16_t get_u16(const uint8_t *p)
+{
+    return (uint16_t)(p[0] | p[1] << 8);
+}
+static uint32_t get_u32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+static uint64_t get_u64(const uint8_t *p)
+{
+    return (uint64_t)get_u32(p) | (uint64_t)get_u32(p + 4) << 32;
+}
+
+/* ------------------------------------------------------------ children */
+
+typedef struct child {
+    pid_t pid;
+    int out; /* read end of its stdout, kept open until it is killed */
+    const char *name;
+    char log[4200];
+} child_t;
+
+static const char *g_bin;
+static char g_dir[4096];
+
+/* Starts `mimic args...` with stdout to a pipe (or /dev/null) and stderr
+ * to D/name.log. The child dies with the bench (PR_SET_PDEATHSIG). */
+static int spawn(child_t *c, const char *name, char *const args[], int want_stdout)
+{
+    memset(c, 0, sizeof *c);
+    c->name = name, c->out = -1;
+    snprintf(c->log, sizeof c->log, "%s/%s.log", g_dir, name);
+    int p[2] = {-1, -1};
+    if (want_stdout && pipe2(p, O_CLOEXEC))
+        return -1;
+    char *argv[32];
+    int n = 0;
+    argv[n++] = (char *)g_bin;
+    for (int i = 0; args[i] && n < 31; i++)
+        argv[n++] = args[i];
+    argv[n] = NULL;
+    pid_t parent = getpid();
+    pid_t pid = fork();
+    if (pid < 0)
+        return -1;
+    if (pid == 0) {
+        prctl(PR_SET_PDEATHSIG, SIGKILL);
+        if (getppid() != parent)
+            _exit(127);
+        int e = open(c->log, O_WRONLY | O_CREAT | O_TRUNC, 0644), o = want_stdout ? p[1] : open("/dev/null", O_WRONLY);
+        if (e >= 0)
+            dup2(e, 2);
+        if (o >= 0)
+            dup2(o, 1);
+        setenv("MIMIC_PROGRESS", "0", 1);
+        execv(argv[0], argv);
+        fprintf(stderr, "bench_serve: cannot run %s: %s\n", argv[0], strerror(errno));
+        _exit(127);
+    }
+    c->pid = pid;
+    if (want_stdout) {
+        close(p[1]);
+        c->out = p[0];
+    }
+    return 0;
+}
+
+static void print_log_tail(const child_t *c)
+{
+    FILE *f = fopen(c->log, "r");
+    if (!f)
+        return;
+    char line[1024];
+    int n = 0;
+    while (fgets(line, sizeof line, f) && n++ < 20)
+        fprintf(stderr, "  %s: %s", c->name, line);
+    fclose(f);
+}
+
+/* Waits for it to exit, at most timeout seconds (then kills it); its exit
+ * status, or -1. */
+static int wait_child(child_t *c, double timeout)
+{
+    double t0 = now();
+    int st;
+    for (;;) {
+        pid_t r = waitpid(c->pid, &st, WNOHANG);
+        if (r == c->pid) {
+            c->pid = 0;
+            return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+        }
+        if (r < 0)
+            return -1;
+        if (now() - t0 > timeout) {
+            kill(c->pid, SIGKILL);
+            waitpid(c->pid, &st, 0);
+            c->pid = 0;
+            return -1;
+        }
+        usleep(10000);
+    }
+}
+
+static void stop_child(child_t *c)
+{
+    if (c->pid > 0) {
+        kill(c->pid, SIGTERM);
+        if (wait_child(c, 5.0) < 0 && c->pid > 0)
+            kill(c->pid, SIGKILL);
+    }
+    if (c->out >= 0)
+        close(c->out), c->out = -1;
+}
+
+/* Runs `mimic args...` to completion (at most timeout seconds); 0 if it
+ * exited 0. */
+static int run_mimic(const char *name, char *const args[], double timeout)
+{
+    child_t c;
+    if (spawn(&c, name, args, 0))
+        return fprintf(stderr, "bench_serve: cannot start mimic %s\n", args[0]), -1;
+    int rc = wait_child(&c, timeout);
+    if (rc != 0) {
+        fprintf(stderr, "bench_serve: mimic %s failed (status %d):\n", args[0], rc);
+        print_log_tail(&c);
+        return -1;
+    }
+    return 0;
+}
+
+/* The first line of a child's stdout, waiting at most timeout seconds. */
+static int first_line(child_t *c, char *buf, size_t size, double timeout)
+{
+    size_t n = 0;
+    double t0 = now();
+    while (n + 1 < size) {
+        double left = timeout - (now() - t0);
+        if (left <= 0)
+            return -1;
+        struct pollfd p = {c->out, POLLIN, 0};
+        int r = poll(&p, 1, (int)(left * 1000) + 1);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r <= 0)
+            return -1;
+        ssize_t k = read(c->out, buf + n, 1);
+        if (k <= 0)
+            return -1;
+        if (buf[n] == '\n') {
+            buf[n] = 0;
+            return 0;
+        }
+        n++;
+    }
+    return -1;
+}
+
+/* utime + stime of a process (or one of its tasks) in seconds; -1 if gone. */
+static double proc_cpu(const char *stat_path)
+{
+    FILE *f = fopen(stat_path, "r");
+    if (!f)
+        return -1;
+    char buf[2048];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = 0;
+    char *p = strrchr(buf, ')');
+    if (!p)
+        return -1;
+    unsigned long ut = 0, stt = 0;
+    /* after ")": state(3) ppid pgrp session tty tpgid flags minflt cminflt majflt cmajflt utime(14) stime(15) */
+    if (sscanf(p + 2, "%*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %lu %lu", &ut, &stt) != 2)
+        return -1;
+    return (double)(ut + stt) / (double)sysconf(_SC_CLK_TCK);
+}
+
+static double pid_cpu(pid_t pid)
+{
+    char path[64];
+    snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
+    return proc_cpu(path);
+}
+
+static double self_cpu(void)
+{
+    struct rusage ru;
+    getrusage(RUSAGE_SELF, &ru);
+    return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec + (double)ru.ru_stime.tv_sec +
+           1e-6 * (double)ru.ru_stime.tv_usec;
+}
+
+/* CPU seconds of each task (thread) of a process, by tid. */
+#define MAX_TASKS 512
+typedef struct tasks {
+    int n;
+    int tid[MAX_TASKS];
+    double cpu[MAX_TASKS];
+} tasks_t;
+
+static void task_cpu(pid_t pid, tasks_t *t)
+{
+    char path[128];
+    snprintf(path, sizeof path, "/proc/%d/task", (int)pid);
+    t->n = 0;
+    DIR *d = opendir(path);
+    if (!d)
+        return;
+    struct dirent *e;
+    while ((e = readdir(d)) && t->n < MAX_TASKS) {
+        if (e->d_name[0] == '.')
+            continue;
+        char sp[300];
+        snprintf(sp, sizeof sp, "/proc/%d/task/%s/stat", (int)pid, e->d_name);
+        double c = proc_cpu(sp);
+        if (c >= 0)
+            t->tid[t->n] = atoi(e->d_name), t->cpu[t->n++] = c;
+    }
+    closedir(d);
+}
+
+static double loadavg1(void)
+{
+    double l = -1;
+    FILE *f = fopen("/proc/loadavg", "r");
+    if (f) {
+        if (fscanf(f, "%lf", &l) != 1)
+            l = -1;
+        fclose(f);
+    }
+    return l;
+}
+
+/* ------------------------------------------------------------ HTTP GET */
+
+static int g_port;
+
+static int tcp_connect(double timeout)
+{
+    int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (fd < 0)
+        return -1;
+    struct timeval tv = {(time_t)timeout, (suseconds_t)((timeout - (double)(time_t)timeout) * 1e6)};
+    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)g_port)};
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (connect(fd, (struct sockaddr *)&a, sizeof a)) {
+        close(fd);
+        return -1;
+    }
+    return fd;
+}
+
+/* GET path; the body (malloc'd, NUL-terminated), or NULL. */
+static char *http_get(const char *path)
+{
+    int fd = tcp_connect(5.0);
+    if (fd < 0)
+        return NULL;
+    char req[512];
+    int n = snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: 127.0.0.1:%d\r\nConnection: close\r\n\r\n", path,
+                     g_port);
+    if (send(fd, req, (size_t)n, MSG_NOSIGNAL) != n) {
+        close(fd);
+        return NULL;
+    }
+    size_t cap = 1 << 16, len = 0;
+    char *b = malloc(cap);
+    double t0 = now();
+    for (;;) {
+        if (len + 1 >= cap) {
+            char *nb = realloc(b, 2 * cap);
+            if (!nb)
+                break;
+            b = nb, cap *= 2;
+        }
+        ssize_t k = recv(fd, b + len, cap - 1 - len, 0);
+        if (k <= 0 || now() - t0 > 5.0)
+            break;
+        len += (size_t)k;
+    }
+    close(fd);
+    b[len] = 0;
+    char *body = strstr(b, "\r\n\r\n");
+    if (strncmp(b, "HTTP/1.1 200", 12) || !body) {
+        free(b);
+        return NULL;
+    }
+    memmove(b, body + 4, strlen(body + 4) + 1);
+    return b;
+}
+
+/* A counter or gauge without labels from Prometheus text; -1 if absent. */
+static double metric(const char *text, const char *name)
+{
+    size_t nl = strlen(name);
+    for (const char *p = text; p && *p; p = strchr(p, '\n') ? strchr(p, '\n') + 1 : NULL)
+        if (!strncmp(p, name, nl) && p[nl] == ' ')
+            return atof(p + nl + 1);
+    return -1;
+}
+
+typedef struct server_snap {
+    double t, key_frames, vest_frames, frames, drops, sent;
+    double serve_cpu, vest_cpu, self_cpu;
+    tasks_t tasks;
+} server_snap_t;
+
+static child_t g_vest, g_serve;
+
+static int snap(server_snap_t *s)
+{
+    char *m = http_get("/metrics");
+    s->t = now();
+    s->serve_cpu = pid_cpu(g_serve.pid), s->vest_cpu = pid_cpu(g_vest.pid), s->self_cpu = self_cpu();
+    task_cpu(g_serve.pid, &s->tasks);
+    if (!m)
+        return -1;
+    s->key_frames = metric(m, "mimic_key_frames_total");
+    s->vest_frames = metric(m, "mimic_vest_frames_total");
+    s->frames = metric(m, "mimic_frames_total");
+    s->drops = metric(m, "mimic_frames_dropped_total");
+    s->sent = metric(m, "mimic_ws_frames_sent_total");
+    free(m);
+    return 0;
+}
+
+/* ------------------------------------------------------------ WebSocket clients */
+
+typedef struct wsc {
+    int fd, thread;
+    /* the frame being read */
+    uint8_t fh[14];
+    int fh_len, fh_need;
+    uint64_t pay_len, pay_got;
+    int op, fin, msg_op;
+    uint64_t msg_got, msg_len;
+    uint8_t head[HEAD];
+    char text[256];
+    /* results */
+    int hello, closed, error;
+    uint64_t last, binary_before; /* frames seen before the window */
+    uint32_t frames, keys, drops, bad, cap;
+    uint32_t n_vertices, n_landmarks;
+    float *lat_ms, *comp_ms;
+} wsc_t;
+
+typedef struct phase {
+    int n, threads;
+    wsc_t *c;
+    int ep[16];
+    pthread_t th[16];
+    atomic_int recording, stop;
+    int i16;
+} phase_t;
+
+static const char *g_format = "f32";
+
+static void on_message(phase_t *ph, wsc_t *c, uint64_t t_us)
+{
+    if (c->msg_op == 1) { /* text: hello, format, error */
+        if (strstr(c->text, "\"hello\""))
+            c->hello = 1;
+        else if (strstr(c->text, "\"error\""))
+            c->error++;
+        return;
+    }
+    if (c->msg_op != 2)
+        return;
+    const uint8_t *h = c->head;
+    if (c->msg_got < HEAD || memcmp(h, "MIMF", 4)) {
+        c->bad++;
+        return;
+    }
+    uint16_t flags = get_u16(h + 6);
+    uint64_t number = get_u64(h + 8), arrival = get_u64(h + 48);
+    uint32_t n = get_u32(h + 32), L = get_u32(h + 36);
+    size_t want = HEAD + ((flags & 2) ? 6 * (size_t)n + 2 * (n & 1u) : 12 * (size_t)n) + 12 * (size_t)L;
+    if (c->msg_got != want || ((flags & 2) != 0) != ph->i16)
+        c->bad++;
+    c->n_vertices = n, c->n_landmarks = L;
+    int rec = atomic_load_explicit(&ph->recording, memory_order_relaxed);
+    if (rec && c->last && number > c->last + 1)
+        c->drops += (uint32_t)(number - c->last - 1);
+    if (c->last && number <= c->last)
+        c->bad++;
+    c->last = number;
+    if (!rec) {
+        c->binary_before++;
+        return;
+    }
+    if (c->frames < c->cap) {
+        c->lat_ms[c->frames] = (float)((double)((int64_t)(t_us - arrival)) * 1e-3);
+        c->comp_ms[c->frames] = (float)(get_u32(h + 40) * 1e-3);
+    }
+    c->frames++;
+    c->keys += flags & 1u;
+}
+
+static void send_pong(wsc_t *c, const uint8_t *data, size_t len)
+{
+    uint8_t f[2 + 4 + 125];
+    if (len > 125)
+        len = 125;
+    f[0] = 0x8a, f[1] = (uint8_t)(0x80 | len);
+    memset(f + 2, 0, 4); /* mask key 0: the payload goes as it is */
+    memcpy(f + 6, data, len);
+    if (send(c->fd, f, 6 + len, MSG_NOSIGNAL) < 0)
+        c->error++;
+}
+
+/* Feeds bytes received at t_us into the client's frame parser. */
+static void feed(phase_t *ph, wsc_t *c, const uint8_t *p, size_t n, uint64_t t_us)
+{
+    while (n) {
+        if (c->fh_len < c->fh_need) { /* the frame header */
+            c->fh[c->fh_len++] = *p++, n--;
+            if (c->fh_len == 2) {
+                int l7 = c->fh[1] & 0x7f;
+                if (c->fh[1] & 0x80) { /* a server must not mask */
+                    c->error++, c->closed = 1;
+                    return;
+                }
+                c->fh_need = l7 == 126 ? 4 : l7 == 127 ? 10 : 2;
+            }
+            if (c->fh_len < c->fh_need)
+                continue;
+            int l7 = c->fh[1] & 0x7f;
+            uint64_t len = (uint64_t)l7;
+            if (l7 == 126)
+                len = (uint64_t)c->fh[2] << 8 | c->fh[3];
+            else if (l7 == 127)
+                for (int i = 0; i < 8; i++)
+                    len = len << 8 | c->fh[2 + i];
+            c->op = c->fh[0] & 0x0f, c->fin = c->fh[0] >> 7;
+            c->pay_len = len, c->pay_got = 0;
+            if (c->op != 0 && c->op < 8) /* a new data message */
+                c->msg_op = c->op, c->msg_got = 0, c->text[0] = 0;
+            if (len)
+                continue;
+        }
+        /* the payload */
+        size_t k = c->pay_len - c->pay_got < n ? (size_t)(c->pay_len - c->pay_got) : n;
+        if (c->op < 8) {
+            if (c->msg_op == 2 && c->msg_got < HEAD) {
+                size_t h = HEAD - c->msg_got < k ? HEAD - (size_t)c->msg_got : k;
+                memcpy(c->head + c->msg_got, p, h);
+            } else if (c->msg_op == 1 && c->msg_got < sizeof c->text - 1) {
+                size_t h = sizeof c->text - 1 - c->msg_got < k ? sizeof c->text - 1 - (size_t)c->msg_got : k;
+                memcpy(c->text + c->msg_got, p, h);
+                c->text[c->msg_got + h] = 0;
+            }
+            c->msg_got += k;
+        } else if (c->op == 9 && c->pay_got + k <= 125) {
+            memcpy(c->text, p, k); /* ping payload (small) */
+        }
+        c->pay_got += k, p += k, n -= k;
+        if (c->pay_got < c->pay_len)
+            continue;
+        /* frame complete */
+        if (c->op == 8) {
+            c->closed = 1;
+            return;
+        }
+        if (c->op == 9)
+            send_pong(c, (const uint8_t *)c->text, (size_t)c->pay_len);
+        else if (c->op < 8 && c->fin)
+            on_message(ph, c, t_us);
+        c->fh_len = 0, c->fh_need = 2;
+    }
+}
+
+typedef struct th_arg {
+    phase_t *ph;
+    int k;
+} th_arg_t;
+
+static void *client_thread(void *arg)
+{
+    th_arg_t *a = arg;
+    phase_t *ph = a->ph;
+    uint8_t *buf = malloc(RECV_BUF);
+    struct epoll_event ev[64];
+    while (buf && !atomic_load(&ph->stop)) {
+        int r = epoll_wait(ph->ep[a->k], ev, 64, 100);
+        for (int i = 0; i < r; i++) {
+            wsc_t *c = ev[i].data.ptr;
+            for (;;) {
+                ssize_t k = recv(c->fd, buf, RECV_BUF, 0);
+                if (k > 0) {
+                    feed(ph, c, buf, (size_t)k, now_us());
+                    if (c->closed)
+                        break;
+                    continue;
+                }
+                if (k < 0 && (errno == EAGAIN || errno == EWOULDBLOCK))
+                    break;
+                if (k < 0 && errno == EINTR)
+                    continue;
+                c->closed = 1; /* EOF or error */
+                break;
+            }
+            if (c->closed)
+                epoll_ctl(ph->ep[a->k], EPOLL_CTL_DEL, c->fd, NULL);
+        }
+    }
+    free(buf);
+    return NULL;
+}
+
+/* Connects and upgrades one client (blocking, 5 s timeouts); the bytes
+ * after the handshake go to its parser. */
+static int ws_connect(phase_t *ph, wsc_t *c)
+{
+    c->fd = tcp_connect(5.0);
+    if (c->fd < 0)
+        return -1;
+    int one = 1;
+    setsockopt(c->fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    char req[512];
+    int n = snprintf(req, sizeof req,
+                     "GET /ws?format=%s HTTP/1.1\r\nHost: 127.0.0.1:%d\r\nUpgrade: websocket\r\n"
+                     "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                     "Sec-WebSocket-Version: 13\r\n\r\n",
+                     g_format, g_port);
+    if (send(c->fd, req, (size_t)n, MSG_NOSIGNAL) != n)
+        return -1;
+    char resp[8192];
+    size_t len = 0;
+    char *end = NULL;
+    while (!end && len < sizeof resp - 1) {
+        ssize_t k = recv(c->fd, resp + len, sizeof resp - 1 - len, 0);
+        if (k <= 0)
+            return -1;
+        len += (size_t)k;
+        resp[len] = 0;
+        end = strstr(resp, "\r\n\r\n");
+    }
+    if (!end || strncmp(resp, "HTTP/1.1 101", 12))
+        return -1;
+    c->fh_need = 2;
+    size_t used = (size_t)(end + 4 - resp);
+    if (len > used)
+        feed(ph, c, (const uint8_t *)resp + used, len - used, now_us());
+    fcntl(c->fd, F_SETFL, fcntl(c->fd, F_GETFL) | O_NONBLOCK);
+    return 0;
+}
+
+/* ------------------------------------------------------------ one phase */
+
+typedef struct result {
+    int n, ready;
+    double window;
+    double lat_med, lat_p90, lat_p99, lat_max;
+    double comp_med, comp_p90, comp_p99, comp_max;
+    double cp99_min, cp99_med, cp99_max; /* per-client p99 latency */
+    double frames_min, frames_med, drops_min, drops_med, drops_max, drops_total;
+    double keys_client_med; /* key frames per second seen by a client (median) */
+    uint64_t bad, errors, closed, total_frames;
+    double key_fps, vest_fps, frame_fps, server_drops, sent_fps;
+    double serve_cpu, vest_cpu, self_cpu;
+    double top_task_cpu, loop_share;
+    int n_tasks;
+    double key_ms, morph_ms, iter_per_key, key_interval, warm;
+    double load_before, load_after;
+    uint32_t n_vertices, n_landmarks;
+} result_t;
+
+static int cmp_desc(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? 1 : x > y ? -1 : 0;
+}
+
+static int run_phase(int n, double seconds, int threads, result_t *R)
+{
+    memset(R, 0, sizeof *R);
+    R->n = n;
+    phase_t *ph = calloc(1, sizeof *ph);
+    ph->n = n, ph->threads = threads < n ? threads : n;
+    ph->i16 = !strcmp(g_format, "i16");
+    ph->c = calloc((size_t)n, sizeof *ph->c);
+    /* room for 3x the vest rate over the window, allocated before the run */
+    uint32_t cap = (uint32_t)(seconds * 180.0) + 1000;
+    for (int i = 0; i < n; i++) {
+        ph->c[i].fd = -1;
+        ph->c[i].cap = cap;
+        ph->c[i].lat_ms = malloc(sizeof(float) * cap);
+        ph->c[i].comp_ms = malloc(sizeof(float) * cap);
+        if (!ph->c[i].lat_ms || !ph->c[i].comp_ms)
+            return fprintf(stderr, "bench_serve: out of memory\n"), -1;
+        memset(ph->c[i].lat_ms, 0, sizeof(float) * cap); /* touch the pages now */
+        memset(ph->c[i].comp_ms, 0, sizeof(float) * cap);
+    }
+    th_arg_t args[16];
+    for (int k = 0; k < ph->threads; k++) {
+        ph->ep[k] = epoll_create1(EPOLL_CLOEXEC);
+        args[k] = (th_arg_t){ph, k};
+    }
+    int connected = 0;
+    for (int i = 0; i < n; i++) {
+        wsc_t *c = &ph->c[i];
+        c->thread = i % ph->threads;
+        if (ws_connect(ph, c)) {
+            fprintf(stderr, "bench_serve: client %d could not connect to ws://127.0.0.1:%d/ws\n", i, g_port);
+            if (c->fd >= 0)
+                close(c->fd);
+            c->fd = -1, c->closed = 1;
+            continue;
+        }
+        connected++;
+    }
+    for (int i = 0; i < n; i++)
+        if (ph->c[i].fd >= 0) {
+            struct epoll_event ev = {.events = EPOLLIN, .data.ptr = &ph->c[i]};
+            epoll_ctl(ph->ep[ph->c[i].thread], EPOLL_CTL_ADD, ph->c[i].fd, &ev);
+        }
+    for (int k = 0; k < ph->threads; k++)
+        pthread_create(&ph->th[k], NULL, client_thread, &args[k]);
+
+    /* every client has its hello and a first frame (at most 10 s) */
+    double t0 = now();
+    int ready = 0;
+    while (now() - t0 < 10.0) {
+        ready = 0;
+        for (int i = 0; i < n; i++)
+            ready += ph->c[i].hello && ph->c[i].last > 0 && !ph->c[i].closed;
+        if (ready == n)
+            break;
+        usleep(20000);
+    }
+    R->ready = ready;
+    if (ready < n)
+        fprintf(stderr, "bench_serve: %d of %d clients connected, %d streaming after 10 s\n", connected, n, ready);
+    int rc = 0;
+    server_snap_t s0, s1;
+    R->load_before = loadavg1();
+    if (ready == 0 || snap(&s0)) {
+        rc = -1;
+        fprintf(stderr, "bench_serve: no client receives frames%s\n", ready ? "" : " (or /metrics failed)");
+    } else {
+        atomic_store(&ph->recording, 1);
+        double w0 = now();
+        while (now() - w0 < seconds)
+            usleep(50000);
+        atomic_store(&ph->recording, 0);
+        R->window = now() - w0;
+        if (snap(&s1))
+            rc = -1, fprintf(stderr, "bench_serve: GET /metrics failed at the end of the phase\n");
+        char *st = http_get("/api/status");
+        json_t *j = st ? json_loads(st, 0, NULL) : NULL, *v = json_object_get(j, "vest");
+        R->key_ms = json_real_value(json_object_get(v, "key_ms"));
+        R->morph_ms = json_real_value(json_object_get(v, "morph_ms"));
+        R->iter_per_key = json_number_value(json_object_get(v, "iterations_per_key"));
+        R->key_interval = json_number_value(json_object_get(v, "key_interval"));
+        R->warm = json_number_value(json_object_get(v, "warm_starts"));
+        if (!j)
+            fprintf(stderr, "bench_serve: GET /api/status failed\n");
+        json_decref(j);
+        free(st);
+    }
+    R->load_after = loadavg1();
+    atomic_store(&ph->stop, 1);
+    for (int k = 0; k < ph->threads; k++)
+        pthread_join(ph->th[k], NULL);
+    for (int i = 0; i < n; i++)
+        if (ph->c[i].fd >= 0)
+            close(ph->c[i].fd);
+    for (int k = 0; k < ph->threads; k++)
+        close(ph->ep[k]);
+
+    if (!rc) {
+        uint64_t total = 0;
+        for (int i = 0; i < n; i++)
+            total += ph->c[i].frames < ph->c[i].cap ? ph->c[i].frames : ph->c[i].cap;
+        R->total_frames = total;
+        double *lat = malloc(sizeof(double) * (total + 1)), *comp = malloc(sizeof(double) * (total + 1));
+        double *per = malloc(sizeof(double) * (size_t)n * 4), *fr = per + n, *dr = per + 2 * n, *ke = per + 3 * n;
+        size_t k = 0;
+        int m = 0;
+        for (int i = 0; i < n; i++) {
+            wsc_t *c = &ph->c[i];
+            uint32_t f = c->frames < c->cap ? c->frames : c->cap;
+            for (uint32_t j = 0; j < f; j++)
+                lat[k + j] = c->lat_ms[j], comp[k + j] = c->comp_ms[j];
+            if (f)
+                per[m++] = bench_quantile(lat + k, (int)f, 0.99);
+            k += f;
+            fr[i] = c->frames, dr[i] = c->drops, ke[i] = c->keys / R->window;
+            R->drops_total += c->drops;
+            R->bad += c->bad, R->errors += (uint64_t)c->error, R->closed += (uint64_t)c->closed;
+        }
+        if (total) {
+            R->lat_med = bench_median(lat, (int)total);
+            R->lat_p90 = bench_quantile(lat, (int)total, 0.90);
+            R->lat_p99 = bench_quantile(lat, (int)total, 0.99);
+            R->lat_max = bench_quantile(lat, (int)total, 1.0);
+            R->comp_med = bench_median(comp, (int)total);
+            R->comp_p90 = bench_quantile(comp, (int)total, 0.90);
+            R->comp_p99 = bench_quantile(comp, (int)total, 0.99);
+            R->comp_max = bench_quantile(comp, (int)total, 1.0);
+        }
+        if (m) {
+            R->cp99_min = bench_quantile(per, m, 0.0);
+            R->cp99_med = bench_median(per, m);
+            R->cp99_max = bench_quantile(per, m, 1.0);
+        }
+        R->frames_min = bench_quantile(fr, n, 0.0);
+        R->frames_med = bench_median(fr, n);
+        R->drops_min = bench_quantile(dr, n, 0.0);
+        R->drops_med = bench_median(dr, n);
+        R->drops_max = bench_quantile(dr, n, 1.0);
+        R->keys_client_med = bench_median(ke, n);
+        double dt = s1.t - s0.t;
+        R->key_fps = (s1.key_frames - s0.key_frames) / dt;
+        R->vest_fps = (s1.vest_frames - s0.vest_frames) / dt;
+        R->frame_fps = (s1.frames - s0.frames) / dt;
+        R->sent_fps = (s1.sent - s0.sent) / dt;
+        R->server_drops = s1.drops - s0.drops;
+        R->serve_cpu = 100.0 * (s1.serve_cpu - s0.serve_cpu) / dt;
+        R->vest_cpu = 100.0 * (s1.vest_cpu - s0.vest_cpu) / dt;
+        R->self_cpu = 100.0 * (s1.self_cpu - s0.self_cpu) / dt;
+        /* the serve's busiest thread (the vest loop: query, transfer,
+         * morph, encode) against all the rest (senders, civetweb) */
+        double d[MAX_TASKS];
+        int nd = 0;
+        for (int i = 0; i < s1.tasks.n; i++) {
+            double before = 0;
+            for (int j = 0; j < s0.tasks.n; j++)
+                if (s0.tasks.tid[j] == s1.tasks.tid[i])
+                    before = s0.tasks.cpu[j];
+            d[nd++] = 100.0 * (s1.tasks.cpu[i] - before) / dt;
+        }
+        qsort(d, (size_t)nd, sizeof *d, cmp_desc);
+        R->n_tasks = nd;
+        R->top_task_cpu = nd ? d[0] : 0;
+        R->n_vertices = ph->c[0].n_vertices, R->n_landmarks = ph->c[0].n_landmarks;
+        free(lat), free(comp), free(per);
+    }
+    for (int i = 0; i < n; i++)
+        free(ph->c[i].lat_ms), free(ph->c[i].comp_ms);
+    free(ph->c);
+    free(ph);
+    return rc;
+}
+
+static void print_result(const char *title, const result_t *R, double rate)
+{
+    printf("== %s: %d client%s, %.1f s window (%d streaming; load average %.2f -> %.2f)\n", title, R->n,
+           R->n == 1 ? "" : "s", R->window, R->ready, R->load_before, R->load_after);
+    printf("end-to-end latency (ms, vest bytes at the server -> frame received):  median %.3f  p90 %.3f  p99 %.3f  "
+           "max %.3f   (%llu frames)\n",
+           R->lat_med, R->lat_p90, R->lat_p99, R->lat_max, (unsigned long long)R->total_frames);
+    printf("per-client p99 latency (ms):                        min %.3f  median %.3f  max %.3f\n", R->cp99_min,
+           R->cp99_med, R->cp99_max);
+    printf("server compute time field (ms, header offset 40):    median %.3f  p90 %.3f  p99 %.3f  max %.3f\n",
+           R->comp_med, R->comp_p90, R->comp_p99, R->comp_max);
+    printf("frames received per client:                         min %.0f  median %.0f  (%.2f/s median; vest "
+           "%.0f Hz)\n",
+           R->frames_min, R->frames_med, R->frames_med / R->window, rate);
+    printf("frames dropped per client:                          min %.0f  median %.0f  max %.0f  total %.0f  "
+           "(server mimic_frames_dropped_total +%.0f)\n",
+           R->drops_min, R->drops_med, R->drops_max, R->drops_total, R->server_drops);
+    printf("key frames per second:                              /metrics %.2f  key flag (median client) %.2f  "
+           "key / vest frames %.3f\n",
+           R->key_fps, R->keys_client_med, R->vest_fps > 0 ? R->key_fps / R->vest_fps : 0.0);
+    printf("vest frames per second (/metrics):                  %.2f  (frames published %.2f/s, ws frames sent "
+           "%.1f/s)\n",
+           R->vest_fps, R->frame_fps, R->sent_fps);
+    printf("CPU, %% of one core:                                 mimic serve %.1f  (busiest of its %d threads "
+           "%.1f)  bench clients %.1f  vest simulator %.1f\n",
+           R->serve_cpu, R->n_tasks, R->top_task_cpu, R->self_cpu, R->vest_cpu);
+    printf("server /api/status vest:                            key_ms %.3f  morph_ms %.3f  iterations_per_key "
+           "%.2f  key_interval %.0f  warm_starts %.0f\n",
+           R->key_ms, R->morph_ms, R->iter_per_key, R->key_interval, R->warm);
+    if (R->bad || R->errors || R->closed)
+        printf("client problems:                                    %llu malformed or out-of-order frames, %llu "
+               "errors, %llu closed early\n",
+               (unsigned long long)R->bad, (unsigned long long)R->errors, (unsigned long long)R->closed);
+}
+
+/* ------------------------------------------------------------ main */
+
+static const char usage[] =
+    "usage: bench_serve [--clients N] [--seconds S] [--ref-seconds R] [--format f32|i16]\n"
+    "                   [--threads T] [--rate HZ] [--keep DIR]\n\n"
+    "Load benchmark of mimic serve (issue 6): one simulated vest, N WebSocket clients on\n"
+    "loopback. Makes a synth store (4 x 12 bodies) in a temp dir with the real mimic\n"
+    "binary ($MIMIC_BIN, else the build's), starts `mimic vest simulate` on a pty and\n"
+    "`mimic serve`, then measures a 1-client reference phase and the N-client phase.\n\n"
+    "  --clients N      WebSocket clients in the main phase (default 50)\n"
+    "  --seconds S      length of the main phase (default 60)\n"
+    "  --ref-seconds R  length of the 1-client reference phase (default 10; 0: none)\n"
+    "  --format F       f32 (default) or i16 positions\n"
+    "  --threads T      client threads (epoll loops), 1..16 (default 1)\n"
+    "  --rate HZ        vest rate (default 60)\n"
+    "  --keep DIR       work in DIR and keep it (default: a temp dir, removed)\n"
+    "  -h, --help       this help\n";
+
+static const char *find_bin(char *buf, size_t size)
+{
+    const char *e = getenv("MIMIC_BIN");
+    if (e && *e)
+        return e;
+    if (*MIMIC_BIN_DEFAULT && access(MIMIC_BIN_DEFAULT, X_OK) == 0)
+        return MIMIC_BIN_DEFAULT;
+    ssize_t n = readlink("/proc/self/exe", buf, size - 32);
+    if (n > 0) {
+        buf[n] = 0;
+        char *s = strrchr(buf, '/');
+        if (s) {
+            strcpy(s, "/../cli/mimic");
+            if (access(buf, X_OK) == 0)
+                return buf;
+        }
+    }
+    return NULL;
+}
+
+static void rm_rf(const char *dir)
+{
+    pid_t p = fork();
+    if (p == 0) {
+        execlp("rm", "rm", "-rf", dir, (char *)NULL);
+        _exit(127);
+    }
+    if (p > 0)
+        waitpid(p, NULL, 0);
+}
+
+int main(int argc, char **argv)
+{
+    int clients = 50, threads = 1, c;
+    double seconds = 60, ref_seconds = 10, rate = 60;
+    const char *keep = NULL;
+    static const struct option lo[] = {{"clients", required_argument, 0, 'c'}, {"seconds", required_argument, 0, 's'},
+                                       {"ref-seconds", required_argument, 0, 'r'}, {"format", required_argument, 0, 'f'},
+                                       {"threads", required_argument, 0, 't'}, {"rate", required_argument, 0, 'R'},
+                                       {"keep", required_argument, 0, 'k'},    {"help", no_argument, 0, 'h'},
+                                       {0, 0, 0, 0}};
+    while ((c = getopt_long(argc, argv, "h", lo, NULL)) != -1) {
+        if (c == 'c') clients = atoi(optarg);
+        else if (c == 's') seconds = atof(optarg);
+        else if (c == 'r') ref_seconds = atof(optarg);
+        else if (c == 'f') g_format = optarg;
+        else if (c == 't') threads = atoi(optarg);
+        else if (c == 'R') rate = atof(optarg);
+        else if (c == 'k') keep = optarg;
+        else if (c == 'h') return fputs(usage, stdout), 0;
+        else return fputs(usage, stderr), 2;
+    }
+    if (optind < argc || clients < 1 || clients > 900 || seconds < 1 || seconds > 3600 || ref_seconds < 0 ||
+        ref_seconds > 3600 || threads < 1 || threads > 16 || rate < 1 || rate > 2000 ||
+        (strcmp(g_format, "f32") && strcmp(g_format, "i16")))
+        return fputs(usage, stderr), 2;
+    signal(SIGPIPE, SIG_IGN);
+
+    char binbuf[4096];
+    g_bin = find_bin(binbuf, sizeof binbuf);
+    if (!g_bin)
+        return fprintf(stderr, "bench_serve: cannot find the mimic binary (set MIMIC_BIN)\n"), 1;
+
+    printf("command:");
+    for (int i = 0; i < argc; i++)
+        printf(" %s", argv[i]);
+    printf("\nnproc %ld, load average %.2f, mimic %s\n", sysconf(_SC_NPROCESSORS_ONLN), loadavg1(), g_bin);
+    fflush(stdout);
+
+    if (keep) {
+        snprintf(g_dir, sizeof g_dir, "%s", keep);
+        mkdir(g_dir, 0755);
+    } else {
+        const char *tmp = getenv("TMPDIR");
+        snprintf(g_dir, sizeof g_dir, "%s/bench_serve_XXXXXX", tmp && *tmp ? tmp : "/tmp");
+        if (!mkdtemp(g_dir))
+            return fprintf(stderr, "bench_serve: cannot make a temp dir: %s\n", strerror(errno)), 1;
+    }
+    char bodies[4200], store[4200], vest[4200], vest_out[4300], serial[4300], rate_s[32], maxc[32];
+    snprintf(bodies, sizeof bodies, "%s/bodies", g_dir);
+    snprintf(store, sizeof store, "%s/store", g_dir);
+    snprintf(vest, sizeof vest, "%s/vest", g_dir);
+    snprintf(vest_out, sizeof vest_out, "pty:%s", vest);
+    snprintf(serial, sizeof serial, "serial:%s", vest);
+    snprintf(rate_s, sizeof rate_s, "%g", rate);
+    snprintf(maxc, sizeof maxc, "%d", clients + 4 > 64 ? clients + 4 : 64);
+
+    int status = 1;
+    double t_setup = now();
+    char *a_synth[] = {"synth", "--out", bodies, "--subjects", "4", "--poses", "12", NULL};
+    char *a_ingest[] = {"ingest", "--store", store, bodies, NULL};
+    char *a_index[] = {"index", "--store", store, NULL};
+    if (run_mimic("synth", a_synth, 60) || run_mimic("ingest", a_ingest, 60) || run_mimic("index", a_index, 120))
+        goto done;
+    printf("store: 4 subjects x 12 poses (mimic synth, ingest, index) in %.1f s\n", now() - t_setup);
+
+    char line[4096];
+    char *a_vest[] = {"vest", "simulate", "--motion", "demo", "--rate", rate_s, "--loop", "--out", vest_out, NULL};
+    if (spawn(&g_vest, "vest", a_vest, 1) || first_line(&g_vest, line, sizeof line, 10.0)) {
+        fprintf(stderr, "bench_serve: mimic vest simulate did not print its pty:\n");
+        print_log_tail(&g_vest);
+        goto done;
+    }
+    char *a_serve[] = {"serve",  "--store",  store,    "--avatar",        "1",    "--vest",
+                       serial,   "--vest-pose", "t",   "--listen",        "127.0.0.1:0", "--max-clients",
+                       maxc,     NULL};
+    if (spawn(&g_serve, "serve", a_serve, 1) || first_line(&g_serve, line, sizeof line, 30.0)) {
+        fprintf(stderr, "bench_serve: mimic serve did not print its URL:\n");
+        print_log_tail(&g_serve);
+        goto done;
+    }
+    const char *colon = strrchr(line, ':');
+    g_port = colon ? atoi(colon + 1) : 0;
+    if (g_port <= 0) {
+        fprintf(stderr, "bench_serve: mimic serve printed '%s', not a URL\n", line);
+        goto done;
+    }
+    printf("vest: mimic vest simulate --motion demo --rate %s --loop --out %s (pid %d)\n", rate_s, vest_out,
+           (int)g_vest.pid);
+    printf("serve: mimic serve --store %s --avatar 1 --vest %s --vest-pose t --listen 127.0.0.1:0 --max-clients %s "
+           "(pid %d, port %d)\n",
+           store, serial, maxc, (int)g_serve.pid, g_port);
+    printf("clients: raw RFC 6455 over loopback, format %s, %d epoll thread%s\n", g_format, threads,
+           threads == 1 ? "" : "s");
+    fflush(stdout);
+
+    /* warm-up: wait until the loop publishes frames (it needs the vest
+     * streaming and a first key frame), 1 client for 2 s, not counted */
+    result_t warm, ref = {0}, main_r;
+    double t_wait = now();
+    for (;;) {
+        char *m = http_get("/metrics");
+        double f = m ? metric(m, "mimic_frames_total") : -1;
+        free(m);
+        if (f > 0)
+            break;
+        if (now() - t_wait > 20.0) {
+            fprintf(stderr, "bench_serve: mimic serve published no frame in 20 s:\n");
+            print_log_tail(&g_serve);
+            goto done;
+        }
+        usleep(100000);
+    }
+    if (run_phase(1, 2.0, 1, &warm))
+        goto done;
+    if (ref_seconds > 0) {
+        if (run_phase(1, ref_seconds, 1, &ref))
+            goto done;
+        print_result("reference", &ref, rate);
+        fflush(stdout);
+    }
+    if (run_phase(clients, seconds, threads, &main_r))
+        goto done;
+    print_result("load", &main_r, rate);
+    printf("frame: %u vertices, %u landmarks, %zu bytes (%s)\n", main_r.n_vertices, main_r.n_landmarks,
+           (size_t)HEAD + (strcmp(g_format, "i16") ? 12 * (size_t)main_r.n_vertices
+                                                   : 6 * (size_t)main_r.n_vertices + 2 * (main_r.n_vertices & 1u)) +
+               12 * (size_t)main_r.n_landmarks,
+           g_format);
+    if (ref_seconds > 0 && ref.lat_med > 0)
+        printf("latency %d clients / 1 client (same run):           median %.2f  p90 %.2f  p99 %.2f\n", clients,
+               main_r.lat_med / ref.lat_med, main_r.lat_p90 / ref.lat_p90, main_r.lat_p99 / ref.lat_p99);
+    printf("targets: p99 <= 10 ms: %.3f ms; key frames per vest frame 1: %.3f; drops for clients that keep up 0: "
+           "%.0f\n",
+           main_r.lat_p99, main_r.vest_fps > 0 ? main_r.key_fps / main_r.vest_fps : 0.0, main_r.drops_total);
+    status = 0;
+
+done:
+    stop_child(&g_serve);
+    stop_child(&g_vest);
+    if (!keep && g_dir[0])
+        rm_rf(g_dir);
+    fflush(stdout);
+    return status;
+}
