@@ -30,16 +30,18 @@ install_deps() {
     $sudo apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
   fi
-  # npm packages the tests use (package.json: the Khronos glTF validator),
+  # npm packages (package.json: the Khronos glTF validator and playwright-core
+  # for the tests, three.js, which the build embeds into the web viewer),
   # installed exactly as package-lock.json pins them, when node_modules is
-  # missing or older than the lock file. Without npm those tests skip.
+  # missing or older than the lock file. Without npm those tests skip and the
+  # viewer says three.js is missing.
   if command -v npm >/dev/null 2>&1; then
     if [ ! -f node_modules/.package-lock.json ] || [ package-lock.json -nt node_modules/.package-lock.json ]; then
       echo "build.sh: npm ci (package-lock.json)" >&2
       npm ci --no-audit --no-fund --loglevel=error >&2
     fi
   else
-    echo "build.sh: npm not found: the glTF validator tests will be skipped" >&2
+    echo "build.sh: npm not found: the glTF validator and viewer tests will be skipped, the viewer has no three.js" >&2
   fi
 }
 
@@ -83,6 +85,10 @@ case "$cmd" in
   demo)  install_deps; configure_build build; demo ;;
   build) install_deps; configure_build build ;;
   test)
+    # the browser test of the web viewer (tests/viewer_test.mjs); big, so
+    # only for the tests
+    TEST_PACKAGES=(chromium)
+    PACKAGES+=("${TEST_PACKAGES[@]}")
     install_deps
     configure_build build -DMIM_WERROR=ON
     run_tests build

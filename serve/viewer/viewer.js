@@ -16,7 +16,7 @@ const state = {
   templateId: 0,      // template id of the latest key frame (0: none yet)
   poseLabel: '',      // its recognised pose class
   keyFrame: false,    // the latest frame was a key frame (else a morph frame)
-  computeMs: 0,       // the server's compute time for the latest frame
+  computeMs: 0,       // the server's latency for the latest frame: vest bytes' arrival to frame ready
   fps: 0,             // frames received per second, measured here
   dropped: 0,         // frames the server skipped for us (frame number gaps)
   format: 'f32',      // the position encoding the server says it sends
@@ -112,16 +112,19 @@ function buildAvatar(a) {
   mesh = new THREE.Mesh(geometry, material);
   scene.add(mesh);
 
-  // Frame the rest pose: look at the middle of its box from the front (+z),
-  // far enough back that its height fills about 70% of the view.
+  // Frame the body from the front (+z) with room for its poses: hands
+  // raised above the head (a third of the height more) and arms spread as
+  // wide as it is tall.
   geometry.computeBoundingBox();
   const box = geometry.boundingBox, size = new THREE.Vector3(), mid = new THREE.Vector3();
   box.getSize(size);
   box.getCenter(mid);
-  const extent = Math.max(size.y, size.x / camera.aspect);
-  const dist = extent / 0.7 / (2 * Math.tan(THREE.MathUtils.degToRad(camera.fov / 2))) + size.z / 2;
-  camera.position.set(mid.x, mid.y + 0.1 * size.y, mid.z + dist);
-  controls.target.copy(mid);
+  const bottom = box.min.y - 0.1 * size.y, top = box.max.y + 0.35 * size.y;
+  const extent = Math.max(top - bottom, Math.max(size.x, size.y) / camera.aspect);
+  const dist = extent / 0.92 / (2 * Math.tan(THREE.MathUtils.degToRad(camera.fov / 2))) + size.z / 2;
+  const target = new THREE.Vector3(mid.x, (bottom + top) / 2, mid.z);
+  camera.position.set(target.x, target.y + 0.08 * size.y, target.z + dist);
+  controls.target.copy(target);
   controls.update();
 
   // The floor, under the feet.
@@ -281,16 +284,16 @@ function setConnection(text) {
   el.className = state.connected ? 'up' : 'down';
 }
 
-// ---- the overlay, five times a second -------------------------------------
+// ---- the overlay: the received rate once a second, the rest with each drawn frame
 let fpsFrames = 0, fpsTime = performance.now();
 setInterval(() => {
   const now = performance.now();
-  if (now - fpsTime >= 1000) {
-    state.fps = ((state.frames - fpsFrames) * 1000) / (now - fpsTime);
-    fpsFrames = state.frames;
-    fpsTime = now;
-  }
-  if (!state.frames) return;
+  state.fps = ((state.frames - fpsFrames) * 1000) / (now - fpsTime);
+  fpsFrames = state.frames;
+  fpsTime = now;
+}, 1000);
+
+function updateOverlay() {
   $('o-template').textContent = state.templateId ? String(state.templateId) : 'none yet';
   $('o-pose').textContent = state.poseLabel || '-';
   $('o-frame').textContent = `#${state.lastFrameNumber} ${state.keyFrame ? 'key' : 'morph'}`;
@@ -299,13 +302,14 @@ setInterval(() => {
   $('o-fps').textContent = `${state.fps.toFixed(1)} frames/s, ${state.format}`;
   $('o-dropped').textContent = String(state.dropped);
   $('o-landmarks').textContent = `${state.landmarksTracked} of ${state.landmarkCount} tracked`;
-}, 200);
+}
 
 // ---- start ----------------------------------------------------------------
 function render() {
   if (normalsDirty) { // at most once per displayed frame, however many arrived
     mesh.geometry.computeVertexNormals();
     normalsDirty = false;
+    updateOverlay();
   }
   controls.update();
   renderer.render(scene, camera);
