@@ -21,6 +21,7 @@ typedef enum mim__counter {
     MIM__C_QUERIES,     /* answered landmark queries */
     MIM__C_TRANSFERS,   /* answered transfers */
     MIM__C_VEST_FRAMES, /* vest frames turned into landmarks */
+    MIM__C_SKIPPED,     /* vest frames skipped: the loop was behind and took a newer one */
     MIM__C_FRAMES,      /* frames published (the real-time loop) */
     MIM__C_KEY_FRAMES,  /* key frames made (query + transfer) */
     MIM__C_MORPH_FRAMES, /* frames morphed between two key frames */

@@ -18,9 +18,14 @@
  * follows the loop's own measured costs: with vest period P, key-frame
  * cost c_k and morph cost c_m (moving averages), k = 1 while c_k fits in
  * 80 % of P, else the smallest k with c_k + (k - 1) c_m <= 0.8 k P (c_k
- * is then the warm-started cost if auto has switched to it). A fixed
- * key rate (--key-rate) overrides it. Lost landmarks are held at their last
- * position, so a short dropout does not stop the stream. */
+ * is then the warm-started cost if auto has switched to it). When frames
+ * morphs cost too much for any k up to 30 (at this size a morph's solve
+ * costs about what a warm key frame does), the morphs become the paper's
+ * linear ones, which cost next to nothing; and when even that is not
+ * enough, the loop skips to the newest vest frame instead of falling
+ * behind (flush_frames). A fixed key rate (--key-rate) overrides the
+ * choice of k. Lost landmarks are held at their last position, so a short
+ * dropout does not stop the stream. */
 #include "internal.h"
 
 #include <civetweb.h>
@@ -66,9 +71,12 @@ struct mim__loop {
     uint32_t since_key; /* frames published since the latest key */
     float last_u[3 * MIM_LANDMARKS_MAX];
     uint8_t have_u[MIM_LANDMARKS_MAX];
-    double period, c_key, c_cold, c_warm, c_morph; /* seconds: vest period, costs (moving averages) */
+    double period, c_key, c_cold, c_warm, c_morph, c_linear; /* seconds: vest period, costs (moving averages) */
+    int linear;        /* morphs between the latest keys are linear (frames ones do not fit) */
     uint64_t t_prev_vest;
     double arrival;    /* mim_now() when the chunk being decoded arrived */
+    int pending;       /* a vest frame completed in this chunk: at pending_t */
+    uint64_t pending_t;
     uint64_t number;
     double window_start;
     uint32_t window_frames, window_keys;
@@ -114,24 +122,38 @@ static int want_warm(const mim__loop_t *l)
     return l->c_cold > budget(l); /* auto: only when cold key frames do not fit */
 }
 
-/* The key interval for the costs measured so far (see the top of the file). */
-static uint32_t choose_interval(const mim__loop_t *l)
+/* The smallest k with ck + (k - 1) cm <= k B, or 0 if none up to K_MAX. */
+static uint32_t interval_for(double ck, double cm, double B)
 {
+    if (ck <= B)
+        return 1;
+    if (cm >= B || cm >= ck)
+        return 0;
+    double k = ceil((ck - cm) / (B - cm));
+    return k > K_MAX ? 0 : (uint32_t)k;
+}
+
+/* The key interval and the morph method for the costs measured so far (see
+ * the top of the file): frames morphs while they fit, else linear ones
+ * (next to free, the paper's); past K_MAX the loop skips vest frames. */
+static void choose_interval(mim__loop_t *l)
+{
+    l->linear = 0;
     if (l->opt.key_rate > 0.0) {
         double k = round(1.0 / (l->opt.key_rate * (l->period > 0.0 ? l->period : 1.0 / 60.0)));
-        return k < 1.0 ? 1u : k > K_MAX ? K_MAX : (uint32_t)k;
+        l->k = k < 1.0 ? 1u : k > K_MAX ? K_MAX : (uint32_t)k;
+        return;
     }
     const double B = budget(l);
     double ck = l->c_cold;
     if (want_warm(l))
         ck = l->c_warm > 0.0 ? l->c_warm : 0.6 * l->c_cold;
-    const double cm = l->c_morph > 0.0 ? l->c_morph : 0.5 * ck;
-    if (ck <= B)
-        return 1;
-    if (B <= cm)
-        return K_MAX;
-    double k = ceil((ck - cm) / (B - cm));
-    return k > K_MAX ? K_MAX : (uint32_t)k;
+    uint32_t k = interval_for(ck, l->c_morph > 0.0 ? l->c_morph : 0.5 * ck, B);
+    if (!k) {
+        l->linear = 1;
+        k = interval_for(ck, l->c_linear, B);
+    }
+    l->k = k ? k : K_MAX;
 }
 
 /* A key's frames (as quaternions) and encoding, which the frames morph needs. */
@@ -199,15 +221,16 @@ static int make_morph(mim__loop_t *l, key_pose_t *a, key_pose_t *b, double t, mi
 {
     mim_serve_t *sv = l->sv;
     double t0 = mim_now();
-    morph_ready(l, a);
-    morph_ready(l, b);
+    if (!l->linear)
+        morph_ready(l, a), morph_ready(l, b);
     mim_xfer_key_t ka = {a->pos, a->quats, a->W, a->u}, kb = {b->pos, b->quats, b->W, b->u};
     pthread_mutex_lock(&sv->lock);
-    int rc = mim_xfer_morph(sv->solver, MIM_XFER_MORPH_FRAMES, &ka, &kb, t, l->out, err);
+    int rc = mim_xfer_morph(sv->solver, l->linear ? MIM_XFER_MORPH_LINEAR : MIM_XFER_MORPH_FRAMES, &ka, &kb, t,
+                            l->out, err);
     pthread_mutex_unlock(&sv->lock);
     if (!rc) {
         double c = mim_now() - t0;
-        ewma(&l->c_morph, c);
+        ewma(l->linear ? &l->c_linear : &l->c_morph, c);
         mim__metrics_add(&sv->m, MIM__C_MORPH_FRAMES, 1);
         mim__metrics_observe(&sv->m, MIM__H_MORPH_FRAME, c);
     }
@@ -266,7 +289,7 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
     if (!l->keys[l->cur].valid || l->since_key >= l->k) {
         rc = make_key(l, u, &err);
         if (!rc)
-            l->k = choose_interval(l), l->since_key = 0, key = 1;
+            choose_interval(l), l->since_key = 0, key = 1;
     }
     if (rc) {
         mim__metrics_add(&sv->m, MIM__C_VEST_ERRORS, 1);
@@ -315,19 +338,30 @@ static void sensor_frame(mim__loop_t *l, uint64_t t)
     landmarks_frame(l, xyz, present, t);
 }
 
+/* Vest frames completed while one chunk is decoded are not made at once:
+ * only the newest of them is, after the chunk (flush_frames). A loop that
+ * keeps up reads about one frame a chunk; one that fell behind (a slow
+ * solve, a busy machine) finds several queued in the next read and skips
+ * to the newest instead of working through a backlog it cannot catch up. */
 static void on_packet(void *user, const mim_vest_packet_info_t *info, const mim_vest_frame_t *f, uint32_t n)
 {
     mim__loop_t *l = user;
     uint64_t t[2], m[2];
-    int done = mim_vest_assembler_push(&l->as, info, t, m), k = 0;
-    /* a frame closed by this packet's later timestamp is taken before the
-     * packet's orientations enter the state (as mimic vest replay does) */
-    if (done > 0 && t[0] < info->t_us)
-        sensor_frame(l, t[0]), k = 1;
+    int done = mim_vest_assembler_push(&l->as, info, t, m);
     for (uint32_t i = 0; i < n; i++)
         mim_vest_state_update(&l->st, &f[i]);
-    for (; k < done; k++)
-        sensor_frame(l, t[k]);
+    for (int k = 0; k < done; k++) {
+        if (l->pending)
+            mim__metrics_add(&l->sv->m, MIM__C_SKIPPED, 1);
+        l->pending = 1, l->pending_t = t[k];
+    }
+}
+
+static void flush_frames(mim__loop_t *l)
+{
+    if (l->pending)
+        sensor_frame(l, l->pending_t);
+    l->pending = 0;
 }
 
 /* The vest's link state, told once per change (status, metrics, log). */
@@ -380,6 +414,7 @@ static void *run(void *arg)
                 memset(&l->as, 0, sizeof l->as);
             }
             mim_vest_decoder_feed(l->dec, ch.data, ch.len, ch.t_us);
+            flush_frames(l);
             continue;
         }
         /* a UDP landmark datagram: landmarks already */
@@ -497,12 +532,12 @@ json_t *mim__loop_status(mim__loop_t *l)
         return json_null();
     pthread_mutex_lock(&l->lock);
     json_t *j = json_pack(
-        "{s:s, s:s, s:o, s:o, s:o, s:I, s:s, s:i, s:f, s:f, s:f, s:f, s:s, s:I, s:f}", "spec", l->spec, "state", l->state,
+        "{s:s, s:s, s:o, s:o, s:o, s:I, s:s, s:i, s:s, s:f, s:f, s:f, s:f, s:s, s:I, s:f}", "spec", l->spec, "state", l->state,
         "error", l->error[0] ? json_string(l->error) : json_null(), "last_template",
         l->last_template ? json_integer((json_int_t)l->last_template) : json_null(), "last_label",
         l->last_label[0] ? json_string(l->last_label) : json_null(), "reconnects",
         (json_int_t)mim_vest_transport_reconnects(l->t), "key_rate_mode", l->opt.key_rate > 0.0 ? "fixed" : "auto",
-        "key_interval", (int)l->k, "key_rate_hz", l->key_rate_hz, "frame_rate_hz", l->frame_rate_hz, "key_ms",
+        "key_interval", (int)l->k, "morph", l->linear ? "linear" : "frames", "key_rate_hz", l->key_rate_hz, "frame_rate_hz", l->frame_rate_hz, "key_ms",
         l->c_key * 1e3, "morph_ms", l->c_morph * 1e3, "warm_start",
         l->opt.warm_start ? (l->opt.warm_start > 0 ? "on" : "off") : "auto", "warm_starts", (json_int_t)l->warm_starts,
         "iterations_per_key", l->key_frames ? (double)l->iterations / (double)l->key_frames : 0.0);

@@ -20,6 +20,7 @@ static const struct {
     {"mimic_queries_total", "Landmark frames answered by the recognition index."},
     {"mimic_transfers_total", "Avatar transfers computed."},
     {"mimic_vest_frames_total", "Vest frames turned into landmarks."},
+    {"mimic_vest_frames_skipped_total", "Vest frames skipped because a newer one had arrived before the loop was free."},
     {"mimic_frames_total", "Avatar frames published to the stream."},
     {"mimic_key_frames_total", "Key frames made (nearest template, then transfer)."},
     {"mimic_morph_frames_total", "Frames morphed between two key frames."},
