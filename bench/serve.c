@@ -15,6 +15,10 @@
  * header's arrival field: when the vest bytes that completed the frame
  * reached the server), the server's compute time field, the frame number
  * (gaps are drops) and the key flag, in arrays allocated before the run.
+ * Latency minus the compute field is the fan-out (frame ready -> received).
+ * A drop counts as "in a burst" when the frames on either side of it reached
+ * the server much closer together than the vest period (the loop read a
+ * backlog at once), else it happened in the fan-out.
  *
  * The reference, measured in the same run: the same stream with 1 client
  * for --ref-seconds (default 10), before the main phase; the latency with N
@@ -331,12 +335,14 @@ static int tcp_connect(double timeout)
     return fd;
 }
 
-/* GET path; the body (malloc'd, NUL-terminated), or NULL. */
-static char *http_get(const char *path)
+/* GET path once; the body (malloc'd, NUL-terminated), or NULL. */
+static char *http_get1(const char *path)
 {
     int fd = tcp_connect(5.0);
-    if (fd < 0)
+    if (fd < 0) {
+        fprintf(stderr, "bench_serve: GET %s: cannot connect to port %d: %s\n", path, g_port, strerror(errno));
         return NULL;
+    }
     char req[512];
     int n = snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: 127.0.0.1:%d\r\nConnection: close\r\n\r\n", path,
                      g_port);
@@ -363,10 +369,23 @@ static char *http_get(const char *path)
     b[len] = 0;
     char *body = strstr(b, "\r\n\r\n");
     if (strncmp(b, "HTTP/1.1 200", 12) || !body) {
+        char *eol = strchr(b, '\r');
+        if (eol)
+            *eol = 0;
+        fprintf(stderr, "bench_serve: GET %s: %s\n", path, len ? b : "no reply");
         free(b);
         return NULL;
     }
     memmove(b, body + 4, strlen(body + 4) + 1);
+    return b;
+}
+
+/* GET path, tried up to 3 times (each failure is told on stderr). */
+static char *http_get(const char *path)
+{
+    char *b = NULL;
+    for (int i = 0; i < 3 && !(b = http_get1(path)); i++)
+        usleep(100000);
     return b;
 }
 
@@ -381,7 +400,7 @@ static double metric(const char *text, const char *name)
 }
 
 typedef struct server_snap {
-    double t, key_frames, vest_frames, frames, drops, sent;
+    double t, key_frames, vest_frames, frames, drops, sent, skipped;
     double serve_cpu, vest_cpu, self_cpu;
     tasks_t tasks;
 } server_snap_t;
@@ -401,6 +420,7 @@ static int snap(server_snap_t *s)
     s->frames = metric(m, "mimic_frames_total");
     s->drops = metric(m, "mimic_frames_dropped_total");
     s->sent = metric(m, "mimic_ws_frames_sent_total");
+    s->skipped = metric(m, "mimic_vest_frames_skipped_total"); /* -1 before the loop could skip */
     free(m);
     return 0;
 }
@@ -423,6 +443,8 @@ typedef struct wsc {
     uint32_t frames, keys, drops, bad, cap;
     uint32_t n_vertices, n_landmarks;
     float *lat_ms, *comp_ms;
+    uint64_t prev_arrival;
+    uint32_t burst_drops, same_arrival; /* see on_message */
 } wsc_t;
 
 typedef struct phase {
@@ -431,10 +453,12 @@ typedef struct phase {
     int ep[16];
     pthread_t th[16];
     atomic_int recording, stop;
+    uint64_t period_us;
     int i16;
 } phase_t;
 
 static const char *g_format = "f32";
+static double g_rate = 60;
 
 static void on_message(phase_t *ph, wsc_t *c, uint64_t t_us)
 {
@@ -460,8 +484,19 @@ static void on_message(phase_t *ph, wsc_t *c, uint64_t t_us)
         c->bad++;
     c->n_vertices = n, c->n_landmarks = L;
     int rec = atomic_load_explicit(&ph->recording, memory_order_relaxed);
-    if (rec && c->last && number > c->last + 1)
-        c->drops += (uint32_t)(number - c->last - 1);
+    if (rec && c->last && number > c->last + 1) {
+        /* a drop is "in a burst" when the vest bytes of the frames around
+         * it reached the server much closer together than the vest period
+         * (the loop read a backlog at once, after a stall): frames were
+         * then published faster than the vest rate */
+        uint64_t gap = number - c->last - 1;
+        c->drops += (uint32_t)gap;
+        if (arrival - c->prev_arrival < (gap + 1) * ph->period_us / 2)
+            c->burst_drops += (uint32_t)gap;
+    }
+    if (rec && c->last && number == c->last + 1 && arrival == c->prev_arrival)
+        c->same_arrival++;
+    c->prev_arrival = arrival;
     if (c->last && number <= c->last)
         c->bad++;
     c->last = number;
@@ -634,10 +669,11 @@ typedef struct result {
     double lat_med, lat_p90, lat_p99, lat_max;
     double comp_med, comp_p90, comp_p99, comp_max;
     double cp99_min, cp99_med, cp99_max; /* per-client p99 latency */
-    double frames_min, frames_med, drops_min, drops_med, drops_max, drops_total;
+    double frames_min, frames_med, drops_min, drops_med, drops_max, drops_total, burst_drops, same_arrival;
+    double send_med, send_p90, send_p99, send_max; /* latency - compute: publish -> received */
     double keys_client_med; /* key frames per second seen by a client (median) */
     uint64_t bad, errors, closed, total_frames;
-    double key_fps, vest_fps, frame_fps, server_drops, sent_fps;
+    double key_fps, vest_fps, frame_fps, server_drops, sent_fps, skipped;
     double serve_cpu, vest_cpu, self_cpu;
     double top_task_cpu, loop_share;
     int n_tasks;
@@ -659,6 +695,7 @@ static int run_phase(int n, double seconds, int threads, result_t *R)
     phase_t *ph = calloc(1, sizeof *ph);
     ph->n = n, ph->threads = threads < n ? threads : n;
     ph->i16 = !strcmp(g_format, "i16");
+    ph->period_us = (uint64_t)(1e6 / g_rate);
     ph->c = calloc((size_t)n, sizeof *ph->c);
     /* room for 3x the vest rate over the window, allocated before the run */
     uint32_t cap = (uint32_t)(seconds * 180.0) + 1000;
@@ -725,8 +762,12 @@ static int run_phase(int n, double seconds, int threads, result_t *R)
             usleep(50000);
         atomic_store(&ph->recording, 0);
         R->window = now() - w0;
-        if (snap(&s1))
-            rc = -1, fprintf(stderr, "bench_serve: GET /metrics failed at the end of the phase\n");
+        if (snap(&s1)) {
+            rc = -1;
+            fprintf(stderr, "bench_serve: GET /metrics failed at the end of the phase (mimic serve %s)\n",
+                    waitpid(g_serve.pid, NULL, WNOHANG) == 0 ? "is running" : "has exited");
+            print_log_tail(&g_serve);
+        }
         char *st = http_get("/api/status");
         json_t *j = st ? json_loads(st, 0, NULL) : NULL, *v = json_object_get(j, "vest");
         R->key_ms = json_real_value(json_object_get(v, "key_ms"));
@@ -767,7 +808,7 @@ static int run_phase(int n, double seconds, int threads, result_t *R)
                 per[m++] = bench_quantile(lat + k, (int)f, 0.99);
             k += f;
             fr[i] = c->frames, dr[i] = c->drops, ke[i] = c->keys / R->window;
-            R->drops_total += c->drops;
+            R->drops_total += c->drops, R->burst_drops += c->burst_drops, R->same_arrival += c->same_arrival;
             R->bad += c->bad, R->errors += (uint64_t)c->error, R->closed += (uint64_t)c->closed;
         }
         if (total) {
@@ -779,6 +820,18 @@ static int run_phase(int n, double seconds, int threads, result_t *R)
             R->comp_p90 = bench_quantile(comp, (int)total, 0.90);
             R->comp_p99 = bench_quantile(comp, (int)total, 0.99);
             R->comp_max = bench_quantile(comp, (int)total, 1.0);
+            /* lat is sorted now: the per-frame differences from the clients' arrays */
+            size_t q = 0;
+            for (int i = 0; i < n; i++) {
+                wsc_t *c = &ph->c[i];
+                uint32_t f = c->frames < c->cap ? c->frames : c->cap;
+                for (uint32_t j = 0; j < f; j++)
+                    lat[q++] = (double)c->lat_ms[j] - (double)c->comp_ms[j];
+            }
+            R->send_med = bench_median(lat, (int)total);
+            R->send_p90 = bench_quantile(lat, (int)total, 0.90);
+            R->send_p99 = bench_quantile(lat, (int)total, 0.99);
+            R->send_max = bench_quantile(lat, (int)total, 1.0);
         }
         if (m) {
             R->cp99_min = bench_quantile(per, m, 0.0);
@@ -797,6 +850,7 @@ static int run_phase(int n, double seconds, int threads, result_t *R)
         R->frame_fps = (s1.frames - s0.frames) / dt;
         R->sent_fps = (s1.sent - s0.sent) / dt;
         R->server_drops = s1.drops - s0.drops;
+        R->skipped = s0.skipped >= 0 ? s1.skipped - s0.skipped : -1;
         R->serve_cpu = 100.0 * (s1.serve_cpu - s0.serve_cpu) / dt;
         R->vest_cpu = 100.0 * (s1.vest_cpu - s0.vest_cpu) / dt;
         R->self_cpu = 100.0 * (s1.self_cpu - s0.self_cpu) / dt;
@@ -835,18 +889,23 @@ static void print_result(const char *title, const result_t *R, double rate)
            R->cp99_med, R->cp99_max);
     printf("server compute time field (ms, header offset 40):    median %.3f  p90 %.3f  p99 %.3f  max %.3f\n",
            R->comp_med, R->comp_p90, R->comp_p99, R->comp_max);
+    printf("of which frame ready -> received (ms):               median %.3f  p90 %.3f  p99 %.3f  max %.3f\n",
+           R->send_med, R->send_p90, R->send_p99, R->send_max);
     printf("frames received per client:                         min %.0f  median %.0f  (%.2f/s median; vest "
            "%.0f Hz)\n",
            R->frames_min, R->frames_med, R->frames_med / R->window, rate);
     printf("frames dropped per client:                          min %.0f  median %.0f  max %.0f  total %.0f  "
            "(server mimic_frames_dropped_total +%.0f)\n",
            R->drops_min, R->drops_med, R->drops_max, R->drops_total, R->server_drops);
+    printf("drops in bursts (vest frames that reached the server together, after a stall): %.0f of %.0f; frames "
+           "received sharing the previous frame's arrival time: %.0f\n",
+           R->burst_drops, R->drops_total, R->same_arrival);
     printf("key frames per second:                              /metrics %.2f  key flag (median client) %.2f  "
            "key / vest frames %.3f\n",
            R->key_fps, R->keys_client_med, R->vest_fps > 0 ? R->key_fps / R->vest_fps : 0.0);
     printf("vest frames per second (/metrics):                  %.2f  (frames published %.2f/s, ws frames sent "
-           "%.1f/s)\n",
-           R->vest_fps, R->frame_fps, R->sent_fps);
+           "%.1f/s, vest frames skipped by the loop %.0f)\n",
+           R->vest_fps, R->frame_fps, R->sent_fps, R->skipped);
     printf("CPU, %% of one core:                                 mimic serve %.1f  (busiest of its %d threads "
            "%.1f)  bench clients %.1f  vest simulator %.1f\n",
            R->serve_cpu, R->n_tasks, R->top_task_cpu, R->self_cpu, R->vest_cpu);
@@ -924,7 +983,7 @@ int main(int argc, char **argv)
         else if (c == 'r') ref_seconds = atof(optarg);
         else if (c == 'f') g_format = optarg;
         else if (c == 't') threads = atoi(optarg);
-        else if (c == 'R') rate = atof(optarg);
+        else if (c == 'R') rate = g_rate = atof(optarg);
         else if (c == 'k') keep = optarg;
         else if (c == 'h') return fputs(usage, stdout), 0;
         else return fputs(usage, stderr), 2;

@@ -39,6 +39,7 @@
 
 #define BUDGET_FRACTION 0.8 /* of the vest period, for one frame's compute */
 #define K_MAX 30u           /* never fewer key frames than one every 30 vest frames */
+#define PERIOD_SAMPLES 15 /* vest intervals the period is the median of */
 #define EWMA 0.2            /* weight of a new cost sample */
 
 typedef struct key {
@@ -74,9 +75,13 @@ struct mim__loop {
     double period, c_key, c_cold, c_warm, c_morph, c_linear; /* seconds: vest period, costs (moving averages) */
     int linear;        /* morphs between the latest keys are linear (frames ones do not fit) */
     uint64_t t_prev_vest;
+    double dt[PERIOD_SAMPLES]; /* the latest intervals between vest frames, seconds */
+    uint32_t n_dt, i_dt;
     double arrival;    /* mim_now() when the chunk being decoded arrived */
-    int pending;       /* a vest frame completed in this chunk: at pending_t */
+    int pending;       /* a vest frame completed in this chunk: at pending_t, */
     uint64_t pending_t;
+    float pending_xyz[3 * MIM_LANDMARKS_MAX]; /* with these landmarks */
+    uint8_t pending_present[MIM_LANDMARKS_MAX];
     uint64_t number;
     double window_start;
     uint32_t window_frames, window_keys;
@@ -278,9 +283,6 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
     }
     if (lost)
         mim__metrics_add(&sv->m, MIM__C_INCOMPLETE, 1);
-    if (l->t_prev_vest && t_vest > l->t_prev_vest && t_vest - l->t_prev_vest < 1000000)
-        ewma(&l->period, (double)(t_vest - l->t_prev_vest) * 1e-6);
-    l->t_prev_vest = t_vest;
     if (!complete || !sv->q)
         return; /* the transfer holds every landmark: it needs them all, and an index */
 
@@ -330,37 +332,67 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
     count_rates(l, key);
 }
 
-static void sensor_frame(mim__loop_t *l, uint64_t t)
+static int cmp_double(const void *a, const void *b)
 {
-    float xyz[3 * MIM_LANDMARKS_MAX];
-    uint8_t present[MIM_LANDMARKS_MAX];
-    mim_vest_fk(&l->rig, &l->st, t, 0, xyz, present);
-    landmarks_frame(l, xyz, present, t);
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* The vest's period: the median of the intervals between its latest
+ * completed frames, every one of them (also those flush_frames skips), so
+ * that skipped or lost frames do not read as a slower vest (which would
+ * change a fixed key rate's interval, and widen the auto budget just when
+ * the loop is behind). */
+static void vest_period(mim__loop_t *l, uint64_t t_vest)
+{
+    if (l->t_prev_vest && t_vest > l->t_prev_vest && t_vest - l->t_prev_vest < 1000000) {
+        l->dt[l->i_dt] = (double)(t_vest - l->t_prev_vest) * 1e-6;
+        l->i_dt = (l->i_dt + 1) % PERIOD_SAMPLES;
+        l->n_dt += l->n_dt < PERIOD_SAMPLES;
+        double s[PERIOD_SAMPLES];
+        memcpy(s, l->dt, l->n_dt * sizeof *s);
+        qsort(s, l->n_dt, sizeof *s, cmp_double);
+        l->period = s[l->n_dt / 2];
+    }
+    l->t_prev_vest = t_vest;
+}
+
+/* A completed vest frame: its landmarks now (forward kinematics of the
+ * sensor state as it is, before a later frame's packets change it), its
+ * avatar frame after the chunk (flush_frames). */
+static void frame_done(mim__loop_t *l, uint64_t t)
+{
+    vest_period(l, t);
+    if (l->pending)
+        mim__metrics_add(&l->sv->m, MIM__C_SKIPPED, 1);
+    mim_vest_fk(&l->rig, &l->st, t, 0, l->pending_xyz, l->pending_present);
+    l->pending = 1, l->pending_t = t;
 }
 
 /* Vest frames completed while one chunk is decoded are not made at once:
- * only the newest of them is, after the chunk (flush_frames). A loop that
- * keeps up reads about one frame a chunk; one that fell behind (a slow
- * solve, a busy machine) finds several queued in the next read and skips
- * to the newest instead of working through a backlog it cannot catch up. */
+ * only the newest of them is, after the chunk. A loop that keeps up reads
+ * about one frame a chunk; one that fell behind (a slow solve, a busy
+ * machine) finds several queued in the next read and skips to the newest
+ * instead of working through a backlog it cannot catch up. */
 static void on_packet(void *user, const mim_vest_packet_info_t *info, const mim_vest_frame_t *f, uint32_t n)
 {
     mim__loop_t *l = user;
     uint64_t t[2], m[2];
-    int done = mim_vest_assembler_push(&l->as, info, t, m);
+    int done = mim_vest_assembler_push(&l->as, info, t, m), k = 0;
+    /* a frame closed by this packet's later timestamp is taken before the
+     * packet's orientations enter the state (as mimic vest replay does) */
+    if (done > 0 && t[0] < info->t_us)
+        frame_done(l, t[0]), k = 1;
     for (uint32_t i = 0; i < n; i++)
         mim_vest_state_update(&l->st, &f[i]);
-    for (int k = 0; k < done; k++) {
-        if (l->pending)
-            mim__metrics_add(&l->sv->m, MIM__C_SKIPPED, 1);
-        l->pending = 1, l->pending_t = t[k];
-    }
+    for (; k < done; k++)
+        frame_done(l, t[k]);
 }
 
 static void flush_frames(mim__loop_t *l)
 {
     if (l->pending)
-        sensor_frame(l, l->pending_t);
+        landmarks_frame(l, l->pending_xyz, l->pending_present, l->pending_t);
     l->pending = 0;
 }
 
@@ -394,8 +426,10 @@ static void *run(void *arg)
         }
         if (r == 0) {
             uint64_t tl, ml;
-            if (mim_vest_assembler_flush(&l->as, &tl, &ml))
-                sensor_frame(l, tl);
+            if (mim_vest_assembler_flush(&l->as, &tl, &ml)) {
+                frame_done(l, tl);
+                flush_frames(l);
+            }
             set_state(l, "ended", NULL);
             mim__metrics_set(&sv->m, MIM__G_VEST_UP, 0);
             return NULL;
@@ -430,6 +464,7 @@ static void *run(void *arg)
             set_error(l, mim_error_text(&err));
             continue;
         }
+        vest_period(l, tu);
         landmarks_frame(l, xyz, present, tu);
     }
     set_state(l, "stopped", NULL);

@@ -228,6 +228,7 @@ int mim_serve_open(mim_serve_t **out, const char *store, const char *avatar, con
                              "num_threads", threads,
                              "request_timeout_ms", "10000",
                              "websocket_timeout_ms", "500",
+                             "tcp_nodelay", "1", /* a frame's tail must not wait for an ACK (Nagle) */
                              NULL};
     struct mg_callbacks cb = {.log_message = quiet_log};
     struct mg_init_data init = {.callbacks = &cb, .user_data = sv, .configuration_options = options};
