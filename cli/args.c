@@ -39,3 +39,13 @@ int mim_cli_key_rate(const char *cmd, const char *text, double *out)
     *out = v;
     return 0;
 }
+
+int mim_cli_listen(const char *cmd, const char *listen)
+{
+    const char *colon = strrchr(listen, ':');
+    if (!colon || colon == listen || !colon[1] || strspn(colon + 1, "0123456789") != strlen(colon + 1)) {
+        fprintf(stderr, "mimic %s: --listen '%s' is not HOST:PORT (e.g. 127.0.0.1:8080)\n", cmd, listen);
+        return -1;
+    }
+    return (int)(colon - listen);
+}

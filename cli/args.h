@@ -13,4 +13,8 @@ int mim_cli_number(const char *cmd, const char *name, const char *text, uint64_t
  * line and returns -1 otherwise. */
 int mim_cli_key_rate(const char *cmd, const char *text, double *out);
 
+/* --listen HOST:PORT (PORT all digits): the length of HOST, or -1 after
+ * printing one line. */
+int mim_cli_listen(const char *cmd, const char *listen);
+
 #endif

@@ -116,11 +116,9 @@ int mim_cmd_serve(int argc, char **argv)
         return 2;
     }
     const char *listen = o.listen ? o.listen : MIM_SERVE_DEFAULT_LISTEN;
-    const char *colon = strrchr(listen, ':');
-    if (!colon || colon == listen || !colon[1] || strspn(colon + 1, "0123456789") != strlen(colon + 1)) {
-        fprintf(stderr, "mimic serve: --listen '%s' is not HOST:PORT (e.g. 127.0.0.1:8080)\n", listen);
+    int host_len = mim_cli_listen("serve", listen);
+    if (host_len < 0)
         return 2;
-    }
 
     /* Blocked before the server's threads start, so they inherit the mask
      * and the signals reach sigwait below: shutdown runs in plain code. */
@@ -137,7 +135,7 @@ int mim_cmd_serve(int argc, char **argv)
         fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
         return 1;
     }
-    printf("http://%.*s:%d/\n", (int)(colon - listen), listen, mim_serve_port(sv));
+    printf("http://%.*s:%d/\n", host_len, listen, mim_serve_port(sv));
     fflush(stdout);
     fprintf(stderr, "mimic serve: %s with avatar %s on port %d (Ctrl-C stops)\n", store, avatar,
             mim_serve_port(sv));
