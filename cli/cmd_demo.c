@@ -10,6 +10,7 @@
 #include "mim_transfer.h"
 #include "mim_vest.h"
 
+#include <dirent.h>
 #include <errno.h>
 #include <ftw.h>
 #include <getopt.h>
@@ -126,16 +127,16 @@ static int prepare_dir(const char *dir, char *sub, size_t size)
     }
     snprintf(sub, size, "%s/%s", dir, MARKER);
     if (access(sub, F_OK)) {
+        /* not an earlier demo's folder: only an empty one is taken */
         int empty = 1;
-        char probe[4200];
-        const char *const kinds[] = {"bodies", "store", "demo.glb"};
-        for (size_t i = 0; i < 3; i++) {
-            snprintf(probe, sizeof probe, "%s/%s", dir, kinds[i]);
-            empty &= access(probe, F_OK) != 0;
-        }
-        if (!empty) {
-            fprintf(stderr, "mimic demo: %s: holds bodies, a store or demo.glb not made by mimic demo; "
-                            "choose another --dir\n", dir);
+        DIR *d = opendir(dir);
+        for (struct dirent *e; d && empty && (e = readdir(d)) != NULL;)
+            empty = !strcmp(e->d_name, ".") || !strcmp(e->d_name, "..");
+        if (d)
+            closedir(d);
+        if (!d || !empty) {
+            fprintf(stderr, "mimic demo: %s: %s; choose another --dir\n", dir,
+                    d ? "not empty and not the folder of an earlier demo" : strerror(errno));
             return -1;
         }
         FILE *f = fopen(sub, "w");
@@ -207,11 +208,9 @@ int mim_cmd_demo(int argc, char **argv)
         fprintf(stderr, "mimic demo: unexpected argument '%s' (see mimic demo --help)\n", argv[optind]);
         return 2;
     }
-    const char *colon = strrchr(listen, ':');
-    if (!colon || colon == listen || !colon[1] || strspn(colon + 1, "0123456789") != strlen(colon + 1)) {
-        fprintf(stderr, "mimic demo: --listen '%s' is not HOST:PORT (e.g. 127.0.0.1:8080)\n", listen);
+    int host_len = mim_cli_listen("demo", listen);
+    if (host_len < 0)
         return 2;
-    }
 
     char bodies[4200], store[4200], pty[4200], glb[4200];
     if (prepare_dir(dir, bodies, sizeof bodies))
@@ -291,14 +290,14 @@ int mim_cmd_demo(int argc, char **argv)
             fprintf(stderr, "mimic demo: out of memory for the recording: no demo.glb will be written\n");
         }
         pthread_mutex_unlock(&rec.lock);
-        printf("http://%.*s:%d/\n", (int)(colon - listen), listen, mim_serve_port(sv));
+        printf("http://%.*s:%d/\n", host_len, listen, mim_serve_port(sv));
         fflush(stdout);
-        fprintf(stderr, "mimic demo: the viewer is at http://%.*s:%d/ (%s)\n", (int)(colon - listen), listen,
+        fprintf(stderr, "mimic demo: the viewer is at http://%.*s:%d/ (%s)\n", host_len, listen,
                 mim_serve_port(sv), duration > 0 ? "stops after --duration" : "Ctrl-C stops");
         if (!headless && getenv("DISPLAY") && !access("/usr/bin/xdg-open", X_OK)) {
             char cmdline[512];
             snprintf(cmdline, sizeof cmdline, "/usr/bin/xdg-open 'http://%.*s:%d/' >/dev/null 2>&1 &",
-                     (int)(colon - listen), listen, mim_serve_port(sv));
+                     host_len, listen, mim_serve_port(sv));
             if (system(cmdline) != 0)
                 fprintf(stderr, "mimic demo: could not open a browser; open the URL above\n");
         }

@@ -34,7 +34,7 @@ typedef struct client {
     mim__ws_t *ws;
     struct mg_connection *conn;
     pthread_t thread;
-    int started;
+    int started;       /* under ws->lock: its sender runs, c->last is set */
     int stop;          /* under ws->lock */
     atomic_int format; /* FMT_* */
     uint64_t last;     /* number of the last frame sent (or seen at joining) */
@@ -150,12 +150,21 @@ void mim__ws_publish(mim__ws_t *ws, const mim_serve_frame_t *f)
         return;
     msg_t *m[N_FMT] = {encode(f, FMT_F32), atomic_load(&ws->n_i16) ? encode(f, FMT_I16) : NULL};
     msg_t *old[N_FMT];
+    uint64_t dropped = 0;
     pthread_mutex_lock(&ws->lock);
+    /* the frame being replaced is dropped for every client that has not
+     * taken it: counted now, so a client that never reads (its sender stuck
+     * in a write) shows its drops as they happen */
+    for (client_t *c = ws->clients; c; c = c->next)
+        if (c->started && !c->stop && c->last < ws->number)
+            c->drops++, dropped++;
     for (int k = 0; k < N_FMT; k++)
         old[k] = ws->latest[k], ws->latest[k] = m[k];
     ws->number = f->number;
     pthread_cond_broadcast(&ws->fresh);
     pthread_mutex_unlock(&ws->lock);
+    if (dropped)
+        mim__metrics_add(&ws->sv->m, MIM__C_DROPS, dropped);
     for (int k = 0; k < N_FMT; k++)
         msg_unref(old[k]);
 }
@@ -174,19 +183,17 @@ static void *sender(void *arg)
             continue;
         }
         atomic_fetch_add(&m->refs, 1);
-        uint64_t skipped = m->number - c->last - 1;
-        c->drops += skipped;
-        c->last = m->number;
+        c->last = m->number; /* the frames skipped were counted as drops by mim__ws_publish */
         pthread_mutex_unlock(&ws->lock);
-        if (skipped)
-            mim__metrics_add(&ws->sv->m, MIM__C_DROPS, skipped);
         int w = mg_websocket_write(c->conn, MG_WEBSOCKET_OPCODE_BINARY, (const char *)m->bytes, m->len);
         msg_unref(m);
         if (w > 0)
             mim__metrics_add(&ws->sv->m, MIM__C_WS_SENT, 1);
         pthread_mutex_lock(&ws->lock);
-        if (w <= 0)
-            break; /* the peer is gone: civetweb's read loop sees it and closes */
+        if (w <= 0) {
+            c->stop = 1; /* the peer is gone: civetweb's read loop sees it and closes */
+            break;
+        }
     }
     pthread_mutex_unlock(&ws->lock);
     return NULL;
@@ -217,8 +224,11 @@ static int url_format(const struct mg_connection *conn)
 {
     const struct mg_request_info *ri = mg_get_request_info(conn);
     char v[16];
-    if (!ri->query_string || mg_get_var(ri->query_string, strlen(ri->query_string), "format", v, sizeof v) < 0)
-        return FMT_F32;
+    int n = ri->query_string ? mg_get_var(ri->query_string, strlen(ri->query_string), "format", v, sizeof v) : -1;
+    if (n == -1)
+        return FMT_F32; /* absent (-2: too long for any format name) */
+    if (n < 0)
+        return -1;
     for (int k = 0; k < N_FMT; k++)
         if (!strcmp(v, fmt_names[k]))
             return k;
@@ -293,6 +303,13 @@ static int on_data(struct mg_connection *conn, int bits, char *data, size_t len,
     int op = bits & 0x0f;
     if (op == MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE)
         return 0;
+    if ((bits & 0x70) || (op > MG_WEBSOCKET_OPCODE_BINARY && op < MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE) ||
+        op > MG_WEBSOCKET_OPCODE_PONG) {
+        /* RSV bits without an extension, or a reserved opcode: RFC 6455 5.2
+         * says fail the connection (civetweb passes them on) */
+        mim__metrics_add(&ws->sv->m, MIM__C_WS_BAD, 1);
+        return 0;
+    }
     if (op == MG_WEBSOCKET_OPCODE_PING || op == MG_WEBSOCKET_OPCODE_PONG || !c)
         return 1; /* civetweb answers pings itself */
     mim__metrics_add(&ws->sv->m, MIM__C_WS_MESSAGES, 1);
