@@ -86,6 +86,9 @@ void mim__ws_close(mim__ws_t **ws); /* after civetweb has stopped; accepts NULL 
 json_t *mim__ws_status(mim__ws_t *ws);
 unsigned mim__ws_clients(mim__ws_t *ws);
 size_t mim__ws_frame_bytes(uint32_t n_vertices, uint32_t n_landmarks, int int16);
+/* A client's text message (untrusted): the format it asks for (0 f32, 1
+ * i16), or -1 with the reason, one line, in why. */
+int mim__ws_parse_message(const char *data, size_t len, char *why, size_t why_size);
 
 /* ---- loop.c: the vest thread ---- */
 typedef struct mim__loop mim__loop_t;

@@ -294,6 +294,49 @@ static void on_ready(struct mg_connection *conn, void *cbdata)
     mim__metrics_add(&ws->sv->m, MIM__C_WS_JOINED, 1);
 }
 
+int mim__ws_parse_message(const char *data, size_t len, char *why, size_t why_size)
+{
+    json_error_t je;
+    json_t *j = json_loadb(data, len, JSON_REJECT_DUPLICATES, &je), *v, *f = NULL;
+    const char *key;
+    int fmt = -1;
+    why[0] = 0;
+    if (!j) {
+        /* jansson quotes the bad bytes: keep printable ASCII only */
+        for (char *p = je.text; *p; p++)
+            if ((unsigned char)*p < 0x20 || (unsigned char)*p >= 0x7f)
+                *p = '?';
+        snprintf(why, why_size, "message:%d:%d: %s", je.line, je.column, je.text);
+    } else if (!json_is_object(j)) {
+        snprintf(why, why_size, "message: expected an object such as {\"format\": \"i16\"}");
+    } else {
+        json_object_foreach(j, key, v) if (!why[0] && strcmp(key, "format"))
+        {
+            /* the key goes back in a one-line JSON reply: cut at a UTF-8
+             * boundary, control characters shown as '?' */
+            char shown[65];
+            size_t n = strlen(key);
+            if (n > 64)
+                for (n = 64; n > 0 && ((unsigned char)key[n] & 0xC0) == 0x80; n--)
+                    ;
+            for (size_t i = 0; i < n; i++)
+                shown[i] = (unsigned char)key[i] < 0x20 || key[i] == 0x7f ? '?' : key[i];
+            shown[n] = 0;
+            snprintf(why, why_size, "message: unknown member \"%s\" (the stream takes \"format\")", shown);
+        }
+        f = json_object_get(j, "format");
+        if (!why[0] && !f)
+            snprintf(why, why_size, "message: give \"format\": \"f32\" or \"i16\"");
+    }
+    for (int k = 0; !why[0] && k < N_FMT; k++)
+        if (json_is_string(f) && !strcmp(json_string_value(f), fmt_names[k]))
+            fmt = k;
+    if (!why[0] && fmt < 0)
+        snprintf(why, why_size, "message: \"format\" must be \"f32\" or \"i16\"");
+    json_decref(j);
+    return why[0] ? -1 : fmt;
+}
+
 /* A client message: {"format": "f32"|"i16"}; anything else gets an error
  * reply and changes nothing. Returns 1 to keep the connection. */
 static int on_data(struct mg_connection *conn, int bits, char *data, size_t len, void *cbdata)
@@ -319,34 +362,9 @@ static int on_data(struct mg_connection *conn, int bits, char *data, size_t len,
                    len);
         return 1;
     }
-    json_error_t je;
-    json_t *j = json_loadb(data, len, JSON_REJECT_DUPLICATES, &je);
-    const char *why = NULL, *key;
-    char buf[200];
-    json_t *v, *f = NULL;
-    if (!j) {
-        snprintf(buf, sizeof buf, "message:%d:%d: %s", je.line, je.column, je.text);
-        why = buf;
-    } else if (!json_is_object(j)) {
-        why = "message: expected an object such as {\"format\": \"i16\"}";
-    } else {
-        json_object_foreach(j, key, v) if (!why && strcmp(key, "format"))
-        {
-            snprintf(buf, sizeof buf, "message: unknown member \"%.64s\" (the stream takes \"format\")", key);
-            why = buf;
-        }
-        f = json_object_get(j, "format");
-        if (!why && !f)
-            why = "message: give \"format\": \"f32\" or \"i16\"";
-    }
-    int fmt = -1;
-    for (int k = 0; !why && k < N_FMT; k++)
-        if (json_is_string(f) && !strcmp(json_string_value(f), fmt_names[k]))
-            fmt = k;
-    if (!why && fmt < 0)
-        why = "message: \"format\" must be \"f32\" or \"i16\"";
-    json_decref(j);
-    if (why) {
+    char why[256];
+    int fmt = mim__ws_parse_message(data, len, why, sizeof why);
+    if (fmt < 0) {
         mim__metrics_add(&ws->sv->m, MIM__C_WS_BAD, 1);
         send_error(conn, "%s", why);
         return 1;
