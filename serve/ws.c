@@ -1,10 +1,13 @@
 /* The WebSocket avatar stream of mimic serve at /ws
  * (schemas/serve-ws-frame.md). The real-time loop publishes each frame once:
- * it is encoded into an immutable, reference-counted message that replaces
- * the latest one, and every client's own sender thread sends the latest
- * message it has not sent yet. So the loop never waits for a client: a
- * client that is slow to read only blocks its own sender, and the frames
- * published meanwhile are dropped for it (counted) instead of queued.
+ * it is encoded into an immutable, reference-counted message and put on
+ * every client's short queue (QUEUE frames), which the client's own sender
+ * thread empties. So the loop never waits for a client: a client that is
+ * slow to read only blocks its own sender, and once its queue is full the
+ * oldest queued frame is dropped for it (counted), so it stays near the
+ * newest. The queue is there for a client that keeps up: a sender thread
+ * that the scheduler keeps waiting past one vest period on a busy machine
+ * must not cost it frames (with only the latest frame kept, it did).
  * civetweb runs each connection's read loop on a worker thread and locks
  * the connection inside mg_websocket_write, so the sender thread and the
  * worker (text replies, pongs) may both write. */
@@ -22,10 +25,10 @@ static const char *const fmt_names[N_FMT] = {"f32", "i16"};
 
 #define HEADER_BYTES 112u
 #define LABEL_BYTES 32u
+#define QUEUE 4u /* frames a client may lag behind before its oldest is dropped (67 ms at 60 Hz) */
 
 typedef struct msg {
     atomic_int refs;
-    uint64_t number;
     size_t len;
     unsigned char bytes[];
 } msg_t;
@@ -34,20 +37,19 @@ typedef struct client {
     mim__ws_t *ws;
     struct mg_connection *conn;
     pthread_t thread;
-    int started;       /* under ws->lock: its sender runs, c->last is set */
+    int started;       /* under ws->lock: its sender runs and takes frames */
     int stop;          /* under ws->lock */
     atomic_int format; /* FMT_* */
-    uint64_t last;     /* number of the last frame sent (or seen at joining) */
+    msg_t *queue[QUEUE]; /* under ws->lock: frames to send, oldest at head */
+    unsigned head, count;
     uint64_t drops;
     struct client *next;
 } client_t;
 
 struct mim__ws {
     mim_serve_t *sv;
-    pthread_mutex_t lock; /* latest, clients, stop flags */
+    pthread_mutex_t lock; /* clients, their queues and stop flags */
     pthread_cond_t fresh; /* a new frame or a stop */
-    msg_t *latest[N_FMT];
-    uint64_t number;      /* of the latest frame */
     client_t *clients;
     unsigned n_clients, max_clients;
     atomic_uint n_i16;    /* clients that want int16: only then is it encoded */
@@ -96,7 +98,6 @@ static msg_t *encode(const mim_serve_frame_t *f, int format)
     if (!m)
         return NULL;
     atomic_init(&m->refs, 1);
-    m->number = f->number;
     m->len = len;
     unsigned char *b = m->bytes;
     memset(b, 0, HEADER_BYTES);
@@ -149,24 +150,27 @@ void mim__ws_publish(mim__ws_t *ws, const mim_serve_frame_t *f)
     if (!ws)
         return;
     msg_t *m[N_FMT] = {encode(f, FMT_F32), atomic_load(&ws->n_i16) ? encode(f, FMT_I16) : NULL};
-    msg_t *old[N_FMT];
     uint64_t dropped = 0;
     pthread_mutex_lock(&ws->lock);
-    /* the frame being replaced is dropped for every client that has not
-     * taken it: counted now, so a client that never reads (its sender stuck
-     * in a write) shows its drops as they happen */
-    for (client_t *c = ws->clients; c; c = c->next)
-        if (c->started && !c->stop && c->last < ws->number)
+    for (client_t *c = ws->clients; c; c = c->next) {
+        /* a client that just asked for i16 may get one more f32 frame (its flags say so) */
+        msg_t *mc = m[atomic_load(&c->format)] ? m[atomic_load(&c->format)] : m[FMT_F32];
+        if (!c->started || c->stop || !mc)
+            continue;
+        if (c->count == QUEUE) { /* full: the oldest is dropped, so the client stays near the newest */
+            msg_unref(c->queue[c->head]);
+            c->head = (c->head + 1) % QUEUE, c->count--;
             c->drops++, dropped++;
-    for (int k = 0; k < N_FMT; k++)
-        old[k] = ws->latest[k], ws->latest[k] = m[k];
-    ws->number = f->number;
+        }
+        atomic_fetch_add(&mc->refs, 1);
+        c->queue[(c->head + c->count) % QUEUE] = mc, c->count++;
+    }
     pthread_cond_broadcast(&ws->fresh);
     pthread_mutex_unlock(&ws->lock);
     if (dropped)
         mim__metrics_add(&ws->sv->m, MIM__C_DROPS, dropped);
     for (int k = 0; k < N_FMT; k++)
-        msg_unref(old[k]);
+        msg_unref(m[k]); /* the queues hold their own references */
 }
 
 static void *sender(void *arg)
@@ -175,15 +179,12 @@ static void *sender(void *arg)
     mim__ws_t *ws = c->ws;
     pthread_mutex_lock(&ws->lock);
     while (!c->stop) {
-        int fmt = atomic_load(&c->format);
-        msg_t *m = ws->latest[fmt];
-        if (ws->number <= c->last || !m || m->number != ws->number) {
-            /* nothing new, or an i16 client whose first i16 frame is not made yet */
+        if (!c->count) {
             pthread_cond_wait(&ws->fresh, &ws->lock);
             continue;
         }
-        atomic_fetch_add(&m->refs, 1);
-        c->last = m->number; /* the frames skipped were counted as drops by mim__ws_publish */
+        msg_t *m = c->queue[c->head];
+        c->head = (c->head + 1) % QUEUE, c->count--;
         pthread_mutex_unlock(&ws->lock);
         int w = mg_websocket_write(c->conn, MG_WEBSOCKET_OPCODE_BINARY, (const char *)m->bytes, m->len);
         msg_unref(m);
@@ -288,8 +289,7 @@ static void on_ready(struct mg_connection *conn, void *cbdata)
                               (int)s->map.count, "landmark_names", names, "format",
                               fmt_names[atomic_load(&c->format)]));
     pthread_mutex_lock(&ws->lock);
-    c->last = ws->number; /* frames before joining are not drops */
-    c->started = pthread_create(&c->thread, NULL, sender, c) == 0;
+    c->started = pthread_create(&c->thread, NULL, sender, c) == 0; /* frames from now on */
     pthread_mutex_unlock(&ws->lock);
     mim__metrics_add(&ws->sv->m, MIM__C_WS_JOINED, 1);
 }
@@ -371,9 +371,6 @@ static int on_data(struct mg_connection *conn, int bits, char *data, size_t len,
     }
     set_format(c, fmt);
     send_text(conn, json_pack("{s:s, s:s}", "type", "format", "format", fmt_names[fmt]));
-    pthread_mutex_lock(&ws->lock);
-    pthread_cond_broadcast(&ws->fresh); /* an i16 frame may be waiting to be made */
-    pthread_mutex_unlock(&ws->lock);
     return 1;
 }
 
@@ -389,6 +386,8 @@ static void on_close(const struct mg_connection *conn, void *cbdata)
     pthread_mutex_unlock(&ws->lock);
     if (c->started)
         pthread_join(c->thread, NULL); /* before civetweb frees the connection */
+    for (; c->count; c->count--, c->head = (c->head + 1) % QUEUE)
+        msg_unref(c->queue[c->head]);
     set_format(c, FMT_F32);
     pthread_mutex_lock(&ws->lock);
     for (client_t **p = &ws->clients; *p; p = &(*p)->next)
@@ -425,9 +424,8 @@ void mim__ws_close(mim__ws_t **pws)
     mim__ws_t *ws = pws ? *pws : NULL;
     if (!ws)
         return;
-    /* civetweb has stopped: every connection is closed and its sender joined */
-    for (int k = 0; k < N_FMT; k++)
-        msg_unref(ws->latest[k]);
+    /* civetweb has stopped: every connection is closed, its sender joined
+     * and its queue emptied */
     pthread_cond_destroy(&ws->fresh);
     pthread_mutex_destroy(&ws->lock);
     free(ws);
