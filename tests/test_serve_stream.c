@@ -246,20 +246,6 @@ static void reply_free(reply_t *r)
     memset(r, 0, sizeof *r);
 }
 
-static int send_all(int s, const void *p, size_t n)
-{
-    const char *c = p;
-    while (n) {
-        ssize_t w = send(s, c, n, MSG_NOSIGNAL);
-        if (w < 0 && errno == EINTR)
-            continue;
-        if (w <= 0)
-            return -1;
-        c += w, n -= (size_t)w;
-    }
-    return 0;
-}
-
 /* Reads what the server sends until it closes (or 15 s pass). */
 static reply_t read_reply(int s)
 {
@@ -296,7 +282,7 @@ static reply_t http_raw(int port, const void *req, size_t n)
 {
     int s = ws_tcp_connect(port, 0);
     assert_true(s >= 0);
-    send_all(s, req, n); /* the server may close early: what it said is read below */
+    ws_send_all(s, req, n); /* the server may close early: what it said is read below */
     shutdown(s, SHUT_WR);
     reply_t r = read_reply(s);
     close(s);
@@ -920,7 +906,7 @@ static void test_http_malformed(void **state)
     /* the same, closed outright without reading */
     int s = ws_tcp_connect(p, 0);
     assert_true(s >= 0);
-    send_all(s, shortb, sizeof shortb - 1);
+    ws_send_all(s, shortb, sizeof shortb - 1);
     close(s);
     assert_alive(p);
 
@@ -928,15 +914,15 @@ static void test_http_malformed(void **state)
     int c = ws_tcp_connect(p, 0);
     assert_true(c >= 0);
     const char head[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nConnection: close\r\nTransfer-Encoding: chunked\r\n\r\n";
-    assert_int_equal(send_all(c, head, sizeof head - 1), 0);
+    assert_int_equal(ws_send_all(c, head, sizeof head - 1), 0);
     char chunk[65536 + 16];
     int hl = snprintf(chunk, 16, "10000\r\n");
     memset(chunk + hl, ' ', 65536);
     memcpy(chunk + hl + 65536, "\r\n", 2);
     for (int k = 0; k < 24; k++) /* 1.5 MiB */
-        if (send_all(c, chunk, (size_t)hl + 65538))
+        if (ws_send_all(c, chunk, (size_t)hl + 65538))
             break; /* the server may stop reading once over the limit */
-    send_all(c, "0\r\n\r\n", 5);
+    ws_send_all(c, "0\r\n\r\n", 5);
     shutdown(c, SHUT_WR);
     reply_t r = read_reply(c);
     close(c);

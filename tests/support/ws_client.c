@@ -105,7 +105,7 @@ int ws_tcp_connect(int port, int rcvbuf)
     return s;
 }
 
-static int write_all(int fd, const void *p, size_t n)
+int ws_send_all(int fd, const void *p, size_t n)
 {
     const char *c = p;
     while (n) {
@@ -174,7 +174,7 @@ int ws_connect(ws_client_t *w, int port, const char *path, int rcvbuf)
                      "GET %s HTTP/1.1\r\nHost: 127.0.0.1:%d\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
                      "Sec-WebSocket-Key: %s\r\nSec-WebSocket-Version: 13\r\n\r\n",
                      path, port, key);
-    if (write_all(w->fd, req, (size_t)n))
+    if (ws_send_all(w->fd, req, (size_t)n))
         goto fail;
     double deadline = now_ms() + 10000;
     unsigned char *end = NULL;
@@ -246,7 +246,7 @@ int ws_send_frame(ws_client_t *w, unsigned first, int masked, const void *data, 
     const unsigned char *d = data;
     for (size_t i = 0; i < len; i++)
         f[o + i] = d[i] ^ key[i & 3];
-    int rc = write_all(w->fd, f, o + len);
+    int rc = ws_send_all(w->fd, f, o + len);
     free(f);
     return rc;
 }
@@ -263,7 +263,7 @@ int ws_send_text(ws_client_t *w, const char *text)
 
 int ws_send_raw(ws_client_t *w, const void *data, size_t len)
 {
-    return write_all(w->fd, data, len);
+    return ws_send_all(w->fd, data, len);
 }
 
 void ws_msg_free(ws_msg_t *m)

@@ -60,4 +60,7 @@ void ws_close(ws_client_t *w);
 void ws_sha1(const void *data, size_t n, unsigned char out[20]);
 void ws_base64(const unsigned char *in, size_t n, char *out);
 
+/* Sends all n bytes on a socket (no SIGPIPE); 0, or -1 when the peer is gone. */
+int ws_send_all(int fd, const void *p, size_t n);
+
 #endif
