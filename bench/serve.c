@@ -33,6 +33,7 @@
  * usage: bench_serve [--clients N] [--seconds S] [--ref-seconds R]
  *                    [--format f32|i16] [--threads T] [--keep DIR] */
 #include "bench_data.h"
+#include "serve_procs.h"
 
 #include <arpa/inet.h>
 #include <dirent.h>
@@ -66,21 +67,6 @@
 
 #define HEAD 112
 #define RECV_BUF (256 * 1024)
-
-static double now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static uint64_t now_us(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
-}
-
 static uint16_t get_u16(const uint8_t *p)
 {
     return (uint16_t)(p[0] | p[1] << 8);
@@ -94,333 +80,28 @@ static uint64_t get_u64(const uint8_t *p)
     return (uint64_t)get_u32(p) | (uint64_t)get_u32(p + 4) << 32;
 }
 
-/* ------------------------------------------------------------ children */
-
-typedef struct child {
-    pid_t pid;
-    int out; /* read end of its stdout, kept open until it is killed */
-    const char *name;
-    char log[4200];
-} child_t;
-
-static const char *g_bin;
-static char g_dir[4096];
-
-/* Starts `mimic args...` with stdout to a pipe (or /dev/null) and stderr
- * to D/name.log. The child dies with the bench (PR_SET_PDEATHSIG). */
-static int spawn(child_t *c, const char *name, char *const args[], int want_stdout)
-{
-    memset(c, 0, sizeof *c);
-    c->name = name, c->out = -1;
-    snprintf(c->log, sizeof c->log, "%s/%s.log", g_dir, name);
-    int p[2] = {-1, -1};
-    if (want_stdout && pipe2(p, O_CLOEXEC))
-        return -1;
-    char *argv[32];
-    int n = 0;
-    argv[n++] = (char *)g_bin;
-    for (int i = 0; args[i] && n < 31; i++)
-        argv[n++] = args[i];
-    argv[n] = NULL;
-    pid_t parent = getpid();
-    pid_t pid = fork();
-    if (pid < 0)
-        return -1;
-    if (pid == 0) {
-        prctl(PR_SET_PDEATHSIG, SIGKILL);
-        if (getppid() != parent)
-            _exit(127);
-        int e = open(c->log, O_WRONLY | O_CREAT | O_TRUNC, 0644), o = want_stdout ? p[1] : open("/dev/null", O_WRONLY);
-        if (e >= 0)
-            dup2(e, 2);
-        if (o >= 0)
-            dup2(o, 1);
-        setenv("MIMIC_PROGRESS", "0", 1);
-        execv(argv[0], argv);
-        fprintf(stderr, "bench_serve: cannot run %s: %s\n", argv[0], strerror(errno));
-        _exit(127);
-    }
-    c->pid = pid;
-    if (want_stdout) {
-        close(p[1]);
-        c->out = p[0];
-    }
-    return 0;
-}
-
-static void print_log_tail(const child_t *c)
-{
-    FILE *f = fopen(c->log, "r");
-    if (!f)
-        return;
-    char line[1024];
-    int n = 0;
-    while (fgets(line, sizeof line, f) && n++ < 20)
-        fprintf(stderr, "  %s: %s", c->name, line);
-    fclose(f);
-}
-
-/* Waits for it to exit, at most timeout seconds (then kills it); its exit
- * status, or -1. */
-static int wait_child(child_t *c, double timeout)
-{
-    double t0 = now();
-    int st;
-    for (;;) {
-        pid_t r = waitpid(c->pid, &st, WNOHANG);
-        if (r == c->pid) {
-            c->pid = 0;
-            return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-        }
-        if (r < 0)
-            return -1;
-        if (now() - t0 > timeout) {
-            kill(c->pid, SIGKILL);
-            waitpid(c->pid, &st, 0);
-            c->pid = 0;
-            return -1;
-        }
-        usleep(10000);
-    }
-}
-
-static void stop_child(child_t *c)
-{
-    if (c->pid > 0) {
-        kill(c->pid, SIGTERM);
-        if (wait_child(c, 5.0) < 0 && c->pid > 0)
-            kill(c->pid, SIGKILL);
-    }
-    if (c->out >= 0)
-        close(c->out), c->out = -1;
-}
-
-/* Runs `mimic args...` to completion (at most timeout seconds); 0 if it
- * exited 0. */
-static int run_mimic(const char *name, char *const args[], double timeout)
-{
-    child_t c;
-    if (spawn(&c, name, args, 0))
-        return fprintf(stderr, "bench_serve: cannot start mimic %s\n", args[0]), -1;
-    int rc = wait_child(&c, timeout);
-    if (rc != 0) {
-        fprintf(stderr, "bench_serve: mimic %s failed (status %d):\n", args[0], rc);
-        print_log_tail(&c);
-        return -1;
-    }
-    return 0;
-}
-
-/* The first line of a child's stdout, waiting at most timeout seconds. */
-static int first_line(child_t *c, char *buf, size_t size, double timeout)
-{
-    size_t n = 0;
-    double t0 = now();
-    while (n + 1 < size) {
-        double left = timeout - (now() - t0);
-        if (left <= 0)
-            return -1;
-        struct pollfd p = {c->out, POLLIN, 0};
-        int r = poll(&p, 1, (int)(left * 1000) + 1);
-        if (r < 0 && errno == EINTR)
-            continue;
-        if (r <= 0)
-            return -1;
-        ssize_t k = read(c->out, buf + n, 1);
-        if (k <= 0)
-            return -1;
-        if (buf[n] == '\n') {
-            buf[n] = 0;
-            return 0;
-        }
-        n++;
-    }
-    return -1;
-}
-
-/* utime + stime of a process (or one of its tasks) in seconds; -1 if gone. */
-static double proc_cpu(const char *stat_path)
-{
-    FILE *f = fopen(stat_path, "r");
-    if (!f)
-        return -1;
-    char buf[2048];
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    fclose(f);
-    buf[n] = 0;
-    char *p = strrchr(buf, ')');
-    if (!p)
-        return -1;
-    unsigned long ut = 0, stt = 0;
-    /* after ")": state(3) ppid pgrp session tty tpgid flags minflt cminflt majflt cmajflt utime(14) stime(15) */
-    if (sscanf(p + 2, "%*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %lu %lu", &ut, &stt) != 2)
-        return -1;
-    return (double)(ut + stt) / (double)sysconf(_SC_CLK_TCK);
-}
-
-static double pid_cpu(pid_t pid)
-{
-    char path[64];
-    snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
-    return proc_cpu(path);
-}
-
-static double self_cpu(void)
-{
-    struct rusage ru;
-    getrusage(RUSAGE_SELF, &ru);
-    return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec + (double)ru.ru_stime.tv_sec +
-           1e-6 * (double)ru.ru_stime.tv_usec;
-}
-
-/* CPU seconds of each task (thread) of a process, by tid. */
-#define MAX_TASKS 512
-typedef struct tasks {
-    int n;
-    int tid[MAX_TASKS];
-    double cpu[MAX_TASKS];
-} tasks_t;
-
-static void task_cpu(pid_t pid, tasks_t *t)
-{
-    char path[128];
-    snprintf(path, sizeof path, "/proc/%d/task", (int)pid);
-    t->n = 0;
-    DIR *d = opendir(path);
-    if (!d)
-        return;
-    struct dirent *e;
-    while ((e = readdir(d)) && t->n < MAX_TASKS) {
-        if (e->d_name[0] == '.')
-            continue;
-        char sp[300];
-        snprintf(sp, sizeof sp, "/proc/%d/task/%s/stat", (int)pid, e->d_name);
-        double c = proc_cpu(sp);
-        if (c >= 0)
-            t->tid[t->n] = atoi(e->d_name), t->cpu[t->n++] = c;
-    }
-    closedir(d);
-}
-
-static double loadavg1(void)
-{
-    double l = -1;
-    FILE *f = fopen("/proc/loadavg", "r");
-    if (f) {
-        if (fscanf(f, "%lf", &l) != 1)
-            l = -1;
-        fclose(f);
-    }
-    return l;
-}
-
-/* ------------------------------------------------------------ HTTP GET */
-
-static int g_port;
-
-static int tcp_connect(double timeout)
-{
-    int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    if (fd < 0)
-        return -1;
-    struct timeval tv = {(time_t)timeout, (suseconds_t)((timeout - (double)(time_t)timeout) * 1e6)};
-    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-    setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
-    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)g_port)};
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    if (connect(fd, (struct sockaddr *)&a, sizeof a)) {
-        close(fd);
-        return -1;
-    }
-    return fd;
-}
-
-/* GET path once; the body (malloc'd, NUL-terminated), or NULL. */
-static char *http_get1(const char *path)
-{
-    int fd = tcp_connect(5.0);
-    if (fd < 0) {
-        fprintf(stderr, "bench_serve: GET %s: cannot connect to port %d: %s\n", path, g_port, strerror(errno));
-        return NULL;
-    }
-    char req[512];
-    int n = snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: 127.0.0.1:%d\r\nConnection: close\r\n\r\n", path,
-                     g_port);
-    if (send(fd, req, (size_t)n, MSG_NOSIGNAL) != n) {
-        close(fd);
-        return NULL;
-    }
-    size_t cap = 1 << 16, len = 0;
-    char *b = malloc(cap);
-    double t0 = now();
-    for (;;) {
-        if (len + 1 >= cap) {
-            char *nb = realloc(b, 2 * cap);
-            if (!nb)
-                break;
-            b = nb, cap *= 2;
-        }
-        ssize_t k = recv(fd, b + len, cap - 1 - len, 0);
-        if (k <= 0 || now() - t0 > 5.0)
-            break;
-        len += (size_t)k;
-    }
-    close(fd);
-    b[len] = 0;
-    char *body = strstr(b, "\r\n\r\n");
-    if (strncmp(b, "HTTP/1.1 200", 12) || !body) {
-        char *eol = strchr(b, '\r');
-        if (eol)
-            *eol = 0;
-        fprintf(stderr, "bench_serve: GET %s: %s\n", path, len ? b : "no reply");
-        free(b);
-        return NULL;
-    }
-    memmove(b, body + 4, strlen(body + 4) + 1);
-    return b;
-}
-
-/* GET path, tried up to 3 times (each failure is told on stderr). */
-static char *http_get(const char *path)
-{
-    char *b = NULL;
-    for (int i = 0; i < 3 && !(b = http_get1(path)); i++)
-        usleep(100000);
-    return b;
-}
-
-/* A counter or gauge without labels from Prometheus text; -1 if absent. */
-static double metric(const char *text, const char *name)
-{
-    size_t nl = strlen(name);
-    for (const char *p = text; p && *p; p = strchr(p, '\n') ? strchr(p, '\n') + 1 : NULL)
-        if (!strncmp(p, name, nl) && p[nl] == ' ')
-            return atof(p + nl + 1);
-    return -1;
-}
-
 typedef struct server_snap {
     double t, key_frames, vest_frames, frames, drops, sent, skipped;
     double serve_cpu, vest_cpu, self_cpu;
-    tasks_t tasks;
+    sb_tasks_t tasks;
 } server_snap_t;
 
-static child_t g_vest, g_serve;
+static sb_child_t g_vest, g_serve;
 
 static int snap(server_snap_t *s)
 {
-    char *m = http_get("/metrics");
-    s->t = now();
-    s->serve_cpu = pid_cpu(g_serve.pid), s->vest_cpu = pid_cpu(g_vest.pid), s->self_cpu = self_cpu();
-    task_cpu(g_serve.pid, &s->tasks);
+    char *m = sb_http_get("/metrics");
+    s->t = sb_now();
+    s->serve_cpu = sb_pid_cpu(g_serve.pid), s->vest_cpu = sb_pid_cpu(g_vest.pid), s->self_cpu = sb_self_cpu();
+    sb_task_cpu(g_serve.pid, &s->tasks);
     if (!m)
         return -1;
-    s->key_frames = metric(m, "mimic_key_frames_total");
-    s->vest_frames = metric(m, "mimic_vest_frames_total");
-    s->frames = metric(m, "mimic_frames_total");
-    s->drops = metric(m, "mimic_frames_dropped_total");
-    s->sent = metric(m, "mimic_ws_frames_sent_total");
-    s->skipped = metric(m, "mimic_vest_frames_skipped_total"); /* -1 before the loop could skip */
+    s->key_frames = sb_metric(m, "mimic_key_frames_total");
+    s->vest_frames = sb_metric(m, "mimic_vest_frames_total");
+    s->frames = sb_metric(m, "mimic_frames_total");
+    s->drops = sb_metric(m, "mimic_frames_dropped_total");
+    s->sent = sb_metric(m, "mimic_ws_frames_sent_total");
+    s->skipped = sb_metric(m, "mimic_vest_frames_skipped_total"); /* -1 before the loop could skip */
     free(m);
     return 0;
 }
@@ -603,7 +284,7 @@ static void *client_thread(void *arg)
             for (;;) {
                 ssize_t k = recv(c->fd, buf, RECV_BUF, 0);
                 if (k > 0) {
-                    feed(ph, c, buf, (size_t)k, now_us());
+                    feed(ph, c, buf, (size_t)k, sb_now_us());
                     if (c->closed)
                         break;
                     continue;
@@ -627,7 +308,7 @@ static void *client_thread(void *arg)
  * after the handshake go to its parser. */
 static int ws_connect(phase_t *ph, wsc_t *c)
 {
-    c->fd = tcp_connect(5.0);
+    c->fd = sb_tcp_connect(5.0);
     if (c->fd < 0)
         return -1;
     int one = 1;
@@ -637,7 +318,7 @@ static int ws_connect(phase_t *ph, wsc_t *c)
                      "GET /ws?format=%s HTTP/1.1\r\nHost: 127.0.0.1:%d\r\nUpgrade: websocket\r\n"
                      "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
                      "Sec-WebSocket-Version: 13\r\n\r\n",
-                     g_format, g_port);
+                     g_format, sb_port);
     if (send(c->fd, req, (size_t)n, MSG_NOSIGNAL) != n)
         return -1;
     char resp[8192];
@@ -656,7 +337,7 @@ static int ws_connect(phase_t *ph, wsc_t *c)
     c->fh_need = 2;
     size_t used = (size_t)(end + 4 - resp);
     if (len > used)
-        feed(ph, c, (const uint8_t *)resp + used, len - used, now_us());
+        feed(ph, c, (const uint8_t *)resp + used, len - used, sb_now_us());
     fcntl(c->fd, F_SETFL, fcntl(c->fd, F_GETFL) | O_NONBLOCK);
     return 0;
 }
@@ -719,7 +400,7 @@ static int run_phase(int n, double seconds, int threads, result_t *R)
         wsc_t *c = &ph->c[i];
         c->thread = i % ph->threads;
         if (ws_connect(ph, c)) {
-            fprintf(stderr, "bench_serve: client %d could not connect to ws://127.0.0.1:%d/ws\n", i, g_port);
+            fprintf(stderr, "bench_serve: client %d could not connect to ws://127.0.0.1:%d/ws\n", i, sb_port);
             if (c->fd >= 0)
                 close(c->fd);
             c->fd = -1, c->closed = 1;
@@ -736,9 +417,9 @@ static int run_phase(int n, double seconds, int threads, result_t *R)
         pthread_create(&ph->th[k], NULL, client_thread, &args[k]);
 
     /* every client has its hello and a first frame (at most 10 s) */
-    double t0 = now();
+    double t0 = sb_now();
     int ready = 0;
-    while (now() - t0 < 10.0) {
+    while (sb_now() - t0 < 10.0) {
         ready = 0;
         for (int i = 0; i < n; i++)
             ready += ph->c[i].hello && ph->c[i].last > 0 && !ph->c[i].closed;
@@ -751,24 +432,24 @@ static int run_phase(int n, double seconds, int threads, result_t *R)
         fprintf(stderr, "bench_serve: %d of %d clients connected, %d streaming after 10 s\n", connected, n, ready);
     int rc = 0;
     server_snap_t s0, s1;
-    R->load_before = loadavg1();
+    R->load_before = sb_loadavg1();
     if (ready == 0 || snap(&s0)) {
         rc = -1;
         fprintf(stderr, "bench_serve: no client receives frames%s\n", ready ? "" : " (or /metrics failed)");
     } else {
         atomic_store(&ph->recording, 1);
-        double w0 = now();
-        while (now() - w0 < seconds)
+        double w0 = sb_now();
+        while (sb_now() - w0 < seconds)
             usleep(50000);
         atomic_store(&ph->recording, 0);
-        R->window = now() - w0;
+        R->window = sb_now() - w0;
         if (snap(&s1)) {
             rc = -1;
             fprintf(stderr, "bench_serve: GET /metrics failed at the end of the phase (mimic serve %s)\n",
                     waitpid(g_serve.pid, NULL, WNOHANG) == 0 ? "is running" : "has exited");
-            print_log_tail(&g_serve);
+            sb_print_log_tail(&g_serve);
         }
-        char *st = http_get("/api/status");
+        char *st = sb_http_get("/api/status");
         json_t *j = st ? json_loads(st, 0, NULL) : NULL, *v = json_object_get(j, "vest");
         R->key_ms = json_real_value(json_object_get(v, "key_ms"));
         R->morph_ms = json_real_value(json_object_get(v, "morph_ms"));
@@ -780,7 +461,7 @@ static int run_phase(int n, double seconds, int threads, result_t *R)
         json_decref(j);
         free(st);
     }
-    R->load_after = loadavg1();
+    R->load_after = sb_loadavg1();
     atomic_store(&ph->stop, 1);
     for (int k = 0; k < ph->threads; k++)
         pthread_join(ph->th[k], NULL);
@@ -995,61 +676,61 @@ int main(int argc, char **argv)
     signal(SIGPIPE, SIG_IGN);
 
     char binbuf[4096];
-    g_bin = find_bin(binbuf, sizeof binbuf);
-    if (!g_bin)
+    sb_bin = find_bin(binbuf, sizeof binbuf);
+    if (!sb_bin)
         return fprintf(stderr, "bench_serve: cannot find the mimic binary (set MIMIC_BIN)\n"), 1;
 
     printf("command:");
     for (int i = 0; i < argc; i++)
         printf(" %s", argv[i]);
-    printf("\nnproc %ld, load average %.2f, mimic %s\n", sysconf(_SC_NPROCESSORS_ONLN), loadavg1(), g_bin);
+    printf("\nnproc %ld, load average %.2f, mimic %s\n", sysconf(_SC_NPROCESSORS_ONLN), sb_loadavg1(), sb_bin);
     fflush(stdout);
 
     if (keep) {
-        snprintf(g_dir, sizeof g_dir, "%s", keep);
-        mkdir(g_dir, 0755);
+        snprintf(sb_dir, sizeof sb_dir, "%s", keep);
+        mkdir(sb_dir, 0755);
     } else {
         const char *tmp = getenv("TMPDIR");
-        snprintf(g_dir, sizeof g_dir, "%s/bench_serve_XXXXXX", tmp && *tmp ? tmp : "/tmp");
-        if (!mkdtemp(g_dir))
+        snprintf(sb_dir, sizeof sb_dir, "%s/bench_serve_XXXXXX", tmp && *tmp ? tmp : "/tmp");
+        if (!mkdtemp(sb_dir))
             return fprintf(stderr, "bench_serve: cannot make a temp dir: %s\n", strerror(errno)), 1;
     }
     char bodies[4200], store[4200], vest[4200], vest_out[4300], serial[4300], rate_s[32], maxc[32];
-    snprintf(bodies, sizeof bodies, "%s/bodies", g_dir);
-    snprintf(store, sizeof store, "%s/store", g_dir);
-    snprintf(vest, sizeof vest, "%s/vest", g_dir);
+    snprintf(bodies, sizeof bodies, "%s/bodies", sb_dir);
+    snprintf(store, sizeof store, "%s/store", sb_dir);
+    snprintf(vest, sizeof vest, "%s/vest", sb_dir);
     snprintf(vest_out, sizeof vest_out, "pty:%s", vest);
     snprintf(serial, sizeof serial, "serial:%s", vest);
     snprintf(rate_s, sizeof rate_s, "%g", rate);
     snprintf(maxc, sizeof maxc, "%d", clients + 4 > 64 ? clients + 4 : 64);
 
     int status = 1;
-    double t_setup = now();
+    double t_setup = sb_now();
     char *a_synth[] = {"synth", "--out", bodies, "--subjects", "4", "--poses", "12", NULL};
     char *a_ingest[] = {"ingest", "--store", store, bodies, NULL};
     char *a_index[] = {"index", "--store", store, NULL};
-    if (run_mimic("synth", a_synth, 60) || run_mimic("ingest", a_ingest, 60) || run_mimic("index", a_index, 120))
+    if (sb_run_mimic("synth", a_synth, 60) || sb_run_mimic("ingest", a_ingest, 60) || sb_run_mimic("index", a_index, 120))
         goto done;
-    printf("store: 4 subjects x 12 poses (mimic synth, ingest, index) in %.1f s\n", now() - t_setup);
+    printf("store: 4 subjects x 12 poses (mimic synth, ingest, index) in %.1f s\n", sb_now() - t_setup);
 
     char line[4096];
     char *a_vest[] = {"vest", "simulate", "--motion", "demo", "--rate", rate_s, "--loop", "--out", vest_out, NULL};
-    if (spawn(&g_vest, "vest", a_vest, 1) || first_line(&g_vest, line, sizeof line, 10.0)) {
+    if (sb_spawn(&g_vest, "vest", a_vest, 1) || sb_first_line(&g_vest, line, sizeof line, 10.0)) {
         fprintf(stderr, "bench_serve: mimic vest simulate did not print its pty:\n");
-        print_log_tail(&g_vest);
+        sb_print_log_tail(&g_vest);
         goto done;
     }
     char *a_serve[] = {"serve",  "--store",  store,    "--avatar",        "1",    "--vest",
                        serial,   "--vest-pose", "t",   "--listen",        "127.0.0.1:0", "--max-clients",
                        maxc,     NULL};
-    if (spawn(&g_serve, "serve", a_serve, 1) || first_line(&g_serve, line, sizeof line, 30.0)) {
+    if (sb_spawn(&g_serve, "serve", a_serve, 1) || sb_first_line(&g_serve, line, sizeof line, 30.0)) {
         fprintf(stderr, "bench_serve: mimic serve did not print its URL:\n");
-        print_log_tail(&g_serve);
+        sb_print_log_tail(&g_serve);
         goto done;
     }
     const char *colon = strrchr(line, ':');
-    g_port = colon ? atoi(colon + 1) : 0;
-    if (g_port <= 0) {
+    sb_port = colon ? atoi(colon + 1) : 0;
+    if (sb_port <= 0) {
         fprintf(stderr, "bench_serve: mimic serve printed '%s', not a URL\n", line);
         goto done;
     }
@@ -1057,7 +738,7 @@ int main(int argc, char **argv)
            (int)g_vest.pid);
     printf("serve: mimic serve --store %s --avatar 1 --vest %s --vest-pose t --listen 127.0.0.1:0 --max-clients %s "
            "(pid %d, port %d)\n",
-           store, serial, maxc, (int)g_serve.pid, g_port);
+           store, serial, maxc, (int)g_serve.pid, sb_port);
     printf("clients: raw RFC 6455 over loopback, format %s, %d epoll thread%s\n", g_format, threads,
            threads == 1 ? "" : "s");
     fflush(stdout);
@@ -1065,16 +746,16 @@ int main(int argc, char **argv)
     /* warm-up: wait until the loop publishes frames (it needs the vest
      * streaming and a first key frame), 1 client for 2 s, not counted */
     result_t warm, ref = {0}, main_r;
-    double t_wait = now();
+    double t_wait = sb_now();
     for (;;) {
-        char *m = http_get("/metrics");
-        double f = m ? metric(m, "mimic_frames_total") : -1;
+        char *m = sb_http_get("/metrics");
+        double f = m ? sb_metric(m, "mimic_frames_total") : -1;
         free(m);
         if (f > 0)
             break;
-        if (now() - t_wait > 20.0) {
+        if (sb_now() - t_wait > 20.0) {
             fprintf(stderr, "bench_serve: mimic serve published no frame in 20 s:\n");
-            print_log_tail(&g_serve);
+            sb_print_log_tail(&g_serve);
             goto done;
         }
         usleep(100000);
@@ -1104,10 +785,10 @@ int main(int argc, char **argv)
     status = 0;
 
 done:
-    stop_child(&g_serve);
-    stop_child(&g_vest);
-    if (!keep && g_dir[0])
-        rm_rf(g_dir);
+    sb_stop_child(&g_serve);
+    sb_stop_child(&g_vest);
+    if (!keep && sb_dir[0])
+        rm_rf(sb_dir);
     fflush(stdout);
     return status;
 }

@@ -12,17 +12,21 @@
 
 #include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <ftw.h>
 #include <getopt.h>
 #include <math.h>
 #include <pthread.h>
 #include <signal.h>
+#include <spawn.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
+
+extern char **environ;
 
 #define MARKER ".mimic-demo"
 #define GLB_FPS 10.0     /* frames of the served sequence kept for demo.glb */
@@ -154,6 +158,30 @@ static int prepare_dir(const char *dir, char *sub, size_t size)
         }
     }
     return 0;
+}
+
+/* xdg-open on the viewer's URL, as a child of its own (no shell: the host
+ * is the user's text); a failure only costs the convenience. */
+static void open_browser(int host_len, const char *listen, int port)
+{
+    char url[512];
+    snprintf(url, sizeof url, "http://%.*s:%d/", host_len, listen, port);
+    char *const argv[] = {"xdg-open", url, NULL};
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
+    posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
+    posix_spawnattr_t at; /* the demo blocks SIGINT and SIGTERM; the browser must not */
+    sigset_t none;
+    sigemptyset(&none);
+    posix_spawnattr_init(&at);
+    posix_spawnattr_setsigmask(&at, &none);
+    posix_spawnattr_setflags(&at, POSIX_SPAWN_SETSIGMASK);
+    pid_t pid;
+    if (posix_spawnp(&pid, "xdg-open", &fa, &at, argv, environ) != 0)
+        fprintf(stderr, "mimic demo: could not start xdg-open; open the URL above in a browser\n");
+    posix_spawnattr_destroy(&at);
+    posix_spawn_file_actions_destroy(&fa);
 }
 
 static int step(const char *title, int (*cmd)(int, char **), char **argv)
@@ -294,14 +322,10 @@ int mim_cmd_demo(int argc, char **argv)
         fflush(stdout);
         fprintf(stderr, "mimic demo: the viewer is at http://%.*s:%d/ (%s)\n", host_len, listen,
                 mim_serve_port(sv), duration > 0 ? "stops after --duration" : "Ctrl-C stops");
-        if (!headless && getenv("DISPLAY") && !access("/usr/bin/xdg-open", X_OK)) {
-            char cmdline[512];
-            snprintf(cmdline, sizeof cmdline, "/usr/bin/xdg-open 'http://%.*s:%d/' >/dev/null 2>&1 &",
-                     host_len, listen, mim_serve_port(sv));
-            if (system(cmdline) != 0)
-                fprintf(stderr, "mimic demo: could not open a browser; open the URL above\n");
-        }
-        double t_end = duration > 0 ? mim_now() + duration : INFINITY, t_report = mim_now() + 1.0;
+        if (!headless && getenv("DISPLAY"))
+            open_browser(host_len, listen, mim_serve_port(sv));
+        const double t_start = mim_now();
+        double t_end = duration > 0 ? t_start + duration : INFINITY, t_report = t_start + 1.0;
         for (;;) {
             double now = mim_now(), wait = fmin(t_end, t_report) - now;
             if (wait <= 0 && now >= t_end)
@@ -313,8 +337,7 @@ int mim_cmd_demo(int argc, char **argv)
                 break;
             }
             if (mim_now() >= t_report) {
-                fprintf(stderr, "mimic demo: %.0f s, %llu frames served, vest %s\n",
-                        duration > 0 ? duration - (t_end - mim_now()) : mim_now() - (t_report - 1.0),
+                fprintf(stderr, "mimic demo: %.0f s, %llu frames served, vest %s\n", mim_now() - t_start,
                         (unsigned long long)mim_serve_frames(sv), mim_serve_vest_state(sv));
                 t_report += 1.0;
             }

@@ -47,7 +47,9 @@ typedef enum mim__hist {
     MIM__H_QUERY, MIM__H_TRANSFER, MIM__H_KEY_FRAME, MIM__H_MORPH_FRAME, MIM__H_FRAME, MIM__H_COUNT
 } mim__hist_t;
 
-typedef enum mim__gauge { MIM__G_KEY_INTERVAL, MIM__G_KEY_RATE, MIM__G_FRAME_RATE, MIM__G_VEST_UP, MIM__G_WS_CLIENTS, MIM__G_COUNT } mim__gauge_t;
+typedef enum mim__gauge {
+    MIM__G_KEY_INTERVAL, MIM__G_KEY_RATE, MIM__G_FRAME_RATE, MIM__G_VEST_UP, MIM__G_WS_CLIENTS, MIM__G_COUNT
+} mim__gauge_t;
 
 #define MIM__BUCKETS 14
 typedef struct mim__histogram {
@@ -80,12 +82,12 @@ char *mim__metrics_text(mim__metrics_t *m);
 typedef struct mim__ws mim__ws_t;
 int mim__ws_open(mim__ws_t **out, mim_serve_t *sv, unsigned max_clients, mim_error_t *err);
 void mim__ws_attach(mim__ws_t *ws, struct mg_context *ctx); /* registers /ws */
-/* Makes f the latest frame; returns at once whatever the clients do. */
+/* Queues f for every client (each client's oldest frame is dropped when its
+ * queue is full); returns at once whatever the clients do. */
 void mim__ws_publish(mim__ws_t *ws, const mim_serve_frame_t *f);
 void mim__ws_close(mim__ws_t **ws); /* after civetweb has stopped; accepts NULL */
 json_t *mim__ws_status(mim__ws_t *ws);
 unsigned mim__ws_clients(mim__ws_t *ws);
-size_t mim__ws_frame_bytes(uint32_t n_vertices, uint32_t n_landmarks, int int16);
 /* A client's text message (untrusted): the format it asks for (0 f32, 1
  * i16), or -1 with the reason, one line, in why. */
 int mim__ws_parse_message(const char *data, size_t len, char *why, size_t why_size);

@@ -65,7 +65,9 @@ struct mim__loop {
     atomic_int stop;
     char spec[1024];
     float *tpos, *out; /* a template's positions; a morphed frame (3 * n) */
-    double *F;         /* 9 * n: a template's frames, or a key's */
+    double *tF;        /* 9 * n: the frames of template tF_id, kept while key frames keep it */
+    uint64_t tF_id;
+    double *F;         /* 9 * n: scratch for a key's frames */
     key_pose_t keys[2];
     int cur;           /* keys[cur] is the latest key, keys[!cur] the one before */
     uint32_t k;        /* key interval chosen at the latest key */
@@ -86,7 +88,7 @@ struct mim__loop {
     double window_start;
     uint32_t window_frames, window_keys;
     pthread_mutex_t lock; /* guards what /api/status reads: */
-    char state[16];
+    const char *state; /* a string literal: streaming, reconnecting, ended, failed, stopped */
     char error[512];
     uint64_t last_template, warm_starts, iterations, key_frames;
     char last_label[32];
@@ -96,7 +98,7 @@ struct mim__loop {
 static void set_state(mim__loop_t *l, const char *state, const char *error)
 {
     pthread_mutex_lock(&l->lock);
-    snprintf(l->state, sizeof l->state, "%s", state);
+    l->state = state;
     if (error)
         snprintf(l->error, sizeof l->error, "%s", error);
     pthread_mutex_unlock(&l->lock);
@@ -193,10 +195,15 @@ static int make_key(mim__loop_t *l, const float *u, mim_error_t *err)
     if (prev->valid && prev->template_id == hit.id && want_warm(l))
         o.start = prev->pos; /* warm start: the same template as the last key frame */
     mim_xfer_report_t rep;
-    pthread_mutex_lock(&sv->lock); /* the solver is shared with /api/transfer */
-    rc = mim_serve_session_template(&sv->s, hit.id, l->tpos, l->F, NULL, 0, err);
+    pthread_mutex_lock(&sv->lock); /* the solver and the session are shared with /api/transfer */
+    if (l->tF_id != hit.id) { /* most key frames keep the template: its frames are read once */
+        l->tF_id = 0;
+        rc = mim_serve_session_template(&sv->s, hit.id, l->tpos, l->tF, NULL, 0, err);
+        if (!rc)
+            l->tF_id = hit.id;
+    }
     if (!rc)
-        rc = mim_xfer_transfer(sv->solver, sv->s.W, n, l->F, u, L, &o, k->pos, &rep, err);
+        rc = mim_xfer_transfer(sv->solver, sv->s.W, n, l->tF, u, L, &o, k->pos, &rep, err);
     pthread_mutex_unlock(&sv->lock);
     if (rc)
         return rc;
@@ -407,6 +414,14 @@ static void link_state(mim__loop_t *l, int up, const char *why)
     set_state(l, up ? "streaming" : "reconnecting", why);
     mim__metrics_add(&l->sv->m, up ? MIM__C_VEST_RECONNECTS : MIM__C_VEST_DISCONNECTS, 1);
     mim__metrics_set(&l->sv->m, MIM__G_VEST_UP, up);
+    if (!up) { /* no frames while it is away: the rates say so, not their last values */
+        pthread_mutex_lock(&l->lock);
+        l->key_rate_hz = l->frame_rate_hz = 0.0;
+        pthread_mutex_unlock(&l->lock);
+        mim__metrics_set(&l->sv->m, MIM__G_KEY_RATE, 0.0);
+        mim__metrics_set(&l->sv->m, MIM__G_FRAME_RATE, 0.0);
+        l->window_start = 0.0, l->window_frames = l->window_keys = 0;
+    }
     mim_log("vest %s: %s", l->spec, up ? "streaming again" : "lost; waiting for it to come back");
 }
 
@@ -482,7 +497,8 @@ int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t
         l->tpos = malloc(3 * n * sizeof *l->tpos);
         l->out = malloc(3 * n * sizeof *l->out);
         l->F = malloc(9 * n * sizeof *l->F);
-        ok = ok && l->tpos && l->out && l->F;
+        l->tF = malloc(9 * n * sizeof *l->tF);
+        ok = ok && l->tpos && l->out && l->F && l->tF;
         for (int i = 0; i < 2; i++) {
             key_pose_t *k = &l->keys[i];
             k->pos = malloc(3 * n * sizeof *k->pos);
@@ -499,7 +515,7 @@ int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t
         l->k = 1;
         pthread_mutex_init(&l->lock, NULL);
         snprintf(l->spec, sizeof l->spec, "%s", opt->vest);
-        snprintf(l->state, sizeof l->state, "streaming");
+        l->state = "streaming";
     }
     if (!rc) {
         mim_vest_state_reset(&l->st);
@@ -543,7 +559,7 @@ void mim__loop_close(mim__loop_t **pl)
     mim_vest_transport_close(&l->t);
     if (l->sv)
         pthread_mutex_destroy(&l->lock);
-    free(l->tpos), free(l->out), free(l->F);
+    free(l->tpos), free(l->out), free(l->F), free(l->tF);
     for (int i = 0; i < 2; i++)
         free(l->keys[i].pos), free(l->keys[i].quats), free(l->keys[i].W);
     free(l);
@@ -552,11 +568,10 @@ void mim__loop_close(mim__loop_t **pl)
 
 const char *mim__loop_state(mim__loop_t *l)
 {
-    static _Thread_local char state[16];
     if (!l)
         return "none";
     pthread_mutex_lock(&l->lock);
-    snprintf(state, sizeof state, "%s", l->state);
+    const char *state = l->state;
     pthread_mutex_unlock(&l->lock);
     return state;
 }

@@ -9,9 +9,9 @@
  * Errors are JSON, schemas/serve-error.schema.json. With a vest, a thread
  * turns each vest frame into landmarks, makes key frames (query, then
  * transfer with the cached factor, warm-started from the last key frame
- * when time is short) as often as its measured compute time allows, fills the frames between
- * by morphing (seed 000 Section 3.5) and publishes every frame to the
- * stream. serve composes db/, query/, transfer/ and vest/; cli/ sits above
+ * when time is short) as often as its measured compute time allows, fills
+ * the frames between by morphing (seed 000 Section 3.5) and publishes
+ * every frame to the stream. serve composes db/, query/, transfer/ and vest/; cli/ sits above
  * it. */
 #ifndef MIM_SERVE_H
 #define MIM_SERVE_H
@@ -78,11 +78,11 @@ int mim_serve_open(mim_serve_t **out, const char *store, const char *avatar, con
                    mim_error_t *err);
 /* The port actually bound (useful with port 0). */
 int mim_serve_port(const mim_serve_t *s);
-/* The vest loop's state: "streaming", "reconnecting", "ended", "failed",
- * "stopped", or "none" without a vest. */
+/* The vest loop's state, a static string: "streaming", "reconnecting",
+ * "ended", "failed", "stopped", or "none" without a vest. */
 const char *mim_serve_vest_state(mim_serve_t *s);
-/* The service's store, avatar mesh (the store's faces, the avatar's rest
- * positions) and the number of frames published so far. */
+/* The avatar mesh (the store's faces, the avatar's rest positions), valid
+ * until close, and the number of frames published so far. */
 const mim_mesh_t *mim_serve_avatar_mesh(const mim_serve_t *s);
 uint64_t mim_serve_frames(mim_serve_t *s);
 /* Stops listening (waits for requests in flight) and frees everything.

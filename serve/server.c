@@ -148,8 +148,7 @@ static int handle(struct mg_connection *c, void *cbdata)
     size_t i = 0, n = sizeof routes / sizeof routes[0];
     while (i < n && strcmp(routes[i].path, path))
         i++;
-    if (i == n && (!strcmp(ri->request_method, "GET") || !strcmp(ri->request_method, "HEAD")) &&
-        (status = mim__viewer_serve(c, path)) != 0) {
+    if (i == n && (status = mim__viewer_serve(c, path)) != 0) { /* it answers GET and HEAD only */
         route = MIM__R_VIEWER;
     } else if (i == n) {
         status = mim__reply_error(c, 404, "%s: no such route (see schemas/ for the API)", path);

@@ -83,7 +83,7 @@ static void put_f32(unsigned char *p, float f)
     put_u32(p, u);
 }
 
-size_t mim__ws_frame_bytes(uint32_t n_vertices, uint32_t n_landmarks, int int16)
+static size_t frame_bytes(uint32_t n_vertices, uint32_t n_landmarks, int int16)
 {
     size_t pos = int16 ? 6 * (size_t)n_vertices + 2 * (n_vertices & 1u) : 12 * (size_t)n_vertices;
     return HEADER_BYTES + pos + 12 * (size_t)n_landmarks;
@@ -93,7 +93,7 @@ size_t mim__ws_frame_bytes(uint32_t n_vertices, uint32_t n_landmarks, int int16)
 static msg_t *encode(const mim_serve_frame_t *f, int format)
 {
     const uint32_t n = f->n_vertices, L = f->n_landmarks;
-    size_t len = mim__ws_frame_bytes(n, L, format == FMT_I16);
+    size_t len = frame_bytes(n, L, format == FMT_I16);
     msg_t *m = malloc(sizeof *m + len);
     if (!m)
         return NULL;

@@ -420,6 +420,30 @@ static void test_bad_usage(void **state)
     assert_int_equal(ts_run_mimic(&out, &err, a3), 1);
     assert_non_null(strstr(err, "no template 999"));
     free(out), free(err);
+    /* the options of the stream and the loop, and mimic demo's own: exit 2, one line saying what */
+    static const struct {
+        const char *args[8], *says;
+    } bad[] = {
+        {{"serve", "--store", "S", "--avatar", "1", "--key-rate", "fast"}, "--key-rate 'fast' is neither auto nor"},
+        {{"serve", "--store", "S", "--avatar", "1", "--key-rate", "0"}, "--key-rate '0' is neither auto nor"},
+        {{"serve", "--store", "S", "--avatar", "1", "--warm-start", "maybe"}, "--warm-start 'maybe' is not auto, on or off"},
+        {{"serve", "--store", "S", "--avatar", "1", "--max-clients", "0"}, "--max-clients '0' is not a number in 1..1000"},
+        {{"demo", "--duration", "-3"}, "--duration '-3' is not a number of seconds"},
+        {{"demo", "--listen", "8080"}, "mimic demo: --listen '8080' is not HOST:PORT"},
+        {{"demo", "--key-rate", "x"}, "mimic demo: --key-rate 'x' is neither auto nor"},
+        {{"demo", "extra"}, "mimic demo: unexpected argument 'extra'"},
+        {{"vest", "simulate", "--motion", "demo"}, "--out are required"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        const char *a[8];
+        for (int k = 0; k < 8; k++)
+            a[k] = bad[i].args[k] && !strcmp(bad[i].args[k], "S") ? store : bad[i].args[k];
+        assert_int_equal(ts_run_mimic(&out, &err, a), 2);
+        if (!strstr(err, bad[i].says))
+            fail_msg("mimic %s %s: said '%s', not '%s'", a[0], a[1], err, bad[i].says);
+        assert_true(*err && strchr(err, '\n') == err + strlen(err) - 1); /* one line */
+        free(out), free(err);
+    }
 }
 
 /* --vest: a recording of a simulated vest (a T-pose BVH) plays in real time;

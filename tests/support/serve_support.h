@@ -1,0 +1,103 @@
+/* What the end-to-end tests of mimic serve's stream share
+ * (test_serve_stream.c, test_serve_service.c): child processes that are
+ * all killed at the end, a service (a simulated vest on a pty and `mimic
+ * serve` reading it), HTTP/1.1 by hand, and the /ws frames of
+ * schemas/serve-ws-frame.md read through ws_client.h. The checks fail the
+ * running cmocka test. */
+#ifndef MIM_TEST_SERVE_SUPPORT_H
+#define MIM_TEST_SERVE_SUPPORT_H
+
+#include "test_support.h"
+#include "ws_client.h"
+
+#include <jansson.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <sys/types.h>
+
+#define SS_HEADER 112u /* bytes of a /ws frame header */
+
+/* ---- a service: a simulated vest on a pty and mimic serve reading it ---- */
+typedef struct ss_svc {
+    pid_t vest, server;
+    int port;
+    char *link, *vout, *verr, *sout, *serr;
+} ss_svc_t;
+
+/* ---- HTTP by hand ---- */
+typedef struct ss_reply {
+    int status; /* 0: the connection closed without a response */
+    char *raw;  /* all of it, NUL-terminated */
+    char *head, *body;
+    size_t len; /* of body */
+} ss_reply_t;
+
+typedef struct ss_frame {
+    uint16_t flags;
+    uint64_t number, t_vest, tmpl, arrival;
+    uint32_t n, L, compute, key_interval;
+    char label[33];
+    float lo[3], hi[3];
+    int i16;
+    const unsigned char *pos, *lm; /* into the message */
+} ss_frame_t;
+
+
+double ss_now_s(void);
+void ss_sleep_ms(int ms);
+void ss_child_kill(pid_t p);
+/* Runs `mimic args...` with stdout and stderr to files; its pid. */
+pid_t ss_spawn(const char *const *args, const char *out, const char *err);
+/* Waits for the child to exit within timeout_s: its wait status, or -1
+ * (then it is still running). */
+int ss_wait_exit(pid_t p, double timeout_s);
+/* The file's text once it holds a line matching prefix (NULL: any line),
+ * within timeout_s; NULL if not, or if the process exited first. */
+char *ss_wait_line(const char *path, const char *prefix, pid_t p, double timeout_s);
+/* No sanitizer report in a server's stderr (the ASan build runs an ASan mimic). */
+void ss_assert_clean_stderr(const char *path);
+/* extra: more serve arguments (NULL-terminated, may be NULL); faults: the
+ * vest's --faults (may be NULL). */
+int ss_svc_start(ss_svc_t *s, const char *dir, const char *store, const char *tag, const char *faults,
+                 const char *const *extra);
+void ss_svc_free(ss_svc_t *s);
+/* SIGTERM to the server: it must exit 0 within a few seconds, cleanly. */
+void ss_svc_term(ss_svc_t *s);
+void ss_reply_free(ss_reply_t *r);
+/* Reads what the server sends until it closes (or 15 s pass). */
+ss_reply_t ss_read_reply(int s);
+/* Sends the bytes on a fresh connection, half-closes, reads the reply. */
+ss_reply_t ss_http_raw(int port, const void *req, size_t n);
+ss_reply_t ss_http_get(int port, const char *path);
+json_t *ss_json_body(const ss_reply_t *r);
+json_t *ss_get_status(int port);
+json_int_t ss_status_int(json_t *j, const char *obj, const char *key);
+const char *ss_vest_state(json_t *j);
+/* One sample of /metrics (a line "NAME VALUE"). */
+double ss_metric(int port, const char *name);
+void ss_assert_alive(int port);
+float ss_get_f32(const unsigned char *p);
+/* Parses a binary message and checks what the spec fixes: magic, version,
+ * length. */
+ss_frame_t ss_parse_frame(const ws_msg_t *m);
+float ss_frame_x(const ss_frame_t *f, size_t i);
+/* The next binary message within timeout_ms (text ones are skipped and
+ * counted in *texts when given): 1, or 0 when none came. */
+int ss_next_frame(ws_client_t *w, ws_msg_t *m, int timeout_ms, int *texts);
+/* The next text message as JSON within timeout_ms (binary ones skipped). */
+json_t *ss_next_text(ws_client_t *w, int timeout_ms);
+/* Connects to /ws (path may carry a query) and checks the hello. */
+json_t *ss_ws_open(ws_client_t *w, int port, const char *path, int rcvbuf);
+/* Reads frames for ms milliseconds; the frame numbers (malloc'd, *n of
+ * them) and their local arrival times. */
+uint64_t *ss_collect_numbers(ws_client_t *w, int ms, size_t *n);
+void ss_assert_consecutive(const uint64_t *v, size_t n, const char *what);
+/* Kills every child still running (teardown). */
+void ss_kill_children(void);
+/* A store of synth bodies (subjects x 12 poses, 1500 vertices), ingested
+ * and indexed, at dir/store (*store, malloc'd); have[id] = 1 for each id
+ * `mimic list` gives (have holds max_id + 1). The number of templates, or
+ * -1 after printing why. */
+int ss_make_store(const char *dir, int subjects, char **store, int *have, int max_id);
+
+#endif

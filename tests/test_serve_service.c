@@ -1,0 +1,306 @@
+/* mimic serve as a service under bad conditions, end to end (the real
+ * binary, the real simulated vest, real sockets; support/serve_support.c):
+ * malformed HTTP, SIGTERM with WebSocket clients connected, a vest that
+ * goes away mid-stream and comes back, and `mimic demo`. Every wait has a
+ * deadline; every child is killed in teardown. */
+#include "serve_support.h"
+
+#include <arpa/inet.h>
+#include <errno.h>
+#include <float.h>
+#include <jansson.h>
+#include <math.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#define SUBJECTS 3
+#define POSES 12
+#define VEST_HZ 60.0
+
+static char *dir, *store;
+static int templates_in_store[SUBJECTS * POSES + 1]; /* [id] = 1 when `mimic list` has it */
+static int n_templates;
+static ss_svc_t A; /* the shared service: the demo motion at 60 Hz, no faults */
+
+static int setup(void **state)
+{
+    (void)state;
+    signal(SIGPIPE, SIG_IGN);
+    srand(12345);
+    dir = ts_tempdir("serve-service");
+    n_templates = ss_make_store(dir, SUBJECTS, &store, templates_in_store, SUBJECTS * POSES);
+    if (n_templates != SUBJECTS * POSES) {
+        fprintf(stderr, "the store holds %d templates, not %d\n", n_templates, SUBJECTS * POSES);
+        return -1;
+    }
+    return ss_svc_start(&A, dir, store, "a", NULL, NULL);
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    ss_svc_free(&A);
+    ss_kill_children();
+    ts_rmtree(dir);
+    free(dir), free(store);
+    return 0;
+}
+
+/* ---- 4. malformed HTTP ---- */
+static void expect_4xx_or_closed(int port, const char *req, size_t n, const char *what, int want)
+{
+    ss_reply_t r = ss_http_raw(port, req, n);
+    if (r.status)
+        print_message("%s: %d\n", what, r.status);
+    else
+        print_message("%s: closed without a response\n", what);
+    if (want >= 0 && r.status != want)
+        fail_msg("%s: status %d, not %d:\n%s", what, r.status, want, r.raw);
+    if (r.status && (r.status < 400 || r.status > 499))
+        fail_msg("%s: status %d, not 4xx", what, r.status);
+    ss_reply_free(&r);
+    ss_assert_alive(port);
+}
+
+static void test_http_malformed(void **state)
+{
+    (void)state;
+    const int p = A.port;
+    const char garbage[] = "\x16\x03\x01 this is no request \xff\xfe\r\n\r\n";
+    expect_4xx_or_closed(p, garbage, sizeof garbage - 1, "garbage request line", -1);
+    const char nocolon[] = "GET /api/status HTTP/1.1\r\nHost: x\r\nThis header has no colon\r\n\r\n";
+    expect_4xx_or_closed(p, nocolon, sizeof nocolon - 1, "a header line without colon", -1);
+    size_t big = 64 * 1024;
+    char *huge = malloc(big + 256);
+    int n = snprintf(huge, 256, "GET /api/status HTTP/1.1\r\nHost: x\r\nX-Huge: ");
+    memset(huge + n, 'a', big);
+    memcpy(huge + n + big, "\r\n\r\n", 4);
+    expect_4xx_or_closed(p, huge, (size_t)n + big + 4, "a 64 KiB header", -1);
+    free(huge);
+    const char badlen[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nContent-Length: twelve\r\n\r\n{}";
+    expect_4xx_or_closed(p, badlen, sizeof badlen - 1, "Content-Length: twelve", -1);
+    const char neglen[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nContent-Length: -5\r\n\r\n{}";
+    expect_4xx_or_closed(p, neglen, sizeof neglen - 1, "Content-Length: -5", -1);
+    /* a body shorter than its Content-Length, then the client is done */
+    const char shortb[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nContent-Length: 1000\r\n\r\n{\"landmarks\": [";
+    expect_4xx_or_closed(p, shortb, sizeof shortb - 1, "a short body", 400);
+    /* the same, closed outright without reading */
+    int s = ws_tcp_connect(p, 0);
+    assert_true(s >= 0);
+    ws_send_all(s, shortb, sizeof shortb - 1);
+    close(s);
+    ss_assert_alive(p);
+
+    /* a chunked body over the limit (1 MiB by default) */
+    int c = ws_tcp_connect(p, 0);
+    assert_true(c >= 0);
+    const char head[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nConnection: close\r\nTransfer-Encoding: chunked\r\n\r\n";
+    assert_int_equal(ws_send_all(c, head, sizeof head - 1), 0);
+    char chunk[65536 + 16];
+    int hl = snprintf(chunk, 16, "10000\r\n");
+    memset(chunk + hl, ' ', 65536);
+    memcpy(chunk + hl + 65536, "\r\n", 2);
+    for (int k = 0; k < 24; k++) /* 1.5 MiB */
+        if (ws_send_all(c, chunk, (size_t)hl + 65538))
+            break; /* the server may stop reading once over the limit */
+    ws_send_all(c, "0\r\n\r\n", 5);
+    shutdown(c, SHUT_WR);
+    ss_reply_t r = ss_read_reply(c);
+    close(c);
+    if (r.status != 413)
+        fail_msg("a chunked body of 1.5 MiB: status %d, not 413:\n%.400s", r.status, r.raw);
+    json_t *j = ss_json_body(&r);
+    assert_non_null(strstr(json_string_value(json_object_get(j, "error")), "limit"));
+    json_decref(j);
+    ss_reply_free(&r);
+    /* a chunked body under the limit works */
+    const char okchunk[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nConnection: close\r\nTransfer-Encoding: chunked\r\n\r\n"
+                           "3\r\n{\"l\r\n0\r\n\r\n";
+    r = ss_http_raw(p, okchunk, sizeof okchunk - 1);
+    assert_int_equal(r.status, 400); /* read whole, then refused as JSON: {"l is not */
+    j = ss_json_body(&r);
+    assert_non_null(strstr(json_string_value(json_object_get(j, "error")), "request body"));
+    json_decref(j);
+    ss_reply_free(&r);
+    ss_assert_alive(p);
+}
+
+/* ---- 8. SIGTERM with clients connected ---- */
+static void test_sigterm_with_clients(void **state)
+{
+    (void)state;
+    ws_client_t c[3];
+    for (int i = 0; i < 3; i++)
+        json_decref(ss_ws_open(&c[i], A.port, "/ws", 0));
+    for (int i = 0; i < 3; i++) {
+        ws_msg_t m;
+        assert_int_equal(ss_next_frame(&c[i], &m, 2000, NULL), 1);
+        ws_msg_free(&m);
+    }
+    double t0 = ss_now_s();
+    ss_svc_term(&A);
+    print_message("SIGTERM with 3 clients: exited in %.2f s\n", ss_now_s() - t0);
+    assert_true(ss_now_s() - t0 < 5.0);
+    for (int i = 0; i < 3; i++) {
+        assert_true(ws_wait_closed(&c[i], 3000));
+        ws_close(&c[i]);
+    }
+}
+
+/* ---- 7. a vest that disconnects mid-stream ---- */
+static void test_vest_outage(void **state)
+{
+    (void)state;
+    ss_svc_t B;
+    assert_int_equal(ss_svc_start(&B, dir, store, "b", "disconnect=2,down=2", NULL), 0);
+    ws_client_t w;
+    json_decref(ss_ws_open(&w, B.port, "/ws", 0));
+    int saw_reconnecting = 0, back = 0;
+    json_int_t frames_at_outage = -1, frames_back = -1;
+    uint64_t last_frame = 0, frame_at_outage = 0;
+    double end = ss_now_s() + 15, t_next = 0;
+    while (ss_now_s() < end && !(back && last_frame > (uint64_t)frames_back + 30)) {
+        ws_msg_t m;
+        while (ws_recv(&w, &m, 2) == 1) {
+            if (m.opcode == WS_BINARY) {
+                ss_frame_t f = ss_parse_frame(&m);
+                assert_true(f.number > last_frame);
+                last_frame = f.number;
+            }
+            ws_msg_free(&m);
+        }
+        if (ss_now_s() < t_next)
+            continue;
+        t_next = ss_now_s() + 0.05;
+        json_t *st = ss_get_status(B.port); /* the service keeps answering */
+        const char *state = ss_vest_state(st);
+        json_int_t frames = ss_status_int(st, NULL, "frames");
+        if (!strcmp(state, "reconnecting") && !saw_reconnecting) {
+            saw_reconnecting = 1;
+            frames_at_outage = frames, frame_at_outage = last_frame;
+            assert_true(ss_metric(B.port, "mimic_vest_disconnects_total") >= 1);
+            assert_true(ss_metric(B.port, "mimic_vest_up") == 0);
+        } else if (saw_reconnecting && !back && !strcmp(state, "reconnecting")) {
+            assert_true(ss_metric(B.port, "mimic_vest_up") == 0);
+        } else if (saw_reconnecting && !back) {
+            assert_string_equal(state, "streaming");
+            back = 1;
+            frames_back = frames;
+            assert_true(ss_metric(B.port, "mimic_vest_reconnects_total") >= 1);
+            assert_true(ss_metric(B.port, "mimic_vest_up") == 1);
+            assert_true(ss_status_int(st, "vest", "reconnects") >= 1);
+        } else if (!saw_reconnecting) {
+            assert_string_equal(state, "streaming");
+        }
+        json_decref(st);
+    }
+    if (!saw_reconnecting)
+        fail_msg("the vest state never went to reconnecting");
+    if (!back)
+        fail_msg("the vest state never came back to streaming");
+    json_t *st = ss_get_status(B.port);
+    assert_string_equal(ss_vest_state(st), "streaming");
+    json_int_t frames_end = ss_status_int(st, NULL, "frames");
+    json_decref(st);
+    print_message("vest outage: frames %lld at the outage, %lld back, %lld at the end; client at %llu (%llu)\n",
+                  (long long)frames_at_outage, (long long)frames_back, (long long)frames_end,
+                  (unsigned long long)last_frame, (unsigned long long)frame_at_outage);
+    assert_true(frames_end > frames_back + 30); /* frames resume */
+    assert_true(last_frame > (uint64_t)frames_back); /* and reach the client connected throughout */
+    ws_close(&w);
+    ss_svc_term(&B);
+    ss_svc_free(&B);
+}
+
+/* ---- 9. mimic demo ---- */
+static void run_demo(const char *ddir, int check_live)
+{
+    char *out = ts_path(dir, "demo.out"), *err = ts_path(dir, "demo.err");
+    const char *args[] = {"demo", "--headless", "--duration", "8", "--listen", "127.0.0.1:0", "--dir", ddir, NULL};
+    pid_t p = ss_spawn(args, out, err);
+    char *t = ss_wait_line(out, "http://127.0.0.1:", p, 120);
+    if (!t) {
+        char *e = ts_read_file(err, NULL);
+        fail_msg("mimic demo printed no URL: %s", e ? e : "");
+    }
+    const char *url = strstr(t, "http://127.0.0.1:");
+    int port = atoi(url + 17);
+    assert_true(port > 0);
+    const char *after = strchr(url + 17, '/');
+    assert_non_null(after);
+    assert_true(after[1] == '\n'); /* a line of its own: http://127.0.0.1:PORT/ */
+    assert_true(url == t || url[-1] == '\n');
+    free(t);
+    if (check_live) { /* it serves while it runs */
+        json_t *st = ss_get_status(port);
+        assert_string_equal(json_string_value(json_object_get(st, "avatar")), "template 1");
+        json_decref(st);
+        ws_client_t w;
+        json_decref(ss_ws_open(&w, port, "/ws", 0));
+        ws_msg_t m;
+        assert_int_equal(ss_next_frame(&w, &m, 5000, NULL), 1);
+        ss_parse_frame(&m);
+        ws_msg_free(&m);
+        ws_close(&w);
+    }
+    int st = ss_wait_exit(p, 90);
+    if (st == -1)
+        fail_msg("mimic demo --duration 8 did not exit on its own");
+    if (!WIFEXITED(st) || WEXITSTATUS(st) != 0) {
+        char *e = ts_read_file(err, NULL);
+        fail_msg("mimic demo: status %d: %s", st, e ? e : "");
+    }
+    ss_assert_clean_stderr(err);
+    free(out), free(err);
+}
+
+static void test_demo(void **state)
+{
+    (void)state;
+    char *ddir = ts_path(dir, "demo");
+    run_demo(ddir, 1);
+    char *glb = ts_path(ddir, "demo.glb");
+    struct stat sb;
+    assert_int_equal(stat(glb, &sb), 0);
+    assert_true(sb.st_size > 1000);
+    if (ts_gltf_validator_available())
+        ts_gltf_validate(glb);
+    /* again on the same folder: reused */
+    run_demo(ddir, 0);
+    assert_int_equal(stat(glb, &sb), 0);
+    free(glb);
+    /* a non-empty folder of other files is refused */
+    char *other = ts_path(dir, "other");
+    assert_int_equal(mkdir(other, 0777), 0);
+    char *note = ts_path(other, "notes.txt");
+    assert_int_equal(ts_write_file(note, "mine\n", 5), 0);
+    char *o = NULL, *e = NULL;
+    const char *args[] = {"demo", "--headless", "--duration", "1", "--listen", "127.0.0.1:0", "--dir", other, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, args), 2);
+    assert_non_null(e);
+    assert_non_null(strstr(e, other));
+    assert_true(strchr(e, '\n') == e + strlen(e) - 1); /* one line */
+    assert_int_equal(stat(note, &sb), 0);               /* untouched */
+    char *bodies_there = ts_path(other, "bodies");
+    assert_int_not_equal(stat(bodies_there, &sb), 0);
+    free(bodies_there);
+    free(o), free(e), free(note), free(other), free(ddir);
+}
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_http_malformed),
+        cmocka_unit_test(test_sigterm_with_clients),
+        cmocka_unit_test(test_vest_outage),
+        cmocka_unit_test(test_demo),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
