@@ -1,4 +1,5 @@
 /* Shared bench helpers: timing statistics and the datasets (bench_data.h). */
+#include "mim_io.h"
 #include "bench_data.h"
 
 #include "mim_ingest.h"
@@ -76,7 +77,7 @@ int bench_load_mh(bench_dataset_t *d, const char *dir)
     for (uint32_t k = 0; k < d->subjects * d->poses; k++) {
         mim_mesh_t m = {0};
         snprintf(path, sizeof path, "%s/mh_s%02u_p%02u.ply", dir, k / d->poses, k % d->poses);
-        if (mim_mesh_read(path, &m, &err)) {
+        if (mim_io_read_mesh(path, &m, &err)) {
             fprintf(stderr, "mh-bodies: %s\n", mim_error_text(&err));
             bench_dataset_free(d);
             return -1;

@@ -49,3 +49,19 @@ int mim_cli_listen(const char *cmd, const char *listen)
     }
     return (int)(colon - listen);
 }
+
+int mim_cli_template_id(const char *cmd, const char *name, const char *text, uint64_t *id)
+{
+    int ok = text && *text >= '0' && *text <= '9';
+    if (ok) {
+        errno = 0;
+        char *end;
+        unsigned long long v = strtoull(text, &end, 10);
+        ok = !errno && !*end && v >= 1;
+        if (ok) *id = v;
+    }
+    if (!ok)
+        fprintf(stderr, "mimic %s: --%s '%s' is not a template id (a number from mimic list)\n", cmd, name,
+                text ? text : "");
+    return ok ? 0 : -1;
+}

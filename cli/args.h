@@ -17,4 +17,8 @@ int mim_cli_key_rate(const char *cmd, const char *text, double *out);
  * printing one line. */
 int mim_cli_listen(const char *cmd, const char *listen);
 
+/* A template id (a whole number >= 1, as mimic list shows) given to
+ * --name. Prints one line and returns -1 otherwise. */
+int mim_cli_template_id(const char *cmd, const char *name, const char *text, uint64_t *id);
+
 #endif

@@ -4,6 +4,7 @@
  * WebSocket stream, API) on that vest -> demo.glb, the served sequence as
  * a morph-target animation. The steps are the subcommands themselves, run
  * in this process, so the demo shows what a user would run by hand. */
+#include "mim_io.h"
 #include "args.h"
 #include "commands.h"
 #include "mim_serve.h"
@@ -357,9 +358,9 @@ int mim_cmd_demo(int argc, char **argv)
         rc = 1;
     } else {
         /* the served sequence, one morph target a kept frame, at its vest times */
-        mim_xfer_sequence_t seq = {.mesh = &rec.faces, .n_frames = rec.n, .positions = rec.positions,
+        mim_io_sequence_t seq = {.mesh = &rec.faces, .n_frames = rec.n, .positions = rec.positions,
                                    .times = rec.times};
-        rc = mim_xfer_write_sequence_glb(glb, &seq, &err);
+        rc = mim_io_write_sequence_glb(glb, &seq, &err);
         if (rc)
             fprintf(stderr, "mimic demo: %s\n", mim_error_text(&err));
         else

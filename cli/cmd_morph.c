@@ -2,7 +2,8 @@
  * 3.5) as one GLB with a morph-target animation. */
 #include "args.h"
 #include "commands.h"
-#include "session.h"
+#include "mim_io.h"
+#include "mim_session.h"
 
 #include <getopt.h>
 #include <jansson.h>
@@ -44,7 +45,7 @@ static int parse_keys(const char *text, uint64_t *keys, uint32_t *count)
             fprintf(stderr, "mimic morph: --keys: more than %d keys\n", KEYS_MAX);
             return -1;
         }
-        if (mim_serve_template_id("morph", tok, &keys[*count])) return -1;
+        if (mim_cli_template_id("morph", "keys", tok, &keys[*count])) return -1;
         (*count)++;
     }
     if (*count < 2) {
@@ -113,9 +114,15 @@ int mim_cmd_morph(int argc, char **argv)
     }
 
     mim_error_t err = {0};
-    mim_serve_session_t s;
-    int rc = mim_serve_session_open(&s, store, avatar, &err);
-    const uint32_t n = s.mesh.n_vertices, nl = s.map.count;
+    mim_session_t *s = NULL;
+    int rc = mim_session_open(&s, store, NULL, &err);
+    if (rc) { /* the command cannot run (README: exit status) */
+        fprintf(stderr, "mimic morph: %s\n", mim_error_text(&err));
+        return 2;
+    }
+    rc = mim_session_load_avatar(s, avatar, &err);
+    const mim_xfer_topology_t *topo = mim_session_topology(s);
+    const uint32_t n = mim_session_mesh(s)->n_vertices, nl = mim_session_map(s)->count;
     const size_t n_frames = (size_t)(n_keys - 1) * (between + 1) + 1;
     mim_landmark_frames_t lmf = {0};
     if (!rc && lm_path) {
@@ -124,7 +131,7 @@ int mim_cmd_morph(int argc, char **argv)
             rc = mim_error_set(&err, MIM_EFORMAT, "%s: has %u frames for %u keys", lm_path, lmf.n_frames, n_keys);
     }
     /* per key: positions, frames as quaternions, own W, landmarks */
-    float *kpos = NULL, *klm = NULL, *seq = NULL, *tpos = NULL;
+    float *kpos = NULL, *klm = NULL, *seq = NULL;
     double *kq = NULL, *kW = NULL, *F = NULL;
     if (!rc) {
         kpos = malloc((size_t)n_keys * 3 * n * sizeof *kpos);
@@ -132,30 +139,25 @@ int mim_cmd_morph(int argc, char **argv)
         kq = malloc((size_t)n_keys * 4 * n * sizeof *kq);
         kW = malloc((size_t)n_keys * 3 * n * sizeof *kW);
         F = malloc(9 * (size_t)n * sizeof *F);
-        tpos = malloc(3 * (size_t)n * sizeof *tpos);
         seq = malloc(n_frames * 3 * n * sizeof *seq);
-        if (!kpos || !klm || !kq || !kW || !F || !tpos || !seq)
+        if (!kpos || !klm || !kq || !kW || !F || !seq)
             rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for %zu frames of %u vertices", n_frames, n);
     }
-    mim_xfer_solver_t *solver = NULL;
-    if (!rc) rc = mim_xfer_solver_open(&solver, s.topo, s.map.vertex, nl, NULL, &err);
     double t0 = mim_now();
     uint32_t iterations = 0;
     for (uint32_t k = 0; k < n_keys && !rc; k++) {
         float *u = klm + (size_t)k * 3 * nl, *x = kpos + (size_t)k * 3 * n;
-        rc = mim_serve_session_template(&s, keys[k], tpos, F, NULL, 0, &err);
+        mim_session_request_t req = {.template_id = keys[k],
+                                     .landmarks = lm_path ? lmf.positions + (size_t)k * 3 * nl : NULL};
+        mim_session_report_t rep;
+        rc = mim_session_transfer(s, &req, x, &rep, &err);
         if (!rc) {
-            if (lm_path) memcpy(u, lmf.positions + (size_t)k * 3 * nl, 3 * (size_t)nl * sizeof *u);
-            else rc = mim_xfer_retarget_landmarks(&s.map, s.mesh.positions, tpos, u, &err);
-        }
-        mim_xfer_report_t rep;
-        if (!rc) rc = mim_xfer_transfer(solver, s.W, n, F, u, nl, NULL, x, &rep, &err);
-        if (!rc) {
-            iterations += rep.iterations;
-            /* the key pose's own frames and W, for the frames method */
-            mim_xfer_frames(s.topo, x, F);
+            iterations += rep.xfer.iterations;
+            /* the key pose's landmarks, own frames and W, for the frames method */
+            memcpy(u, rep.landmarks, 3 * (size_t)nl * sizeof *u);
+            mim_xfer_frames(topo, x, F);
             mim_xfer_frames_to_quats(n, F, kq + (size_t)k * 4 * n);
-            mim_xfer_encode(s.topo, x, F, kW + (size_t)k * 3 * n);
+            mim_xfer_encode(topo, x, F, kW + (size_t)k * 3 * n);
         }
     }
     for (uint32_t k = 0; k + 1 < n_keys && !rc; k++) {
@@ -166,19 +168,19 @@ int mim_cmd_morph(int argc, char **argv)
         size_t f0 = (size_t)k * (between + 1);
         memcpy(seq + f0 * 3 * n, a.positions, 3 * (size_t)n * sizeof *seq);
         for (uint64_t j = 1; j <= between && !rc; j++)
-            rc = mim_xfer_morph(solver, method, &a, &b, (double)j / (double)(between + 1), seq + (f0 + j) * 3 * n,
+            rc = mim_session_morph(s, method, &a, &b, (double)j / (double)(between + 1), seq + (f0 + j) * 3 * n,
                                 &err);
     }
     if (!rc) memcpy(seq + (n_frames - 1) * 3 * n, kpos + (size_t)(n_keys - 1) * 3 * n, 3 * (size_t)n * sizeof *seq);
     double t_compute = mim_now() - t0;
     if (!rc) {
-        mim_xfer_sequence_t sq = {.mesh = &s.mesh, .n_frames = (uint32_t)n_frames, .positions = seq, .fps = (double)fps};
-        rc = mim_xfer_write_sequence_glb(outp, &sq, &err);
+        mim_io_sequence_t sq = {.mesh = mim_session_mesh(s), .n_frames = (uint32_t)n_frames, .positions = seq, .fps = (double)fps};
+        rc = mim_io_write_sequence_glb(outp, &sq, &err);
     }
     if (rc) {
         fprintf(stderr, "mimic morph: %s\n", mim_error_text(&err));
     } else if (as_json) {
-        json_t *j = json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:i, s:f}", "output", outp, "avatar", s.avatar, "method",
+        json_t *j = json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:i, s:f}", "output", outp, "avatar", mim_session_avatar(s), "method",
                               method == MIM_XFER_MORPH_LINEAR ? "linear" : "frames", "keys", (int)n_keys,
                               "frames_between", (int)between, "frames", (int)n_frames, "key_iterations",
                               (int)iterations, "seconds", t_compute);
@@ -187,12 +189,11 @@ int mim_cmd_morph(int argc, char **argv)
         free(txt);
         json_decref(j);
     } else {
-        fprintf(stderr, "mimic morph: %s -> %s: %u keys, %zu frames (%s), %.1f ms\n", s.avatar, outp, n_keys, n_frames,
+        fprintf(stderr, "mimic morph: %s -> %s: %u keys, %zu frames (%s), %.1f ms\n", mim_session_avatar(s), outp, n_keys, n_frames,
                 method == MIM_XFER_MORPH_LINEAR ? "linear" : "frames", 1e3 * t_compute);
     }
-    mim_xfer_solver_close(&solver);
     mim_landmark_frames_free(&lmf);
-    free(kpos), free(klm), free(kq), free(kW), free(F), free(tpos), free(seq);
-    mim_serve_session_close(&s);
+    free(kpos), free(klm), free(kq), free(kW), free(F), free(seq);
+    mim_session_close(&s);
     return rc ? 1 : 0;
 }

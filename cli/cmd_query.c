@@ -3,7 +3,7 @@
  * schemas/query.schema.json. */
 #include "args.h"
 #include "commands.h"
-#include "mim_query.h"
+#include "mim_session.h"
 
 #include <getopt.h>
 #include <jansson.h>
@@ -61,14 +61,14 @@ int mim_cmd_query(int argc, char **argv)
         return 2;
     }
     mim_error_t err = {0};
-    mim_db_t *db = NULL;
-    mim_query_t *q = NULL;
-    mim_db_options_t ro = {.read_only = 1};
-    int rc = mim_db_open(&db, store, &ro, &err);
-    if (!rc) rc = mim_query_open(&q, db, &err);
-    mim_db_close(&db); /* the query holds its own copy of the index */
-    if (rc) {
+    mim_session_t *s = NULL;
+    int rc = mim_session_open(&s, store, NULL, &err);
+    const mim_query_t *q = rc ? NULL : mim_session_query(s);
+    if (!rc && !q)
+        rc = mim_error_set(&err, MIM_ENOTFOUND, "%s: store has no index (run mimic index)", store);
+    if (rc) { /* the command cannot run (README: exit status) */
         fprintf(stderr, "mimic query: %s\n", mim_error_text(&err));
+        mim_session_close(&s);
         return 2;
     }
     const mim_query_status_t *st = mim_query_get_status(q);
@@ -97,13 +97,7 @@ int mim_cmd_query(int argc, char **argv)
         const mim_index_hit_t *h = hits + (size_t)i * qo.k;
         const char *cls = mim_index_class_name(ix, a->cls);
         if (as_json) {
-            json_t *res = json_array();
-            for (uint32_t j = 0; j < a->n_hits; j++)
-                json_array_append_new(res, json_pack("{s:I, s:s, s:s, s:f}", "id", (json_int_t)h[j].id, "subject",
-                                                     h[j].subject, "pose", h[j].pose, "distance",
-                                                     (double)h[j].distance));
-            json_array_append_new(frames, json_pack("{s:s, s:f, s:o}", "class", cls, "probability", a->probability,
-                                                    "results", res));
+            json_array_append_new(frames, mim_session_answer_json(q, a, h));
         } else {
             printf("frame %u: class %s (probability %.3f)", i, cls, a->probability);
             if (a->missing) printf(", %u landmark%s missing", a->missing, a->missing > 1 ? "s" : "");
@@ -124,6 +118,6 @@ int mim_cmd_query(int argc, char **argv)
 done:
     free(ans), free(hits);
     mim_landmark_frames_free(&f);
-    mim_query_close(&q);
+    mim_session_close(&s);
     return rc ? 1 : 0;
 }

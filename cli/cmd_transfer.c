@@ -1,9 +1,9 @@
 /* mimic transfer: one avatar into one pose (seed 000, Section 3.4), written
  * as PLY, OBJ, OFF or GLB. JSON report: schemas/transfer.schema.json. */
+#include "mim_io.h"
 #include "args.h"
 #include "commands.h"
-#include "mim_query.h"
-#include "session.h"
+#include "mim_session.h"
 
 #include <getopt.h>
 #include <jansson.h>
@@ -35,25 +35,6 @@ static void help(FILE *out)
             "  --json               a JSON report on stdout (schemas/transfer.schema.json)\n"
             "  -h, --help           this help\n",
             MIM_XFER_DEFAULT_MAX_ITERATIONS, MIM_XFER_DEFAULT_TOL);
-}
-
-/* The nearest template of a landmark frame, through the store's index. */
-static int nearest_template(mim_db_t *db, const float *u, uint64_t *id, mim_error_t *err)
-{
-    mim_query_t *q = NULL;
-    int rc = mim_query_open(&q, db, err); /* without an index: "...: store has no index (run mimic index)" */
-    if (rc)
-        return rc;
-    mim_index_query_options_t o = {.k = 1};
-    mim_index_answer_t ans;
-    mim_index_hit_t hit;
-    rc = mim_query_frame(q, u, NULL, &o, &ans, &hit, err);
-    if (!rc && ans.n_hits == 0)
-        rc = mim_error_set(err, MIM_ENOTFOUND, "%s: the index returned no template", mim_db_path(db));
-    if (!rc)
-        *id = hit.id;
-    mim_query_close(&q);
-    return rc;
 }
 
 int mim_cmd_transfer(int argc, char **argv)
@@ -111,72 +92,64 @@ int mim_cmd_transfer(int argc, char **argv)
                         "(see mimic transfer --help)\n");
         return 2;
     }
-    if (tmpl_arg && mim_serve_template_id("transfer", tmpl_arg, &tmpl_id)) return 2;
+    if (tmpl_arg && mim_cli_template_id("transfer", "template", tmpl_arg, &tmpl_id)) return 2;
 
     mim_error_t err = {0};
-    mim_serve_session_t s;
+    mim_session_t *s = NULL;
     double t0 = mim_now();
-    int rc = mim_serve_session_open(&s, store, avatar, &err);
-    const uint32_t n = s.mesh.n_vertices, nl = s.map.count;
-    float u[3 * MIM_LANDMARKS_MAX];
+    mim_session_options_t so = {.formulation = form};
+    int rc = mim_session_open(&s, store, &so, &err);
+    if (rc) { /* the command cannot run (README: exit status) */
+        fprintf(stderr, "mimic transfer: %s\n", mim_error_text(&err));
+        return 2;
+    }
+    rc = mim_session_load_avatar(s, avatar, &err);
+    const double t_open = mim_now() - t0, t_factor = mim_session_factor_seconds(s);
+    const uint32_t n = mim_session_mesh(s)->n_vertices, nl = mim_session_map(s)->count;
     mim_landmark_frames_t frames = {0};
     if (!rc && lm_path) {
         rc = mim_landmark_frames_read(lm_path, nl, 0, &frames, &err);
         if (!rc && frames.n_frames != 1)
             rc = mim_error_set(&err, MIM_EFORMAT, "%s: has %u frames; transfer takes one", lm_path, frames.n_frames);
-        if (!rc)
-            memcpy(u, frames.positions, 3 * (size_t)nl * sizeof(float));
-        if (!rc && !tmpl_arg)
-            rc = nearest_template(s.db, u, &tmpl_id, &err);
     }
-    float *tpos = malloc(3 * (size_t)(n ? n : 1) * sizeof *tpos), *out = malloc(3 * (size_t)(n ? n : 1) * sizeof *out);
-    double *F = malloc(9 * (size_t)(n ? n : 1) * sizeof *F);
-    char label[256] = "";
-    if (!rc && (!tpos || !out || !F)) rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for %u vertices", n);
-    if (!rc) rc = mim_serve_session_template(&s, tmpl_id, tpos, F, label, sizeof label, &err);
-    /* mode (a): no landmarks given, so they come from the template */
-    if (!rc && !lm_path) rc = mim_xfer_retarget_landmarks(&s.map, s.mesh.positions, tpos, u, &err);
-    double t_load = mim_now() - t0;
-    mim_xfer_solver_t *solver = NULL;
-    mim_xfer_solver_options_t so = {.formulation = form};
-    mim_xfer_report_t rep = {0};
-    double t1 = mim_now(), t_open = 0.0, t_solve = 0.0;
-    if (!rc) rc = mim_xfer_solver_open(&solver, s.topo, s.map.vertex, nl, &so, &err);
-    t_open = mim_now() - t1;
+    float *out = malloc(3 * (size_t)n * sizeof *out);
+    if (!rc && !out) rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for %u vertices", n);
+    mim_session_report_t rep = {0};
     if (!rc) {
-        mim_xfer_options_t o = {.max_iterations = (uint32_t)iterations, .tol = tol};
-        t1 = mim_now();
-        rc = mim_xfer_transfer(solver, s.W, n, F, u, nl, &o, out, &rep, &err);
-        t_solve = mim_now() - t1;
+        mim_session_request_t req = {.template_id = tmpl_id, .landmarks = lm_path ? frames.positions : NULL,
+                                     .xfer = {.max_iterations = (uint32_t)iterations, .tol = tol}};
+        rc = mim_session_transfer(s, &req, out, &rep, &err);
     }
     if (!rc) {
-        mim_mesh_t m = {n, s.mesh.n_faces, out, s.mesh.faces};
-        rc = mim_xfer_write_mesh(outp, &m, &err);
+        mim_mesh_t m = {n, mim_session_mesh(s)->n_faces, out, mim_session_mesh(s)->faces};
+        rc = mim_io_write_mesh(outp, &m, &err);
     }
+    /* load: the store, the avatar and the template; factor: the avatar's Cholesky factor */
+    const double t_load = t_open - t_factor + rep.seconds_query + rep.seconds_template, t_solve = rep.seconds_solve;
     if (rc) {
         fprintf(stderr, "mimic transfer: %s\n", mim_error_text(&err));
     } else if (as_json) {
         json_t *j = json_pack("{s:s, s:s, s:I, s:s, s:s, s:s, s:i, s:o, s:b, s:b, s:{s:f, s:f, s:f}}", "output", outp,
-                              "avatar", s.avatar, "template", (json_int_t)tmpl_id, "template_label", label, "mode",
+                              "avatar", mim_session_avatar(s), "template", (json_int_t)rep.template_id, "template_label", rep.label, "mode",
                               lm_path ? (tmpl_arg ? "template+landmarks" : "landmarks") : "template", "formulation",
-                              form == MIM_XFER_SQUARE ? "square" : "least-squares", "iterations", (int)rep.iterations,
-                              "last_move_m", isfinite(rep.last_move) ? json_real(rep.last_move) : json_null(), "converged",
-                              rep.converged, "early_stopped", rep.early_stopped, "seconds", "load", t_load,
-                              "factor", t_open, "transfer", t_solve);
+                              form == MIM_XFER_SQUARE ? "square" : "least-squares", "iterations", (int)rep.xfer.iterations,
+                              "last_move_m", isfinite(rep.xfer.last_move) ? json_real(rep.xfer.last_move) : json_null(),
+                              "converged", rep.xfer.converged, "early_stopped", rep.xfer.early_stopped, "seconds",
+                              "load", t_load, "factor", t_factor, "transfer", t_solve);
         char *txt = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
         printf("%s\n", txt ? txt : "{}");
         free(txt);
         json_decref(j);
     } else {
         fprintf(stderr, "mimic transfer: %s -> %s in the pose of template %llu (%s): %u iterations (%s), %.2f ms\n",
-                s.avatar, outp, (unsigned long long)tmpl_id, label, rep.iterations,
-                rep.converged ? "converged" : rep.early_stopped ? "stopped when the moves stopped shrinking"
-                                                               : "iteration cap",
+                mim_session_avatar(s), outp, (unsigned long long)rep.template_id, rep.label, rep.xfer.iterations,
+                rep.xfer.converged       ? "converged"
+                : rep.xfer.early_stopped ? "stopped when the moves stopped shrinking"
+                                         : "iteration cap",
                 1e3 * t_solve);
     }
-    mim_xfer_solver_close(&solver);
     mim_landmark_frames_free(&frames);
-    free(tpos), free(out), free(F);
-    mim_serve_session_close(&s);
+    free(out);
+    mim_session_close(&s);
     return rc ? 1 : 0;
 }

@@ -1,5 +1,6 @@
 /* mimic vest: list, record, replay and simulate a tracking vest (mim_vest.h).
  * Replay prints one JSON object per line: schemas/vest-replay.schema.json. */
+#include "mim_io.h"
 #include "args.h"
 #include "commands.h"
 #include "mim_ingest.h"
@@ -100,7 +101,7 @@ static int load_rig(const char *cmd, const char *avatar, const char *map_path, i
             free(sk);
             return 2;
         }
-        rc = mim_mesh_read(avatar, &mesh, &err);
+        rc = mim_io_read_mesh(avatar, &mesh, &err);
         if (!rc) rc = mim_landmarks_read(&map, map_path, &err);
     }
     mim_vest_calib_options_t co = {pose};

@@ -1,13 +1,17 @@
-/* Reading a file into memory: one place for the open, grow and error
- * handling that the landmark map, mesh and motion readers share. */
+/* Files: reading one into memory (the open, grow and error handling that
+ * the landmark map, mesh and motion readers share), and the one atomic
+ * write (temporary, fsync, rename, fsync of the folder) every writer uses. */
 #include "mim_core.h"
 
 #include <errno.h>
+#include <fcntl.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 int mim_file_read(const char *path, size_t max_bytes, char **text, size_t *len, mim_error_t *err)
 {
@@ -47,5 +51,73 @@ int mim_file_read(const char *path, size_t max_bytes, char **text, size_t *len, 
     b[n] = 0;
     *text = b;
     *len = n;
+    return 0;
+}
+
+/* fsync of the folder that holds path, so that a rename into it survives a
+ * crash as well as the file's bytes do. */
+static int sync_folder(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    char dir[4096];
+    if (!slash)
+        snprintf(dir, sizeof dir, ".");
+    else if (slash == path)
+        snprintf(dir, sizeof dir, "/");
+    else if ((size_t)(slash - path) < sizeof dir)
+        snprintf(dir, sizeof dir, "%.*s", (int)(slash - path), path);
+    else
+        return ENAMETOOLONG;
+    int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd < 0)
+        return errno;
+    int e = fsync(fd) != 0 && errno != EINVAL ? errno : 0; /* some file systems cannot sync a folder */
+    close(fd);
+    return e;
+}
+
+int mim_file_write_atomic(const char *path, const mim_file_part_t *parts, size_t n_parts, mim_error_t *err)
+{
+    static atomic_uint serial;
+    size_t len = strlen(path);
+    char *tmp = malloc(len + 48);
+    if (!tmp)
+        return mim_error_set(err, MIM_ENOMEM, "%s: out of memory", path);
+    /* unique per process and call, so concurrent writers of one path never
+     * share a temporary; O_EXCL refuses a leftover of the same name */
+    snprintf(tmp, len + 48, "%s.tmp.%ld.%u", path, (long)getpid(), atomic_fetch_add(&serial, 1));
+    int fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd < 0) {
+        int e = errno;
+        free(tmp);
+        return mim_error_set(err, MIM_EIO, "%s: cannot write: %s", path, strerror(e));
+    }
+    int e = 0;
+    for (size_t p = 0; p < n_parts && !e; p++) {
+        const unsigned char *data = parts[p].data;
+        for (size_t done = 0; done < parts[p].size && !e;) {
+            ssize_t w = write(fd, data + done, parts[p].size - done);
+            if (w < 0) {
+                if (errno != EINTR)
+                    e = errno;
+            } else {
+                done += (size_t)w;
+            }
+        }
+    }
+    if (!e && fsync(fd) != 0)
+        e = errno;
+    if (close(fd) != 0 && !e)
+        e = errno;
+    if (!e && rename(tmp, path) != 0)
+        e = errno;
+    if (e) {
+        unlink(tmp);
+        free(tmp);
+        return mim_error_set(err, MIM_EIO, "%s: cannot write: %s", path, strerror(e));
+    }
+    free(tmp);
+    if ((e = sync_folder(path)) != 0)
+        return mim_error_set(err, MIM_EIO, "%s: written, but its folder could not be synced: %s", path, strerror(e));
     return 0;
 }

@@ -73,6 +73,17 @@ void mim_mesh_free(mim_mesh_t *m); /* accepts a zeroed mesh; zeroes it */
  * byte more than allowed and check *len). Errors, one line naming the path:
  * cannot open (-errno), read error (MIM_EIO), out of memory (MIM_ENOMEM). */
 int mim_file_read(const char *path, size_t max_bytes, char **text, size_t *len, mim_error_t *err);
+/* Writes the parts, one after the other, to path so that path holds either
+ * its old content or the whole new one, whatever fails or crashes: a
+ * temporary beside it (PATH.tmp.PID.N), fsync, rename over path, fsync of
+ * the folder. Safe to call from many threads. On failure the temporary is
+ * removed. Errors, one line naming the path and the system's reason:
+ * MIM_EIO (cannot create, write, sync or rename), MIM_ENOMEM. */
+typedef struct mim_file_part {
+    const void *data;
+    size_t size;
+} mim_file_part_t;
+int mim_file_write_atomic(const char *path, const mim_file_part_t *parts, size_t n_parts, mim_error_t *err);
 
 /* ---- landmark map: which vertex is each landmark, and the mirror table ----
  * File format (DESIGN.md, schemas/landmarks.schema.json):

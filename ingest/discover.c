@@ -1,5 +1,6 @@
 /* Dataset discovery: the mesh files under the paths a user gives, in a
  * stable (sorted) order so that ingest assigns ids deterministically. */
+#include "mim_io.h"
 #include "mim_ingest.h"
 
 #include <dirent.h>
@@ -43,7 +44,7 @@ static int walk(const char *dir, strvec *out, int depth, mim_error_t *err)
         struct stat st;
         if (stat(path, &st) != 0) continue;
         if (S_ISDIR(st.st_mode)) rc = walk(path, out, depth + 1, err);
-        else if (S_ISREG(st.st_mode) && mim_mesh_format_known(path)) rc = push(out, path);
+        else if (S_ISREG(st.st_mode) && mim_io_format_known(path)) rc = push(out, path);
     }
     closedir(d);
     return rc;

@@ -4,6 +4,7 @@
  * commits one transaction per batch. Readers also compute each template's
  * transfer encoding (frames and W, seed 000 §3.1), stored beside it. A kill part-way loses at most the
  * uncommitted batch; a re-run skips what is stored (content hash). */
+#include "mim_io.h"
 #include "mim_ingest.h"
 #include "mim_transfer.h"
 
@@ -78,7 +79,7 @@ static void *reader_main(void *arg)
         pthread_mutex_unlock(&w->mu);
 
         slot_t s = {0};
-        s.rc = mim_mesh_read(w->paths[i], &s.mesh, &s.err);
+        s.rc = mim_io_read_mesh(w->paths[i], &s.mesh, &s.err);
         if (!s.rc) s.content_hash = mim_db_content_hash(s.mesh.positions, s.mesh.n_vertices);
         if (!s.rc) s.rc = encode(&r, &s, w->paths[i]);
 

@@ -1,5 +1,5 @@
-/* mimic ingest: mesh readers, dataset discovery and labels, and the ingest
- * pipeline that puts meshes into the template store. */
+/* mimic ingest: dataset discovery and labels, and the ingest pipeline that
+ * puts meshes (read through io/) into the template store. */
 #ifndef MIM_INGEST_H
 #define MIM_INGEST_H
 
@@ -9,16 +9,6 @@
 #ifdef __cplusplus
 extern "C" {
 #endif
-
-/* ---- reading ---- */
-/* Reads OFF, PLY (ASCII/binary), OBJ, STL (ASCII/binary) through OpenMesh and
- * glTF/GLB through tinygltf, by file extension; polygons are fan-triangulated.
- * Rejects, with a one-line message naming the file: a missing or unreadable
- * path, a truncated file, a NaN/infinite coordinate, a face index past the
- * vertex count, an empty mesh. On failure *out is left zeroed. */
-int mim_mesh_read(const char *path, mim_mesh_t *out, mim_error_t *err);
-/* 1 if the file name has an extension mim_mesh_read handles. */
-int mim_mesh_format_known(const char *path);
 
 /* ---- discovery ---- */
 typedef struct mim_file_list {

@@ -1,6 +1,7 @@
 /* The JSON API handlers of mimic serve (mim_serve.h lists the routes and
  * their schemas). Bodies are untrusted: every problem is a 400 with the
  * reason (jansson's line and column for malformed JSON). */
+#include "mim_io.h"
 #include "internal.h"
 
 #include <civetweb.h>
@@ -8,7 +9,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 /* A store or avatar error caused by the request (bad input) or by us. */
 static int status_of(int rc)
@@ -19,12 +19,13 @@ static int status_of(int rc)
 int mim__api_status(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len)
 {
     (void)body, (void)len;
-    json_t *index = json_pack("{s:b, s:b, s:I}", "present", sv->qs.has_index, "stale", sv->qs.stale,
-                              "templates", (json_int_t)(sv->qs.has_index ? sv->qs.built.templates : 0));
+    const mim_query_status_t *qs = mim_session_index_status(sv->s);
+    json_t *index = json_pack("{s:b, s:b, s:I}", "present", qs->has_index, "stale", qs->stale, "templates",
+                              (json_int_t)(qs->has_index ? qs->built.templates : 0));
     json_t *j = json_pack("{s:s, s:s, s:I, s:i, s:i, s:i, s:o, s:f, s:I, s:I, s:I, s:I, s:o, s:o}", "store",
-                          sv->store, "avatar", sv->s.avatar, "templates", (json_int_t)sv->qs.templates, "vertices",
-                          (int)sv->s.mesh.n_vertices, "faces", (int)sv->s.mesh.n_faces, "landmarks",
-                          (int)sv->s.map.count, "index", index, "uptime_s", mim_now() - sv->t_start, "vest_frames",
+                          sv->store, "avatar", mim_session_avatar(sv->s), "templates", (json_int_t)qs->templates,
+                          "vertices", (int)sv->mesh->n_vertices, "faces", (int)sv->mesh->n_faces, "landmarks",
+                          (int)sv->map->count, "index", index, "uptime_s", mim_now() - sv->t_start, "vest_frames",
                           (json_int_t)mim__metrics_get(&sv->m, MIM__C_VEST_FRAMES), "frames",
                           (json_int_t)mim__metrics_get(&sv->m, MIM__C_FRAMES), "key_frames",
                           (json_int_t)mim__metrics_get(&sv->m, MIM__C_KEY_FRAMES), "frames_dropped",
@@ -36,13 +37,13 @@ int mim__api_status(mim_serve_t *sv, struct mg_connection *c, const char *body, 
 int mim__api_avatar(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len)
 {
     (void)body, (void)len;
-    const mim_mesh_t *m = &sv->s.mesh;
+    const mim_mesh_t *m = sv->mesh;
     json_t *pos = json_array(), *faces = json_array();
     for (size_t i = 0; pos && i < 3 * (size_t)m->n_vertices; i++)
         json_array_append_new(pos, json_real(m->positions[i]));
     for (size_t i = 0; faces && i < 3 * (size_t)m->n_faces; i++)
         json_array_append_new(faces, json_integer(m->faces[i]));
-    json_t *j = json_pack("{s:s, s:i, s:i, s:o, s:o}", "avatar", sv->s.avatar, "vertices", (int)m->n_vertices,
+    json_t *j = json_pack("{s:s, s:i, s:i, s:o, s:o}", "avatar", mim_session_avatar(sv->s), "vertices", (int)m->n_vertices,
                           "faces", (int)m->n_faces, "positions", pos, "indices", faces);
     return mim__reply_json(c, 200, j);
 }
@@ -85,14 +86,7 @@ int mim__api_query(mim_serve_t *sv, struct mg_connection *c, const char *body, s
     } else {
         mim__metrics_observe(&sv->m, MIM__H_QUERY, mim_now() - t0);
         mim__metrics_add(&sv->m, MIM__C_QUERIES, 1);
-        json_t *res = json_array();
-        for (uint32_t j = 0; j < a.n_hits; j++)
-            json_array_append_new(res, json_pack("{s:I, s:s, s:s, s:f}", "id", (json_int_t)hits[j].id, "subject",
-                                                 hits[j].subject, "pose", hits[j].pose, "distance",
-                                                 (double)hits[j].distance));
-        json_t *fr = json_pack("{s:s, s:f, s:o}", "class", mim_index_class_name(mim_query_index(sv->q), a.cls),
-                               "probability", a.probability, "results", res);
-        status = mim__reply_json(c, 200, json_pack("{s:[o]}", "frames", fr));
+        status = mim__reply_json(c, 200, json_pack("{s:[o]}", "frames", mim_session_answer_json(sv->q, &a, hits)));
     }
     free(hits);
     mim_landmark_frames_free(&f);
@@ -132,10 +126,10 @@ static int parse_transfer(mim_serve_t *sv, const char *body, size_t len, xfer_re
         json_t *one = json_pack("{s:O}", "landmarks", l);
         char *txt = one ? json_dumps(one, JSON_COMPACT) : NULL;
         mim_landmark_frames_t f = {0};
-        rc = txt ? mim_landmark_frames_parse(txt, strlen(txt), "request body", sv->s.map.count, 0, &f, err)
+        rc = txt ? mim_landmark_frames_parse(txt, strlen(txt), "request body", sv->map->count, 0, &f, err)
                  : mim_error_set(err, MIM_ENOMEM, "out of memory");
         if (!rc)
-            memcpy(r->u, f.positions, 3 * (size_t)sv->s.map.count * sizeof(float));
+            memcpy(r->u, f.positions, 3 * (size_t)sv->map->count * sizeof(float));
         r->has_landmarks = !rc;
         mim_landmark_frames_free(&f);
         free(txt);
@@ -143,24 +137,7 @@ static int parse_transfer(mim_serve_t *sv, const char *body, size_t len, xfer_re
     }
     if (!rc && !t && !l)
         rc = mim_error_set(err, MIM_EFORMAT, "request body: give \"template\" and/or \"landmarks\"");
-    if (!rc && !t && !sv->q)
-        rc = mim_error_set(err, MIM_EINVAL, "%s: \"landmarks\" without \"template\" needs the store's index "
-                                            "(run mimic index)", sv->store);
     json_decref(root);
-    return rc;
-}
-
-/* Writes the mesh as a GLB in the temp folder and reads it back: the
- * writer is file-based (tinygltf), and a GLB is small next to a solve. */
-static int glb_bytes(mim_serve_t *sv, const mim_mesh_t *m, char **out, size_t *len, mim_error_t *err)
-{
-    char path[4200];
-    snprintf(path, sizeof path, "%s/transfer-%llu.glb", sv->tmpdir,
-             (unsigned long long)atomic_fetch_add(&sv->seq, 1));
-    int rc = mim_xfer_write_mesh(path, m, err);
-    if (!rc)
-        rc = mim_file_read(path, 0, out, len, err);
-    unlink(path);
     return rc;
 }
 
@@ -168,59 +145,39 @@ int mim__api_transfer(mim_serve_t *sv, struct mg_connection *c, const char *body
 {
     mim_error_t err = {0};
     xfer_req_t *r = calloc(1, sizeof *r);
-    const uint32_t n = sv->s.mesh.n_vertices, nl = sv->s.map.count;
-    float *tpos = malloc(3 * (size_t)n * sizeof *tpos), *out = malloc(3 * (size_t)n * sizeof *out);
-    double *F = malloc(9 * (size_t)n * sizeof *F);
-    int rc = r && tpos && out && F ? 0 : mim_error_set(&err, MIM_ENOMEM, "out of memory for %u vertices", n);
+    const uint32_t n = sv->mesh->n_vertices;
+    float *out = malloc(3 * (size_t)n * sizeof *out);
+    int rc = r && out ? 0 : mim_error_set(&err, MIM_ENOMEM, "out of memory for %u vertices", n);
     if (!rc)
         rc = parse_transfer(sv, body, len, r, &err);
-    if (!rc && !r->id) {
-        mim_index_query_options_t qo = {.k = 1};
-        mim_index_answer_t a;
-        mim_index_hit_t hit;
-        rc = mim_query_frame(sv->q, r->u, NULL, &qo, &a, &hit, &err);
-        if (!rc && !a.n_hits)
-            rc = mim_error_set(&err, MIM_ENOTFOUND, "%s: the index returned no template", sv->store);
-        if (!rc)
-            r->id = hit.id;
-    }
-    char label[256] = "";
-    mim_xfer_report_t rep = {0};
-    double t0 = 0.0;
+    mim_session_report_t rep = {0};
     if (!rc) {
-        pthread_mutex_lock(&sv->lock); /* one solver, one factor: transfers take turns */
-        rc = mim_serve_session_template(&sv->s, r->id, tpos, F, label, sizeof label, &err);
-        if (!rc && !r->has_landmarks) /* mode (a): the template's landmarks on the avatar's proportions */
-            rc = mim_xfer_retarget_landmarks(&sv->s.map, sv->s.mesh.positions, tpos, r->u, &err);
-        t0 = mim_now();
-        mim_xfer_options_t o = {0};
-        if (!rc)
-            rc = mim_xfer_transfer(sv->solver, sv->s.W, n, F, r->u, nl, &o, out, &rep, &err);
-        pthread_mutex_unlock(&sv->lock);
+        mim_session_request_t req = {.template_id = r->id, .landmarks = r->has_landmarks ? r->u : NULL};
+        rc = mim_session_transfer(sv->s, &req, out, &rep, &err);
     }
-    char *glb = NULL;
+    unsigned char *glb = NULL;
     size_t glen = 0;
     if (!rc) {
-        mim__metrics_observe(&sv->m, MIM__H_TRANSFER, mim_now() - t0);
+        mim__metrics_observe(&sv->m, MIM__H_TRANSFER, rep.seconds_solve);
         mim__metrics_add(&sv->m, MIM__C_TRANSFERS, 1);
-        mim_mesh_t m = {n, sv->s.mesh.n_faces, out, sv->s.mesh.faces};
-        rc = glb_bytes(sv, &m, &glb, &glen, &err);
+        mim_mesh_t m = {n, sv->mesh->n_faces, out, sv->mesh->faces};
+        rc = mim_io_encode_glb(&m, "transfer", &glb, &glen, &err);
         if (rc && status_of(rc) == 400)
-            rc = MIM_EIO; /* a writer failure is ours, not the client's */
+            rc = MIM_EIO; /* an encoder failure is ours, not the client's */
     }
     int status;
     if (rc) {
         status = mim__reply_error(c, status_of(rc), "%s", mim_error_text(&err));
     } else {
         /* the label is "subject/pose" from the store: keep header-safe bytes */
-        for (char *p = label; *p; p++)
+        for (char *p = rep.label; *p; p++)
             if ((unsigned char)*p < 0x20 || *p == 0x7f) *p = '?';
         char hdr[512];
         snprintf(hdr, sizeof hdr, "X-Mimic-Template: %llu\r\nX-Mimic-Template-Label: %s\r\nX-Mimic-Iterations: %u\r\n",
-                 (unsigned long long)r->id, label, rep.iterations);
+                 (unsigned long long)rep.template_id, rep.label, rep.xfer.iterations);
         status = mim__reply(c, 200, "model/gltf-binary", glb, glen, hdr);
     }
-    free(glb), free(r), free(tpos), free(out), free(F);
+    free(glb), free(r), free(out);
     return status;
 }
 

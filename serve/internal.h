@@ -3,10 +3,9 @@
 #ifndef MIM_SERVE_INTERNAL_H
 #define MIM_SERVE_INTERNAL_H
 
-#include "mim_query.h"
 #include "mim_serve.h"
+#include "mim_session.h"
 #include "mim_vest.h"
-#include "session.h"
 
 #include <jansson.h>
 #include <pthread.h>
@@ -103,14 +102,12 @@ json_t *mim__loop_status(mim__loop_t *l); /* null without a vest */
 
 /* ---- the service ---- */
 struct mim_serve {
-    mim_serve_session_t s;
-    mim_query_t *q;             /* NULL when the store has no index */
-    mim_query_status_t qs;      /* index status at open */
-    mim_xfer_solver_t *solver;  /* factorised once for the landmark set */
-    pthread_mutex_t lock;       /* the solver and the session's store reads */
+    mim_session_t *s;           /* store, index, avatar, factor: the transfer pipeline */
+    /* what the session holds, read-only, for the handlers */
+    const mim_mesh_t *mesh;     /* the avatar at rest, the store's faces */
+    const mim_landmark_map_t *map;
+    const mim_query_t *q;       /* NULL when the store has no index */
     char store[4096];
-    char tmpdir[4096];          /* GLBs are written here and read back */
-    atomic_uint_fast64_t seq;   /* names temp files */
     double t_start;
     size_t max_body;
     struct mg_context *ctx;

@@ -49,7 +49,7 @@ typedef struct key {
     double *W;      /* 3 * n: its frames and encoding, made when a morph needs them */
     float u[3 * MIM_LANDMARKS_MAX];
     uint64_t template_id;
-    char label[32];
+    char label[MIM_SESSION_LABEL_MAX]; /* the class name */
 } key_pose_t;
 
 struct mim__loop {
@@ -64,9 +64,8 @@ struct mim__loop {
     int started;
     atomic_int stop;
     char spec[1024];
-    float *tpos, *out; /* a template's positions; a morphed frame (3 * n) */
-    double *tF;        /* 9 * n: the frames of template tF_id, kept while key frames keep it */
-    uint64_t tF_id;
+    float *out;        /* a morphed frame (3 * n) */
+    mim_session_report_t report; /* the latest key frame's */
     double *F;         /* 9 * n: scratch for a key's frames */
     key_pose_t keys[2];
     int cur;           /* keys[cur] is the latest key, keys[!cur] the one before */
@@ -91,7 +90,7 @@ struct mim__loop {
     const char *state; /* a string literal: streaming, reconnecting, ended, failed, stopped */
     char error[512];
     uint64_t last_template, warm_starts, iterations, key_frames;
-    char last_label[32];
+    char last_label[MIM_SESSION_LABEL_MAX];
     double key_rate_hz, frame_rate_hz;
 };
 
@@ -168,61 +167,46 @@ static void morph_ready(mim__loop_t *l, key_pose_t *k)
 {
     if (k->morph_ready)
         return;
-    const mim_xfer_topology_t *t = l->sv->s.topo;
+    const mim_xfer_topology_t *t = mim_session_topology(l->sv->s);
     mim_xfer_frames(t, k->pos, l->F);
-    mim_xfer_frames_to_quats(l->sv->s.mesh.n_vertices, l->F, k->quats);
+    mim_xfer_frames_to_quats(l->sv->mesh->n_vertices, l->F, k->quats);
     mim_xfer_encode(t, k->pos, l->F, k->W);
     k->morph_ready = 1;
 }
 
-/* A new key frame from complete landmarks u into keys[!cur]. */
+/* A new key frame from complete landmarks u into keys[!cur]: the session's
+ * pipeline (nearest template, its frames, the solve with the cached factor). */
 static int make_key(mim__loop_t *l, const float *u, mim_error_t *err)
 {
     mim_serve_t *sv = l->sv;
-    const uint32_t n = sv->s.mesh.n_vertices, L = sv->s.map.count;
+    const uint32_t L = sv->map->count;
     double t0 = mim_now();
-    mim_index_query_options_t qo = {.k = 1};
-    mim_index_answer_t a;
-    mim_index_hit_t hit;
-    int rc = mim_query_frame(sv->q, u, NULL, &qo, &a, &hit, err);
-    if (!rc && !a.n_hits)
-        rc = mim_error_set(err, MIM_ENOTFOUND, "the index returned no template");
-    if (rc)
-        return rc;
-    mim__metrics_add(&sv->m, MIM__C_QUERIES, 1);
     key_pose_t *prev = &l->keys[l->cur], *k = &l->keys[!l->cur];
-    mim_xfer_options_t o = {0};
-    if (prev->valid && prev->template_id == hit.id && want_warm(l))
-        o.start = prev->pos; /* warm start: the same template as the last key frame */
-    mim_xfer_report_t rep;
-    pthread_mutex_lock(&sv->lock); /* the solver and the session are shared with /api/transfer */
-    if (l->tF_id != hit.id) { /* most key frames keep the template: its frames are read once */
-        l->tF_id = 0;
-        rc = mim_serve_session_template(&sv->s, hit.id, l->tpos, l->tF, NULL, 0, err);
-        if (!rc)
-            l->tF_id = hit.id;
-    }
-    if (!rc)
-        rc = mim_xfer_transfer(sv->solver, sv->s.W, n, l->tF, u, L, &o, k->pos, &rep, err);
-    pthread_mutex_unlock(&sv->lock);
+    mim_session_request_t req = {.landmarks = u};
+    if (prev->valid && want_warm(l)) /* warm start: the same template as the last key frame */
+        req.xfer.start = prev->pos, req.start_template = prev->template_id;
+    mim_session_report_t *rep = &l->report;
+    int rc = mim_session_transfer(sv->s, &req, k->pos, rep, err);
+    if (rep->queried)
+        mim__metrics_add(&sv->m, MIM__C_QUERIES, 1);
     if (rc)
         return rc;
     k->valid = 1, k->morph_ready = 0;
-    k->template_id = hit.id;
-    snprintf(k->label, sizeof k->label, "%s", mim_index_class_name(mim_query_index(sv->q), a.cls));
+    k->template_id = rep->template_id;
+    snprintf(k->label, sizeof k->label, "%s", rep->class_name);
     memcpy(k->u, u, 3 * (size_t)L * sizeof *u);
     l->cur = !l->cur;
     double c = mim_now() - t0;
     ewma(&l->c_key, c);
-    ewma(o.start ? &l->c_warm : &l->c_cold, c);
+    ewma(rep->warm_started ? &l->c_warm : &l->c_cold, c);
     mim__metrics_add(&sv->m, MIM__C_TRANSFERS, 1);
     mim__metrics_add(&sv->m, MIM__C_KEY_FRAMES, 1);
     mim__metrics_observe(&sv->m, MIM__H_KEY_FRAME, c);
     pthread_mutex_lock(&l->lock);
-    l->last_template = hit.id;
+    l->last_template = rep->template_id;
     snprintf(l->last_label, sizeof l->last_label, "%s", k->label);
-    l->warm_starts += o.start != NULL;
-    l->iterations += rep.iterations;
+    l->warm_starts += rep->warm_started;
+    l->iterations += rep->xfer.iterations;
     l->key_frames++;
     pthread_mutex_unlock(&l->lock);
     return 0;
@@ -236,10 +220,8 @@ static int make_morph(mim__loop_t *l, key_pose_t *a, key_pose_t *b, double t, mi
     if (!l->linear)
         morph_ready(l, a), morph_ready(l, b);
     mim_xfer_key_t ka = {a->pos, a->quats, a->W, a->u}, kb = {b->pos, b->quats, b->W, b->u};
-    pthread_mutex_lock(&sv->lock);
-    int rc = mim_xfer_morph(sv->solver, l->linear ? MIM_XFER_MORPH_LINEAR : MIM_XFER_MORPH_FRAMES, &ka, &kb, t,
-                            l->out, err);
-    pthread_mutex_unlock(&sv->lock);
+    int rc = mim_session_morph(sv->s, l->linear ? MIM_XFER_MORPH_LINEAR : MIM_XFER_MORPH_FRAMES, &ka, &kb, t,
+                               l->out, err);
     if (!rc) {
         double c = mim_now() - t0;
         ewma(l->linear ? &l->c_linear : &l->c_morph, c);
@@ -272,7 +254,7 @@ static void count_rates(mim__loop_t *l, int key)
 static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *present, uint64_t t_vest)
 {
     mim_serve_t *sv = l->sv;
-    const uint32_t L = sv->s.map.count;
+    const uint32_t L = sv->map->count;
     mim__metrics_add(&sv->m, MIM__C_VEST_FRAMES, 1);
     float u[3 * MIM_LANDMARKS_MAX], shown[3 * MIM_LANDMARKS_MAX];
     int complete = 1, lost = 0;
@@ -325,7 +307,7 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
                            .compute_us = (uint32_t)((now - l->arrival) * 1e6),
                            .key_interval = l->k,
                            .key = pos == b->pos,
-                           .n_vertices = sv->s.mesh.n_vertices,
+                           .n_vertices = sv->mesh->n_vertices,
                            .n_landmarks = L,
                            .positions = pos,
                            .landmarks = shown};
@@ -472,9 +454,9 @@ static void *run(void *arg)
         uint8_t present[MIM_LANDMARKS_MAX];
         uint32_t n = 0;
         if (mim_vest_udp_parse((const char *)ch.data, ch.len, &tu, xyz, present, MIM_LANDMARKS_MAX, &n, &err) ||
-            n != sv->s.map.count) {
+            n != sv->map->count) {
             if (!err.code)
-                mim_error_set(&err, MIM_EFORMAT, "udp frame: %u landmarks, the avatar has %u", n, sv->s.map.count);
+                mim_error_set(&err, MIM_EFORMAT, "udp frame: %u landmarks, the avatar has %u", n, sv->map->count);
             mim__metrics_add(&sv->m, MIM__C_VEST_ERRORS, 1);
             set_error(l, mim_error_text(&err));
             continue;
@@ -491,14 +473,12 @@ int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t
     *out = NULL;
     mim__loop_t *l = calloc(1, sizeof *l);
     mim_vest_skeleton_t *sk = malloc(sizeof *sk);
-    const size_t n = sv->s.mesh.n_vertices;
+    const size_t n = sv->mesh->n_vertices;
     int rc = 0, ok = l && sk;
     if (l) {
-        l->tpos = malloc(3 * n * sizeof *l->tpos);
         l->out = malloc(3 * n * sizeof *l->out);
         l->F = malloc(9 * n * sizeof *l->F);
-        l->tF = malloc(9 * n * sizeof *l->tF);
-        ok = ok && l->tpos && l->out && l->F && l->tF;
+        ok = ok && l->out && l->F;
         for (int i = 0; i < 2; i++) {
             key_pose_t *k = &l->keys[i];
             k->pos = malloc(3 * n * sizeof *k->pos);
@@ -520,7 +500,7 @@ int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t
     if (!rc) {
         mim_vest_state_reset(&l->st);
         mim_vest_calib_options_t co = {opt->vest_pose};
-        rc = mim_vest_skeleton_estimate(sk, &sv->s.mesh, &sv->s.map, err);
+        rc = mim_vest_skeleton_estimate(sk, sv->mesh, sv->map, err);
         if (!rc)
             rc = mim_vest_calibrate(&l->rig, sk, &co, NULL, err);
         /* a service waits for its vest to come back, however long it is away */
@@ -559,7 +539,7 @@ void mim__loop_close(mim__loop_t **pl)
     mim_vest_transport_close(&l->t);
     if (l->sv)
         pthread_mutex_destroy(&l->lock);
-    free(l->tpos), free(l->out), free(l->F), free(l->tF);
+    free(l->out), free(l->F);
     for (int i = 0; i < 2; i++)
         free(l->keys[i].pos), free(l->keys[i].quats), free(l->keys[i].W);
     free(l);

@@ -59,6 +59,7 @@ typedef struct mim_serve_options {
      * error (bench/warm_start.c). */
     int warm_start;
     unsigned max_clients; /* WebSocket clients at once; 0: MIM_SERVE_DEFAULT_MAX_CLIENTS */
+    uint64_t map_size;    /* the store's LMDB map size (mim_db_options_t); 0: the default */
     /* Called on the loop thread for every published frame (may be NULL),
      * e.g. to record the served sequence; it must return quickly. */
     void (*on_frame)(void *user, const mim_serve_frame_t *frame);

@@ -187,24 +187,17 @@ int mim_serve_open(mim_serve_t **out, const char *store, const char *avatar, con
     if (!sv)
         return mim_error_set(err, MIM_ENOMEM, "out of memory");
     mim__metrics_init(&sv->m);
-    pthread_mutex_init(&sv->lock, NULL);
     sv->t_start = mim_now();
     sv->max_body = o.max_body ? o.max_body : MIM_SERVE_DEFAULT_MAX_BODY;
     snprintf(sv->store, sizeof sv->store, "%s", store);
-    const char *tmp = getenv("TMPDIR");
-    snprintf(sv->tmpdir, sizeof sv->tmpdir, "%s/mimic-serve-XXXXXX", tmp && *tmp ? tmp : "/tmp");
-    int rc = mim_serve_session_open(&sv->s, store, avatar, err);
-    if (!rc && !mkdtemp(sv->tmpdir)) {
-        rc = mim_error_set(err, -errno, "%s: cannot make a temporary folder: %s", sv->tmpdir, strerror(errno));
-        sv->tmpdir[0] = 0;
-    }
+    mim_session_options_t so = {.map_size = o.map_size};
+    int rc = mim_session_open(&sv->s, store, &so, err);
     if (!rc)
-        rc = mim_query_status(sv->s.db, &sv->qs, err);
-    if (!rc && sv->qs.has_index)
-        rc = mim_query_open(&sv->q, sv->s.db, err);
+        rc = mim_session_load_avatar(sv->s, avatar, err);
     if (!rc) {
-        mim_xfer_solver_options_t so = {0};
-        rc = mim_xfer_solver_open(&sv->solver, sv->s.topo, sv->s.map.vertex, sv->s.map.count, &so, err);
+        sv->mesh = mim_session_mesh(sv->s);
+        sv->map = mim_session_map(sv->s);
+        sv->q = mim_session_query(sv->s);
     }
     const unsigned max_clients = o.max_clients ? o.max_clients : MIM_SERVE_DEFAULT_MAX_CLIENTS;
     if (!rc)
@@ -263,7 +256,7 @@ const char *mim_serve_vest_state(mim_serve_t *s)
 
 const mim_mesh_t *mim_serve_avatar_mesh(const mim_serve_t *s)
 {
-    return s ? &s->s.mesh : NULL;
+    return s ? s->mesh : NULL;
 }
 
 uint64_t mim_serve_frames(mim_serve_t *s)
@@ -282,12 +275,7 @@ void mim_serve_close(mim_serve_t **ps)
     }
     mim__loop_close(&sv->loop); /* after the workers: /api/status reads the loop */
     mim__ws_close(&sv->ws);     /* after the loop, which publishes to it */
-    mim_xfer_solver_close(&sv->solver);
-    mim_query_close(&sv->q);
-    mim_serve_session_close(&sv->s);
-    if (sv->tmpdir[0])
-        rmdir(sv->tmpdir);
-    pthread_mutex_destroy(&sv->lock);
+    mim_session_close(&sv->s);
     mim__metrics_destroy(&sv->m);
     free(sv);
     *ps = NULL;

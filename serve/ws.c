@@ -280,13 +280,13 @@ static void on_ready(struct mg_connection *conn, void *cbdata)
     if (!c)
         return;
     c->conn = conn;
-    const mim_serve_session_t *s = &ws->sv->s;
+    const mim_serve_t *sv = ws->sv;
     json_t *names = json_array();
-    for (uint32_t i = 0; i < s->map.count; i++)
-        json_array_append_new(names, json_string(s->map.names[i]));
+    for (uint32_t i = 0; i < sv->map->count; i++)
+        json_array_append_new(names, json_string(sv->map->names[i]));
     send_text(conn, json_pack("{s:s, s:i, s:i, s:i, s:i, s:o, s:s}", "type", "hello", "version", 1, "vertices",
-                              (int)s->mesh.n_vertices, "faces", (int)s->mesh.n_faces, "landmarks",
-                              (int)s->map.count, "landmark_names", names, "format",
+                              (int)sv->mesh->n_vertices, "faces", (int)sv->mesh->n_faces, "landmarks",
+                              (int)sv->map->count, "landmark_names", names, "format",
                               fmt_names[atomic_load(&c->format)]));
     pthread_mutex_lock(&ws->lock);
     c->started = pthread_create(&c->thread, NULL, sender, c) == 0; /* frames from now on */

@@ -1,6 +1,7 @@
 /* ingest/: readers on every format and every bad-file case, labels,
  * manifests, discovery, and the pipeline (bad files skipped, topology
  * mismatch, idempotency, landmark map checks). */
+#include "mim_io.h"
 #include "mim_db.h"
 #include "mim_ingest.h"
 #include "test_support.h"
@@ -39,7 +40,7 @@ static void expect_exact(const char *name, int (*writer)(const char *, const ts_
     assert_int_equal(writer(p, &sphere), 0);
     mim_mesh_t m, want;
     mim_error_t err = {0};
-    int rc = mim_mesh_read(p, &m, &err);
+    int rc = mim_io_read_mesh(p, &m, &err);
     if (rc) fprintf(stderr, "%s\n", mim_error_text(&err));
     assert_int_equal(rc, 0);
     ts_triangulate(&sphere, &want);
@@ -67,7 +68,7 @@ static void expect_stl(const char *name, int (*writer)(const char *, const ts_po
     assert_int_equal(writer(p, &sphere), 0);
     mim_mesh_t m, want;
     mim_error_t err = {0};
-    assert_int_equal(mim_mesh_read(p, &m, &err), 0);
+    assert_int_equal(mim_io_read_mesh(p, &m, &err), 0);
     ts_triangulate(&sphere, &want);
     assert_int_equal(m.n_faces, want.n_faces);
     assert_int_equal(m.n_vertices, want.n_vertices); /* shared corners merged back */
@@ -82,12 +83,12 @@ static void expect_stl(const char *name, int (*writer)(const char *, const ts_po
 static void test_read_stl_ascii(void **s) { (void)s; expect_stl("sa.stl", ts_write_stl_ascii); }
 static void test_read_stl_binary(void **s) { (void)s; expect_stl("sb.stl", ts_write_stl_binary); }
 
-/* Expects mim_mesh_read to fail with `code` and a message naming the file and `phrase`. */
+/* Expects mim_io_read_mesh to fail with `code` and a message naming the file and `phrase`. */
 static void expect_error(const char *path, int code, const char *phrase)
 {
     mim_mesh_t m;
     mim_error_t err = {0};
-    int rc = mim_mesh_read(path, &m, &err);
+    int rc = mim_io_read_mesh(path, &m, &err);
     if (rc != code || !strstr(err.msg, path) || !strstr(err.msg, phrase))
         fprintf(stderr, "file %s: rc %d (%s), message: %s\n", path, rc, mim_strerror(rc), err.msg);
     assert_int_equal(rc, code);

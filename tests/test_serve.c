@@ -2,6 +2,7 @@
  * over a synth store made here, spoken to with real sockets and plain
  * HTTP/1.1 written by hand. Status, avatar, query, transfer (GLB), metrics,
  * each error status, and a clean exit on SIGTERM. */
+#include "mim_io.h"
 #include "test_support.h"
 
 #include "mim_ingest.h"
@@ -202,7 +203,7 @@ static char *landmarks_body(int s, int p, uint64_t tmpl)
     char *path = ts_path(bodies, name);
     mim_mesh_t m = {0};
     mim_error_t e = {0};
-    if (mim_mesh_read(path, &m, &e))
+    if (mim_io_read_mesh(path, &m, &e))
         fail_msg("%s", e.msg);
     json_t *arr = json_array();
     for (uint32_t k = 0; k < map.count; k++) {
@@ -245,7 +246,7 @@ static void test_avatar(void **state)
     (void)state;
     char *path = ts_path(bodies, "synth_s00_p00.ply"); /* template 1, the avatar */
     mim_mesh_t m = {0};
-    assert_int_equal(mim_mesh_read(path, &m, NULL), 0);
+    assert_int_equal(mim_io_read_mesh(path, &m, NULL), 0);
     reply_t r = http("GET", "/api/avatar", NULL, NULL, 0);
     assert_int_equal(r.status, 200);
     json_t *j = json_of(&r);

@@ -2,6 +2,7 @@
  * encodings stored by ingest, every output format read back, landmarks held
  * exactly, accuracy against ground truth, GLBs through the Khronos
  * validator, and a clear error for each bad input. */
+#include "mim_io.h"
 #include "test_support.h"
 
 #include "mim_db.h"
@@ -61,7 +62,7 @@ static char *body_path(int s, int p)
 static void read_mesh(const char *path, mim_mesh_t *m)
 {
     mim_error_t e = {0};
-    if (mim_mesh_read(path, m, &e))
+    if (mim_io_read_mesh(path, m, &e))
         fail_msg("%s", e.msg);
 }
 
@@ -330,7 +331,7 @@ static void test_bad_inputs(void **s)
          "two.json: has 2 frames; transfer takes one"},
         {{"transfer", "--store", store, "--avatar", "1", "--landmarks", lm, "-o", outp}, 1,
          "store has no index (run mimic index)"},
-        {{"transfer", "--store", empty, "--avatar", "1", "--template", "2", "-o", outp}, 1,
+        {{"transfer", "--store", empty, "--avatar", "1", "--template", "2", "-o", outp}, 2,
          "the store is empty (run mimic ingest first)"},
         {{"morph", "--store", store, "--avatar", "1", "--keys", "2,3", "--frames-between", "2", "--method", "cubic",
           "-o", "m.glb"}, 2, "--method 'cubic': use linear or frames"},

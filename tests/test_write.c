@@ -3,6 +3,7 @@
  * field against its binary chunk, the Khronos glTF validator on every GLB
  * (node tests/gltf_validate.mjs; skipped when node or the npm package is
  * missing), and bad input leaving no file behind. */
+#include "mim_io.h"
 #include "mim_ingest.h"
 #include "mim_synth.h"
 #include "mim_transfer.h"
@@ -84,7 +85,7 @@ static void round_trip(const mim_mesh_t *m, const char *name)
 {
     char *p = ts_path(dir, name);
     mim_error_t err = {0};
-    int rc = mim_xfer_write_mesh(p, m, &err);
+    int rc = mim_io_write_mesh(p, m, &err);
     if (rc)
         fprintf(stderr, "%s\n", mim_error_text(&err));
     assert_int_equal(rc, 0);
@@ -93,7 +94,7 @@ static void round_trip(const mim_mesh_t *m, const char *name)
     strcat(tmp, ".tmp");
     assert_false(exists(tmp));
     mim_mesh_t back;
-    rc = mim_mesh_read(p, &back, &err);
+    rc = mim_io_read_mesh(p, &back, &err);
     if (rc)
         fprintf(stderr, "%s\n", mim_error_text(&err));
     assert_int_equal(rc, 0);
@@ -121,7 +122,7 @@ static void test_ply_is_binary_le(void **state)
     (void)state;
     char *p = ts_path(dir, "hdr.PLY"); /* the extension in any case */
     mim_error_t err = {0};
-    assert_int_equal(mim_xfer_write_mesh(p, &body, &err), 0);
+    assert_int_equal(mim_io_write_mesh(p, &body, &err), 0);
     size_t len;
     char *text = ts_read_file(p, &len);
     assert_non_null(text);
@@ -344,8 +345,8 @@ static void test_sequence(void **state)
     (void)state;
     mim_error_t err = {0};
     char *p = ts_path(dir, "seq.glb");
-    mim_xfer_sequence_t seq = {.mesh = &body, .n_frames = N_FRAMES, .positions = frames, .names = names};
-    int rc = mim_xfer_write_sequence_glb(p, &seq, &err); /* times NULL, fps 0: i / 30 */
+    mim_io_sequence_t seq = {.mesh = &body, .n_frames = N_FRAMES, .positions = frames, .names = names};
+    int rc = mim_io_write_sequence_glb(p, &seq, &err); /* times NULL, fps 0: i / 30 */
     if (rc)
         fprintf(stderr, "%s\n", mim_error_text(&err));
     assert_int_equal(rc, 0);
@@ -355,7 +356,7 @@ static void test_sequence(void **state)
     expect_sequence(p, t30);
     /* The base mesh reads back as frame 0. */
     mim_mesh_t back;
-    assert_int_equal(mim_mesh_read(p, &back, &err), 0);
+    assert_int_equal(mim_io_read_mesh(p, &back, &err), 0);
     assert_memory_equal(back.positions, frames, 3 * (size_t)body.n_vertices * sizeof(float));
     mim_mesh_free(&back);
 
@@ -364,7 +365,7 @@ static void test_sequence(void **state)
     mim_mesh_t no_pos = body;
     no_pos.positions = NULL; /* ignored by the sequence writer */
     seq.mesh = &no_pos;
-    assert_int_equal(mim_xfer_write_sequence_glb(p, &seq, &err), 0);
+    assert_int_equal(mim_io_write_sequence_glb(p, &seq, &err), 0);
     expect_sequence(p, times);
     free(p);
 }
@@ -376,14 +377,14 @@ static void test_validator(void **state)
         skip();
     mim_error_t err = {0};
     char *one = ts_path(dir, "v_one.glb"), *seq_path = ts_path(dir, "v_seq.glb"), *big = ts_path(dir, "v_big.glb");
-    assert_int_equal(mim_xfer_write_mesh(one, &body, &err), 0);
+    assert_int_equal(mim_io_write_mesh(one, &body, &err), 0);
     ts_gltf_validate(one);
-    mim_xfer_sequence_t seq = {.mesh = &body, .n_frames = N_FRAMES, .positions = frames, .names = names};
-    assert_int_equal(mim_xfer_write_sequence_glb(seq_path, &seq, &err), 0);
+    mim_io_sequence_t seq = {.mesh = &body, .n_frames = N_FRAMES, .positions = frames, .names = names};
+    assert_int_equal(mim_io_write_sequence_glb(seq_path, &seq, &err), 0);
     ts_gltf_validate(seq_path);
     mim_mesh_t g;
     grid(&g, 260); /* 67600 vertices: 32-bit indices */
-    assert_int_equal(mim_xfer_write_mesh(big, &g, &err), 0);
+    assert_int_equal(mim_io_write_mesh(big, &g, &err), 0);
     ts_gltf_validate(big);
     /* and the validator does catch a broken file: a POSITION min/max that lies */
     size_t len;
@@ -438,16 +439,16 @@ static void test_bad_input(void **state)
     mim_error_t err = {0};
 
     char *stl = ts_path(bd, "x.stl");
-    expect_error(mim_xfer_write_mesh(stl, &body, &err), MIM_EINVAL, &err, ".ply, .obj, .off, .glb", bd);
+    expect_error(mim_io_write_mesh(stl, &body, &err), MIM_EINVAL, &err, ".ply, .obj, .off, .glb", bd);
     free(stl);
     mim_error_clear(&err);
     char *noext = ts_path(bd, "x");
-    expect_error(mim_xfer_write_mesh(noext, &body, &err), MIM_EINVAL, &err, "unknown extension", bd);
+    expect_error(mim_io_write_mesh(noext, &body, &err), MIM_EINVAL, &err, "unknown extension", bd);
     free(noext);
 
     mim_error_clear(&err);
     char *missing = ts_path(bd, "no/such/dir/x.ply");
-    expect_error(mim_xfer_write_mesh(missing, &body, &err), MIM_EIO, &err, "No such file or directory", bd);
+    expect_error(mim_io_write_mesh(missing, &body, &err), MIM_EIO, &err, "No such file or directory", bd);
     assert_non_null(strstr(err.msg, missing));
     free(missing);
 
@@ -455,7 +456,7 @@ static void test_bad_input(void **state)
     char *isdir = ts_path(bd, "d.off");
     assert_int_equal(mkdir(isdir, 0755), 0);
     mim_error_clear(&err);
-    int rc = mim_xfer_write_mesh(isdir, &body, &err);
+    int rc = mim_io_write_mesh(isdir, &body, &err);
     assert_int_equal(rc, MIM_EIO);
     assert_int_equal(count_entries(bd), 1);
     rmdir(isdir);
@@ -470,44 +471,44 @@ static void test_bad_input(void **state)
     for (int i = 0; i < 4; i++) {
         char *q = ts_path(bd, exts[i]);
         mim_error_clear(&err);
-        expect_error(mim_xfer_write_mesh(q, &m, &err), MIM_ENONFINITE, &err, "vertex 17", bd);
+        expect_error(mim_io_write_mesh(q, &m, &err), MIM_ENONFINITE, &err, "vertex 17", bd);
         free(q);
     }
     m.positions[3 * 17 + 1] = 0;
     m.faces[3 * 5 + 2] = body.n_vertices;
     mim_error_clear(&err);
-    expect_error(mim_xfer_write_mesh(p, &m, &err), MIM_EINVAL, &err, "face 5", bd);
+    expect_error(mim_io_write_mesh(p, &m, &err), MIM_EINVAL, &err, "face 5", bd);
     m.faces[3 * 5 + 2] = 0;
 
     mim_mesh_t empty = {0};
     mim_error_clear(&err);
-    expect_error(mim_xfer_write_mesh(p, &empty, &err), MIM_EINVAL, &err, "empty mesh", bd);
+    expect_error(mim_io_write_mesh(p, &empty, &err), MIM_EINVAL, &err, "empty mesh", bd);
     mim_error_clear(&err);
-    expect_error(mim_xfer_write_mesh(p, NULL, &err), MIM_EINVAL, &err, "no mesh", bd);
+    expect_error(mim_io_write_mesh(p, NULL, &err), MIM_EINVAL, &err, "no mesh", bd);
 
-    mim_xfer_sequence_t seq = {.mesh = &body, .n_frames = 0, .positions = frames};
+    mim_io_sequence_t seq = {.mesh = &body, .n_frames = 0, .positions = frames};
     mim_error_clear(&err);
-    expect_error(mim_xfer_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "without frames", bd);
+    expect_error(mim_io_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "without frames", bd);
     seq.n_frames = N_FRAMES;
     double times[N_FRAMES] = {0, 0.1, 0.1, 0.3};
     seq.times = times;
     mim_error_clear(&err);
-    expect_error(mim_xfer_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "frame 2", bd);
+    expect_error(mim_io_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "frame 2", bd);
     times[2] = 0.05;
     mim_error_clear(&err);
-    expect_error(mim_xfer_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "does not increase", bd);
+    expect_error(mim_io_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "does not increase", bd);
     times[2] = 0.2;
     times[0] = -1;
     mim_error_clear(&err);
-    expect_error(mim_xfer_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "frame 0", bd);
+    expect_error(mim_io_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "frame 0", bd);
     seq.times = NULL;
     seq.fps = -5;
     mim_error_clear(&err);
-    expect_error(mim_xfer_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "fps", bd);
+    expect_error(mim_io_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "fps", bd);
     seq.fps = 0;
     char *ply = ts_path(bd, "x.ply");
     mim_error_clear(&err);
-    expect_error(mim_xfer_write_sequence_glb(ply, &seq, &err), MIM_EINVAL, &err, ".glb", bd);
+    expect_error(mim_io_write_sequence_glb(ply, &seq, &err), MIM_EINVAL, &err, ".glb", bd);
     free(ply);
     /* NaN in a later frame names the frame and vertex */
     float *bad = malloc(N_FRAMES * 3 * (size_t)body.n_vertices * sizeof *bad);
@@ -516,24 +517,24 @@ static void test_bad_input(void **state)
     bad[3 * (size_t)body.n_vertices * 2 + 3 * 9] = INFINITY;
     seq.positions = bad;
     mim_error_clear(&err);
-    expect_error(mim_xfer_write_sequence_glb(p, &seq, &err), MIM_ENONFINITE, &err, "frame 2, vertex 9", bd);
+    expect_error(mim_io_write_sequence_glb(p, &seq, &err), MIM_ENONFINITE, &err, "frame 2, vertex 9", bd);
     seq.positions = frames;
     seq.mesh = &m;
     m.faces[7] = body.n_vertices + 4;
     mim_error_clear(&err);
-    expect_error(mim_xfer_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "face 2", bd);
+    expect_error(mim_io_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "face 2", bd);
 
     /* frame names that are not UTF-8 cannot go into the JSON */
     m.faces[7] = body.faces[7];
     static const char *const bad_names[N_FRAMES] = {"rest", "a\xff", "b", "c"};
     seq.names = bad_names;
     mim_error_clear(&err);
-    expect_error(mim_xfer_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "frame 1: name is not valid UTF-8", bd);
+    expect_error(mim_io_write_sequence_glb(p, &seq, &err), MIM_EINVAL, &err, "frame 1: name is not valid UTF-8", bd);
     seq.names = NULL;
 
     /* an existing file is replaced whole */
     m.faces[7] = body.faces[7];
-    assert_int_equal(mim_xfer_write_sequence_glb(p, &seq, &err), 0);
+    assert_int_equal(mim_io_write_sequence_glb(p, &seq, &err), 0);
     assert_int_equal(count_entries(bd), 1);
 
     free(bad);

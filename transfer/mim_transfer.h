@@ -214,44 +214,6 @@ typedef struct mim_xfer_key {
 int mim_xfer_morph(mim_xfer_solver_t *s, mim_xfer_morph_method_t method, const mim_xfer_key_t *a,
                    const mim_xfer_key_t *b, double t, float *out, mim_error_t *err);
 
-/* ---- writers (write.c, write_openmesh.cpp, write_gltf.cpp) ---- */
-/* Writes one mesh; the format comes from the extension of path (any case):
- * .ply (binary little-endian), .obj, .off (OpenMesh; text formats print 9
- * significant digits, so float32 positions read back exactly) or .glb
- * (tinygltf: POSITION with min/max, area-weighted vertex NORMALs, indices).
- * Errors: MIM_EINVAL (NULL, empty mesh, face index out of range, unknown
- * extension: the message lists the known ones), MIM_ENONFINITE (a NaN/inf
- * position: names the vertex), MIM_EIO (cannot write: names the path and
- * the reason). Writes to PATH.tmp and renames, so a failure never leaves a
- * half-written file at path. */
-int mim_xfer_write_mesh(const char *path, const mim_mesh_t *mesh, mim_error_t *err);
-
-/* A sequence of poses of one mesh as a GLB with a morph-target animation:
- * the base mesh is frame 0; every later frame is a morph target (its
- * POSITION displacement from frame 0, accessor min/max set, and its NORMAL
- * displacement); one animation "mimic" with a "weights" channel whose
- * keyframe i (at times[i] seconds) sets target i-1 to 1 and every other to
- * 0 (frame 0: all 0), LINEAR interpolation, so a player blends linearly
- * between consecutive frames (seed 000, Section 3.5, key-pose morphing).
- * positions holds n_frames * 3 * n_vertices floats (frame after frame);
- * faces are mesh->faces (mesh->positions is ignored and may be NULL).
- * times (n_frames seconds, >= 0, strictly increasing also as float32) may
- * be NULL: frame i at i / fps. names (n_frames strings, may be NULL, UTF-8)
- * name the frames: names[0] the mesh, names[1..] the targets in the mesh
- * extras "targetNames" (a common convention players show). One frame gives
- * a GLB of the mesh without targets or animation. path must end in .glb.
- * Errors as mim_xfer_write_mesh, plus MIM_EINVAL for n_frames 0, bad times
- * or fps (naming the frame). */
-typedef struct mim_xfer_sequence {
-    const mim_mesh_t *mesh;     /* faces and n_vertices */
-    uint32_t n_frames;          /* >= 1 */
-    const float *positions;     /* n_frames * 3 * n_vertices */
-    const double *times;        /* NULL: i / fps */
-    double fps;                 /* used when times is NULL; 0 means 30 */
-    const char *const *names;   /* optional frame names */
-} mim_xfer_sequence_t;
-int mim_xfer_write_sequence_glb(const char *path, const mim_xfer_sequence_t *seq, mim_error_t *err);
-
 #ifdef __cplusplus
 }
 #endif

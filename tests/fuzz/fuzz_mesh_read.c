@@ -1,7 +1,8 @@
-/* libFuzzer harness: mim_mesh_read on arbitrary bytes. The first byte picks
+/* libFuzzer harness: mim_io_read_mesh on arbitrary bytes. The first byte picks
  * the file extension, the rest is the file. Every input must give either a
  * mesh whose face indices are all in range and coordinates finite, or an
  * error with a message; never a crash, leak or sanitizer report. */
+#include "mim_io.h"
 #include "mim_ingest.h"
 
 #include <math.h>
@@ -22,7 +23,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     fclose(f);
     mim_mesh_t m;
     mim_error_t err = {0};
-    int rc = mim_mesh_read(path, &m, &err);
+    int rc = mim_io_read_mesh(path, &m, &err);
     if (rc == 0) {
         for (uint32_t i = 0; i < 3 * m.n_faces; i++)
             if (m.faces[i] >= m.n_vertices) abort();

@@ -53,7 +53,7 @@ void ts_sphere(ts_polymesh_t *m, uint32_t rings, uint32_t segments, float r);
 void ts_polymesh_free(ts_polymesh_t *m);
 /* Number of triangles after fan triangulation. */
 uint32_t ts_polymesh_triangles(const ts_polymesh_t *m);
-/* A triangle-only copy (fan triangulation), as mim_mesh_read returns it. */
+/* A triangle-only copy (fan triangulation), as mim_io_read_mesh returns it. */
 void ts_triangulate(const ts_polymesh_t *m, mim_mesh_t *out);
 
 int ts_write_off(const char *path, const ts_polymesh_t *m);

@@ -1,8 +1,8 @@
-/* The pure-C face of the C++ shims (OpenMesh, tinygltf). Internal to ingest/.
+/* The pure-C face of the C++ shims (OpenMesh, tinygltf). Internal to io/.
  * Each shim fills `raw` with what the file holds, triangulated, without
  * judging it beyond what its library reports; read.c validates. */
-#ifndef MIM_INGEST_MESH_SHIM_H
-#define MIM_INGEST_MESH_SHIM_H
+#ifndef MIM_IO_READ_SHIM_H
+#define MIM_IO_READ_SHIM_H
 
 #include "mim_core.h"
 

@@ -1,9 +1,9 @@
-/* mim_mesh_read: one entry for every mesh format. The libraries parse
+/* mim_io_read_mesh: one entry for every mesh format. The libraries parse
  * (OpenMesh, tinygltf); this file decides whether what they returned is a
  * whole, finite, consistent mesh, and says precisely what is wrong if not. */
 #include "file_check.h"
-#include "mesh_shim.h"
-#include "mim_ingest.h"
+#include "read_shim.h"
+#include "mim_io.h"
 
 #include <errno.h>
 #include <math.h>
@@ -27,7 +27,7 @@ static const char *format_name(int f)
     }
 }
 
-int mim_mesh_format_known(const char *path) { return mim__format_of(path) != FMT_UNKNOWN; }
+int mim_io_format_known(const char *path) { return mim__format_of(path) != FMT_UNKNOWN; }
 
 static int validate(const char *path, int fmt, const mim__decl_t *d, mim__raw_mesh_t *raw, int shim_rc,
                     mim_error_t *err)
@@ -74,7 +74,7 @@ static int validate(const char *path, int fmt, const mim__decl_t *d, mim__raw_me
     return 0;
 }
 
-int mim_mesh_read(const char *path, mim_mesh_t *out, mim_error_t *err)
+int mim_io_read_mesh(const char *path, mim_mesh_t *out, mim_error_t *err)
 {
     memset(out, 0, sizeof *out);
     struct stat st;

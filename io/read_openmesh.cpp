@@ -9,7 +9,7 @@
 // reader objects from a pool. A reader registers itself with the IOManager
 // when constructed and never unregisters, so pooled sets live as long as the
 // process (at most one per concurrent reader thread).
-#include "mesh_shim.h"
+#include "read_shim.h"
 
 #include <OpenMesh/Core/IO/IOManager.hh>
 #include <OpenMesh/Core/IO/importer/BaseImporter.hh>

@@ -3,7 +3,7 @@
 // skinned mesh is its bind pose; node transforms are not applied. Every
 // accessor range is checked against its buffer before it is read, because
 // the file is untrusted. No C++ type or exception crosses into C.
-#include "mesh_shim.h"
+#include "read_shim.h"
 
 #include <tiny_gltf.h>
 

@@ -1,8 +1,8 @@
-/* Internal to ingest/: what a mesh file declares about itself (header counts,
+/* Internal to io/: what a mesh file declares about itself (header counts,
  * binary body size), and text scans, so that read.c can tell a truncated or
  * non-finite file from one the library merely failed to parse. */
-#ifndef MIM_INGEST_FILE_CHECK_H
-#define MIM_INGEST_FILE_CHECK_H
+#ifndef MIM_IO_FILE_CHECK_H
+#define MIM_IO_FILE_CHECK_H
 
 #include "mim_core.h"
 

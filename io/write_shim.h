@@ -1,9 +1,9 @@
-/* The pure-C face of the writer shims (OpenMesh, tinygltf). Internal to
- * transfer/. The shims only encode: write.c checks the arguments before
+/* The pure-C face of the writer shims (OpenMesh, tinygltf). Internal to io/.
+ * The shims only encode: write.c checks the arguments before
  * (indices in range, finite positions, increasing times) and puts the bytes
- * on disk after (PATH.tmp, then rename). No C++ type crosses into C. */
-#ifndef MIM_TRANSFER_WRITE_SHIM_H
-#define MIM_TRANSFER_WRITE_SHIM_H
+ * on disk after (mim_file_write_atomic). No C++ type crosses into C. */
+#ifndef MIM_IO_WRITE_SHIM_H
+#define MIM_IO_WRITE_SHIM_H
 
 #include "mim_core.h"
 

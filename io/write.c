@@ -1,19 +1,16 @@
 /* Mesh and pose-sequence writers: argument checks, vertex normals, the
- * format dispatch by extension, and the atomic write (PATH.tmp, fsync,
- * rename) of what the OpenMesh and tinygltf shims encode. A sequence
+ * format dispatch by extension, and the atomic write (core's
+ * mim_file_write_atomic) of what the OpenMesh and tinygltf shims encode. A sequence
  * becomes a morph-target animation that a player blends linearly between
  * key poses (seed 000, Section 3.5). */
-#include "mim_transfer.h"
+#include "mim_io.h"
 #include "write_shim.h"
 
-#include <errno.h>
-#include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
-#include <unistd.h>
 
 #define KNOWN_EXTENSIONS ".ply, .obj, .off, .glb"
 
@@ -122,47 +119,6 @@ static void vertex_normals(const mim_mesh_t *mesh, const float *pos, float *nrm,
     }
 }
 
-/* Writes bytes to path through path.tmp: the file appears whole or not at
- * all, and nothing is left behind on failure. */
-static int write_atomic(const char *path, const unsigned char *data, size_t size, mim_error_t *err)
-{
-    size_t len = strlen(path);
-    char *tmp = malloc(len + 5);
-    if (!tmp)
-        return mim_error_set(err, MIM_ENOMEM, "%s: out of memory", path);
-    memcpy(tmp, path, len);
-    memcpy(tmp + len, ".tmp", 5);
-    int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-    if (fd < 0) {
-        int e = errno;
-        free(tmp);
-        return mim_error_set(err, MIM_EIO, "%s: cannot write: %s", path, strerror(e));
-    }
-    int e = 0;
-    for (size_t done = 0; done < size && !e;) {
-        ssize_t w = write(fd, data + done, size - done);
-        if (w < 0) {
-            if (errno != EINTR)
-                e = errno;
-        } else {
-            done += (size_t)w;
-        }
-    }
-    if (!e && fsync(fd) != 0)
-        e = errno;
-    if (close(fd) != 0 && !e)
-        e = errno;
-    if (!e && rename(tmp, path) != 0)
-        e = errno;
-    if (e) {
-        unlink(tmp);
-        free(tmp);
-        return mim_error_set(err, MIM_EIO, "%s: cannot write: %s", path, strerror(e));
-    }
-    free(tmp);
-    return 0;
-}
-
 int mim__bytes_copy(mim__bytes_t *out, const void *data, size_t size)
 {
     out->data = malloc(size ? size : 1);
@@ -172,20 +128,29 @@ int mim__bytes_copy(mim__bytes_t *out, const void *data, size_t size)
     return 0;
 }
 
-static int encoded(const char *path, int rc, const char *msg, mim__bytes_t *b, mim_error_t *err)
+/* What a shim answered, as an error naming origin. */
+static int encode_error(const char *origin, int rc, const char *msg, mim_error_t *err)
 {
     if (rc == MIM_ENOMEM)
-        return mim_error_set(err, rc, "%s: out of memory while encoding", path);
+        return mim_error_set(err, rc, "%s: out of memory while encoding", origin);
+    return mim_error_set(err, rc, "%s: %s", origin, msg[0] ? msg : mim_strerror(rc));
+}
+
+/* Puts what a shim encoded on disk at path, and frees it. */
+static int encoded(const char *path, int rc, const char *msg, mim__bytes_t *b, mim_error_t *err)
+{
     if (rc)
-        return mim_error_set(err, rc, "%s: %s", path, msg[0] ? msg : mim_strerror(rc));
-    rc = write_atomic(path, b->data, b->size, err);
+        return encode_error(path, rc, msg, err);
+    mim_file_part_t part = {b->data, b->size};
+    rc = mim_file_write_atomic(path, &part, 1, err);
     free(b->data);
     b->data = NULL;
     return rc;
 }
 
-static int write_glb(const char *path, const mim_mesh_t *mesh, uint32_t n_frames, const float *positions,
-                     const float *times, const char *const *names, mim_error_t *err)
+/* The GLB of n_frames poses (checked by the caller) into *b; errors name origin. */
+static int encode_glb(const char *origin, const mim_mesh_t *mesh, uint32_t n_frames, const float *positions,
+                      const float *times, const char *const *names, mim__bytes_t *b, mim_error_t *err)
 {
     size_t per = 3 * (size_t)mesh->n_vertices;
     float *normals = malloc(per * n_frames * sizeof *normals);
@@ -193,7 +158,7 @@ static int write_glb(const char *path, const mim_mesh_t *mesh, uint32_t n_frames
     if (!normals || !acc) {
         free(normals);
         free(acc);
-        return mim_error_set(err, MIM_ENOMEM, "%s: out of memory", path);
+        return mim_error_set(err, MIM_ENOMEM, "%s: out of memory", origin);
     }
     for (uint32_t f = 0; f < n_frames; f++)
         vertex_normals(mesh, positions + f * per, normals + f * per, acc);
@@ -201,11 +166,18 @@ static int write_glb(const char *path, const mim_mesh_t *mesh, uint32_t n_frames
     mim__gltf_frames_t in = {
         .mesh = mesh, .n_frames = n_frames, .positions = positions, .normals = normals, .times = times,
         .names = names};
-    mim__bytes_t b = {0};
     char msg[256] = "";
-    int rc = mim__gltf_encode(&in, &b, msg, sizeof msg);
+    int rc = mim__gltf_encode(&in, b, msg, sizeof msg);
     free(normals);
-    return encoded(path, rc, msg, &b, err);
+    return rc ? encode_error(origin, rc, msg, err) : 0;
+}
+
+static int write_glb(const char *path, const mim_mesh_t *mesh, uint32_t n_frames, const float *positions,
+                     const float *times, const char *const *names, mim_error_t *err)
+{
+    mim__bytes_t b = {0};
+    int rc = encode_glb(path, mesh, n_frames, positions, times, names, &b, err);
+    return rc ? rc : encoded(path, 0, "", &b, err);
 }
 
 static int check_mesh_shape(const char *path, const mim_mesh_t *mesh, mim_error_t *err)
@@ -218,19 +190,42 @@ static int check_mesh_shape(const char *path, const mim_mesh_t *mesh, mim_error_
     return check_faces(path, mesh, err);
 }
 
-int mim_xfer_write_mesh(const char *path, const mim_mesh_t *mesh, mim_error_t *err)
+/* The checks every single-mesh output passes first; origin names it. */
+static int check_mesh(const char *origin, const mim_mesh_t *mesh, mim_error_t *err)
+{
+    int rc = check_mesh_shape(origin, mesh, err);
+    if (rc)
+        return rc;
+    if (!mesh->positions)
+        return mim_error_set(err, MIM_EINVAL, "%s: mesh without positions", origin);
+    return check_finite(origin, mesh->positions, mesh->n_vertices, 0, 0, err);
+}
+
+int mim_io_encode_glb(const mim_mesh_t *mesh, const char *origin, unsigned char **data, size_t *size,
+                      mim_error_t *err)
+{
+    *data = NULL;
+    *size = 0;
+    if (!origin)
+        origin = "GLB";
+    int rc = check_mesh(origin, mesh, err);
+    mim__bytes_t b = {0};
+    if (!rc)
+        rc = encode_glb(origin, mesh, 1, mesh->positions, NULL, NULL, &b, err);
+    if (!rc)
+        *data = b.data, *size = b.size;
+    return rc;
+}
+
+int mim_io_write_mesh(const char *path, const mim_mesh_t *mesh, mim_error_t *err)
 {
     if (!path || !path[0])
         return mim_error_set(err, MIM_EINVAL, "write: no output path");
     const char *format = format_of(path);
     if (!format)
         return mim_error_set(err, MIM_EINVAL, "%s: unknown extension; known: " KNOWN_EXTENSIONS, path);
-    int rc = check_mesh_shape(path, mesh, err);
+    int rc = check_mesh(path, mesh, err);
     if (rc)
-        return rc;
-    if (!mesh->positions)
-        return mim_error_set(err, MIM_EINVAL, "%s: mesh without positions", path);
-    if ((rc = check_finite(path, mesh->positions, mesh->n_vertices, 0, 0, err)))
         return rc;
     if (!strcmp(format, "glb"))
         return write_glb(path, mesh, 1, mesh->positions, NULL, NULL, err);
@@ -240,7 +235,7 @@ int mim_xfer_write_mesh(const char *path, const mim_mesh_t *mesh, mim_error_t *e
     return encoded(path, rc, msg, &b, err);
 }
 
-int mim_xfer_write_sequence_glb(const char *path, const mim_xfer_sequence_t *seq, mim_error_t *err)
+int mim_io_write_sequence_glb(const char *path, const mim_io_sequence_t *seq, mim_error_t *err)
 {
     if (!path || !path[0])
         return mim_error_set(err, MIM_EINVAL, "write: no output path");

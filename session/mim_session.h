@@ -1,0 +1,117 @@
+/* mimic session: the one place where an opened store, its recognition
+ * index, an avatar, its encoding and the avatar's Cholesky factor meet,
+ * and where "landmarks -> nearest template -> its frames -> transfer"
+ * (seed 000, Sections 3.3-3.4) is written once. `mimic transfer`, `mimic
+ * morph`, `mimic query`'s JSON, and `mimic serve` (its API and its vest
+ * loop) all go through it.
+ *
+ * Thread safety: every function may be called from many threads at once.
+ * Queries run concurrently; solves take turns on the one factor (a mutex
+ * inside the session). What the accessors return is read-only and lives
+ * until mim_session_close. */
+#ifndef MIM_SESSION_H
+#define MIM_SESSION_H
+
+#include "mim_core.h"
+#include "mim_db.h"
+#include "mim_query.h"
+#include "mim_transfer.h"
+
+#include <jansson.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct mim_session mim_session_t;
+
+typedef struct mim_session_options {
+    mim_xfer_formulation_t formulation; /* 0: least squares (mim_xfer_solver_options_t) */
+    uint64_t map_size;                  /* the store's LMDB map size (mim_db_options_t); 0: default */
+} mim_session_options_t;
+
+/* Opens store read-only with its connectivity, landmark map and index (if
+ * it has one). Errors, one line naming the store: the store's own (cannot
+ * open, damaged, another schema), MIM_ENOTFOUND for an empty store,
+ * MIM_ENOMEM. opt may be NULL. On error *out is NULL. */
+int mim_session_open(mim_session_t **out, const char *store, const mim_session_options_t *opt, mim_error_t *err);
+/* Loads the avatar, which transfers and morphs need: an all-digit argument
+ * is a template id, anything else a mesh file with the store's
+ * connectivity; then factorises the avatar's system for the store's
+ * landmark vertices (seed 000, eq. 3). Errors, one line naming the file or
+ * the id: the mesh reader's, MIM_ETOPOLOGY for another connectivity,
+ * MIM_ENOTFOUND for an unknown template id. A session has one avatar: a
+ * second call is MIM_EINVAL. */
+int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err);
+void mim_session_close(mim_session_t **s); /* accepts NULL; nulls the pointer */
+
+/* ---- what the session holds (read-only, valid until close; the avatar's
+ * after mim_session_load_avatar) ---- */
+const char *mim_session_store(const mim_session_t *s);  /* the store's path */
+const char *mim_session_avatar(const mim_session_t *s); /* the path, or "template N" */
+/* The store's faces with the avatar's rest positions. */
+const mim_mesh_t *mim_session_mesh(const mim_session_t *s);
+const mim_landmark_map_t *mim_session_map(const mim_session_t *s);
+const mim_xfer_topology_t *mim_session_topology(const mim_session_t *s);
+const double *mim_session_encoding(const mim_session_t *s); /* the avatar's W, 3 * n */
+/* The index, or NULL when the store has none; and its status at open. */
+const mim_query_t *mim_session_query(const mim_session_t *s);
+const mim_query_status_t *mim_session_index_status(const mim_session_t *s);
+double mim_session_factor_seconds(const mim_session_t *s); /* the factorisation's time */
+
+/* ---- templates ---- */
+/* Template id's positions (3 * n floats) and frames (9 * n doubles; NULL
+ * to skip), from its stored encoding, or computed when the store has none.
+ * label (may be NULL) gets "subject/pose". MIM_ENOTFOUND for an unknown id. */
+int mim_session_template(mim_session_t *s, uint64_t id, float *positions, double *frames, char *label,
+                         size_t label_size, mim_error_t *err);
+
+/* ---- the pipeline ---- */
+typedef struct mim_session_request {
+    uint64_t template_id;    /* the pose's template; 0: the nearest one to landmarks, through the index */
+    const float *landmarks;  /* 3 * map count floats, in map order; NULL: mode (a), the template's own
+                                landmarks retargeted onto the avatar's proportions */
+    mim_xfer_options_t xfer; /* iterations, tolerance, damping, warm start (start: 3 * n floats) */
+    uint64_t start_template; /* with xfer.start: warm-start only when the pose's template is this one
+                                (a stream's last key frame); 0: whatever the template */
+} mim_session_request_t;
+
+#define MIM_SESSION_LABEL_MAX 160
+typedef struct mim_session_report {
+    uint64_t template_id;             /* the template whose frames gave the pose */
+    char label[MIM_SESSION_LABEL_MAX]; /* its "subject/pose" */
+    int queried;                      /* 1: the template came from the index */
+    mim_index_answer_t answer;        /* when queried: the class and its probability */
+    char class_name[MIM_SESSION_LABEL_MAX]; /* when queried: the class's name */
+    float landmarks[3 * MIM_LANDMARKS_MAX]; /* the targets held: given, or mode (a)'s retargeted ones */
+    int warm_started;                 /* the solve started from xfer.start */
+    mim_xfer_report_t xfer;           /* the solve */
+    double seconds_query, seconds_template, seconds_solve;
+} mim_session_report_t;
+
+/* Transfers the avatar into one pose and writes its 3 * n positions to out:
+ * the template (given, or the nearest to the landmarks), its frames (the
+ * last template's are kept between calls), the landmarks (given, or mode
+ * (a)), then the iterated solve with the cached factor (seed 000, eq. 3).
+ * report may be NULL. Errors: MIM_EINVAL with neither a template nor
+ * landmarks, or before mim_session_load_avatar; MIM_ENOTFOUND for an unknown template, or for landmarks
+ * alone when the store has no index ("store has no index (run mimic
+ * index)"); the query's and the solver's own (MIM_ENONFINITE, ...). */
+int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, float *out,
+                         mim_session_report_t *report, mim_error_t *err);
+
+/* The in-between pose at t between key poses a and b (mim_xfer_morph),
+ * with the session's factor. */
+int mim_session_morph(mim_session_t *s, mim_xfer_morph_method_t method, const mim_xfer_key_t *a,
+                      const mim_xfer_key_t *b, double t, float *out, mim_error_t *err);
+
+/* ---- query results as JSON (schemas/query.schema.json, one frame) ---- */
+/* {"class": ..., "probability": ..., "results": [{"id", "subject", "pose",
+ * "distance"}, ...]} for an answer and its hits; NULL when out of memory.
+ * The caller owns the reference. */
+json_t *mim_session_answer_json(const mim_query_t *q, const mim_index_answer_t *a, const mim_index_hit_t *hits);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,286 @@
+/* The session (mim_session.h): a store opened for reading, its index, the
+ * avatar and its encoding W = F^T L X (seed 000, Section 3.1), the factor
+ * of the avatar's constrained system (eq. 3), and the one pipeline from
+ * landmarks to a transferred mesh (Sections 3.3-3.4). */
+#include "mim_session.h"
+
+#include "mim_io.h"
+
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct mim_session {
+    mim_db_t *db;
+    mim_query_t *query;         /* NULL when the store has no index */
+    mim_query_status_t index;   /* at open */
+    mim_session_options_t opt;
+    mim_xfer_topology_t *topo;
+    mim_landmark_map_t map;
+    mim_mesh_t mesh;            /* the store's faces with the avatar's rest positions */
+    double *W;                  /* the avatar's encoding, 3 * n */
+    double t_factor;
+    char store[4096];
+    char avatar[4096];          /* how the avatar was named: path or "template N" */
+
+    /* guarded by lock: the one factor, and the last template's frames,
+     * which most consecutive transfers share (a vest holding a pose) */
+    pthread_mutex_t lock;
+    mim_xfer_solver_t *solver;
+    uint64_t cached_id;         /* 0: nothing cached */
+    float *tpos;                /* 3 * n */
+    double *tF;                 /* 9 * n */
+    char cached_label[MIM_SESSION_LABEL_MAX];
+};
+
+static int all_digits(const char *s)
+{
+    if (!*s)
+        return 0;
+    for (; *s; s++)
+        if (*s < '0' || *s > '9')
+            return 0;
+    return 1;
+}
+
+/* Reads the store's connectivity and landmark map into s. */
+static int load_store(mim_session_t *s, const char *store, uint64_t map_size, mim_error_t *err)
+{
+    mim_db_options_t o = {.read_only = 1, .map_size = map_size};
+    int rc = mim_db_open(&s->db, store, &o, err);
+    mim_db_txn_t *t = NULL;
+    if (!rc)
+        rc = mim_db_begin(s->db, 0, &t, err);
+    mim_db_topology_t topo;
+    if (!rc && (rc = mim_db_topology_get(t, &topo, NULL)) == MIM_ENOTFOUND)
+        rc = mim_error_set(err, MIM_ENOTFOUND, "%s: the store is empty (run mimic ingest first)", store);
+    else if (rc)
+        rc = mim_error_set(err, rc, "%s: cannot read its connectivity", store);
+    if (!rc && (rc = mim_db_landmarks_get(t, &s->map, err)) == 0 &&
+        (rc = mim_mesh_alloc(&s->mesh, topo.n_vertices, topo.n_faces)) == 0) {
+        memcpy(s->mesh.faces, topo.faces, 3 * (size_t)topo.n_faces * sizeof *topo.faces);
+        rc = mim_xfer_topology_open(&s->topo, topo.n_vertices, topo.faces, topo.n_faces, err);
+    }
+    mim_db_abort(&t);
+    return rc;
+}
+
+/* The avatar's rest positions (a template id or a mesh file) and its W. */
+static int load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err)
+{
+    const uint32_t n = s->mesh.n_vertices;
+    double *F = malloc(9 * (size_t)n * sizeof *F);
+    if (!F)
+        return mim_error_set(err, MIM_ENOMEM, "out of memory for %u vertices", n);
+    int rc;
+    if (all_digits(avatar)) {
+        uint64_t id = strtoull(avatar, NULL, 10);
+        snprintf(s->avatar, sizeof s->avatar, "template %llu", (unsigned long long)id);
+        rc = mim_session_template(s, id, s->mesh.positions, F, NULL, 0, err);
+    } else {
+        snprintf(s->avatar, sizeof s->avatar, "%s", avatar);
+        mim_mesh_t m = {0};
+        rc = mim_io_read_mesh(avatar, &m, err);
+        if (!rc)
+            rc = mim_xfer_check_mesh(s->topo, &m, avatar, err);
+        if (!rc) {
+            memcpy(s->mesh.positions, m.positions, 3 * (size_t)n * sizeof(float));
+            mim_xfer_frames(s->topo, s->mesh.positions, F);
+        }
+        mim_mesh_free(&m);
+    }
+    if (!rc)
+        mim_xfer_encode(s->topo, s->mesh.positions, F, s->W);
+    free(F);
+    return rc;
+}
+
+int mim_session_open(mim_session_t **out, const char *store, const mim_session_options_t *opt, mim_error_t *err)
+{
+    *out = NULL;
+    mim_session_t *s = calloc(1, sizeof *s);
+    if (!s)
+        return mim_error_set(err, MIM_ENOMEM, "out of memory");
+    s->opt = opt ? *opt : (mim_session_options_t){0};
+    pthread_mutex_init(&s->lock, NULL);
+    snprintf(s->store, sizeof s->store, "%s", store);
+    int rc = load_store(s, store, s->opt.map_size, err);
+    if (!rc)
+        rc = mim_query_status(s->db, &s->index, err);
+    if (!rc && s->index.has_index)
+        rc = mim_query_open(&s->query, s->db, err);
+    if (rc) {
+        mim_session_close(&s);
+        return rc;
+    }
+    *out = s;
+    return 0;
+}
+
+int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err)
+{
+    if (s->solver)
+        return mim_error_set(err, MIM_EINVAL, "%s: the session already has an avatar (%s)", avatar, s->avatar);
+    const uint32_t n = s->mesh.n_vertices;
+    if (!s->W) {
+        s->W = malloc(3 * (size_t)n * sizeof *s->W);
+        s->tpos = malloc(3 * (size_t)n * sizeof *s->tpos);
+        s->tF = malloc(9 * (size_t)n * sizeof *s->tF);
+        if (!s->W || !s->tpos || !s->tF)
+            return mim_error_set(err, MIM_ENOMEM, "out of memory for %u vertices", n);
+    }
+    int rc = load_avatar(s, avatar, err);
+    if (!rc) {
+        mim_xfer_solver_options_t so = {.formulation = s->opt.formulation};
+        double t0 = mim_now();
+        rc = mim_xfer_solver_open(&s->solver, s->topo, s->map.vertex, s->map.count, &so, err);
+        s->t_factor = mim_now() - t0;
+    }
+    return rc;
+}
+
+void mim_session_close(mim_session_t **ps)
+{
+    mim_session_t *s = ps ? *ps : NULL;
+    if (!s)
+        return;
+    mim_xfer_solver_close(&s->solver);
+    mim_query_close(&s->query);
+    mim_xfer_topology_close(&s->topo);
+    mim_mesh_free(&s->mesh);
+    free(s->W), free(s->tpos), free(s->tF);
+    mim_db_close(&s->db);
+    pthread_mutex_destroy(&s->lock);
+    free(s);
+    *ps = NULL;
+}
+
+const char *mim_session_store(const mim_session_t *s) { return s->store; }
+const char *mim_session_avatar(const mim_session_t *s) { return s->avatar; }
+const mim_mesh_t *mim_session_mesh(const mim_session_t *s) { return &s->mesh; }
+const mim_landmark_map_t *mim_session_map(const mim_session_t *s) { return &s->map; }
+const mim_xfer_topology_t *mim_session_topology(const mim_session_t *s) { return s->topo; }
+const double *mim_session_encoding(const mim_session_t *s) { return s->W; }
+const mim_query_t *mim_session_query(const mim_session_t *s) { return s->query; }
+const mim_query_status_t *mim_session_index_status(const mim_session_t *s) { return &s->index; }
+double mim_session_factor_seconds(const mim_session_t *s) { return s->t_factor; }
+
+int mim_session_template(mim_session_t *s, uint64_t id, float *positions, double *frames, char *label,
+                         size_t label_size, mim_error_t *err)
+{
+    mim_db_txn_t *t = NULL;
+    int rc = mim_db_begin(s->db, 0, &t, err);
+    mim_template_view_t v;
+    if (!rc && (rc = mim_db_template_get(t, id, &v, NULL)) == MIM_ENOTFOUND)
+        rc = mim_error_set(err, rc, "%s: no template %llu (see mimic list)", s->store, (unsigned long long)id);
+    else if (rc)
+        rc = mim_error_set(err, rc, "%s: cannot read template %llu", s->store, (unsigned long long)id);
+    if (!rc && v.n_vertices != s->mesh.n_vertices)
+        rc = mim_error_set(err, MIM_ESTORE, "%s: template %llu has %u vertices, the store's connectivity %u",
+                           s->store, (unsigned long long)id, v.n_vertices, s->mesh.n_vertices);
+    if (!rc) {
+        memcpy(positions, v.positions, 3 * (size_t)v.n_vertices * sizeof(float));
+        if (label)
+            snprintf(label, label_size, "%s/%s", v.subject[0] ? v.subject : "-", v.pose[0] ? v.pose : "-");
+        mim_db_encoding_t e;
+        if (frames) {
+            /* stored by ingest; a store from before encodings were kept gets them computed */
+            if (mim_db_encoding_get(t, id, &e, NULL) == 0 && e.n_vertices == v.n_vertices)
+                mim_xfer_encoding_unpack(e.n_vertices, e.frames, NULL, frames, NULL);
+            else
+                mim_xfer_frames(s->topo, positions, frames);
+        }
+    }
+    mim_db_abort(&t);
+    return rc;
+}
+
+/* The nearest template of complete landmarks u, through the index. */
+static int nearest(mim_session_t *s, const float *u, mim_session_report_t *r, mim_error_t *err)
+{
+    if (!s->query)
+        return mim_error_set(err, MIM_ENOTFOUND, "%s: store has no index (run mimic index)", s->store);
+    mim_index_query_options_t qo = {.k = 1};
+    mim_index_hit_t hit;
+    int rc = mim_query_frame(s->query, u, NULL, &qo, &r->answer, &hit, err);
+    if (!rc && !r->answer.n_hits)
+        rc = mim_error_set(err, MIM_ENOTFOUND, "%s: the index returned no template", s->store);
+    if (rc)
+        return rc;
+    r->queried = 1;
+    r->template_id = hit.id;
+    snprintf(r->class_name, sizeof r->class_name, "%s", mim_index_class_name(mim_query_index(s->query), r->answer.cls));
+    return 0;
+}
+
+int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, float *out,
+                         mim_session_report_t *report, mim_error_t *err)
+{
+    mim_session_report_t local, *r = report ? report : &local;
+    memset(r, 0, sizeof *r);
+    if (!s->solver)
+        return mim_error_set(err, MIM_EINVAL, "%s: transfer: no avatar loaded", s->store);
+    if (!req->template_id && !req->landmarks)
+        return mim_error_set(err, MIM_EINVAL, "transfer: give a template, landmarks, or both");
+    double t0 = mim_now();
+    int rc = 0;
+    if (req->template_id)
+        r->template_id = req->template_id;
+    else
+        rc = nearest(s, req->landmarks, r, err); /* outside the lock: queries run concurrently */
+    double t1 = mim_now();
+    r->seconds_query = t1 - t0;
+    if (rc)
+        return rc;
+    const uint32_t n = s->mesh.n_vertices, nl = s->map.count;
+    float *u = r->landmarks;
+    pthread_mutex_lock(&s->lock);
+    if (s->cached_id != r->template_id) {
+        s->cached_id = 0;
+        rc = mim_session_template(s, r->template_id, s->tpos, s->tF, s->cached_label, sizeof s->cached_label, err);
+        if (!rc)
+            s->cached_id = r->template_id;
+    }
+    if (!rc) {
+        snprintf(r->label, sizeof r->label, "%s", s->cached_label);
+        if (req->landmarks) /* mode (b): the tracked landmarks, held */
+            memcpy(u, req->landmarks, 3 * (size_t)nl * sizeof *u);
+        else /* mode (a): the template's landmarks on the avatar's proportions */
+            rc = mim_xfer_retarget_landmarks(&s->map, s->mesh.positions, s->tpos, u, err);
+    }
+    double t2 = mim_now();
+    r->seconds_template = t2 - t1;
+    mim_xfer_options_t xo = req->xfer;
+    if (xo.start && req->start_template && req->start_template != r->template_id)
+        xo.start = NULL; /* a warm start from another template's pose would mislead the first solve */
+    r->warm_started = xo.start != NULL;
+    if (!rc)
+        rc = mim_xfer_transfer(s->solver, s->W, n, s->tF, u, nl, &xo, out, &r->xfer, err);
+    pthread_mutex_unlock(&s->lock);
+    r->seconds_solve = mim_now() - t2;
+    return rc;
+}
+
+int mim_session_morph(mim_session_t *s, mim_xfer_morph_method_t method, const mim_xfer_key_t *a,
+                      const mim_xfer_key_t *b, double t, float *out, mim_error_t *err)
+{
+    if (!s->solver)
+        return mim_error_set(err, MIM_EINVAL, "%s: morph: no avatar loaded", s->store);
+    pthread_mutex_lock(&s->lock);
+    int rc = mim_xfer_morph(s->solver, method, a, b, t, out, err);
+    pthread_mutex_unlock(&s->lock);
+    return rc;
+}
+
+json_t *mim_session_answer_json(const mim_query_t *q, const mim_index_answer_t *a, const mim_index_hit_t *hits)
+{
+    json_t *res = json_array();
+    for (uint32_t j = 0; res && j < a->n_hits; j++)
+        json_array_append_new(res, json_pack("{s:I, s:s, s:s, s:f}", "id", (json_int_t)hits[j].id, "subject",
+                                             hits[j].subject, "pose", hits[j].pose, "distance",
+                                             (double)hits[j].distance));
+    return res ? json_pack("{s:s, s:f, s:o}", "class", mim_index_class_name(mim_query_index(q), a->cls),
+                           "probability", a->probability, "results", res)
+               : NULL;
+}
