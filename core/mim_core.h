@@ -141,6 +141,18 @@ int mim_landmark_frames_parse(const char *text, size_t len, const char *origin, 
                               uint32_t max_missing, mim_landmark_frames_t *out, mim_error_t *err);
 void mim_landmark_frames_free(mim_landmark_frames_t *f); /* accepts NULL and an empty set */
 
+/* ---- random numbers: one seeded generator, explicit state (random.c) ---- */
+typedef struct mim_rng {
+    uint64_t s;
+} mim_rng_t;
+/* Seeds r for stream `stream` of seed: streams of one seed are independent,
+ * so each item (a subject, a fold, a chain) can draw from its own. */
+void mim_rng_seed(mim_rng_t *r, uint64_t seed, uint64_t stream);
+uint64_t mim_rng_u64(mim_rng_t *r);
+double mim_rng_unit(mim_rng_t *r);               /* uniform in [0, 1) */
+uint64_t mim_rng_below(mim_rng_t *r, uint64_t n); /* uniform in [0, n); 0 for n <= 1 */
+double mim_rng_gauss(mim_rng_t *r);              /* standard normal */
+
 /* ---- hashing: 64-bit, fast, stable across runs and machines ---- */
 uint64_t mim_hash64(const void *data, size_t len, uint64_t seed);
 
