@@ -147,7 +147,6 @@ int bench_sets_arg(bench_sets_t *s, int argc, char **argv, int *i)
 
 int bench_sets_run(bench_sets_t *s, uint32_t subjects, uint32_t poses, bench_set_fn fn, void *user)
 {
-    mim_log_level = 0;
     bench_dataset_t d = {0};
     if (bench_load_synth(&d, subjects, poses, s->vertices))
         return 1;

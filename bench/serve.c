@@ -7,9 +7,10 @@
  * `mimic serve --vest serial:D/vest --listen 127.0.0.1:0` as child
  * processes and kills them at the end.
  *
- * The clients are this process: a minimal RFC 6455 client over raw sockets,
- * one epoll loop per thread (--threads, default 1), which keeps only the
- * 112-byte header of each binary frame (the positions are read from the
+ * The clients are this process: the tests' RFC 6455 client
+ * (tests/support/ws_client.h: its handshake, its frame reader fed from
+ * here), one epoll loop per thread (--threads, default 1), which keeps only
+ * the 112-byte header of each binary frame (the positions are read from the
  * socket and discarded). Per frame it records the end-to-end latency (its
  * CLOCK_MONOTONIC when the recv that completed the frame returned, minus the
  * header's arrival field: when the vest bytes that completed the frame
@@ -34,6 +35,7 @@
  *                    [--format f32|i16] [--threads T] [--keep DIR] */
 #include "bench_data.h"
 #include "serve_procs.h"
+#include "ws_client.h"
 
 #include <arpa/inet.h>
 #include <dirent.h>
@@ -65,20 +67,8 @@
 #define MIMIC_BIN_DEFAULT ""
 #endif
 
-#define HEAD 112
+#define HEAD MIMF_HEADER
 #define RECV_BUF (256 * 1024)
-static uint16_t get_u16(const uint8_t *p)
-{
-    return (uint16_t)(p[0] | p[1] << 8);
-}
-static uint32_t get_u32(const uint8_t *p)
-{
-    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-static uint64_t get_u64(const uint8_t *p)
-{
-    return (uint64_t)get_u32(p) | (uint64_t)get_u32(p + 4) << 32;
-}
 
 typedef struct server_snap {
     double t, key_frames, vest_frames, frames, drops, sent, skipped;
@@ -109,13 +99,9 @@ static int snap(server_snap_t *s)
 /* ------------------------------------------------------------ WebSocket clients */
 
 typedef struct wsc {
-    int fd, thread;
-    /* the frame being read */
-    uint8_t fh[14];
-    int fh_len, fh_need;
-    uint64_t pay_len, pay_got;
-    int op, fin, msg_op;
-    uint64_t msg_got, msg_len;
+    ws_client_t ws; /* the connection; its reader (ws.rd) parses what the loop receives */
+    int thread;
+    /* the message being read: the start of a binary one, of a text one */
     uint8_t head[HEAD];
     char text[256];
     /* results */
@@ -143,27 +129,27 @@ static double g_rate = 60;
 
 static void on_message(phase_t *ph, wsc_t *c, uint64_t t_us)
 {
-    if (c->msg_op == 1) { /* text: hello, format, error */
+    const ws_reader_t *r = &c->ws.rd;
+    if (r->msg_opcode == WS_TEXT) { /* text: hello, format, error */
         if (strstr(c->text, "\"hello\""))
             c->hello = 1;
         else if (strstr(c->text, "\"error\""))
             c->error++;
         return;
     }
-    if (c->msg_op != 2)
+    if (r->msg_opcode != WS_BINARY)
         return;
     const uint8_t *h = c->head;
-    if (c->msg_got < HEAD || memcmp(h, "MIMF", 4)) {
+    if (r->msg_len < HEAD || memcmp(h, "MIMF", 4)) {
         c->bad++;
         return;
     }
-    uint16_t flags = get_u16(h + 6);
-    uint64_t number = get_u64(h + 8), arrival = get_u64(h + 48);
-    uint32_t n = get_u32(h + 32), L = get_u32(h + 36);
-    size_t want = HEAD + ((flags & 2) ? 6 * (size_t)n + 2 * (n & 1u) : 12 * (size_t)n) + 12 * (size_t)L;
-    if (c->msg_got != want || ((flags & 2) != 0) != ph->i16)
+    mimf_t f;
+    mimf_decode(h, HEAD, &f);
+    uint64_t number = f.number, arrival = f.arrival;
+    if (r->msg_len != mimf_size(&f) || f.i16 != ph->i16)
         c->bad++;
-    c->n_vertices = n, c->n_landmarks = L;
+    c->n_vertices = f.n, c->n_landmarks = f.L;
     int rec = atomic_load_explicit(&ph->recording, memory_order_relaxed);
     if (rec && c->last && number > c->last + 1) {
         /* a drop is "in a burst" when the vest bytes of the frames around
@@ -187,82 +173,47 @@ static void on_message(phase_t *ph, wsc_t *c, uint64_t t_us)
     }
     if (c->frames < c->cap) {
         c->lat_ms[c->frames] = (float)((double)((int64_t)(t_us - arrival)) * 1e-3);
-        c->comp_ms[c->frames] = (float)(get_u32(h + 40) * 1e-3);
+        c->comp_ms[c->frames] = (float)(f.compute * 1e-3);
     }
     c->frames++;
-    c->keys += flags & 1u;
+    c->keys += f.flags & 1u;
 }
 
-static void send_pong(wsc_t *c, const uint8_t *data, size_t len)
+/* Feeds bytes received at t_us to the client's frame reader. */
+static void feed(phase_t *ph, wsc_t *c, uint8_t *p, size_t n, uint64_t t_us)
 {
-    uint8_t f[2 + 4 + 125];
-    if (len > 125)
-        len = 125;
-    f[0] = 0x8a, f[1] = (uint8_t)(0x80 | len);
-    memset(f + 2, 0, 4); /* mask key 0: the payload goes as it is */
-    memcpy(f + 6, data, len);
-    if (send(c->fd, f, 6 + len, MSG_NOSIGNAL) < 0)
-        c->error++;
-}
-
-/* Feeds bytes received at t_us into the client's frame parser. */
-static void feed(phase_t *ph, wsc_t *c, const uint8_t *p, size_t n, uint64_t t_us)
-{
-    while (n) {
-        if (c->fh_len < c->fh_need) { /* the frame header */
-            c->fh[c->fh_len++] = *p++, n--;
-            if (c->fh_len == 2) {
-                int l7 = c->fh[1] & 0x7f;
-                if (c->fh[1] & 0x80) { /* a server must not mask */
-                    c->error++, c->closed = 1;
-                    return;
-                }
-                c->fh_need = l7 == 126 ? 4 : l7 == 127 ? 10 : 2;
+    ws_reader_t *r = &c->ws.rd;
+    for (;;) {
+        ws_event_t ev;
+        size_t k = ws_reader_next(r, p, n, &ev);
+        p += k, n -= k;
+        if (ev.type == WS_EV_NONE)
+            return;
+        if (ev.type == WS_EV_HEAD) {
+            if (r->masked) { /* a server must not mask */
+                c->error++, c->closed = 1;
+                return;
             }
-            if (c->fh_len < c->fh_need)
-                continue;
-            int l7 = c->fh[1] & 0x7f;
-            uint64_t len = (uint64_t)l7;
-            if (l7 == 126)
-                len = (uint64_t)c->fh[2] << 8 | c->fh[3];
-            else if (l7 == 127)
-                for (int i = 0; i < 8; i++)
-                    len = len << 8 | c->fh[2 + i];
-            c->op = c->fh[0] & 0x0f, c->fin = c->fh[0] >> 7;
-            c->pay_len = len, c->pay_got = 0;
-            if (c->op != 0 && c->op < 8) /* a new data message */
-                c->msg_op = c->op, c->msg_got = 0, c->text[0] = 0;
-            if (len)
-                continue;
-        }
-        /* the payload */
-        size_t k = c->pay_len - c->pay_got < n ? (size_t)(c->pay_len - c->pay_got) : n;
-        if (c->op < 8) {
-            if (c->msg_op == 2 && c->msg_got < HEAD) {
-                size_t h = HEAD - c->msg_got < k ? HEAD - (size_t)c->msg_got : k;
-                memcpy(c->head + c->msg_got, p, h);
-            } else if (c->msg_op == 1 && c->msg_got < sizeof c->text - 1) {
-                size_t h = sizeof c->text - 1 - c->msg_got < k ? sizeof c->text - 1 - (size_t)c->msg_got : k;
-                memcpy(c->text + c->msg_got, p, h);
-                c->text[c->msg_got + h] = 0;
+            if (r->opcode != WS_CONT && r->opcode < 8) /* a new data message */
+                c->text[0] = 0;
+        } else if (ev.type == WS_EV_DATA) {
+            if (r->msg_opcode == WS_BINARY && ev.offset < HEAD) {
+                size_t h = HEAD - ev.offset < ev.len ? HEAD - (size_t)ev.offset : ev.len;
+                memcpy(c->head + ev.offset, ev.data, h);
+            } else if (r->msg_opcode == WS_TEXT && ev.offset < sizeof c->text - 1) {
+                size_t h = sizeof c->text - 1 - ev.offset < ev.len ? sizeof c->text - 1 - (size_t)ev.offset : ev.len;
+                memcpy(c->text + ev.offset, ev.data, h);
+                c->text[ev.offset + h] = 0;
             }
-            c->msg_got += k;
-        } else if (c->op == 9 && c->pay_got + k <= 125) {
-            memcpy(c->text, p, k); /* ping payload (small) */
-        }
-        c->pay_got += k, p += k, n -= k;
-        if (c->pay_got < c->pay_len)
-            continue;
-        /* frame complete */
-        if (c->op == 8) {
+        } else if (r->opcode == WS_CLOSE) { /* WS_EV_END: the frame is whole */
             c->closed = 1;
             return;
-        }
-        if (c->op == 9)
-            send_pong(c, (const uint8_t *)c->text, (size_t)c->pay_len);
-        else if (c->op < 8 && c->fin)
+        } else if (r->opcode == WS_PING) {
+            if (ws_pong(&c->ws))
+                c->error++;
+        } else if (r->opcode < 8 && r->fin) {
             on_message(ph, c, t_us);
-        c->fh_len = 0, c->fh_need = 2;
+        }
     }
 }
 
@@ -282,7 +233,7 @@ static void *client_thread(void *arg)
         for (int i = 0; i < r; i++) {
             wsc_t *c = ev[i].data.ptr;
             for (;;) {
-                ssize_t k = recv(c->fd, buf, RECV_BUF, 0);
+                ssize_t k = recv(c->ws.fd, buf, RECV_BUF, 0);
                 if (k > 0) {
                     feed(ph, c, buf, (size_t)k, sb_now_us());
                     if (c->closed)
@@ -297,48 +248,29 @@ static void *client_thread(void *arg)
                 break;
             }
             if (c->closed)
-                epoll_ctl(ph->ep[a->k], EPOLL_CTL_DEL, c->fd, NULL);
+                epoll_ctl(ph->ep[a->k], EPOLL_CTL_DEL, c->ws.fd, NULL);
         }
     }
     free(buf);
     return NULL;
 }
 
-/* Connects and upgrades one client (blocking, 5 s timeouts); the bytes
- * after the handshake go to its parser. */
-static int ws_connect(phase_t *ph, wsc_t *c)
+/* Connects and upgrades one client (ws_connect: blocking, a 10 s deadline);
+ * the bytes after the handshake go to its reader. */
+static int client_connect(phase_t *ph, wsc_t *c)
 {
-    c->fd = sb_tcp_connect(5.0);
-    if (c->fd < 0)
+    char path[64];
+    snprintf(path, sizeof path, "/ws?format=%s", g_format);
+    if (ws_connect(&c->ws, sb_port, path, 0))
         return -1;
     int one = 1;
-    setsockopt(c->fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-    char req[512];
-    int n = snprintf(req, sizeof req,
-                     "GET /ws?format=%s HTTP/1.1\r\nHost: 127.0.0.1:%d\r\nUpgrade: websocket\r\n"
-                     "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
-                     "Sec-WebSocket-Version: 13\r\n\r\n",
-                     g_format, sb_port);
-    if (send(c->fd, req, (size_t)n, MSG_NOSIGNAL) != n)
-        return -1;
-    char resp[8192];
-    size_t len = 0;
-    char *end = NULL;
-    while (!end && len < sizeof resp - 1) {
-        ssize_t k = recv(c->fd, resp + len, sizeof resp - 1 - len, 0);
-        if (k <= 0)
-            return -1;
-        len += (size_t)k;
-        resp[len] = 0;
-        end = strstr(resp, "\r\n\r\n");
-    }
-    if (!end || strncmp(resp, "HTTP/1.1 101", 12))
-        return -1;
-    c->fh_need = 2;
-    size_t used = (size_t)(end + 4 - resp);
-    if (len > used)
-        feed(ph, c, (const uint8_t *)resp + used, len - used, sb_now_us());
-    fcntl(c->fd, F_SETFL, fcntl(c->fd, F_GETFL) | O_NONBLOCK);
+    setsockopt(c->ws.fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    size_t n;
+    uint8_t *rest = ws_take_buffered(&c->ws, &n);
+    if (n)
+        feed(ph, c, rest, n, sb_now_us());
+    free(rest);
+    fcntl(c->ws.fd, F_SETFL, fcntl(c->ws.fd, F_GETFL) | O_NONBLOCK);
     return 0;
 }
 
@@ -381,7 +313,7 @@ static int run_phase(int n, double seconds, int threads, result_t *R)
     /* room for 3x the vest rate over the window, allocated before the run */
     uint32_t cap = (uint32_t)(seconds * 180.0) + 1000;
     for (int i = 0; i < n; i++) {
-        ph->c[i].fd = -1;
+        ph->c[i].ws.fd = -1;
         ph->c[i].cap = cap;
         ph->c[i].lat_ms = malloc(sizeof(float) * cap);
         ph->c[i].comp_ms = malloc(sizeof(float) * cap);
@@ -399,19 +331,18 @@ static int run_phase(int n, double seconds, int threads, result_t *R)
     for (int i = 0; i < n; i++) {
         wsc_t *c = &ph->c[i];
         c->thread = i % ph->threads;
-        if (ws_connect(ph, c)) {
+        if (client_connect(ph, c)) {
             fprintf(stderr, "bench_serve: client %d could not connect to ws://127.0.0.1:%d/ws\n", i, sb_port);
-            if (c->fd >= 0)
-                close(c->fd);
-            c->fd = -1, c->closed = 1;
+            ws_close(&c->ws);
+            c->closed = 1;
             continue;
         }
         connected++;
     }
     for (int i = 0; i < n; i++)
-        if (ph->c[i].fd >= 0) {
+        if (ph->c[i].ws.fd >= 0) {
             struct epoll_event ev = {.events = EPOLLIN, .data.ptr = &ph->c[i]};
-            epoll_ctl(ph->ep[ph->c[i].thread], EPOLL_CTL_ADD, ph->c[i].fd, &ev);
+            epoll_ctl(ph->ep[ph->c[i].thread], EPOLL_CTL_ADD, ph->c[i].ws.fd, &ev);
         }
     for (int k = 0; k < ph->threads; k++)
         pthread_create(&ph->th[k], NULL, client_thread, &args[k]);
@@ -466,8 +397,7 @@ static int run_phase(int n, double seconds, int threads, result_t *R)
     for (int k = 0; k < ph->threads; k++)
         pthread_join(ph->th[k], NULL);
     for (int i = 0; i < n; i++)
-        if (ph->c[i].fd >= 0)
-            close(ph->c[i].fd);
+        ws_close(&ph->c[i].ws);
     for (int k = 0; k < ph->threads; k++)
         close(ph->ep[k]);
 
@@ -771,11 +701,9 @@ int main(int argc, char **argv)
     if (run_phase(clients, seconds, threads, &main_r))
         goto done;
     print_result("load", &main_r, rate);
+    mimf_t frame = {.n = main_r.n_vertices, .L = main_r.n_landmarks, .i16 = !strcmp(g_format, "i16")};
     printf("frame: %u vertices, %u landmarks, %zu bytes (%s)\n", main_r.n_vertices, main_r.n_landmarks,
-           (size_t)HEAD + (strcmp(g_format, "i16") ? 12 * (size_t)main_r.n_vertices
-                                                   : 6 * (size_t)main_r.n_vertices + 2 * (main_r.n_vertices & 1u)) +
-               12 * (size_t)main_r.n_landmarks,
-           g_format);
+           mimf_size(&frame), g_format);
     if (ref_seconds > 0 && ref.lat_med > 0)
         printf("latency %d clients / 1 client (same run):           median %.2f  p90 %.2f  p99 %.2f\n", clients,
                main_r.lat_med / ref.lat_med, main_r.lat_p90 / ref.lat_p90, main_r.lat_p99 / ref.lat_p99);

@@ -1,11 +1,11 @@
 /* The processes of bench/serve: serve_procs.h. */
 #include "serve_procs.h"
 
-#include <arpa/inet.h>
+#include "http_client.h"
+
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
-#include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
 #include <stdio.h>
@@ -13,9 +13,7 @@
 #include <string.h>
 #include <sys/prctl.h>
 #include <sys/resource.h>
-#include <sys/socket.h>
 #include <sys/stat.h>
-#include <sys/time.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -242,69 +240,35 @@ double sb_loadavg1(void)
     return l;
 }
 
-/* ------------------------------------------------------------ HTTP GET */
+/* ------------------------------------------------------------ HTTP GET (http_client.h) */
 
 int sb_port;
 
-int sb_tcp_connect(double timeout)
-{
-    int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    if (fd < 0)
-        return -1;
-    struct timeval tv = {(time_t)timeout, (suseconds_t)((timeout - (double)(time_t)timeout) * 1e6)};
-    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-    setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
-    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)sb_port)};
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    if (connect(fd, (struct sockaddr *)&a, sizeof a)) {
-        close(fd);
-        return -1;
-    }
-    return fd;
-}
-
-/* GET path once; the body (malloc'd, NUL-terminated), or NULL. */
+/* GET path once (5 s at most); the body (malloc'd, NUL-terminated), or NULL. */
 static char *http_get1(const char *path)
 {
-    int fd = sb_tcp_connect(5.0);
-    if (fd < 0) {
+    hc_reply_t r;
+    int rc = hc_request(&r, sb_port, "GET", path, NULL, NULL, 0, 5000);
+    if (rc == HC_ECONNECT) {
         fprintf(stderr, "bench_serve: GET %s: cannot connect to port %d: %s\n", path, sb_port, strerror(errno));
         return NULL;
     }
-    char req[512];
-    int n = snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: 127.0.0.1:%d\r\nConnection: close\r\n\r\n", path,
-                     sb_port);
-    if (send(fd, req, (size_t)n, MSG_NOSIGNAL) != n) {
-        close(fd);
+    if (rc) { /* not sent, or no memory */
+        hc_reply_free(&r);
         return NULL;
     }
-    size_t cap = 1 << 16, len = 0;
-    char *b = malloc(cap);
-    double t0 = sb_now();
-    for (;;) {
-        if (len + 1 >= cap) {
-            char *nb = realloc(b, 2 * cap);
-            if (!nb)
-                break;
-            b = nb, cap *= 2;
-        }
-        ssize_t k = recv(fd, b + len, cap - 1 - len, 0);
-        if (k <= 0 || sb_now() - t0 > 5.0)
-            break;
-        len += (size_t)k;
-    }
-    close(fd);
-    b[len] = 0;
-    char *body = strstr(b, "\r\n\r\n");
-    if (strncmp(b, "HTTP/1.1 200", 12) || !body) {
-        char *eol = strchr(b, '\r');
+    if (strncmp(r.raw, "HTTP/1.1 200", 12) || !r.head) {
+        char *eol = strchr(r.raw, '\r');
         if (eol)
             *eol = 0;
-        fprintf(stderr, "bench_serve: GET %s: %s\n", path, len ? b : "no reply");
-        free(b);
+        fprintf(stderr, "bench_serve: GET %s: %s\n", path, r.raw_len ? r.raw : "no reply");
+        hc_reply_free(&r);
         return NULL;
     }
-    memmove(b, body + 4, strlen(body + 4) + 1);
+    char *b = r.raw;
+    memmove(b, r.body, strlen(r.body) + 1);
+    r.raw = NULL;
+    hc_reply_free(&r);
     return b;
 }
 

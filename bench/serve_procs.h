@@ -1,6 +1,7 @@
 /* bench/serve's side of the processes (serve_procs.c): the real `mimic`
  * binaries it runs as children, their CPU from /proc, and plain HTTP GETs
- * to the service (/metrics, /api/status). serve.c is the load itself. */
+ * to the service (/metrics, /api/status; tests/support/http_client.h).
+ * serve.c is the load itself. */
 #ifndef MIM_BENCH_SERVE_PROCS_H
 #define MIM_BENCH_SERVE_PROCS_H
 
@@ -47,7 +48,6 @@ double sb_pid_cpu(pid_t pid);
 double sb_self_cpu(void);
 void sb_task_cpu(pid_t pid, sb_tasks_t *t);
 double sb_loadavg1(void);
-int sb_tcp_connect(double timeout);
 /* GET path, tried up to 3 times (each failure is told on stderr). */
 char *sb_http_get(const char *path);
 /* A counter or gauge without labels from Prometheus text; -1 if absent. */

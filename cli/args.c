@@ -1,7 +1,10 @@
 /* Argument helpers shared by the subcommands. */
 #include "args.h"
 
+#include "mim_vest_kinematics.h"
+
 #include <errno.h>
+#include <math.h>
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -23,21 +26,32 @@ int mim_cli_number(const char *cmd, const char *name, const char *text, uint64_t
     return ok ? 0 : -1;
 }
 
+int mim_cli_real(const char *cmd, const char *name, const char *text, double lo, double hi, int lo_open,
+                 const char *what, double *out)
+{
+    char *end = NULL;
+    errno = 0;
+    double v = text && *text ? strtod(text, &end) : NAN;
+    int ok = !errno && end && end != text && !*end && isfinite(v) && (lo_open ? v > lo : v >= lo) && v <= hi;
+    if (!ok) {
+        if (what)
+            fprintf(stderr, "mimic %s: --%s '%s' %s\n", cmd, name, text ? text : "", what);
+        else
+            fprintf(stderr, "mimic %s: --%s '%s' is not a number in %g..%g%s\n", cmd, name, text ? text : "", lo, hi,
+                    lo_open ? " (above the first)" : "");
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
 int mim_cli_key_rate(const char *cmd, const char *text, double *out)
 {
     if (!strcmp(text, "auto")) {
         *out = 0.0;
         return 0;
     }
-    char *end;
-    errno = 0;
-    double v = strtod(text, &end);
-    if (errno || end == text || *end || !(v > 0.0 && v <= 1000.0)) {
-        fprintf(stderr, "mimic %s: --key-rate '%s' is neither auto nor a rate in (0, 1000] Hz\n", cmd, text);
-        return -1;
-    }
-    *out = v;
-    return 0;
+    return mim_cli_real(cmd, "key-rate", text, 0.0, 1000.0, 1, "is neither auto nor a rate in (0, 1000] Hz", out);
 }
 
 int mim_cli_listen(const char *cmd, const char *listen)
@@ -64,4 +78,34 @@ int mim_cli_template_id(const char *cmd, const char *name, const char *text, uin
         fprintf(stderr, "mimic %s: --%s '%s' is not a template id (a number from mimic list)\n", cmd, name,
                 text ? text : "");
     return ok ? 0 : -1;
+}
+
+int mim_cli_pose(const char *cmd, const char *name, const char *text, int *pose)
+{
+    if (!strcmp(text, "rest"))
+        *pose = MIM_VEST_POSE_REST;
+    else if (!strcmp(text, "t") || !strcmp(text, "T"))
+        *pose = MIM_VEST_POSE_T;
+    else if (!strcmp(text, "a") || !strcmp(text, "A"))
+        *pose = MIM_VEST_POSE_A;
+    else {
+        fprintf(stderr, "mimic %s: --%s '%s' is not rest, t or a\n", cmd, name, text);
+        return -1;
+    }
+    return 0;
+}
+
+mim_db_options_t mim_cli_db_options(int read_only)
+{
+    /* the one place the environment reaches the store: libraries take options */
+    const char *env = getenv("MIMIC_MAP_SIZE");
+    uint64_t map = 0;
+    if (env && *env >= '0' && *env <= '9') {
+        char *end = NULL;
+        errno = 0;
+        unsigned long long v = strtoull(env, &end, 10);
+        if (!errno && !*end)
+            map = v;
+    }
+    return (mim_db_options_t){.map_size = map, .read_only = read_only};
 }

@@ -2,12 +2,21 @@
 #ifndef MIM_CLI_ARGS_H
 #define MIM_CLI_ARGS_H
 
+#include "mim_db.h"
+
 #include <stdint.h>
 
 /* Parses a whole decimal number in [lo, hi] (no sign, no trailing text) given
  * to option --name of command cmd. On failure prints one line,
  * "mimic CMD: --NAME 'TEXT' is not a number in LO..HI", and returns -1. */
 int mim_cli_number(const char *cmd, const char *name, const char *text, uint64_t lo, uint64_t hi, uint64_t *out);
+
+/* Parses a finite real number in [lo, hi] ((lo, hi] when lo_open) given to
+ * option --name of command cmd. On failure prints one line, "mimic CMD:
+ * --NAME 'TEXT' WHAT" (what: e.g. "is not a positive number of metres";
+ * NULL: "is not a number in LO..HI"), and returns -1. */
+int mim_cli_real(const char *cmd, const char *name, const char *text, double lo, double hi, int lo_open,
+                 const char *what, double *out);
 
 /* --key-rate: "auto" (0) or key frames per second in (0, 1000]. Prints one
  * line and returns -1 otherwise. */
@@ -20,5 +29,13 @@ int mim_cli_listen(const char *cmd, const char *listen);
 /* A template id (a whole number >= 1, as mimic list shows) given to
  * --name. Prints one line and returns -1 otherwise. */
 int mim_cli_template_id(const char *cmd, const char *name, const char *text, uint64_t *id);
+
+/* Store options for every command: read_only, and the LMDB map size from
+ * MIMIC_MAP_SIZE (bytes; unset or not a whole number: the default). */
+mim_db_options_t mim_cli_db_options(int read_only);
+
+/* The wearer's pose at the tare given to --name: rest, t or a (T and A
+ * too), as MIM_VEST_POSE_*. Prints one line and returns -1 otherwise. */
+int mim_cli_pose(const char *cmd, const char *name, const char *text, int *pose);
 
 #endif

@@ -8,8 +8,8 @@
 #include "args.h"
 #include "commands.h"
 #include "mim_serve.h"
-#include "mim_transfer.h"
 #include "mim_vest.h"
+#include "output.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -220,12 +220,9 @@ int mim_cmd_demo(int argc, char **argv)
         else if (c == 'k') {
             if (mim_cli_key_rate("demo", optarg, &key_rate)) return 2;
         } else if (c == 't') {
-            char *end;
-            duration = strtod(optarg, &end);
-            if (end == optarg || *end || !(duration > 0.0 && duration <= 86400.0)) {
-                fprintf(stderr, "mimic demo: --duration '%s' is not a number of seconds in (0, 86400]\n", optarg);
+            if (mim_cli_real("demo", "duration", optarg, 0.0, 86400.0, 1, "is not a number of seconds in (0, 86400]",
+                             &duration))
                 return 2;
-            }
         } else if (c == 'h') return help(stdout), 0;
         else {
             fprintf(stderr, "mimic demo: unknown or incomplete option '%s' (see mimic demo --help)\n",
@@ -293,6 +290,7 @@ int mim_cmd_demo(int argc, char **argv)
 
     recorder_t rec = {.cap = GLB_MAX_FRAMES};
     pthread_mutex_init(&rec.lock, NULL);
+    mim_session_t *session = NULL;
     mim_serve_t *sv = NULL;
     char vest_spec[4300];
     snprintf(vest_spec, sizeof vest_spec, "serial:%s", pty);
@@ -300,10 +298,16 @@ int mim_cmd_demo(int argc, char **argv)
         printf("== mimic serve: the avatar (template 1) driven by the vest\n");
         fflush(stdout);
         mim_serve_options_t o = {.listen = listen, .vest = vest_spec, .vest_pose = MIM_VEST_POSE_T,
-                                 .key_rate = key_rate, .on_frame = record_frame, .user = &rec};
+                                 .key_rate = key_rate, .on_frame = record_frame, .user = &rec,
+                                 .log = mim_cli_log};
         /* frames that arrive before the recorder is sized below are skipped:
          * its n_vertices is 0 until then */
-        rc = mim_serve_open(&sv, store, "1", &o, &err);
+        mim_session_options_t so = {.map_size = mim_cli_db_options(1).map_size};
+        rc = mim_session_open(&session, store, &so, &err);
+        if (!rc)
+            rc = mim_session_load_avatar(session, "1", &err);
+        if (!rc)
+            rc = mim_serve_open(&sv, session, &o, &err);
     }
     if (!rc) {
         const mim_mesh_t *mesh = mim_serve_avatar_mesh(sv);
@@ -345,6 +349,7 @@ int mim_cmd_demo(int argc, char **argv)
         }
         mim_serve_close(&sv);
     }
+    mim_session_close(&session);
     if (sim_started) {
         vt.stop = 1;
         pthread_join(sim_thread, NULL);

@@ -3,6 +3,7 @@
 #include "args.h"
 #include "commands.h"
 #include "mim_query.h"
+#include "output.h"
 
 #include <getopt.h>
 #include <jansson.h>
@@ -56,12 +57,12 @@ int mim_cmd_index(int argc, char **argv)
     }
     mim_error_t err = {0};
     mim_db_t *db = NULL;
-    mim_db_options_t ro = {.read_only = 1}, rw = {0};
+    mim_db_options_t ro = mim_cli_db_options(1), rw = mim_cli_db_options(0);
     /* open read-only first so that a wrong path is not made into a new store */
     int rc = mim_db_open(&db, store, &ro, &err);
     mim_db_close(&db);
     if (!rc) rc = mim_db_open(&db, store, &rw, &err);
-    mim_progress_t pr;
+    mim_progress_t pr = {.fn = mim_cli_progress};
     o.progress = &pr;
     mim_index_report_t rep;
     mim_query_status_t st;

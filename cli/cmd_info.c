@@ -1,4 +1,5 @@
 /* mimic info: what a template store holds. JSON: schemas/info.schema.json. */
+#include "args.h"
 #include "commands.h"
 #include "mim_db.h"
 #include "mim_query.h"
@@ -83,7 +84,7 @@ int mim_cmd_info(int argc, char **argv)
     }
     mim_error_t err = {0};
     mim_db_t *db = NULL;
-    mim_db_options_t o = {.read_only = 1};
+    mim_db_options_t o = mim_cli_db_options(1);
     int rc = mim_db_open(&db, store, &o, &err);
     mim_db_txn_t *t = NULL;
     if (!rc) rc = mim_db_begin(db, 0, &t, &err);

@@ -3,6 +3,7 @@
 #include "commands.h"
 #include "mim_db.h"
 #include "mim_ingest.h"
+#include "output.h"
 
 #include <getopt.h>
 #include <stdio.h>
@@ -38,7 +39,7 @@ int mim_cmd_ingest(int argc, char **argv)
         {"help", no_argument, 0, 'h'},          {0, 0, 0, 0},
     };
     const char *store = NULL;
-    mim_ingest_options_t opt = {0};
+    mim_ingest_options_t opt = {.log = mim_cli_log, .progress = mim_cli_progress};
     optind = 0;
     opterr = 0;
     int c;
@@ -73,7 +74,8 @@ int mim_cmd_ingest(int argc, char **argv)
     }
     mim_error_t err = {0};
     mim_db_t *db = NULL;
-    int rc = mim_db_open(&db, store, NULL, &err);
+    mim_db_options_t o = mim_cli_db_options(0);
+    int rc = mim_db_open(&db, store, &o, &err);
     if (rc) {
         fprintf(stderr, "mimic ingest: %s\n", mim_error_text(&err));
         return 2;

@@ -1,4 +1,5 @@
 /* mimic list: one row per template. JSON: schemas/list.schema.json. */
+#include "args.h"
 #include "commands.h"
 #include "mim_db.h"
 
@@ -66,7 +67,7 @@ int mim_cmd_list(int argc, char **argv)
     }
     mim_error_t err = {0};
     mim_db_t *db = NULL;
-    mim_db_options_t o = {.read_only = 1};
+    mim_db_options_t o = mim_cli_db_options(1);
     mim_db_txn_t *t = NULL;
     int rc = mim_db_open(&db, store, &o, &err);
     if (!rc) rc = mim_db_begin(db, 0, &t, &err);

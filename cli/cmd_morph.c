@@ -115,7 +115,8 @@ int mim_cmd_morph(int argc, char **argv)
 
     mim_error_t err = {0};
     mim_session_t *s = NULL;
-    int rc = mim_session_open(&s, store, NULL, &err);
+    mim_session_options_t so = {.map_size = mim_cli_db_options(1).map_size};
+    int rc = mim_session_open(&s, store, &so, &err);
     if (rc) { /* the command cannot run (README: exit status) */
         fprintf(stderr, "mimic morph: %s\n", mim_error_text(&err));
         return 2;

@@ -5,6 +5,7 @@
 #include "commands.h"
 #include "mim_serve.h"
 #include "mim_vest.h"
+#include "output.h"
 
 #include <getopt.h>
 #include <signal.h>
@@ -34,8 +35,8 @@ static void help(FILE *out)
             "  --max-body BYTES     request body limit (default %zu; larger bodies get 413)\n"
             "  --max-clients N      WebSocket clients at once (default %u)\n"
             "  --warm-start W       start each key frame's transfer from the previous one (same\n"
-            "                       template): ~0.6x the time, ~13%% more error; auto (default)\n"
-            "                       only when cold key frames do not fit the vest period\n"
+            "                       template): faster, less accurate (bench/RESULTS.md); auto\n"
+            "                       (default) only when cold key frames do not fit the vest period\n"
             "  -h, --help           this help\n\n"
             "Routes (schemas/serve-*.schema.json, schemas/serve-ws-frame.md):\n"
             "  GET  /               the web viewer\n"
@@ -62,7 +63,7 @@ int mim_cmd_serve(int argc, char **argv)
                                               {"help", no_argument, 0, 'h'},
                                               {0, 0, 0, 0}};
     const char *store = NULL, *avatar = NULL;
-    mim_serve_options_t o = {0};
+    mim_serve_options_t o = {.log = mim_cli_log};
     int c;
     optind = 0;
     opterr = 0;
@@ -73,13 +74,7 @@ int mim_cmd_serve(int argc, char **argv)
         else if (c == 'l') o.listen = optarg;
         else if (c == 'v') o.vest = optarg;
         else if (c == 'p') {
-            if (!strcmp(optarg, "rest")) o.vest_pose = MIM_VEST_POSE_REST;
-            else if (!strcmp(optarg, "t") || !strcmp(optarg, "T")) o.vest_pose = MIM_VEST_POSE_T;
-            else if (!strcmp(optarg, "a") || !strcmp(optarg, "A")) o.vest_pose = MIM_VEST_POSE_A;
-            else {
-                fprintf(stderr, "mimic serve: --vest-pose '%s' is not rest, t or a\n", optarg);
-                return 2;
-            }
+            if (mim_cli_pose("serve", "vest-pose", optarg, &o.vest_pose)) return 2;
         }
         else if (c == 'k') {
             if (mim_cli_key_rate("serve", optarg, &o.key_rate)) return 2;
@@ -130,9 +125,22 @@ int mim_cmd_serve(int argc, char **argv)
     signal(SIGPIPE, SIG_IGN); /* a client that hangs up is a write error, not a crash */
 
     mim_error_t err = {0};
-    mim_serve_t *sv = NULL;
-    if (mim_serve_open(&sv, store, avatar, &o, &err)) {
+    mim_session_t *session = NULL;
+    mim_session_options_t so = {.map_size = mim_cli_db_options(1).map_size};
+    int rc = mim_session_open(&session, store, &so, &err);
+    if (rc) { /* the command cannot run (README: exit status) */
         fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
+        return 2;
+    }
+    if ((rc = mim_session_load_avatar(session, avatar, &err))) { /* bad input */
+        fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
+        mim_session_close(&session);
+        return 1;
+    }
+    mim_serve_t *sv = NULL;
+    if (mim_serve_open(&sv, session, &o, &err)) { /* the vest or the address */
+        fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
+        mim_session_close(&session);
         return 1;
     }
     printf("http://%.*s:%d/\n", host_len, listen, mim_serve_port(sv));
@@ -143,5 +151,6 @@ int mim_cmd_serve(int argc, char **argv)
     sigwait(&stop, &sig);
     fprintf(stderr, "mimic serve: %s: stopping\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
     mim_serve_close(&sv);
+    mim_session_close(&session);
     return 0;
 }

@@ -2,6 +2,7 @@
 #include "args.h"
 #include "commands.h"
 #include "mim_synth.h"
+#include "output.h"
 
 #include <errno.h>
 #include <getopt.h>
@@ -85,6 +86,7 @@ int mim_cmd_synth(int argc, char **argv)
     mim_error_t err = {0};
     mim_synth_t *s = NULL;
     int rc = mim_synth_create(&s, &opt, &err);
+    mim_synth_set_progress(s, mim_cli_progress, NULL);
     if (!rc) rc = mim_synth_write_dataset(s, out, &err);
     if (rc) {
         fprintf(stderr, "mimic synth: %s\n", mim_error_text(&err));

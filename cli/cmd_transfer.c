@@ -63,12 +63,8 @@ int mim_cmd_transfer(int argc, char **argv)
         else if (c == 'i') {
             if (mim_cli_number("transfer", "iterations", optarg, 1, 1000, &iterations)) return 2;
         } else if (c == 'T') {
-            char *end = NULL;
-            tol = strtod(optarg, &end);
-            if (!*optarg || *end || !(tol > 0.0) || !isfinite(tol)) {
-                fprintf(stderr, "mimic transfer: --tol '%s' is not a positive number of metres\n", optarg);
+            if (mim_cli_real("transfer", "tol", optarg, 0.0, HUGE_VAL, 1, "is not a positive number of metres", &tol))
                 return 2;
-            }
         } else if (c == 'f') {
             if (!strcmp(optarg, "least-squares")) form = MIM_XFER_LEAST_SQUARES;
             else if (!strcmp(optarg, "square")) form = MIM_XFER_SQUARE;
@@ -97,9 +93,12 @@ int mim_cmd_transfer(int argc, char **argv)
     mim_error_t err = {0};
     mim_session_t *s = NULL;
     double t0 = mim_now();
-    mim_session_options_t so = {.formulation = form};
+    mim_session_options_t so = {.formulation = form, .map_size = mim_cli_db_options(1).map_size};
     int rc = mim_session_open(&s, store, &so, &err);
+    if (!rc && !tmpl_arg && !mim_session_query(s))
+        rc = mim_error_set(&err, MIM_ENOTFOUND, "%s: store has no index (run mimic index)", store);
     if (rc) { /* the command cannot run (README: exit status) */
+        mim_session_close(&s);
         fprintf(stderr, "mimic transfer: %s\n", mim_error_text(&err));
         return 2;
     }

@@ -3,9 +3,9 @@
 #include "mim_io.h"
 #include "args.h"
 #include "commands.h"
-#include "mim_ingest.h"
 #include "mim_synth.h"
 #include "mim_vest.h"
+#include "output.h"
 
 #include <errno.h>
 #include <getopt.h>
@@ -34,19 +34,6 @@ static void catch_signals(void)
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
     signal(SIGPIPE, SIG_IGN);
-}
-
-static int real_arg(const char *cmd, const char *name, const char *text, double lo, double hi, double *out)
-{
-    char *end;
-    errno = 0;
-    double v = text ? strtod(text, &end) : NAN;
-    if (!text || errno || end == text || *end || !(v >= lo && v <= hi)) {
-        fprintf(stderr, "mimic vest %s: --%s '%s' is not a number in %g..%g\n", cmd, name, text ? text : "", lo, hi);
-        return -1;
-    }
-    *out = v;
-    return 0;
 }
 
 /* A usage error: what is wrong and where the help is; exit status 2. */
@@ -111,18 +98,6 @@ static int load_rig(const char *cmd, const char *avatar, const char *map_path, i
     mim_mesh_free(&mesh);
     free(sk);
     return rc ? 1 : 0;
-}
-
-static int pose_arg(const char *cmd, const char *text, int *pose)
-{
-    if (!strcmp(text, "rest")) *pose = MIM_VEST_POSE_REST;
-    else if (!strcmp(text, "t") || !strcmp(text, "T")) *pose = MIM_VEST_POSE_T;
-    else if (!strcmp(text, "a") || !strcmp(text, "A")) *pose = MIM_VEST_POSE_A;
-    else {
-        fprintf(stderr, "mimic vest %s: --pose '%s' is not rest, t or a\n", cmd, text);
-        return -1;
-    }
-    return 0;
 }
 
 /* A stream chunk goes to the decoder, restarted after a reconnect; returns 0
@@ -214,14 +189,14 @@ static int cmd_record(int argc, char **argv)
         if (c == 'd') spec = optarg;
         else if (c == 'o') out = optarg;
         else if (c == 'n') setup = 0;
-        else if (c == 't') { if (real_arg("record", "duration", optarg, 0.001, 1e7, &duration)) return 2; }
-        else if (c == 'w') { if (real_arg("record", "timeout", optarg, 0.01, 3600, &timeout)) return 2; }
+        else if (c == 't') { if (mim_cli_real("vest record", "duration", optarg, 0.001, 1e7, 0, NULL, &duration)) return 2; }
+        else if (c == 'w') { if (mim_cli_real("vest record", "timeout", optarg, 0.01, 3600, 0, NULL, &timeout)) return 2; }
         else return help_or_bad_option(c, "record", record_help, argv);
     }
     if (!spec || !out) return usage_error("record", "--device SPEC and -o FILE are required");
     catch_signals();
     mim_error_t err = {0};
-    mim_vest_transport_options_t to = {0};
+    mim_vest_transport_options_t to = {.log = mim_cli_log};
     to.timeout_ms = (int)(timeout * 1000);
     mim_vest_transport_t *t = NULL;
     mim_vest_recorder_t *rec = NULL;
@@ -363,8 +338,8 @@ static int cmd_replay(int argc, char **argv)
         if (c == 'r') realtime = 1;
         else if (c == 'a') avatar = optarg;
         else if (c == 'm') map = optarg;
-        else if (c == 'p') { if (pose_arg("replay", optarg, &pose)) return 2; }
-        else if (c == 'w') { if (real_arg("replay", "timeout", optarg, 0.001, 3600, &timeout)) return 2; }
+        else if (c == 'p') { if (mim_cli_pose("vest replay", "pose", optarg, &pose)) return 2; }
+        else if (c == 'w') { if (mim_cli_real("vest replay", "timeout", optarg, 0.001, 3600, 0, NULL, &timeout)) return 2; }
         else return help_or_bad_option(c, "replay", replay_help, argv);
     }
     if (optind != argc - 1) return usage_error("replay", "give one FILE or SPEC");
@@ -376,7 +351,7 @@ static int cmd_replay(int argc, char **argv)
     }
     catch_signals();
     mim_error_t err = {0};
-    mim_vest_transport_options_t to = {0};
+    mim_vest_transport_options_t to = {.log = mim_cli_log};
     to.realtime = realtime;
     mim_vest_transport_t *t = NULL;
     int rc = mim_vest_transport_open(&t, src, &to, &err);
@@ -456,10 +431,10 @@ static int faults_arg(const char *text, mim_vest_sim_options_t *o)
         char *eq = strchr(tok, '=');
         if (!eq) goto bad;
         *eq = 0;
-        if (!strcmp(tok, "drop")) { if (real_arg("simulate", "faults drop", eq + 1, 0, 1, &o->drop)) return -1; }
-        else if (!strcmp(tok, "corrupt")) { if (real_arg("simulate", "faults corrupt", eq + 1, 0, 1, &o->corrupt)) return -1; }
-        else if (!strcmp(tok, "disconnect")) { if (real_arg("simulate", "faults disconnect", eq + 1, 0.001, 1e7, &o->disconnect_at)) return -1; }
-        else if (!strcmp(tok, "down")) { if (real_arg("simulate", "faults down", eq + 1, 0.001, 3600, &o->disconnect_for)) return -1; }
+        if (!strcmp(tok, "drop")) { if (mim_cli_real("vest simulate", "faults drop", eq + 1, 0, 1, 0, NULL, &o->drop)) return -1; }
+        else if (!strcmp(tok, "corrupt")) { if (mim_cli_real("vest simulate", "faults corrupt", eq + 1, 0, 1, 0, NULL, &o->corrupt)) return -1; }
+        else if (!strcmp(tok, "disconnect")) { if (mim_cli_real("vest simulate", "faults disconnect", eq + 1, 0.001, 1e7, 0, NULL, &o->disconnect_at)) return -1; }
+        else if (!strcmp(tok, "down")) { if (mim_cli_real("vest simulate", "faults down", eq + 1, 0.001, 3600, 0, NULL, &o->disconnect_for)) return -1; }
         else goto bad;
     }
     return 0;
@@ -548,8 +523,8 @@ static int cmd_simulate(int argc, char **argv)
         else if (c == 'p') map = optarg;
         else if (c == 'e') expected = optarg;
         else if (c == 'R') realtime = 1;
-        else if (c == 'P') { if (pose_arg("simulate", optarg, &pose)) return 2; pose_given = 1; }
-        else if (c == 'r') { if (real_arg("simulate", "rate", optarg, 1, 2000, &so.rate_hz)) return 2; }
+        else if (c == 'P') { if (mim_cli_pose("vest simulate", "pose", optarg, &pose)) return 2; pose_given = 1; }
+        else if (c == 'r') { if (mim_cli_real("vest simulate", "rate", optarg, 1, 2000, 0, NULL, &so.rate_hz)) return 2; }
         else if (c == 'f') { if (faults_arg(optarg, &so)) return 2; }
         else if (c == 'k') { if (mim_cli_number("vest simulate", "seed", optarg, 0, UINT64_MAX, &v)) return 2; so.seed = v; }
         else return help_or_bad_option(c, "simulate", simulate_help, argv);
@@ -577,8 +552,8 @@ static int cmd_simulate(int argc, char **argv)
     if (m.rest_arm_deg >= 0) {
         int tpose = m.rest_arm_deg > 67.5;
         if (!pose_given) pose = tpose ? MIM_VEST_POSE_T : MIM_VEST_POSE_A;
-        mim_log("%s: rest pose holds the arms %.0f deg from vertical (%s); replay with --pose %s", motion,
-                        m.rest_arm_deg, tpose ? "T-pose" : "A-pose", tpose ? "t" : "a");
+        mim_cli_logf("%s: rest pose holds the arms %.0f deg from vertical (%s); replay with --pose %s", motion,
+                     m.rest_arm_deg, tpose ? "T-pose" : "A-pose", tpose ? "t" : "a");
     }
     static mim_vest_rig_t rig;
     int need_rig = expected || !strncmp(out, "udp:", 4);

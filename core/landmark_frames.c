@@ -12,6 +12,7 @@
 #include <errno.h>
 #include <jansson.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -24,15 +25,27 @@ void mim_landmark_frames_free(mim_landmark_frames_t *f)
     memset(f, 0, sizeof *f);
 }
 
-/* One frame's "landmarks" array into pos/present. */
-static int parse_frame(json_t *lm, const char *origin, uint32_t fi, uint32_t n, uint32_t max_missing,
-                       float *pos, uint8_t *present, mim_error_t *err)
+/* "origin" or "origin: frame F": the start of every message below. */
+static const char *where(char *buf, size_t size, const char *origin, long frame)
 {
+    if (frame < 0)
+        return origin;
+    snprintf(buf, size, "%s: frame %ld", origin, frame);
+    return buf;
+}
+
+int mim_landmark_array_parse(const json_t *lm, uint32_t n, uint32_t max_missing, const char *origin, long frame,
+                             float *pos, uint8_t *present, mim_error_t *err)
+{
+    char wb[600];
+    if (!origin)
+        origin = "landmarks";
     if (!json_is_array(lm))
-        return mim_error_set(err, MIM_EFORMAT, "%s: frame %u: \"landmarks\" must be an array", origin, fi);
+        return mim_error_set(err, MIM_EFORMAT, "%s: \"landmarks\" must be an array",
+                             where(wb, sizeof wb, origin, frame));
     if (json_array_size(lm) != n)
-        return mim_error_set(err, MIM_EFORMAT, "%s: frame %u has %zu landmarks, the landmark map has %u",
-                             origin, fi, json_array_size(lm), n);
+        return mim_error_set(err, MIM_EFORMAT, "%s has %zu landmarks, the landmark map has %u",
+                             where(wb, sizeof wb, origin, frame), json_array_size(lm), n);
     uint32_t missing = 0;
     for (uint32_t i = 0; i < n; i++) {
         json_t *p = json_array_get(lm, i);
@@ -43,25 +56,24 @@ static int parse_frame(json_t *lm, const char *origin, uint32_t fi, uint32_t n, 
             continue;
         }
         if (!json_is_array(p) || json_array_size(p) != 3)
-            return mim_error_set(err, MIM_EFORMAT,
-                                 "%s: frame %u, landmark %u: expected [x, y, z] or null", origin, fi, i);
+            return mim_error_set(err, MIM_EFORMAT, "%s, landmark %u: expected [x, y, z] or null",
+                                 where(wb, sizeof wb, origin, frame), i);
         for (int c = 0; c < 3; c++) {
             json_t *v = json_array_get(p, (size_t)c);
             if (!json_is_number(v))
-                return mim_error_set(err, MIM_EFORMAT, "%s: frame %u, landmark %u: %c is not a number",
-                                     origin, fi, i, "xyz"[c]);
+                return mim_error_set(err, MIM_EFORMAT, "%s, landmark %u: %c is not a number",
+                                     where(wb, sizeof wb, origin, frame), i, "xyz"[c]);
             double x = json_number_value(v);
             if (!isfinite(x) || !isfinite((float)x))
-                return mim_error_set(err, MIM_ENONFINITE,
-                                     "%s: frame %u, landmark %u: %c = %g is not a finite float", origin,
-                                     fi, i, "xyz"[c], x);
+                return mim_error_set(err, MIM_ENONFINITE, "%s, landmark %u: %c = %g is not a finite float",
+                                     where(wb, sizeof wb, origin, frame), i, "xyz"[c], x);
             pos[3 * i + (uint32_t)c] = (float)x;
         }
         present[i] = 1;
     }
     if (missing > max_missing)
-        return mim_error_set(err, MIM_EFORMAT, "%s: frame %u has %u missing landmarks, at most %u allowed",
-                             origin, fi, missing, max_missing);
+        return mim_error_set(err, MIM_EFORMAT, "%s has %u missing landmarks, at most %u allowed",
+                             where(wb, sizeof wb, origin, frame), missing, max_missing);
     return 0;
 }
 
@@ -102,8 +114,8 @@ static int parse_root(json_t *root, const char *origin, uint32_t n, uint32_t max
                 return mim_error_set(err, MIM_EFORMAT, "%s: frame %zu is not an object with \"landmarks\"",
                                      origin, f);
         }
-        int rc = parse_frame(lm, origin, (uint32_t)f, n, max_missing, out->positions + f * n * 3,
-                             out->present + f * n, err);
+        int rc = mim_landmark_array_parse(lm, n, max_missing, origin, (long)f, out->positions + f * n * 3,
+                                          out->present + f * n, err);
         if (rc)
             return rc;
     }

@@ -6,7 +6,6 @@
 #include <jansson.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <errno.h>
 #include <string.h>
 
 const char *const mim_landmark_default_names[MIM_LANDMARKS_DEFAULT_COUNT] = {
@@ -173,20 +172,10 @@ char *mim_landmarks_to_json(const mim_landmark_map_t *map)
 int mim_landmarks_write(const mim_landmark_map_t *map, const char *path, mim_error_t *err)
 {
     char *s = mim_landmarks_to_json(map);
-    if (!s) return MIM_ENOMEM;
-    char tmp[4096];
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    FILE *f = fopen(tmp, "wb");
-    int rc = 0;
-    if (!f) {
-        rc = mim_error_set(err, -errno, "%s: cannot write: %s", path, strerror(errno));
-    } else {
-        size_t n = strlen(s);
-        if (fwrite(s, 1, n, f) != n || fputc('\n', f) == EOF) rc = mim_error_set(err, MIM_EIO, "%s: write failed", path);
-        if (fclose(f) != 0 && !rc) rc = mim_error_set(err, MIM_EIO, "%s: write failed", path);
-        if (!rc && rename(tmp, path) != 0) rc = mim_error_set(err, -errno, "%s: rename failed: %s", path, strerror(errno));
-        if (rc) remove(tmp);
-    }
+    if (!s)
+        return mim_error_set(err, MIM_ENOMEM, "%s: out of memory", path);
+    mim_file_part_t parts[2] = {{s, strlen(s)}, {"\n", 1}};
+    int rc = mim_file_write_atomic(path, parts, 2, err);
     free(s);
     return rc;
 }

@@ -1,30 +1,22 @@
-/* One-line messages on stderr, prefixed "mimic: ". */
+/* The log callback helper: libraries format one line and hand it to the
+ * caller's callback; where it goes (stderr, a file, nowhere) is the
+ * caller's choice, so no library writes to the process's streams. */
 #include "mim_core.h"
 
 #include <stdio.h>
 
-int mim_log_level = 1;
-
-static void vlog(const char *fmt, va_list ap)
+void mim_log_emit(mim_log_fn fn, void *ctx, int level, const char *fmt, ...)
 {
-    fputs("mimic: ", stderr);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
-}
-
-void mim_log(const char *fmt, ...)
-{
+    if (!fn)
+        return;
+    char line[1024];
     va_list ap;
     va_start(ap, fmt);
-    vlog(fmt, ap);
+    vsnprintf(line, sizeof line, fmt, ap);
     va_end(ap);
-}
-
-void mim_log_verbose(const char *fmt, ...)
-{
-    if (mim_log_level < 2) return;
-    va_list ap;
-    va_start(ap, fmt);
-    vlog(fmt, ap);
-    va_end(ap);
+    /* one line, as the callback's contract says */
+    for (char *c = line; *c; c++)
+        if (*c == '\n' || *c == '\r')
+            *c = ' ';
+    fn(ctx, level, line);
 }

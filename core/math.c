@@ -1,4 +1,5 @@
-/* Small vector and quaternion math (Hamilton convention, unit quaternions). */
+/* Small vector, quaternion and rotation-matrix math (Hamilton convention,
+ * unit quaternions); slerp and quaternion-to-matrix are inline in mim_core.h. */
 #include "mim_core.h"
 
 #include <math.h>
@@ -52,22 +53,28 @@ mim_vec3 mim_quat_rotate(mim_quat q, mim_vec3 v)
     return mim_v3_add(mim_v3_add(v, mim_v3_scale(t, q.w)), mim_v3_cross(u, t));
 }
 
-mim_quat mim_quat_slerp(mim_quat a, mim_quat b, double t)
+mim_quat mim_quat_from_matrix(const double m[9])
 {
-    double d = a.x * b.x + a.y * b.y + a.z * b.z + a.w * b.w;
-    if (d < 0) { /* take the short way */
-        b.x = -b.x; b.y = -b.y; b.z = -b.z; b.w = -b.w;
-        d = -d;
-    }
-    double wa, wb;
-    if (d > 0.9995) {
-        wa = 1 - t;
-        wb = t;
+    /* mRC = row R, column C = m[3C + R] */
+    double m00 = m[0], m11 = m[4], m22 = m[8];
+    double m01 = m[3], m10 = m[1], m02 = m[6], m20 = m[2], m12 = m[7], m21 = m[5];
+    double tr = m00 + m11 + m22;
+    mim_quat q;
+    if (tr > 0.0) {
+        double s = 2.0 * sqrt(1.0 + tr);
+        q.w = 0.25 * s, q.x = (m21 - m12) / s, q.y = (m02 - m20) / s, q.z = (m10 - m01) / s;
+    } else if (m00 > m11 && m00 > m22) {
+        double s = 2.0 * sqrt(1.0 + m00 - m11 - m22);
+        q.w = (m21 - m12) / s, q.x = 0.25 * s, q.y = (m01 + m10) / s, q.z = (m02 + m20) / s;
+    } else if (m11 > m22) {
+        double s = 2.0 * sqrt(1.0 + m11 - m00 - m22);
+        q.w = (m02 - m20) / s, q.x = (m01 + m10) / s, q.y = 0.25 * s, q.z = (m12 + m21) / s;
     } else {
-        double th = acos(d), s = sin(th);
-        wa = sin((1 - t) * th) / s;
-        wb = sin(t * th) / s;
+        double s = 2.0 * sqrt(1.0 + m22 - m00 - m11);
+        q.w = (m10 - m01) / s, q.x = (m02 + m20) / s, q.y = (m12 + m21) / s, q.z = 0.25 * s;
     }
-    mim_quat r = {wa * a.x + wb * b.x, wa * a.y + wb * b.y, wa * a.z + wb * b.z, wa * a.w + wb * b.w};
-    return mim_quat_normalize(r);
+    /* a matrix that is only nearly orthonormal gives a nearly unit q */
+    double inv = 1.0 / sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
+    q.x *= inv, q.y *= inv, q.z *= inv, q.w *= inv;
+    return q;
 }

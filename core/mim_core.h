@@ -1,14 +1,17 @@
 /* mimic core: what every module shares and nothing else.
  * Error codes and mim_strerror, an error context with detail, the mesh
- * arrays type, reading a file, small vector/quaternion math, hashing,
- * progress and logging.
+ * arrays type, reading and atomically writing files, the landmark map and
+ * the landmark-array parser, the seeded random generator, hashing, small
+ * vector/quaternion/matrix math, and the log and progress callbacks through
+ * which libraries report (only cli/ prints).
  * Uses nothing of mimic. */
 #ifndef MIM_CORE_H
 #define MIM_CORE_H
 
+#include <math.h>
+#include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
-#include <stdarg.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -33,7 +36,6 @@ enum {
     MIM_ENOTFOUND,       /* no such record or file */
     MIM_EUNSUPPORTED,    /* format or feature not supported */
     MIM_ENOLANDMARKS,    /* no landmark map where one is needed */
-    MIM_EBUSY,           /* resource in use */
     MIM_ELAST_
 };
 
@@ -115,6 +117,7 @@ int mim_landmarks_parse(mim_landmark_map_t *map, const char *text, size_t len, c
 int mim_landmarks_read(mim_landmark_map_t *map, const char *path, mim_error_t *err);
 /* Serialise as JSON text (malloc'd, NUL-terminated; caller frees). */
 char *mim_landmarks_to_json(const mim_landmark_map_t *map);
+/* Writes the JSON and a newline atomically (mim_file_write_atomic). */
 int mim_landmarks_write(const mim_landmark_map_t *map, const char *path, mim_error_t *err);
 /* Checks count, mirror involution, vertices < n_vertices (if n_vertices > 0). */
 int mim_landmarks_validate(const mim_landmark_map_t *map, uint32_t n_vertices, const char *origin,
@@ -140,6 +143,18 @@ int mim_landmark_frames_read(const char *path, uint32_t n_landmarks, uint32_t ma
 int mim_landmark_frames_parse(const char *text, size_t len, const char *origin, uint32_t n_landmarks,
                               uint32_t max_missing, mim_landmark_frames_t *out, mim_error_t *err);
 void mim_landmark_frames_free(mim_landmark_frames_t *f); /* accepts NULL and an empty set */
+
+/* One landmark array, [[x, y, z] | null, ...] (a jansson value: the
+ * landmark-frames files, vest UDP datagrams), into positions (3 * n floats,
+ * NaN where null) and present (n: 1 present, 0 null). Messages begin with
+ * origin, then ": frame F" when frame >= 0, and name the landmark and
+ * coordinate. Errors: not an array of n entries, an entry that is not
+ * [x, y, z] or null, a coordinate that is not a number, more than
+ * max_missing nulls (MIM_EFORMAT); a number that is not a finite float
+ * (MIM_ENONFINITE). On error positions and present are partly written. */
+struct json_t;
+int mim_landmark_array_parse(const struct json_t *array, uint32_t n, uint32_t max_missing, const char *origin,
+                             long frame, float *positions, uint8_t *present, mim_error_t *err);
 
 /* ---- random numbers: one seeded generator, explicit state (random.c) ---- */
 typedef struct mim_rng {
@@ -181,29 +196,81 @@ mim_quat mim_quat_axis_angle(mim_vec3 axis, double radians);
 mim_quat mim_quat_mul(mim_quat a, mim_quat b); /* a then... : rotates by b first, then a */
 mim_quat mim_quat_normalize(mim_quat q);
 mim_vec3 mim_quat_rotate(mim_quat q, mim_vec3 v);
-mim_quat mim_quat_slerp(mim_quat a, mim_quat b, double t);
 
-/* ---- progress and logging (stderr) ---- */
-typedef struct mim_progress {
-    const char *label;
-    uint64_t total;   /* 0 when unknown */
-    uint64_t done;
-    double t_start;   /* seconds, monotonic */
-    double t_last;    /* last print */
-    int enabled;      /* print only on a terminal, or when forced */
-} mim_progress_t;
+/* Rotation matrices are 9 doubles, column-major: m[3 * c + r] is row r of
+ * column c, so the columns are the images of the x, y and z axes (a local
+ * frame f1 f2 f3 stored one column after the other).
+ * mim_quat_from_matrix: the unit quaternion of a rotation matrix (Shepperd's
+ * method: it branches on the largest diagonal term, accurate for every
+ * rotation). */
+mim_quat mim_quat_from_matrix(const double m[9]);
 
+/* The rotation matrix of a unit quaternion. Inline: transfer's morph turns
+ * a quaternion into a frame per vertex per frame. */
+static inline void mim_quat_to_matrix(mim_quat q, double m[9])
+{
+    double x = q.x, y = q.y, z = q.z, w = q.w;
+    m[0] = 1 - 2 * (y * y + z * z), m[1] = 2 * (x * y + z * w), m[2] = 2 * (x * z - y * w);
+    m[3] = 2 * (x * y - z * w), m[4] = 1 - 2 * (x * x + z * z), m[5] = 2 * (y * z + x * w);
+    m[6] = 2 * (x * z + y * w), m[7] = 2 * (y * z - x * w), m[8] = 1 - 2 * (x * x + y * y);
+}
+
+/* Spherical interpolation along the shorter arc, renormalised; linear when
+ * the two are within ~1.8 degrees (sin of the angle is too small to divide
+ * by). Inline for the same hot path as mim_quat_to_matrix. */
+static inline mim_quat mim_quat_slerp(mim_quat a, mim_quat b, double t)
+{
+    double d = a.x * b.x + a.y * b.y + a.z * b.z + a.w * b.w, sb = 1.0;
+    if (d < 0.0) /* q and -q are one rotation: take the short way */
+        d = -d, sb = -1.0;
+    double wa, wb;
+    if (d > 0.9995) {
+        wa = 1.0 - t, wb = t;
+    } else {
+        double th = acos(d), s = sin(th);
+        wa = sin((1.0 - t) * th) / s, wb = sin(t * th) / s;
+    }
+    wb *= sb;
+    mim_quat r = {wa * a.x + wb * b.x, wa * a.y + wb * b.y, wa * a.z + wb * b.z, wa * a.w + wb * b.w};
+    double inv = 1.0 / sqrt(r.x * r.x + r.y * r.y + r.z * r.z + r.w * r.w);
+    r.x *= inv, r.y *= inv, r.z *= inv, r.w *= inv;
+    return r;
+}
+
+/* ---- time ---- */
 double mim_now(void); /* monotonic seconds */
-/* enabled = isatty(stderr) unless MIMIC_PROGRESS=1 forces it on or =0 off. */
-void mim_progress_begin(mim_progress_t *p, const char *label, uint64_t total);
-void mim_progress_update(mim_progress_t *p, uint64_t done); /* rate-limited */
-void mim_progress_end(mim_progress_t *p);
 
-/* Logging: one line to stderr, prefixed with "mimic: ". */
-void mim_log(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
-/* Verbosity: 0 quiet (errors only), 1 normal, 2 verbose. */
-extern int mim_log_level;
-void mim_log_verbose(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+/* ---- log and progress: libraries report through callbacks, cli/ prints ----
+ * Libraries never write to stdout or stderr; their options take these
+ * callbacks (NULL: quiet) and hand them what a user should hear. */
+enum { MIM_LOG_ERROR = 0, MIM_LOG_WARN = 1, MIM_LOG_INFO = 2 };
+/* msg is one line without a newline or prefix, valid during the call. A
+ * library may call it from its own threads (serve's vest loop, ...). */
+typedef void (*mim_log_fn)(void *ctx, int level, const char *msg);
+/* Formats one line and hands it to fn; nothing when fn is NULL. */
+void mim_log_emit(mim_log_fn fn, void *ctx, int level, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+
+/* Progress on long work: BEGIN once (done 0), STEP as work gets done, END
+ * once (also after a failure). total is 0 when unknown. Rate limiting is
+ * the callback's business: a STEP may come for every item. */
+enum { MIM_PROGRESS_BEGIN, MIM_PROGRESS_STEP, MIM_PROGRESS_END };
+typedef void (*mim_progress_fn)(void *ctx, int phase, const char *label, uint64_t done, uint64_t total);
+
+/* One run of progress reporting: set fn and ctx (fn NULL: quiet), then
+ * begin, update, end; begin keeps fn and ctx. Updates outside begin..end
+ * and a second end call nothing. */
+typedef struct mim_progress {
+    mim_progress_fn fn;
+    void *ctx;
+    const char *label;
+    uint64_t total; /* 0 when unknown */
+    uint64_t done;
+    int active;     /* between begin and end */
+} mim_progress_t;
+void mim_progress_begin(mim_progress_t *p, const char *label, uint64_t total);
+void mim_progress_update(mim_progress_t *p, uint64_t done);
+void mim_progress_end(mim_progress_t *p);
 
 #ifdef __cplusplus
 }

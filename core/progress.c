@@ -1,11 +1,9 @@
-/* Progress on long work: count, rate and ETA on stderr, on a terminal only
- * (MIMIC_PROGRESS=1 forces it, =0 silences it), at most ~8 updates a second. */
+/* Progress on long work: the state of one run (label, total, done) and the
+ * calls to the caller's callback. Drawing it (a terminal line with rate
+ * and ETA) is cli/'s business; libraries only report. */
 #include "mim_core.h"
 
-#include <stdio.h>
-#include <stdlib.h>
 #include <time.h>
-#include <unistd.h>
 
 double mim_now(void)
 {
@@ -16,43 +14,25 @@ double mim_now(void)
 
 void mim_progress_begin(mim_progress_t *p, const char *label, uint64_t total)
 {
-    const char *force = getenv("MIMIC_PROGRESS");
     p->label = label;
     p->total = total;
     p->done = 0;
-    p->t_start = p->t_last = mim_now();
-    if (force && *force) p->enabled = atoi(force) != 0;
-    else p->enabled = isatty(STDERR_FILENO);
-}
-
-static void progress_print(mim_progress_t *p, double now, int final)
-{
-    double dt = now - p->t_start;
-    double rate = dt > 0 ? (double)p->done / dt : 0;
-    if (p->total) {
-        double eta = rate > 0 ? (double)(p->total - (p->done < p->total ? p->done : p->total)) / rate : 0;
-        fprintf(stderr, "\r%s: %llu/%llu (%3.0f%%) %.1f/s ETA %.0fs   ", p->label,
-                (unsigned long long)p->done, (unsigned long long)p->total,
-                100.0 * (double)p->done / (double)p->total, rate, eta);
-    } else {
-        fprintf(stderr, "\r%s: %llu %.1f/s   ", p->label, (unsigned long long)p->done, rate);
-    }
-    if (final) fputc('\n', stderr);
-    fflush(stderr);
+    p->active = 1;
+    if (p->fn)
+        p->fn(p->ctx, MIM_PROGRESS_BEGIN, label, 0, total);
 }
 
 void mim_progress_update(mim_progress_t *p, uint64_t done)
 {
     p->done = done;
-    if (!p->enabled) return;
-    double now = mim_now();
-    if (now - p->t_last < 0.125 && done != p->total) return;
-    p->t_last = now;
-    progress_print(p, now, 0);
+    if (p->fn && p->active)
+        p->fn(p->ctx, MIM_PROGRESS_STEP, p->label, done, p->total);
 }
 
 void mim_progress_end(mim_progress_t *p)
 {
-    if (p->enabled) progress_print(p, mim_now(), 1);
-    p->enabled = 0;
+    /* once: a failure path may end what the normal path already ended */
+    if (p->fn && p->active)
+        p->fn(p->ctx, MIM_PROGRESS_END, p->label, p->done, p->total);
+    p->active = 0;
 }

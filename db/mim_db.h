@@ -7,7 +7,7 @@
  *   landmarks   the landmark map (JSON)
  *   templates   id -> template record (labels, source, float32 positions)
  *   by_hash     content hash -> ids (dedupe)
- *   descriptors, encodings   id -> data that later stages add per template
+ *   encodings   id -> the template's intrinsic encoding (ingest adds it)
  *
  * Many readers and one writer may work at once, from different processes.
  * Data lent out of the store (pointers in views) points into the memory map
@@ -25,8 +25,14 @@ typedef struct mim_db mim_db_t;
 typedef struct mim_db_txn mim_db_txn_t;
 
 typedef struct mim_db_options {
-    uint64_t map_size; /* bytes of address space to map; 0 means 256 GiB (sparse) */
-    int read_only;     /* open an existing store for reading only */
+    /* Bytes of address space to map, which is also the most the store can
+     * hold; 0 means 256 GiB (sparse: only the pages in use take memory or
+     * disk). A size below what the store already uses is raised to it.
+     * When the store fills, writes fail with MIM_ESTORE ("store is full").
+     * The library reads no environment variable: the mimic command passes
+     * MIMIC_MAP_SIZE here. */
+    uint64_t map_size;
+    int read_only; /* open an existing store for reading only */
 } mim_db_options_t;
 
 /* Opens (creating if missing and not read_only) the store in directory dir.

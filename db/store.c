@@ -12,8 +12,13 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-static const char *const dbi_names[DBI_COUNT_] = {"meta",    "topology",    "landmarks", "templates",
-                                                  "by_hash", "descriptors", "encodings"};
+static const char *const dbi_names[DBI_COUNT_] = {"meta",    "topology", "landmarks",
+                                                  "templates", "by_hash", "encodings"};
+/* Tables a store of this schema version may hold that mimic no longer
+ * opens: stores created before it was dropped have an empty `descriptors`
+ * table (reserved, never written; schemas/store.md). They are left as they
+ * are, and do not make a store "someone else's". */
+static const char *const legacy_names[] = {"descriptors"};
 
 int mim__db_fail(mim_error_t *err, int rc, const char *what)
 {
@@ -65,6 +70,9 @@ static int init_store(mim_db_t *db, mim_error_t *err)
             int ours = 0;
             for (int i = 0; i < DBI_COUNT_; i++)
                 if (k.mv_size == strlen(dbi_names[i]) && memcmp(k.mv_data, dbi_names[i], k.mv_size) == 0) ours = 1;
+            for (size_t i = 0; i < sizeof legacy_names / sizeof *legacy_names; i++)
+                if (k.mv_size == strlen(legacy_names[i]) && memcmp(k.mv_data, legacy_names[i], k.mv_size) == 0)
+                    ours = 1;
             if (k.mv_size == 4 && memcmp(k.mv_data, "meta", 4) == 0) has_meta = 1;
             if (!ours) foreign = 1;
         }
@@ -85,7 +93,7 @@ static int init_store(mim_db_t *db, mim_error_t *err)
     unsigned flags = db->read_only ? 0 : MDB_CREATE;
     for (int i = 0; i < DBI_COUNT_ && !rc; i++) {
         unsigned f = flags;
-        if (i == DBI_TEMPLATES || i == DBI_DESCRIPTORS || i == DBI_ENCODINGS) f |= MDB_INTEGERKEY;
+        if (i == DBI_TEMPLATES || i == DBI_ENCODINGS) f |= MDB_INTEGERKEY;
         if (i == DBI_BY_HASH) f |= MDB_INTEGERKEY | MDB_DUPSORT | MDB_DUPFIXED | MDB_INTEGERDUP;
         rc = mdb_dbi_open(t, dbi_names[i], f, &db->dbi[i]);
         if (rc == MDB_NOTFOUND && db->read_only) {
@@ -153,10 +161,7 @@ int mim_db_open(mim_db_t **out, const char *dir, const mim_db_options_t *opt, mi
     if (!db) return MIM_ENOMEM;
     db->path = strdup(dir);
     db->read_only = opt->read_only;
-    uint64_t map = opt->map_size;
-    const char *env_map = getenv("MIMIC_MAP_SIZE");
-    if (!map && env_map && *env_map) map = strtoull(env_map, NULL, 10);
-    if (!map) map = 256ULL << 30;
+    uint64_t map = opt->map_size ? opt->map_size : 256ULL << 30;
 
     int rc = mdb_env_create(&db->env);
     if (!rc) rc = mdb_env_set_maxdbs(db->env, DBI_COUNT_ + 2);

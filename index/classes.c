@@ -40,16 +40,17 @@ int mim__kmeans(const float *x, uint32_t n, uint32_t f, uint32_t k, uint32_t *as
         free(c), free(best), free(sum), free(cnt);
         return MIM_ENOMEM;
     }
-    uint64_t seed = 0x6b6d65616e73ULL;
+    mim_rng_t rng;
+    mim_rng_seed(&rng, MIM__INDEX_SEED, 0x6b6d65616e73ULL);
     /* k-means++: the first centre at random, then each with probability
      * proportional to the squared distance to the nearest centre so far */
-    uint32_t first = (uint32_t)(mim__rng(&seed) % n);
+    uint32_t first = (uint32_t)mim_rng_below(&rng, n);
     for (uint32_t i = 0; i < f; i++) c[i] = x[(size_t)first * f + i];
     for (uint32_t s = 0; s < n; s++) best[s] = dist2(x + (size_t)s * f, c, f);
     for (uint32_t j = 1; j < k; j++) {
         double total = 0;
         for (uint32_t s = 0; s < n; s++) total += best[s];
-        double r = (double)(mim__rng(&seed) >> 11) / 9007199254740992.0 * total;
+        double r = mim_rng_unit(&rng) * total;
         uint32_t pick = n - 1;
         for (uint32_t s = 0; s < n; s++) {
             r -= best[s];

@@ -36,14 +36,11 @@ struct mim_index {
     int *flann_exact;      /* n_classes */
 };
 
-/* A small deterministic generator (splitmix64). */
-static inline uint64_t mim__rng(uint64_t *s)
-{
-    uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
+/* Every random choice of an index build (samples, folds, k-means++ seeds,
+ * the folds of the Platt fits) draws from core's generator (mim_rng_t),
+ * seeded with this and a stream of its own, so the same store always gives
+ * the same index. Nothing here touches libc's rand(). */
+#define MIM__INDEX_SEED 0x6d696dULL
 
 /* classes.c: k-means on rows x (n x f, NaN = unknown) into k clusters. */
 int mim__kmeans(const float *x, uint32_t n, uint32_t f, uint32_t k, uint32_t *assign, mim_error_t *err);

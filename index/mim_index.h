@@ -7,7 +7,11 @@
  * uniformly scaled. A decision tree trained on pose labels, with every sample
  * also mirrored left<->right (paper §3.2), selects the d most salient angles.
  *
- * Computation over caller-owned arrays; nothing here opens the store. */
+ * Computation over caller-owned arrays; nothing here opens the store or
+ * touches process-wide state: every random choice of a build comes from a
+ * seeded mim_rng_t (the same input gives the same index, byte for byte),
+ * and libc's rand() is neither seeded nor used, except by FLANN's kd-forest
+ * build (classes over exact_max templates), which draws from it (model.c). */
 #ifndef MIM_INDEX_H
 #define MIM_INDEX_H
 
@@ -77,11 +81,13 @@ int mim_index_select(const float *x, const uint32_t *labels, uint32_t n_samples,
  * (two coincident landmarks) takes its class mean.
  *
  * SVMs. One libsvm C-SVC per class, one-vs-rest, RBF kernel, probability
- * outputs (Platt scaling, libsvm's -b 1). C in {1, 10, 100, 1000} and gamma
- * in {1/4, 1, 4, 16} / (mean squared distance between descriptors) are
- * chosen by k-fold cross-validation of the whole one-vs-rest classifier
- * (folds by subject when there are several subjects, so the estimate is for
- * unseen people; ties go to fewer support vectors, i.e. faster queries).
+ * outputs (Platt scaling fitted on 5-fold decision values: libsvm's -b 1
+ * method, run by mimic with its own seeded folds, without rand()). C in
+ * {1, 10, 100, 1000} and gamma in {1/4, 1, 4, 16} / (mean squared distance
+ * between descriptors) are chosen by k-fold cross-validation of the whole
+ * one-vs-rest classifier (folds by subject when there are several subjects,
+ * so the estimate is for unseen people; ties go to fewer support vectors,
+ * i.e. faster queries).
  * The class of a frame is the SVM with the highest probability; its
  * probability is reported normalised over the classes.
  *
@@ -90,7 +96,10 @@ int mim_index_select(const float *x, const uint32_t *labels, uint32_t n_samples,
  * use FLANN's exact linear scan; larger ones a randomised kd-forest (4
  * trees, 128 checks), which is approximate: at 1 000 000 templates its
  * first hit is on average 3 % further than the exact one, for a tenth of
- * the exact scan's time (bench/RESULTS.md).
+ * the exact scan's time (bench/RESULTS.md). The forest is randomised anew
+ * on every build and load (FLANN shuffles with std::random_device), so
+ * two loads of one index may answer a frame with different near
+ * neighbours in such a class.
  *
  * Missing landmarks (a query frame may lose up to 3): only the angles that
  * do not involve them are used. Beside the d descriptor angles the index
@@ -124,7 +133,7 @@ typedef struct mim_index_options {
     uint32_t exact_max;       /* classes up to this size get an exact k-NN; 0 means 8192 */
     uint32_t checks;          /* kd-forest checks for larger classes; 0 means 128 */
     double C, gamma;          /* both > 0: skip cross-validation and use these */
-    mim_progress_t *progress; /* NULL: quiet */
+    mim_progress_t *progress; /* fn and ctx set by the caller, run by the build; NULL: quiet */
 } mim_index_options_t;
 
 enum { MIM_CLASSES_LABELS = 0, MIM_CLASSES_KMEANS = 1 };
@@ -177,7 +186,8 @@ typedef struct mim_index_answer {
 } mim_index_answer_t;
 
 /* One frame: positions 3 * n_landmarks, present n_landmarks flags (NULL: all
- * present). hits has room for k. Thread-safe on one index. */
+ * present). hits has room for k. Thread-safe on one index: it only reads
+ * the index, takes no lock, and neither seeds nor draws random numbers. */
 int mim_index_query(const mim_index_t *ix, const float *positions, const uint8_t *present,
                     const mim_index_query_options_t *opt, mim_index_answer_t *ans, mim_index_hit_t *hits,
                     mim_error_t *err);

@@ -55,7 +55,23 @@ static int64_t strtab_add(strtab_t *t, const char *s)
     return t->n++;
 }
 
-/* ---- k-NN ---- */
+/* ---- k-NN ----
+ * FLANN's C API reseeds libc's generator (srand) in every call, searches
+ * included, when random_seed > 0 (flann.cpp, init_flann_parameters).
+ * mimic passes 0 to every call, so FLANN never reseeds it, and needs no
+ * lock around searches:
+ * - a search draws no random numbers (best-bin-first in the kd-forest, or
+ *   the linear scan): the seed only put an srand inside mim_index_query,
+ *   which is documented thread-safe and runs concurrently in serve;
+ * - the linear index (classes up to exact_max) draws nothing at build;
+ * - the kd-forest (larger classes) shuffles with std::random_device in
+ *   Debian's FLANN 1.9.2 (kdtree_index.h, buildIndexImpl), so a seed never
+ *   made it reproducible (with the old fixed seed, two loads of one blob,
+ *   800 templates a class, 128 checks, gave another 5 nearest for 31 % of
+ *   jittered frames). Its split choice (rand_int) still draws from libc's
+ *   rand() while it is built, without reseeding it.
+ * FLANN still sets its logger's level in every call (always the same
+ * FLANN_LOG_NONE). */
 static struct FLANNParameters flann_params(const mim_index_t *ix, int exact)
 {
     struct FLANNParameters p = DEFAULT_FLANN_PARAMETERS;
@@ -64,7 +80,7 @@ static struct FLANNParameters flann_params(const mim_index_t *ix, int exact)
     p.checks = (int)ix->checks;
     p.cores = 1;
     p.log_level = FLANN_LOG_NONE;
-    p.random_seed = 0x6d696d; /* the same forest on every load */
+    p.random_seed = 0; /* no srand (see above) */
     return p;
 }
 
@@ -207,10 +223,11 @@ static int assign_classes(const mim_index_input_t *in, strtab_t *st, uint32_t *c
     if (nc == 0) { /* no labels at all: k-means on a sample, then nearest centre */
         *source = MIM_CLASSES_KMEANS;
         uint32_t m = n < 4000 ? n : 4000;
-        uint64_t seed = 0x6b6dULL;
+        mim_rng_t rng;
+        mim_rng_seed(&rng, MIM__INDEX_SEED, 0x6b6dULL);
         for (uint32_t i = 0; i < n; i++) rows[i] = i;
         for (uint32_t i = 0; i < m && n > m; i++) {
-            uint32_t j = i + (uint32_t)(mim__rng(&seed) % (n - i)), tt = rows[i];
+            uint32_t j = i + (uint32_t)mim_rng_below(&rng, n - i), tt = rows[i];
             rows[i] = rows[j], rows[j] = tt;
         }
         float *x = malloc(sizeof(float) * (size_t)m * nf);
@@ -338,9 +355,10 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
         goto out;
     }
     for (uint32_t i = 0; i < n; i++) rows[i] = i;
-    uint64_t seed = 0x73656cULL;
+    mim_rng_t rng;
+    mim_rng_seed(&rng, MIM__INDEX_SEED, 0x73656cULL);
     for (uint32_t i = 0; i < m && n > m; i++) {
-        uint32_t j = i + (uint32_t)(mim__rng(&seed) % (n - i)), tt = rows[i];
+        uint32_t j = i + (uint32_t)mim_rng_below(&rng, n - i), tt = rows[i];
         rows[i] = rows[j], rows[j] = tt;
     }
     for (uint32_t i = 0; i < m; i++) {
@@ -425,9 +443,9 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
         goto out;
     }
     for (uint32_t i = 0; i < n; i++) rows[i] = i; /* rows of the class-sorted arrays */
-    seed = 0x73766dULL;
+    mim_rng_seed(&rng, MIM__INDEX_SEED, 0x73766dULL);
     for (uint32_t i = 0; i < sm && n > sm; i++) {
-        uint32_t j = i + (uint32_t)(mim__rng(&seed) % (n - i)), tt = rows[i];
+        uint32_t j = i + (uint32_t)mim_rng_below(&rng, n - i), tt = rows[i];
         rows[i] = rows[j], rows[j] = tt;
     }
     uint32_t n_groups = 0;

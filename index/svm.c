@@ -1,10 +1,10 @@
 /* Per-class SVMs, one-vs-rest, with libsvm (seed 000, Section 3.3): RBF
  * kernel, C and gamma by k-fold cross-validation over a small grid, Platt
- * probabilities (libsvm's -b 1). libsvm trains; the trained models are kept
- * in a dense form of our own (support vectors, coefficients, rho, Platt A
- * and B), which is what the blob stores and what queries evaluate, so a
- * libsvm model (which points into its training problem) never outlives its
- * training data. */
+ * probabilities (libsvm's -b 1 method, run here: platt_fit). libsvm trains;
+ * the trained models are kept in a dense form of our own (support vectors,
+ * coefficients, rho, Platt A and B), which is what the blob stores and what
+ * queries evaluate, so a libsvm model (which points into its training
+ * problem) never outlives its training data. */
 #include "internal.h"
 
 #include <libsvm/svm.h>
@@ -86,7 +86,7 @@ static void problem_fill(problem_mem_t *p, const mim__svm_data_t *data, const ui
     }
 }
 
-static void param_init(struct svm_parameter *pa, double C, double gamma, int probability)
+static void param_init(struct svm_parameter *pa, double C, double gamma)
 {
     memset(pa, 0, sizeof *pa);
     pa->svm_type = C_SVC;
@@ -96,18 +96,25 @@ static void param_init(struct svm_parameter *pa, double C, double gamma, int pro
     pa->eps = 1e-3;
     pa->C = C;
     pa->shrinking = 1;
-    pa->probability = probability;
+    pa->probability = 0; /* libsvm's own Platt fit would shuffle with rand(): platt_fit */
 }
 
-/* Trains class c against the rest on rows idx; fills the dense model. When
- * the rows hold no positive (or no negative) example the model is empty and
- * always says "no" (or "yes"). */
-static int train_one(const mim__svm_data_t *data, const uint32_t *idx, uint32_t n, uint32_t c, double C, double gamma,
-                     int probability, mim__svm_t *out, mim_error_t *err)
+static uint32_t count_positive(const mim__svm_data_t *data, const uint32_t *idx, uint32_t n, uint32_t c)
 {
-    memset(out, 0, sizeof *out);
     uint32_t pos = 0;
     for (uint32_t r = 0; r < n; r++) pos += data->y[idx[r]] == c;
+    return pos;
+}
+
+/* Trains class c against the rest on rows idx; fills the dense model, with
+ * Platt A = -1, B = 0 (platt_fit sets them). When the rows hold no positive
+ * (or no negative) example the model is empty and always says "no" (or
+ * "yes"): f = -1 (or +1), P = 0 (or 1). */
+static int train_one(const mim__svm_data_t *data, const uint32_t *idx, uint32_t n, uint32_t c, double C, double gamma,
+                     mim__svm_t *out, mim_error_t *err)
+{
+    memset(out, 0, sizeof *out);
+    uint32_t pos = count_positive(data, idx, n, c);
     if (pos == 0 || pos == n) { /* constant answer: f = -/+1, P = 0/1 */
         out->rho = pos ? -1 : 1;
         out->prob_a = -40, out->prob_b = 0;
@@ -121,15 +128,12 @@ static int train_one(const mim__svm_data_t *data, const uint32_t *idx, uint32_t 
     problem_fill(&pm, data, idx, n, c);
     struct svm_problem prob = {(int)n, pm.y, pm.rows};
     struct svm_parameter pa;
-    param_init(&pa, C, gamma, probability);
+    param_init(&pa, C, gamma);
     const char *why = svm_check_parameter(&prob, &pa);
     if (why) {
         problem_free(&pm);
         return mim_error_set(err, MIM_EINVAL, "SVM of class %u: %s", c, why);
     }
-    /* libsvm's Platt fit shuffles its internal folds with rand(): seed it so
-     * that the same store always gives the same index */
-    if (probability) srand(0x6d696d + c);
     struct svm_model *m = svm_train(&prob, &pa);
     int rc = 0;
     if (!m) {
@@ -154,36 +158,138 @@ static int train_one(const mim__svm_data_t *data, const uint32_t *idx, uint32_t 
         out->coef[i] = sign * m->sv_coef[0][i];
     }
     out->rho = sign * m->rho[0];
-    /* libsvm's Platt model: P(label[0]) = 1 / (1 + exp(A f0 + B)), f0 the
-     * decision value for label[0]. With f = sign f0 the value for +1:
-     * P(+1) = 1 / (1 + exp(A f + sign B)). */
-    if (probability && m->probA && m->probB) {
-        out->prob_a = m->probA[0];
-        out->prob_b = sign > 0 ? m->probB[0] : -m->probB[0];
-    } else {
-        out->prob_a = -1, out->prob_b = 0;
-    }
+    out->prob_a = -1, out->prob_b = 0;
 out:
     svm_free_and_destroy_model(&m);
     problem_free(&pm);
     return rc;
 }
 
+/* The negative log-likelihood of Platt's sigmoid at (A, B) against targets
+ * hi (positives) and lo (negatives), each term written so that exp never
+ * overflows. */
+static double platt_nll(uint32_t n, const double *dec, const int8_t *lab, double hi, double lo, double A, double B)
+{
+    double s = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        double t = lab[i] > 0 ? hi : lo, z = dec[i] * A + B;
+        s += z >= 0 ? t * z + log(1 + exp(-z)) : (t - 1) * z + log(1 + exp(z));
+    }
+    return s;
+}
+
+/* Platt's sigmoid P(+1 | f) = 1 / (1 + exp(A f + B)) fitted to decision
+ * values dec with labels lab (+1/-1): the regularised targets of Platt
+ * (1999) and the Newton iteration with backtracking of Lin, Lin & Weng, "A
+ * note on Platt's probabilistic outputs for support vector machines",
+ * Machine Learning 68 (2007), Algorithm 1, with libsvm's constants (its
+ * sigmoid_train). */
+static void sigmoid_fit(uint32_t n, const double *dec, const int8_t *lab, double *A_out, double *B_out)
+{
+    double n_pos = 0, n_neg = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        if (lab[i] > 0) n_pos++;
+        else n_neg++;
+    }
+    const double hi = (n_pos + 1) / (n_pos + 2), lo = 1 / (n_neg + 2);
+    const double min_step = 1e-10, sigma = 1e-12, eps = 1e-5;
+    double A = 0, B = log((n_neg + 1) / (n_pos + 1));
+    double f = platt_nll(n, dec, lab, hi, lo, A, B);
+    for (int it = 0; it < 100; it++) {
+        /* gradient and Hessian (+ sigma I: strictly positive definite) */
+        double h11 = sigma, h22 = sigma, h21 = 0, g1 = 0, g2 = 0;
+        for (uint32_t i = 0; i < n; i++) {
+            double z = dec[i] * A + B, p, q; /* p = P(+1 | dec[i]), q = 1 - p */
+            if (z >= 0) p = exp(-z) / (1 + exp(-z)), q = 1 / (1 + exp(-z));
+            else p = 1 / (1 + exp(z)), q = exp(z) / (1 + exp(z));
+            double w = p * q, r = (lab[i] > 0 ? hi : lo) - p;
+            h11 += dec[i] * dec[i] * w, h22 += w, h21 += dec[i] * w;
+            g1 += dec[i] * r, g2 += r;
+        }
+        if (fabs(g1) < eps && fabs(g2) < eps) break;
+        /* the Newton direction -H^-1 g, then halve the step until the
+         * likelihood decreases enough (Armijo) */
+        double det = h11 * h22 - h21 * h21;
+        double dA = -(h22 * g1 - h21 * g2) / det, dB = -(-h21 * g1 + h11 * g2) / det, gd = g1 * dA + g2 * dB;
+        double step = 1;
+        for (; step >= min_step; step /= 2) {
+            double nA = A + step * dA, nB = B + step * dB, nf = platt_nll(n, dec, lab, hi, lo, nA, nB);
+            if (nf < f + 1e-4 * step * gd) {
+                A = nA, B = nB, f = nf;
+                break;
+            }
+        }
+        if (step < min_step) break; /* the line search failed: keep the last point */
+    }
+    *A_out = A, *B_out = B;
+}
+
+/* Platt A and B of class c's SVM trained on rows idx, as libsvm's -b 1 gets
+ * them (svm_binary_svc_probability): the rows in a random order split into
+ * 5 folds; each fold's rows get their decision values from a model (same C
+ * and gamma) trained on the other 4; the sigmoid is fitted to those. libsvm
+ * draws that order from libc's rand(), which would make a library reseed
+ * the process's generator; here it comes from core's generator, seeded
+ * per class (stream), so builds stay reproducible. */
+static int platt_fit(const mim__svm_data_t *data, const uint32_t *idx, uint32_t n, uint32_t c, double C, double gamma,
+                     uint64_t stream, mim__svm_t *out, mim_error_t *err)
+{
+    enum { FOLDS = 5 };
+    uint32_t *perm = malloc(sizeof(uint32_t) * (n + 1)), *tr = malloc(sizeof(uint32_t) * (n + 1));
+    double *dec = malloc(sizeof(double) * (n + 1));
+    int8_t *lab = malloc(n + 1);
+    int rc = 0;
+    if (!perm || !tr || !dec || !lab) {
+        rc = MIM_ENOMEM;
+        goto out;
+    }
+    memcpy(perm, idx, sizeof(uint32_t) * n);
+    mim_rng_t rng;
+    mim_rng_seed(&rng, MIM__INDEX_SEED, stream);
+    for (uint32_t i = 0; i + 1 < n; i++) {
+        uint32_t j = i + (uint32_t)mim_rng_below(&rng, n - i), t = perm[i];
+        perm[i] = perm[j], perm[j] = t;
+    }
+    for (uint32_t i = 0; i < n; i++) lab[i] = data->y[perm[i]] == c ? 1 : -1;
+    for (uint32_t f = 0; f < FOLDS && !rc; f++) {
+        uint32_t begin = (uint32_t)((uint64_t)f * n / FOLDS), end = (uint32_t)((uint64_t)(f + 1) * n / FOLDS);
+        if (begin == end) continue;
+        uint32_t ntr = 0;
+        for (uint32_t i = 0; i < n; i++)
+            if (i < begin || i >= end) tr[ntr++] = perm[i];
+        if (!ntr) { /* nothing to learn from: no opinion */
+            for (uint32_t i = begin; i < end; i++) dec[i] = 0;
+            continue;
+        }
+        mim__svm_t m; /* a constant model (one label only) answers -1 or +1, as libsvm's fit does */
+        if ((rc = train_one(data, tr, ntr, c, C, gamma, &m, err))) break;
+        for (uint32_t i = begin; i < end; i++)
+            dec[i] = mim__svm_decision(&m, gamma, data->x + (size_t)perm[i] * data->d, NULL, data->d);
+        mim__svm_free(&m);
+    }
+    if (!rc) sigmoid_fit(n, dec, lab, &out->prob_a, &out->prob_b);
+out:
+    free(perm), free(tr), free(dec), free(lab);
+    return rc;
+}
+
 /* A stratified subsample of at most max rows (all rows if fewer), seeded. */
-static uint32_t subsample(const mim__svm_data_t *data, uint32_t max, uint64_t seed, uint32_t *idx)
+static uint32_t subsample(const mim__svm_data_t *data, uint32_t max, uint64_t stream, uint32_t *idx)
 {
     uint32_t n = data->n;
     for (uint32_t i = 0; i < n; i++) idx[i] = i;
     if (n <= max) return n;
+    mim_rng_t rng;
+    mim_rng_seed(&rng, MIM__INDEX_SEED, stream);
     for (uint32_t i = n - 1; i > 0; i--) { /* shuffle, then keep the first max */
-        uint32_t j = (uint32_t)(mim__rng(&seed) % (i + 1)), t = idx[i];
+        uint32_t j = (uint32_t)mim_rng_below(&rng, i + 1), t = idx[i];
         idx[i] = idx[j], idx[j] = t;
     }
     return max;
 }
 
 /* Rows for class c's SVM: every positive (up to max/2), negatives to fill. */
-static uint32_t class_rows(const mim__svm_data_t *data, uint32_t c, uint32_t max, uint64_t seed, uint32_t *idx,
+static uint32_t class_rows(const mim__svm_data_t *data, uint32_t c, uint32_t max, uint64_t stream, uint32_t *idx,
                            uint32_t *scratch)
 {
     uint32_t n = data->n;
@@ -191,7 +297,7 @@ static uint32_t class_rows(const mim__svm_data_t *data, uint32_t c, uint32_t max
         for (uint32_t i = 0; i < n; i++) idx[i] = i;
         return n;
     }
-    uint32_t m = subsample(data, n, seed, scratch); /* a shuffled order */
+    uint32_t m = subsample(data, n, stream, scratch); /* a shuffled order */
     uint32_t out = 0, pos = 0;
     for (uint32_t i = 0; i < m && out < max / 2; i++)
         if (data->y[scratch[i]] == c) idx[out++] = scratch[i], pos++;
@@ -225,9 +331,11 @@ int mim__svm_train_all(const mim__svm_data_t *data, const mim_index_options_t *o
         /* gamma's scale: 1 / mean squared distance between descriptors */
         uint32_t m = subsample(data, cv_max, 0x6376ULL, idx);
         double sum = 0;
-        uint64_t pairs = 0, seed = 0x67616d6dULL;
+        uint64_t pairs = 0;
+        mim_rng_t rng;
+        mim_rng_seed(&rng, MIM__INDEX_SEED, 0x67616d6dULL);
         for (uint32_t t = 0; t < 4000 && m > 1; t++) {
-            uint32_t a = idx[mim__rng(&seed) % m], b = idx[mim__rng(&seed) % m];
+            uint32_t a = idx[mim_rng_below(&rng, m)], b = idx[mim_rng_below(&rng, m)];
             if (a == b) continue;
             double s = 0;
             for (uint32_t f = 0; f < d; f++) {
@@ -244,8 +352,8 @@ int mim__svm_train_all(const mim__svm_data_t *data, const mim_index_options_t *o
             for (uint32_t i = 0; i < m; i++) fold[i] = data->group[idx[i]] % k;
         } else {
             if (k > m) k = m;
-            uint64_t s2 = 0x666f6c64ULL;
-            for (uint32_t i = 0; i < m; i++) fold[i] = (uint32_t)(mim__rng(&s2) % k);
+            mim_rng_seed(&rng, MIM__INDEX_SEED, 0x666f6c64ULL);
+            for (uint32_t i = 0; i < m; i++) fold[i] = (uint32_t)mim_rng_below(&rng, k);
         }
         static const double Cs[] = {1, 10, 100, 1000}, Gs[] = {0.25, 1, 4, 16};
         double best_acc = -1;
@@ -261,7 +369,7 @@ int mim__svm_train_all(const mim__svm_data_t *data, const mim_index_options_t *o
                         if (fold[i] != f) tr[ntr++] = idx[i];
                     if (ntr == m || !ntr) continue;
                     for (uint32_t c = 0; c < nc && !rc; c++)
-                        rc = train_one(data, tr, ntr, c, c_try, g_try, 0, &tmp[c], err);
+                        rc = train_one(data, tr, ntr, c, c_try, g_try, &tmp[c], err);
                     for (uint32_t i = 0; i < m && !rc; i++) {
                         if (fold[i] != f) continue;
                         const double *x = data->x + (size_t)idx[i] * d;
@@ -289,7 +397,9 @@ train:
     for (uint32_t c = 0; c < nc && !rc; c++) {
         if (nc < 2) break;
         uint32_t m = class_rows(data, c, svm_max, 0x737663ULL + c, idx, scratch);
-        rc = train_one(data, idx, m, c, C, gamma, 1, &out[c], err);
+        uint32_t pos = count_positive(data, idx, m, c);
+        rc = train_one(data, idx, m, c, C, gamma, &out[c], err);
+        if (!rc && pos && pos < m) rc = platt_fit(data, idx, m, c, C, gamma, 0x706c6174ULL + c, &out[c], err);
         if (opt->progress) mim_progress_update(opt->progress, opt->progress->done + 1);
     }
     *C_out = C, *gamma_out = gamma, *cv_out = cv_acc;

@@ -9,7 +9,6 @@
 #include "mim_transfer.h"
 
 #include <pthread.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -190,7 +189,8 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
         else if (!(rc = mim_landmarks_read(&wr.landmarks, lm, err)))
             wr.have_landmarks = 1;
     } else if (!rc && opt->landmarks_path) {
-        mim_log("note: the store already has a landmark map; ignoring %s", opt->landmarks_path);
+        mim_log_emit(opt->log, opt->log_ctx, MIM_LOG_WARN, "note: the store already has a landmark map; ignoring %s",
+                     opt->landmarks_path);
     }
     if (!rc && opt->manifest_path) rc = mim_manifest_load(&manifest, opt->manifest_path, err);
     if (!rc) rc = mim_discover(paths, n_paths, &files, err);
@@ -218,7 +218,7 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
         goto join;
     }
 
-    mim_progress_t prog;
+    mim_progress_t prog = {.fn = opt->progress, .ctx = opt->progress_ctx};
     mim_progress_begin(&prog, "ingest", files.count);
     uint32_t pending = 0;
     for (size_t i = 0; i < files.count && !rc; i++) {
@@ -231,10 +231,7 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
         if (!s.rc && wr.have_topology) s.rc = check_topology(&wr, path, &s.mesh, &s.err);
         if (s.rc) {
             report->failed++;
-            if (!opt->quiet) {
-                if (prog.enabled) fputc('\n', stderr);
-                mim_log("%s", mim_error_text(&s.err));
-            }
+            if (!opt->quiet) mim_log_emit(opt->log, opt->log_ctx, MIM_LOG_ERROR, "%s", mim_error_text(&s.err));
         } else {
             if (!wr.txn && (rc = mim_db_begin(db, 1, &wr.txn, err))) break;
             if (!wr.have_topology && (rc = set_reference(&wr, path, &s.mesh, err))) break;

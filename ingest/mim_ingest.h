@@ -48,21 +48,28 @@ typedef struct mim_ingest_options {
     uint32_t batch;             /* templates per transaction; 0 means 64 */
     uint32_t threads;           /* reader threads; 0 means the number of cores */
     int quiet;                  /* no per-file messages */
+    /* Each rejected file (unless quiet) and notes, one line each, on the
+     * calling thread; NULL: quiet. */
+    mim_log_fn log;
+    void *log_ctx;
+    mim_progress_fn progress;   /* files done of files found (label "ingest"); NULL: none */
+    void *progress_ctx;
 } mim_ingest_options_t;
 
 typedef struct mim_ingest_report {
     uint64_t files;      /* files considered */
     uint64_t added;      /* new templates */
     uint64_t duplicates; /* content already in the store */
-    uint64_t failed;     /* files rejected (each reported on stderr) */
+    uint64_t failed;     /* files rejected (each reported through the log callback) */
     uint64_t templates;  /* templates in the store afterwards */
     double seconds;
 } mim_ingest_report_t;
 
 /* Reads the files on `threads` threads, checks each against the store's
- * connectivity, and commits them in batches. Bad files are reported and
- * skipped. Returns 0 unless the ingest could not run at all (store error,
- * no landmark map for an empty store); per-file failures are in report. */
+ * connectivity, and commits them in batches. Bad files are reported
+ * (opt->log) and skipped. Returns 0 unless the ingest could not run at all
+ * (store error, no landmark map for an empty store); per-file failures are
+ * in report. */
 int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_ingest_options_t *opt,
                    mim_ingest_report_t *report, mim_error_t *err);
 

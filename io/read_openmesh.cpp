@@ -9,6 +9,7 @@
 // reader objects from a pool. A reader registers itself with the IOManager
 // when constructed and never unregisters, so pooled sets live as long as the
 // process (at most one per concurrent reader thread).
+#include "openmesh_streams.h"
 #include "read_shim.h"
 
 #include <OpenMesh/Core/IO/IOManager.hh>
@@ -17,14 +18,12 @@
 #include <OpenMesh/Core/IO/reader/OFFReader.hh>
 #include <OpenMesh/Core/IO/reader/PLYReader.hh>
 #include <OpenMesh/Core/IO/reader/STLReader.hh>
-#include <OpenMesh/Core/System/omstream.hh>
 
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <mutex>
-#include <streambuf>
 #include <vector>
 
 namespace {
@@ -123,15 +122,6 @@ public:
     size_t n_edges() const override { return 0; }
 };
 
-std::once_flag quiet_once;
-
-// A stream buffer that accepts and drops every character.
-class NullBuffer : public std::streambuf {
-protected:
-    int overflow(int c) override { return traits_type::not_eof(c); }
-    std::streamsize xsputn(const char *, std::streamsize n) override { return n; }
-};
-
 struct ReaderSet {
     _PLYReader_ ply;
     _OFFReader_ off;
@@ -173,17 +163,7 @@ extern "C" int mim__openmesh_read(const char *path, const char *format, mim__raw
     std::memset(out, 0, sizeof *out);
     out->first_bad_face = -1;
     try {
-        // OpenMesh reports on its own global streams, which are not
-        // thread-safe; mimic reports every problem itself.
-        // Their multiplexing buffer also deadlocks on a long message (it
-        // re-locks its own mutex when it overflows), which a malformed file
-        // can trigger; so the streams get a buffer that discards everything.
-        std::call_once(quiet_once, [] {
-            static NullBuffer sink;
-            omerr().rdbuf(&sink);
-            omlog().rdbuf(&sink);
-            omout().rdbuf(&sink);
-        });
+        mim__openmesh_quiet();
         ArrayImporter imp;
         Options opt;
         ReaderSet *readers = acquire_readers();

@@ -4,6 +4,7 @@
 // directly (as the reader's importer does in ingest/openmesh_shim.cpp), so
 // every face is written exactly as given: a half-edge TriMesh would refuse
 // non-manifold faces. No C++ type or exception crosses into C.
+#include "openmesh_streams.h"
 #include "write_shim.h"
 
 #include <OpenMesh/Core/IO/exporter/BaseExporter.hh>
@@ -11,7 +12,6 @@
 #include <OpenMesh/Core/IO/writer/OFFWriter.hh>
 #include <OpenMesh/Core/IO/writer/PLYWriter.hh>
 #include <OpenMesh/Core/Mesh/BaseKernel.hh>
-#include <OpenMesh/Core/System/omstream.hh>
 
 #include <cstdio>
 #include <cstdlib>
@@ -19,7 +19,6 @@
 #include <mutex>
 #include <new>
 #include <sstream>
-#include <streambuf>
 #include <string>
 #include <vector>
 
@@ -106,15 +105,6 @@ private:
 };
 #undef NO_COLORS_OR_STATUS
 
-// A stream buffer that accepts and drops every character (see the reader:
-// OpenMesh's log streams are not thread-safe and deadlock on long messages).
-class NullBuffer : public std::streambuf {
-protected:
-    int overflow(int c) override { return traits_type::not_eof(c); }
-    std::streamsize xsputn(const char *, std::streamsize n) override { return n; }
-};
-
-std::once_flag quiet_once;
 // The writers are process-wide singletons; one encode at a time.
 std::mutex write_mutex;
 
@@ -129,12 +119,7 @@ extern "C" int mim__openmesh_encode(const mim_mesh_t *mesh, const char *format, 
     out->data = nullptr;
     out->size = 0;
     try {
-        std::call_once(quiet_once, [] {
-            static NullBuffer sink;
-            omerr().rdbuf(&sink);
-            omlog().rdbuf(&sink);
-            omout().rdbuf(&sink);
-        });
+        mim__openmesh_quiet();
         const BaseWriter *writer = nullptr;
         Options opt;
         if (!std::strcmp(format, "ply")) {

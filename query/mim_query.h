@@ -16,7 +16,9 @@ extern "C" {
 
 /* Reads every template's landmarks (the store's landmark map), builds the
  * index and stores it with its build record, replacing any older one.
- * MIM_ENOLANDMARKS for a store without a landmark map. */
+ * MIM_ENOLANDMARKS for a store without a landmark map. Progress, when
+ * opt->progress is set: its callback hears "reading templates", then
+ * "index". */
 int mim_query_build_index(mim_db_t *db, const mim_index_options_t *opt, mim_index_report_t *report,
                           mim_error_t *err);
 

@@ -77,7 +77,8 @@ int mim_query_build_index(mim_db_t *db, const mim_index_options_t *opt, mim_inde
     }
     if (rc) goto out;
     g.map = &map, g.err = err;
-    if (opt && opt->progress) {
+    if (opt && opt->progress) { /* the index options' callback, for the reading first */
+        pr = (mim_progress_t){.fn = opt->progress->fn, .ctx = opt->progress->ctx};
         g.progress = &pr;
         mim_progress_begin(&pr, "reading templates", meta.templates);
     }

@@ -102,12 +102,12 @@ json_t *mim__loop_status(mim__loop_t *l); /* null without a vest */
 
 /* ---- the service ---- */
 struct mim_serve {
-    mim_session_t *s;           /* store, index, avatar, factor: the transfer pipeline */
+    mim_session_t *s;           /* store, index, avatar, factor: the transfer pipeline (borrowed) */
     /* what the session holds, read-only, for the handlers */
     const mim_mesh_t *mesh;     /* the avatar at rest, the store's faces */
     const mim_landmark_map_t *map;
     const mim_query_t *q;       /* NULL when the store has no index */
-    char store[4096];
+    const char *store;          /* the store's path */
     double t_start;
     size_t max_body;
     struct mg_context *ctx;

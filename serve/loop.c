@@ -404,7 +404,8 @@ static void link_state(mim__loop_t *l, int up, const char *why)
         mim__metrics_set(&l->sv->m, MIM__G_FRAME_RATE, 0.0);
         l->window_start = 0.0, l->window_frames = l->window_keys = 0;
     }
-    mim_log("vest %s: %s", l->spec, up ? "streaming again" : "lost; waiting for it to come back");
+    mim_log_emit(l->opt.log, l->opt.log_ctx, up ? MIM_LOG_INFO : MIM_LOG_WARN, "vest %s: %s", l->spec,
+                 up ? "streaming again" : "lost; waiting for it to come back");
 }
 
 static void *run(void *arg)
@@ -504,7 +505,8 @@ int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t
         if (!rc)
             rc = mim_vest_calibrate(&l->rig, sk, &co, NULL, err);
         /* a service waits for its vest to come back, however long it is away */
-        mim_vest_transport_options_t to = {.timeout_ms = 200, .realtime = 1, .reconnect_limit_ms = INT_MAX};
+        mim_vest_transport_options_t to = {.timeout_ms = 200, .realtime = 1, .reconnect_limit_ms = INT_MAX,
+                                           .log = opt->log, .log_ctx = opt->log_ctx};
         if (!rc)
             rc = mim_vest_transport_open(&l->t, opt->vest, &to, err);
         mim_vest_decoder_options_t dopt = {.header_flags = l->t ? mim_vest_transport_header_flags(l->t) : 0};

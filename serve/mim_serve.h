@@ -17,6 +17,7 @@
 #define MIM_SERVE_H
 
 #include "mim_core.h"
+#include "mim_session.h"
 
 #include <stddef.h>
 #include <stdint.h>
@@ -59,24 +60,39 @@ typedef struct mim_serve_options {
      * error (bench/warm_start.c). */
     int warm_start;
     unsigned max_clients; /* WebSocket clients at once; 0: MIM_SERVE_DEFAULT_MAX_CLIENTS */
-    uint64_t map_size;    /* the store's LMDB map size (mim_db_options_t); 0: the default */
     /* Called on the loop thread for every published frame (may be NULL),
      * e.g. to record the served sequence; it must return quickly. */
     void (*on_frame)(void *user, const mim_serve_frame_t *frame);
     void *user;
+    /* The vest loop's notes (the vest lost, streaming again), one line each,
+     * from the loop thread; NULL: quiet. */
+    mim_log_fn log;
+    void *log_ctx;
 } mim_serve_options_t;
 
 #define MIM_SERVE_DEFAULT_MAX_CLIENTS 64u
 
 typedef struct mim_serve mim_serve_t;
 
-/* Opens the store read-only, loads the avatar (a mesh file with the store's
- * connectivity, or an all-digit template id), the index if the store has
- * one (without it /api/query answers 503), factorises the transfer solver
- * once, starts the vest loop (opt->vest) and starts listening. Errors name the store, the avatar or the
- * address. */
-int mim_serve_open(mim_serve_t **out, const char *store, const char *avatar, const mim_serve_options_t *opt,
-                   mim_error_t *err);
+/* Thread stacks: the host program must give civetweb's threads at least
+ * 1 MiB of stack. Debian's civetweb (1.15) starts them with a fixed 100 KiB
+ * (a compile-time setting, no run-time option), and glibc carves the
+ * process's static TLS out of every thread stack: with OpenBLAS and METIS
+ * loaded (through CHOLMOD, about 90 KiB of TLS) a worker overflows on its
+ * first request. serve/ does not change thread attributes itself (that
+ * would act on the whole process); the mimic program does, in
+ * cli/stack_size.c, by interposing pthread_attr_setstacksize. Another host
+ * can do the same, or link a civetweb built with CIVETWEB_THREAD_STACK_SIZE
+ * of 1 MiB or more (or 0, the system's default). The threads serve creates
+ * itself (the vest loop, a sender per WebSocket client) use the default
+ * attributes. */
+
+/* Serves session s: its store, index (without one /api/query answers 503),
+ * avatar and factor (mim_session_open, then mim_session_load_avatar). The
+ * session is borrowed: the caller closes it after mim_serve_close. Starts
+ * the vest loop (opt->vest) and starts listening. Errors name the vest or
+ * the address. */
+int mim_serve_open(mim_serve_t **out, mim_session_t *s, const mim_serve_options_t *opt, mim_error_t *err);
 /* The port actually bound (useful with port 0). */
 int mim_serve_port(const mim_serve_t *s);
 /* The vest loop's state, a static string: "streaming", "reconnecting",

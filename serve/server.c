@@ -6,7 +6,6 @@
 #include "viewer.h"
 
 #include <civetweb.h>
-#include <dlfcn.h>
 #include <errno.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -52,31 +51,6 @@ int mim__reply_error(struct mg_connection *c, int status, const char *fmt, ...)
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
     return mim__reply_json(c, status, json_pack("{s:s, s:i}", "error", msg, "status", status));
-}
-
-/* Debian's civetweb starts its threads with a fixed 100 KiB stack (its
- * build's CIVETWEB_THREAD_STACK_SIZE; no run-time option). glibc 2.36
- * carves the static TLS out of that stack, and mimic links OpenBLAS
- * (60 KiB of TLS) and METIS (29 KiB), leaving a civetweb worker ~10 KiB: it
- * overflows on its first request. So mimic interposes the one call civetweb
- * makes to size its stacks and raises any request below 1 MiB. Every other
- * caller that asks for less than 1 MiB gets 1 MiB too, which is harmless.
- * (It lives here, not in a file of its own, so that linking server.o from
- * the static library always brings it.) */
-#define MIN_STACK ((size_t)1 << 20)
-
-typedef int (*setstacksize_fn)(pthread_attr_t *, size_t);
-static setstacksize_fn real_setstacksize;
-static pthread_once_t real_once = PTHREAD_ONCE_INIT;
-static void find_real(void)
-{
-    *(void **)&real_setstacksize = dlsym(RTLD_NEXT, "pthread_attr_setstacksize");
-}
-
-int pthread_attr_setstacksize(pthread_attr_t *attr, size_t size)
-{
-    pthread_once(&real_once, find_real);
-    return real_setstacksize(attr, size < MIN_STACK ? MIN_STACK : size);
 }
 
 typedef int (*handler_fn)(mim_serve_t *, struct mg_connection *, const char *, size_t);
@@ -178,8 +152,7 @@ static int quiet_log(const struct mg_connection *c, const char *message)
     return 1; /* mimic reports its own errors; civetweb's go nowhere */
 }
 
-int mim_serve_open(mim_serve_t **out, const char *store, const char *avatar, const mim_serve_options_t *opt,
-                   mim_error_t *err)
+int mim_serve_open(mim_serve_t **out, mim_session_t *s, const mim_serve_options_t *opt, mim_error_t *err)
 {
     *out = NULL;
     mim_serve_options_t o = opt ? *opt : (mim_serve_options_t){0};
@@ -189,16 +162,13 @@ int mim_serve_open(mim_serve_t **out, const char *store, const char *avatar, con
     mim__metrics_init(&sv->m);
     sv->t_start = mim_now();
     sv->max_body = o.max_body ? o.max_body : MIM_SERVE_DEFAULT_MAX_BODY;
-    snprintf(sv->store, sizeof sv->store, "%s", store);
-    mim_session_options_t so = {.map_size = o.map_size};
-    int rc = mim_session_open(&sv->s, store, &so, err);
-    if (!rc)
-        rc = mim_session_load_avatar(sv->s, avatar, err);
-    if (!rc) {
-        sv->mesh = mim_session_mesh(sv->s);
-        sv->map = mim_session_map(sv->s);
-        sv->q = mim_session_query(sv->s);
-    }
+    sv->s = s;
+    sv->store = mim_session_store(s);
+    sv->mesh = mim_session_mesh(s);
+    sv->map = mim_session_map(s);
+    sv->q = mim_session_query(s);
+    int rc = mim_session_has_avatar(s) ? 0 : mim_error_set(err, MIM_EINVAL, "%s: serve: the session has no avatar",
+                                                             sv->store);
     const unsigned max_clients = o.max_clients ? o.max_clients : MIM_SERVE_DEFAULT_MAX_CLIENTS;
     if (!rc)
         rc = mim__ws_open(&sv->ws, sv, max_clients, err);
@@ -222,6 +192,11 @@ int mim_serve_open(mim_serve_t **out, const char *store, const char *avatar, con
                              "websocket_timeout_ms", "500",
                              "tcp_nodelay", "1", /* a frame's tail must not wait for an ACK (Nagle) */
                              NULL};
+    /* civetweb starts its workers with 100 KiB stacks in Debian's build (a
+     * compile-time setting, no run-time option), too small once glibc has
+     * carved this process's static TLS out of them. Raising them is the
+     * host program's business (mim_serve.h; mimic's is cli/stack_size.c):
+     * a library must not change thread attributes for the whole process. */
     struct mg_callbacks cb = {.log_message = quiet_log};
     struct mg_init_data init = {.callbacks = &cb, .user_data = sv, .configuration_options = options};
     char why[256] = "";
@@ -275,7 +250,6 @@ void mim_serve_close(mim_serve_t **ps)
     }
     mim__loop_close(&sv->loop); /* after the workers: /api/status reads the loop */
     mim__ws_close(&sv->ws);     /* after the loop, which publishes to it */
-    mim_session_close(&sv->s);
     mim__metrics_destroy(&sv->m);
     free(sv);
     *ps = NULL;

@@ -58,6 +58,7 @@ const double *mim_session_encoding(const mim_session_t *s); /* the avatar's W, 3
 const mim_query_t *mim_session_query(const mim_session_t *s);
 const mim_query_status_t *mim_session_index_status(const mim_session_t *s);
 double mim_session_factor_seconds(const mim_session_t *s); /* the factorisation's time */
+int mim_session_has_avatar(const mim_session_t *s); /* 1 after a successful mim_session_load_avatar */
 
 /* ---- templates ---- */
 /* Template id's positions (3 * n floats) and frames (9 * n doubles; NULL

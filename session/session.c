@@ -165,6 +165,7 @@ const double *mim_session_encoding(const mim_session_t *s) { return s->W; }
 const mim_query_t *mim_session_query(const mim_session_t *s) { return s->query; }
 const mim_query_status_t *mim_session_index_status(const mim_session_t *s) { return &s->index; }
 double mim_session_factor_seconds(const mim_session_t *s) { return s->t_factor; }
+int mim_session_has_avatar(const mim_session_t *s) { return s->solver != NULL; }
 
 int mim_session_template(mim_session_t *s, uint64_t id, float *positions, double *frames, char *label,
                          size_t label_size, mim_error_t *err)

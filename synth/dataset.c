@@ -1,13 +1,14 @@
 /* Writing a dataset: one binary PLY per body, manifest.csv, landmarks.json.
  *
- * Every file is written under a temporary name in the same folder and then
- * renamed, so readers (and a run killed half-way) never see a partial file.
- * The manifest and landmark map come last: their presence means the bodies
- * they list are all there. Bytes are packed explicitly little-endian so the
- * files are identical on any host. */
+ * Every file goes through mim_file_write_atomic (a temporary beside it,
+ * fsync, rename), so readers (and a run killed half-way) never see a
+ * partial file. The manifest and landmark map come last: their presence
+ * means the bodies they list are all there. Bytes are packed explicitly
+ * little-endian so the files are identical on any host. */
 #include "synth_internal.h"
 
 #include <errno.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -59,41 +60,40 @@ static char *join(const char *dir, const char *name)
     return p;
 }
 
-/* Writes len bytes of each block to dir/name through dir/.name.tmp. */
-static int write_atomic(const char *dir, const char *name, const void *const *blocks, const size_t *lens,
-                        int nblocks, mim_error_t *err)
+/* manifest.csv grows in memory and is written whole at the end */
+typedef struct text {
+    char *b;
+    size_t n, cap;
+} text_t;
+
+static int text_addf(text_t *t, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static int text_addf(text_t *t, const char *fmt, ...)
 {
-    char tmpname[300];
-    snprintf(tmpname, sizeof tmpname, ".%s.tmp", name);
-    char *path = join(dir, name), *tmp = join(dir, tmpname);
-    int rc = 0;
-    if (!path || !tmp) {
-        rc = mim_error_set(err, MIM_ENOMEM, "synth: out of memory");
-        goto out;
+    for (;;) {
+        va_list ap;
+        va_start(ap, fmt);
+        int w = vsnprintf(t->b ? t->b + t->n : NULL, t->b ? t->cap - t->n : 0, fmt, ap);
+        va_end(ap);
+        if (w < 0)
+            return -1;
+        if (t->b && (size_t)w < t->cap - t->n) {
+            t->n += (size_t)w;
+            return 0;
+        }
+        size_t cap = t->cap ? 2 * t->cap : 4096;
+        while (cap < t->n + (size_t)w + 1)
+            cap *= 2;
+        char *nb = realloc(t->b, cap);
+        if (!nb)
+            return -1;
+        t->b = nb, t->cap = cap;
     }
-    FILE *f = fopen(tmp, "wb");
-    if (!f) {
-        int e = errno;
-        rc = mim_error_set(err, -e, "%s: cannot write: %s", tmp, strerror(e));
-        goto out;
-    }
-    int ok = 1;
-    for (int i = 0; i < nblocks && ok; i++) ok = fwrite(blocks[i], 1, lens[i], f) == lens[i];
-    int e = ok ? 0 : errno;
-    if (fclose(f) != 0 && ok) ok = 0, e = errno;
-    if (!ok) {
-        remove(tmp);
-        rc = mim_error_set(err, -(e ? e : EIO), "%s: write failed: %s", tmp, strerror(e ? e : EIO));
-        goto out;
-    }
-    if (rename(tmp, path) != 0) {
-        e = errno;
-        remove(tmp);
-        rc = mim_error_set(err, -e, "%s: cannot rename to %s: %s", tmp, path, strerror(e));
-    }
-out:
-    free(path), free(tmp);
-    return rc;
+}
+
+void mim_synth_set_progress(mim_synth_t *s, mim_progress_fn fn, void *ctx)
+{
+    if (s)
+        s->progress = fn, s->progress_ctx = ctx;
 }
 
 int mim_synth_write_dataset(const mim_synth_t *s, const char *dir, mim_error_t *err)
@@ -112,26 +112,18 @@ int mim_synth_write_dataset(const mim_synth_t *s, const char *dir, mim_error_t *
     uint8_t *vbuf = malloc(vbytes), *fbuf = malloc(fbytes);
     float *pos = malloc((size_t)nv * 3 * sizeof *pos);
     double *work = malloc((size_t)nv * 3 * sizeof *work);
-    char *mtmp = join(dir, ".manifest.csv.tmp"), *mpath = join(dir, "manifest.csv");
-    FILE *man = NULL;
-    if (!vbuf || !fbuf || !pos || !work || !mtmp || !mpath) {
+    text_t man = {0};
+    char *path = NULL;
+    if (!vbuf || !fbuf || !pos || !work || text_addf(&man, "file,subject,pose,pose_name\n")) {
         rc = mim_error_set(err, MIM_ENOMEM, "synth: out of memory");
         goto out;
     }
-    /* the manifest grows alongside the bodies and is renamed in last */
-    man = fopen(mtmp, "wb");
-    if (!man) {
-        int e = errno;
-        rc = mim_error_set(err, -e, "%s: cannot write: %s", mtmp, strerror(e));
-        goto out;
-    }
-    fputs("file,subject,pose,pose_name\n", man);
     for (uint32_t f = 0; f < nf; f++) { /* the face block is the same in every file */
         uint8_t *b = fbuf + 13 * (size_t)f;
         b[0] = 3;
         for (int k = 0; k < 3; k++) put_u32(b + 1 + 4 * k, s->faces[3 * f + k]);
     }
-    mim_progress_t pr;
+    mim_progress_t pr = {.fn = s->progress, .ctx = s->progress_ctx};
     mim_progress_begin(&pr, "synth", (uint64_t)S * P);
     for (uint32_t si = 0; si < S && !rc; si++) {
         mim__subject_t sub;
@@ -147,46 +139,34 @@ int mim_synth_write_dataset(const mim_synth_t *s, const char *dir, mim_error_t *
             for (uint32_t i = 0; i < 3 * nv; i++) put_f32(vbuf + 4 * (size_t)i, pos[i]);
             char name[64];
             mim_synth_file_name(si, p, name, sizeof name);
-            const void *blocks[3] = {header, vbuf, fbuf};
-            size_t lens[3] = {(size_t)hl, vbytes, fbytes};
-            rc = write_atomic(dir, name, blocks, lens, 3, err);
-            fprintf(man, "%s,%u,%u,%s\n", name, si, p, s->pose_name[p]);
+            free(path);
+            path = join(dir, name);
+            const mim_file_part_t parts[3] = {{header, (size_t)hl}, {vbuf, vbytes}, {fbuf, fbytes}};
+            if (!path || text_addf(&man, "%s,%u,%u,%s\n", name, si, p, s->pose_name[p]))
+                rc = mim_error_set(err, MIM_ENOMEM, "synth: out of memory");
+            else
+                rc = mim_file_write_atomic(path, parts, 3, err);
             mim_progress_update(&pr, (uint64_t)si * P + p + 1);
         }
         mim__body_free(&b);
     }
     mim_progress_end(&pr);
-    {
-        int bad = ferror(man), e = errno;
-        if (fclose(man) != 0 && !bad) bad = 1, e = errno;
-        man = NULL;
-        if (!rc && bad) rc = mim_error_set(err, -(e ? e : EIO), "%s: write failed: %s", mtmp, strerror(e ? e : EIO));
-    }
-    if (rc) {
-        remove(mtmp);
-        goto out;
-    }
-    if (rename(mtmp, mpath) != 0) {
-        int e = errno;
-        remove(mtmp);
-        rc = mim_error_set(err, -e, "%s: cannot rename to %s: %s", mtmp, mpath, strerror(e));
-        goto out;
-    }
-    {
-        mim_landmark_map_t map;
-        mim_synth_landmarks(s, &map);
-        char *tmp = join(dir, ".landmarks.json.tmp"), *path = join(dir, "landmarks.json");
-        if (!tmp || !path) rc = mim_error_set(err, MIM_ENOMEM, "synth: out of memory");
-        else rc = mim_landmarks_write(&map, tmp, err);
-        if (!rc && rename(tmp, path) != 0) {
-            int e = errno;
-            rc = mim_error_set(err, -e, "%s: cannot rename to %s: %s", tmp, path, strerror(e));
-        }
-        if (rc && tmp) remove(tmp);
-        free(tmp), free(path);
-    }
+    if (rc) goto out;
+    /* the manifest and the landmark map last: they list bodies that are all there */
+    free(path);
+    path = join(dir, "manifest.csv");
+    const mim_file_part_t mpart = {man.b, man.n};
+    if (!path)
+        rc = mim_error_set(err, MIM_ENOMEM, "synth: out of memory");
+    else
+        rc = mim_file_write_atomic(path, &mpart, 1, err);
+    if (rc) goto out;
+    mim_landmark_map_t map;
+    mim_synth_landmarks(s, &map);
+    free(path);
+    path = join(dir, "landmarks.json");
+    rc = path ? mim_landmarks_write(&map, path, err) : mim_error_set(err, MIM_ENOMEM, "synth: out of memory");
 out:
-    if (man) fclose(man), remove(mtmp);
-    free(vbuf), free(fbuf), free(pos), free(work), free(mtmp), free(mpath);
+    free(vbuf), free(fbuf), free(pos), free(work), free(man.b), free(path);
     return rc;
 }

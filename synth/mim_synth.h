@@ -82,11 +82,16 @@ void mim_synth_file_name(uint32_t subject, uint32_t pose, char *buf, size_t size
  * binary_little_endian 1.0 / comment mimic synth seed=K / element vertex N /
  * property float x,y,z / element face F / property list uchar int
  * vertex_indices / end_header), manifest.csv (`file,subject,pose,pose_name`)
- * and landmarks.json (mim_landmarks_write). Each file is written under a
- * temporary name and renamed, so a killed run leaves no half-written file.
- * Progress via mim_progress_* (label "synth"). Returns 0 or a negative code
- * with a one-line message in err (-errno for system errors). */
+ * and landmarks.json (mim_landmarks_write). Each file is written atomically
+ * (mim_file_write_atomic), so a killed run leaves no half-written file, and
+ * the manifest and landmark map last. Progress goes to the callback set by
+ * mim_synth_set_progress (label "synth", one step a body). Returns 0 or a
+ * negative code with a one-line message in err (-errno when a folder cannot
+ * be made, MIM_EIO when a file cannot be written). */
 int mim_synth_write_dataset(const mim_synth_t *s, const char *dir, mim_error_t *err);
+/* The progress callback of mim_synth_write_dataset; fn NULL (the default)
+ * is quiet. */
+void mim_synth_set_progress(mim_synth_t *s, mim_progress_fn fn, void *ctx);
 
 #ifdef __cplusplus
 }

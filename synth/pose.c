@@ -168,11 +168,11 @@ void mim__pose_angles(uint32_t pose, uint64_t seed, double deg[MIM__NJ][3])
         for (const set_t *s = table[pose]; s->j != 255; s++) deg[s->j][s->k] = s->deg;
         return;
     }
-    mim__rng_t r;
-    mim__rng_seed(&r, seed, 0x9053000000ULL + pose);
+    mim_rng_t r;
+    mim_rng_seed(&r, seed, 0x9053000000ULL + pose);
     for (int j = 0; j < MIM__NJ; j++)
         for (int k = 0; k < 3; k++) {
-            double u = mim__rng_unit(&r);
+            double u = mim_rng_unit(&r);
             double lo = RANDOM_SPAN * limits[j][k].lo, hi = RANDOM_SPAN * limits[j][k].hi;
             deg[j][k] = lo + (hi - lo) * u;
         }

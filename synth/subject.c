@@ -1,35 +1,12 @@
-/* Subject shape parameters from (seed, subject index), and the PRNG.
+/* Subject shape parameters from (seed, subject index).
  *
- * splitmix64 (Steele, Lea, Flood 2014) gives the same stream on every machine
- * and compiler, which keeps the datasets byte-identical for a seed. Each
- * subject draws from its own stream (seed, index), so subject k does not
- * depend on how many subjects are made. */
+ * Core's seeded generator (mim_rng_*, splitmix64) gives the same stream on
+ * every machine and compiler, which keeps the datasets byte-identical for a
+ * seed. Each subject draws from its own stream (seed, index), so subject k
+ * does not depend on how many subjects are made. */
 #include "synth_internal.h"
 
 #include <math.h>
-
-static uint64_t mix64(uint64_t z)
-{
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
-
-void mim__rng_seed(mim__rng_t *r, uint64_t seed, uint64_t stream)
-{
-    r->s = mix64(seed ^ mix64(stream + 0x9e3779b97f4a7c15ULL));
-}
-
-uint64_t mim__rng_u64(mim__rng_t *r)
-{
-    r->s += 0x9e3779b97f4a7c15ULL;
-    return mix64(r->s);
-}
-
-double mim__rng_unit(mim__rng_t *r)
-{
-    return (double)(mim__rng_u64(r) >> 11) * (1.0 / 9007199254740992.0);
-}
 
 /* The average adult the connectivity and landmarks are designed on. */
 void mim__subject_reference(mim__subject_t *sub)
@@ -51,16 +28,16 @@ void mim__subject_make(mim__subject_t *sub, uint64_t seed, uint32_t index)
 {
     /* Statures follow a golden-ratio sequence from a seeded start, so any few
      * consecutive subjects are well spread (>= 6 cm apart for the first 4). */
-    mim__rng_t r;
-    mim__rng_seed(&r, seed, 0x5eedu);
-    double start = mim__rng_unit(&r);
+    mim_rng_t r;
+    mim_rng_seed(&r, seed, 0x5eedu);
+    double start = mim_rng_unit(&r);
     double g = start + (double)index * 0.6180339887498949;
     g -= floor(g);
     sub->height = HEIGHT_MIN + (HEIGHT_MAX - HEIGHT_MIN) * g;
 
-    mim__rng_seed(&r, seed, 0x100000000ULL + index);
+    mim_rng_seed(&r, seed, 0x100000000ULL + index);
     double u[12];
-    for (int i = 0; i < 12; i++) u[i] = mim__rng_unit(&r);
+    for (int i = 0; i < 12; i++) u[i] = mim_rng_unit(&r);
     /* taller people are a little more often masculine, not always */
     sub->masc = fmin(1.0, fmax(0.0, 0.75 * u[0] + 0.25 * g + 0.05));
     sub->weight = u[1];

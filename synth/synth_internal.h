@@ -33,14 +33,6 @@ extern const int mim__joint_mirror[MIM__NJ];
 #define MIM__HELPER(j, k) (MIM__NJ + (j) * (MIM__HK - 1) + (k) - 1)
 int mim__bone_mirror(int b);
 
-/* ---- deterministic PRNG (splitmix64) ---- */
-typedef struct mim__rng {
-    uint64_t s;
-} mim__rng_t;
-void mim__rng_seed(mim__rng_t *r, uint64_t seed, uint64_t stream);
-uint64_t mim__rng_u64(mim__rng_t *r);
-double mim__rng_unit(mim__rng_t *r); /* [0, 1) */
-
 /* ---- subject: shape parameters (multipliers are about 1) ---- */
 typedef struct mim__subject {
     double height;          /* stature in rest pose, metres */
@@ -188,6 +180,8 @@ struct mim_synth {
     uint32_t *faces;
     uint32_t landmark[MIM_LANDMARKS_DEFAULT_COUNT];
     char (*pose_name)[24];
+    mim_progress_fn progress; /* of mim_synth_write_dataset; NULL: quiet */
+    void *progress_ctx;
 };
 
 /* One subject, evaluated: rest mesh, final weights, skeleton. */

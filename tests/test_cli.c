@@ -178,6 +178,44 @@ static void test_ingest_info_list(void **s)
 }
 
 /* The demo's path: synth -> ingest -> info, labels from the synth names. */
+/* README's exit-status table: a store that will not open is "the command
+ * could not run" (2) for every command that takes --store, with one line
+ * that names the store. */
+static void test_store_open_exit_status(void **s)
+{
+    (void)s;
+    char *file = ts_path(dir, "not-a-store"), *missing = ts_path(dir, "no-such-store");
+    FILE *f = fopen(file, "w");
+    assert_non_null(f);
+    fputs("x\n", f);
+    fclose(f);
+    const char *stores[] = {file, missing};
+    for (int k = 0; k < 2; k++) {
+        const char *st = stores[k];
+        const char *cases[][16] = {
+            {"info", "--store", st, NULL},
+            {"list", "--store", st, NULL},
+            {"index", "--store", st, NULL},
+            {"query", "--store", st, "--landmarks", "x.json", NULL},
+            {"transfer", "--store", st, "--avatar", "1", "--template", "2", "-o", "o.ply", NULL},
+            {"morph", "--store", st, "--avatar", "1", "--keys", "1,2", "--frames-between", "1", "-o", "o.glb", NULL},
+            {"serve", "--store", st, "--avatar", "1", "--listen", "127.0.0.1:0", NULL},
+            {"ingest", "--store", st, "nothing-to-read", NULL},
+        };
+        for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+            if (k == 1 && !strcmp(cases[c][0], "ingest"))
+                continue; /* ingest creates a missing store */
+            char *out = NULL, *err = NULL;
+            int rc = run(&out, &err, cases[c]);
+            if (rc != 2 || !strstr(err, st) || count_lines(err) != 1)
+                fail_msg("mimic %s --store %s: exit %d, stderr '%s' (wanted 2 and one line naming the store)",
+                         cases[c][0], st, rc, err);
+            free(out), free(err);
+        }
+    }
+    free(file), free(missing);
+}
+
 static void test_synth_ingest_info(void **s)
 {
     (void)s;
@@ -210,6 +248,7 @@ int main(void)
         cmocka_unit_test(test_help),
         cmocka_unit_test(test_usage_errors),
         cmocka_unit_test(test_ingest_info_list),
+        cmocka_unit_test(test_store_open_exit_status),
         cmocka_unit_test(test_synth_ingest_info),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

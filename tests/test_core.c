@@ -1,11 +1,16 @@
-/* core/: error texts and contexts, hashing, math, landmark maps, file reading. */
+/* core/: error texts and contexts, hashing, math, landmark maps, file
+ * reading and atomic writing, the random generator, the landmark-array
+ * parser, and the log and progress callbacks. */
 #include "test_support.h"
 
+#include <dirent.h>
 #include <errno.h>
+#include <jansson.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 static void test_errors(void **s)
 {
@@ -203,6 +208,289 @@ static void test_landmark_frames(void **s)
     assert_int_equal(mim_landmark_frames_read("/nonexistent/x.json", 4, 3, &f, &e), MIM_ENOTFOUND);
 }
 
+/* Entries of a folder other than . and .., and whether one has ".tmp" in
+ * its name (a leftover of a write). */
+static int count_entries(const char *dir, int *tmp_left)
+{
+    DIR *d = opendir(dir);
+    assert_non_null(d);
+    int n = 0;
+    *tmp_left = 0;
+    for (struct dirent *de; (de = readdir(d));) {
+        if (!strcmp(de->d_name, ".") || !strcmp(de->d_name, ".."))
+            continue;
+        n++;
+        if (strstr(de->d_name, ".tmp"))
+            *tmp_left = 1;
+    }
+    closedir(d);
+    return n;
+}
+
+/* Atomic write: the parts in order, the old content replaced whole, and a
+ * failure leaves the old file (or nothing) and names the path. */
+static void test_file_write_atomic(void **s)
+{
+    (void)s;
+    char *dir = ts_tempdir("core-atomic"), *path = ts_path(dir, "f.txt");
+    const char *old = "an old content, longer than the new one\n";
+    assert_int_equal(ts_write_file(path, old, strlen(old)), 0);
+    mim_file_part_t parts[3] = {{"new ", 4}, {"", 0}, {"bytes", 5}};
+    mim_error_t e = {0};
+    assert_int_equal(mim_file_write_atomic(path, parts, 3, &e), 0);
+    size_t len;
+    char *got = ts_read_file(path, &len);
+    assert_non_null(got);
+    assert_int_equal(len, 9);
+    assert_memory_equal(got, "new bytes", 9);
+    free(got);
+    int tmp_left;
+    assert_int_equal(count_entries(dir, &tmp_left), 1);
+    assert_false(tmp_left);
+
+    /* a folder that does not exist: an error naming the path, nothing made */
+    char *missing = ts_path(dir, "missing/f.txt");
+    e = (mim_error_t){0};
+    assert_int_equal(mim_file_write_atomic(missing, parts, 3, &e), MIM_EIO);
+    assert_non_null(strstr(e.msg, missing));
+    assert_int_equal(count_entries(dir, &tmp_left), 1);
+    struct stat st;
+    assert_int_not_equal(stat(missing, &st), 0);
+
+    /* the rename fails (a folder stands at the path): the temporary is gone */
+    char *sub = ts_path(dir, "sub");
+    assert_int_equal(mkdir(sub, 0777), 0);
+    e = (mim_error_t){0};
+    assert_int_equal(mim_file_write_atomic(sub, parts, 3, &e), MIM_EIO);
+    assert_non_null(strstr(e.msg, sub));
+    assert_int_equal(count_entries(dir, &tmp_left), 2);
+    assert_false(tmp_left);
+    assert_true(stat(sub, &st) == 0 && S_ISDIR(st.st_mode));
+
+    /* the landmark map goes through it too: JSON and a newline, read back */
+    uint32_t v[16];
+    for (int i = 0; i < 16; i++) v[i] = (uint32_t)(10 * i);
+    mim_landmark_map_t m, back;
+    mim_landmarks_default(&m, v, 1000);
+    char *lpath = ts_path(dir, "landmarks.json");
+    assert_int_equal(mim_landmarks_write(&m, lpath, &e), 0);
+    got = ts_read_file(lpath, &len);
+    assert_true(got && len > 0 && got[len - 1] == '\n');
+    free(got);
+    assert_int_equal(mim_landmarks_read(&back, lpath, &e), 0);
+    assert_memory_equal(back.vertex, v, sizeof v);
+    assert_int_equal(count_entries(dir, &tmp_left), 3);
+    assert_false(tmp_left);
+    ts_rmtree(dir);
+    free(lpath), free(sub), free(missing), free(path), free(dir);
+}
+
+/* A random unit quaternion: uniform over rotations (normalised 4D Gaussian). */
+static mim_quat random_rotation(mim_rng_t *r)
+{
+    mim_quat q = {mim_rng_gauss(r), mim_rng_gauss(r), mim_rng_gauss(r), mim_rng_gauss(r)};
+    return mim_quat_normalize(q);
+}
+
+/* The matrix of q built from mim_quat_rotate: its columns are the images
+ * of the axes (mim_core.h's layout), independent of mim_quat_to_matrix. */
+static void matrix_by_rotate(mim_quat q, double m[9])
+{
+    mim_vec3 c[3] = {mim_quat_rotate(q, mim_v3(1, 0, 0)), mim_quat_rotate(q, mim_v3(0, 1, 0)),
+                     mim_quat_rotate(q, mim_v3(0, 0, 1))};
+    for (int k = 0; k < 3; k++)
+        m[3 * k] = c[k].x, m[3 * k + 1] = c[k].y, m[3 * k + 2] = c[k].z;
+}
+
+/* Matrix -> quaternion -> matrix, for random rotations and for the
+ * half-turns about each axis that take every branch of Shepperd's method. */
+static void test_quat_matrix(void **s)
+{
+    (void)s;
+    mim_rng_t r;
+    mim_rng_seed(&r, 11, 0);
+    mim_quat qs[1000 + 6];
+    int n = 0;
+    for (; n < 1000; n++) qs[n] = random_rotation(&r);
+    for (int k = 0; k < 3; k++) { /* a trace of -1: only the diagonal branches work */
+        mim_vec3 axis = mim_v3(k == 0, k == 1, k == 2);
+        qs[n++] = mim_quat_axis_angle(axis, M_PI);
+        qs[n++] = mim_quat_axis_angle(mim_v3_add(axis, mim_v3(0.01, 0.02, 0.03)), M_PI - 1e-3);
+    }
+    for (int i = 0; i < n; i++) {
+        double m[9], m2[9];
+        matrix_by_rotate(qs[i], m);
+        mim_quat_to_matrix(qs[i], m2);
+        for (int k = 0; k < 9; k++) assert_true(fabs(m[k] - m2[k]) < 1e-12);
+        mim_quat q = mim_quat_from_matrix(m);
+        assert_true(fabs(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w - 1) < 1e-12);
+        /* the same rotation: q or -q */
+        double d = q.x * qs[i].x + q.y * qs[i].y + q.z * qs[i].z + q.w * qs[i].w;
+        assert_true(fabs(fabs(d) - 1) < 1e-12);
+        mim_vec3 v = mim_v3(mim_rng_gauss(&r), mim_rng_gauss(&r), mim_rng_gauss(&r));
+        mim_vec3 a = mim_quat_rotate(q, v), b = mim_quat_rotate(qs[i], v);
+        assert_true(mim_v3_norm(mim_v3_sub(a, b)) < 1e-12 * (1 + mim_v3_norm(v)));
+    }
+    /* slerp: the ends, the short way round, and constant speed */
+    mim_quat a = random_rotation(&r), b = random_rotation(&r);
+    mim_quat nb = {-b.x, -b.y, -b.z, -b.w};
+    for (int k = 0; k <= 4; k++) {
+        double t = k / 4.0;
+        mim_quat p = mim_quat_slerp(a, b, t), q = mim_quat_slerp(a, nb, t);
+        assert_true(fabs(fabs(p.x * q.x + p.y * q.y + p.z * q.z + p.w * q.w) - 1) < 1e-12);
+    }
+    mim_quat h = mim_quat_slerp(a, b, 0.5), e0 = mim_quat_slerp(a, b, 0), e1 = mim_quat_slerp(a, b, 1);
+    assert_true(fabs(fabs(e0.x * a.x + e0.y * a.y + e0.z * a.z + e0.w * a.w) - 1) < 1e-12);
+    assert_true(fabs(fabs(e1.x * b.x + e1.y * b.y + e1.z * b.z + e1.w * b.w) - 1) < 1e-12);
+    double da = fabs(h.x * a.x + h.y * a.y + h.z * a.z + h.w * a.w);
+    double db = fabs(h.x * b.x + h.y * b.y + h.z * b.z + h.w * b.w);
+    assert_true(fabs(da - db) < 1e-12);
+}
+
+/* The generator: one stream per (seed, stream), pinned values (synth's
+ * datasets are byte-identical for a seed only while these hold), ranges. */
+static void test_rng(void **s)
+{
+    (void)s;
+    mim_rng_t a, b, c;
+    mim_rng_seed(&a, 1, 0);
+    assert_true(mim_rng_u64(&a) == 0x85c61a300ec70fa1ULL);
+    assert_true(mim_rng_u64(&a) == 0x4952c2a6e1ef0b78ULL);
+    assert_true(mim_rng_u64(&a) == 0xf30f1e318359884bULL);
+    mim_rng_seed(&a, 42, 7), mim_rng_seed(&b, 42, 7), mim_rng_seed(&c, 42, 8);
+    int differ = 0;
+    for (int i = 0; i < 100; i++) {
+        uint64_t x = mim_rng_u64(&a);
+        assert_true(x == mim_rng_u64(&b));
+        differ += x != mim_rng_u64(&c);
+    }
+    assert_true(differ > 90);
+    const uint64_t ns[] = {2, 3, 7, 1000, (1ULL << 63) + 1, UINT64_MAX};
+    for (size_t k = 0; k < sizeof ns / sizeof ns[0]; k++) {
+        int seen[3] = {0};
+        for (int i = 0; i < 3000; i++) {
+            uint64_t x = mim_rng_below(&a, ns[k]);
+            assert_true(x < ns[k]);
+            if (ns[k] == 3) seen[x]++;
+        }
+        if (ns[k] == 3) assert_true(seen[0] > 900 && seen[1] > 900 && seen[2] > 900);
+    }
+    assert_true(mim_rng_below(&a, 0) == 0 && mim_rng_below(&a, 1) == 0);
+    double sum = 0, sq = 0;
+    for (int i = 0; i < 20000; i++) {
+        double u = mim_rng_unit(&a);
+        assert_true(u >= 0 && u < 1);
+        double g = mim_rng_gauss(&a);
+        assert_true(isfinite(g));
+        sum += g, sq += g * g;
+    }
+    assert_true(fabs(sum / 20000) < 0.03 && fabs(sq / 20000 - 1) < 0.05);
+}
+
+/* The landmark-array parser on its own: values and nulls, then each error
+ * with its code and where it names. */
+static void test_landmark_array(void **s)
+{
+    (void)s;
+    float pos[3 * 4];
+    uint8_t present[4];
+    mim_error_t e = {0};
+    json_t *ok = json_loads("[[1, 2, 3], null, [4, 5.5, -6], [0, 0, 0]]", 0, NULL);
+    assert_int_equal(mim_landmark_array_parse(ok, 4, 1, "mem", 0, pos, present, &e), 0);
+    assert_true(present[0] && !present[1] && present[2] && present[3]);
+    assert_true(pos[1] == 2.0f && pos[7] == 5.5f && pos[8] == -6.0f && isnan(pos[3]));
+    /* too many nulls for max_missing 0 */
+    assert_int_equal(mim_landmark_array_parse(ok, 4, 0, "mem", 3, pos, present, &e), MIM_EFORMAT);
+    assert_string_equal(e.msg, "mem: frame 3 has 1 missing landmarks, at most 0 allowed");
+    /* the wrong count */
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_array_parse(ok, 5, 1, "mem", 2, pos, present, &e), MIM_EFORMAT);
+    assert_string_equal(e.msg, "mem: frame 2 has 4 landmarks, the landmark map has 5");
+    json_decref(ok);
+    struct {
+        const char *text;
+        int code;
+        const char *msg;
+    } bad[] = {
+        {"{\"a\": 1}", MIM_EFORMAT, "udp frame: \"landmarks\" must be an array"},
+        {"[[1, 2, 3], [1, 2], [0, 0, 0], [0, 0, 0]]", MIM_EFORMAT,
+         "udp frame, landmark 1: expected [x, y, z] or null"},
+        {"[[1, 2, 3], [0, 0, 0], [0, \"y\", 0], [0, 0, 0]]", MIM_EFORMAT, "udp frame, landmark 2: y is not a number"},
+        {"[[1, 2, 3], [0, 0, 0], [0, 0, 0], [0, 0, 1e300]]", MIM_ENONFINITE,
+         "udp frame, landmark 3: z = 1e+300 is not a finite float"},
+        {"[[1, 2, 3], [0, 0, 0], [0, 0, 0], [true, 0, 0]]", MIM_EFORMAT, "udp frame, landmark 3: x is not a number"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        json_t *j = json_loads(bad[i].text, 0, NULL);
+        assert_non_null(j);
+        e = (mim_error_t){0};
+        assert_int_equal(mim_landmark_array_parse(j, 4, 4, "udp frame", -1, pos, present, &e), bad[i].code);
+        assert_string_equal(e.msg, bad[i].msg);
+        json_decref(j);
+    }
+}
+
+typedef struct {
+    int calls, phase[8], level;
+    uint64_t done[8], total;
+    char label[32], msg[64];
+} heard_t;
+
+static void hear_log(void *ctx, int level, const char *msg)
+{
+    heard_t *h = ctx;
+    h->calls++, h->level = level;
+    snprintf(h->msg, sizeof h->msg, "%s", msg);
+}
+
+static void hear_progress(void *ctx, int phase, const char *label, uint64_t done, uint64_t total)
+{
+    heard_t *h = ctx;
+    if (h->calls < 8) h->phase[h->calls] = phase, h->done[h->calls] = done;
+    h->calls++, h->total = total;
+    snprintf(h->label, sizeof h->label, "%s", label);
+}
+
+/* The callbacks hear what the library says, in one line; NULL is quiet. */
+static void test_callbacks(void **s)
+{
+    (void)s;
+    heard_t h = {0};
+    mim_log_emit(hear_log, &h, MIM_LOG_WARN, "%s: %d\nthings", "file.ply", 3);
+    assert_int_equal(h.calls, 1);
+    assert_int_equal(h.level, MIM_LOG_WARN);
+    assert_string_equal(h.msg, "file.ply: 3 things");
+    mim_log_emit(NULL, &h, MIM_LOG_ERROR, "nobody hears %d", 1);
+    assert_int_equal(h.calls, 1);
+
+    h = (heard_t){0};
+    mim_progress_t p = {.fn = hear_progress, .ctx = &h};
+    mim_progress_update(&p, 5); /* before begin: not reported */
+    mim_progress_begin(&p, "work", 3);
+    mim_progress_update(&p, 1);
+    mim_progress_update(&p, 3);
+    mim_progress_end(&p);
+    mim_progress_end(&p); /* a second end: not reported */
+    mim_progress_update(&p, 4);
+    assert_int_equal(h.calls, 4);
+    assert_string_equal(h.label, "work");
+    assert_true(h.total == 3);
+    int phases[4] = {MIM_PROGRESS_BEGIN, MIM_PROGRESS_STEP, MIM_PROGRESS_STEP, MIM_PROGRESS_END};
+    uint64_t done[4] = {0, 1, 3, 3};
+    for (int i = 0; i < 4; i++) {
+        assert_int_equal(h.phase[i], phases[i]);
+        assert_true(h.done[i] == done[i]);
+    }
+    /* the fn kept across runs; NULL is quiet and still counts */
+    mim_progress_begin(&p, "again", 0);
+    assert_int_equal(h.calls, 5);
+    mim_progress_t quiet = {0};
+    mim_progress_begin(&quiet, "quiet", 10);
+    mim_progress_update(&quiet, 7);
+    mim_progress_end(&quiet);
+    assert_true(quiet.done == 7 && quiet.total == 10);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -212,6 +500,11 @@ int main(void)
         cmocka_unit_test(test_landmarks),
         cmocka_unit_test(test_file_read),
         cmocka_unit_test(test_landmark_frames),
+        cmocka_unit_test(test_file_write_atomic),
+        cmocka_unit_test(test_quat_matrix),
+        cmocka_unit_test(test_rng),
+        cmocka_unit_test(test_landmark_array),
+        cmocka_unit_test(test_callbacks),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

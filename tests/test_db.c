@@ -292,6 +292,102 @@ static int reader_loop(const char *store, double seconds)
     return distinct >= 2 && rounds >= 2 ? 0 : 8;
 }
 
+/* Whether the store has a named table `name` (a key of LMDB's main database). */
+static int has_table(const char *store, const char *name)
+{
+    MDB_env *env;
+    MDB_txn *txn;
+    MDB_dbi main_dbi;
+    MDB_cursor *c;
+    MDB_val k, d;
+    int found = 0;
+    assert_int_equal(mdb_env_create(&env), 0);
+    mdb_env_set_maxdbs(env, 16);
+    assert_int_equal(mdb_env_open(env, store, MDB_RDONLY, 0664), 0);
+    assert_int_equal(mdb_txn_begin(env, NULL, MDB_RDONLY, &txn), 0);
+    assert_int_equal(mdb_dbi_open(txn, NULL, 0, &main_dbi), 0);
+    assert_int_equal(mdb_cursor_open(txn, main_dbi, &c), 0);
+    for (int r = mdb_cursor_get(c, &k, &d, MDB_FIRST); r == 0; r = mdb_cursor_get(c, &k, &d, MDB_NEXT))
+        found |= k.mv_size == strlen(name) && !memcmp(k.mv_data, name, k.mv_size);
+    mdb_cursor_close(c);
+    mdb_txn_abort(txn);
+    mdb_env_close(env);
+    return found;
+}
+
+/* The dropped `descriptors` table: a new store has none, and a store made
+ * before the drop (which has it, empty) still opens, read-only and for
+ * writing, and keeps it. */
+static void test_legacy_descriptors_table(void **s)
+{
+    (void)s;
+    char *store = ts_path(dir, "legacy");
+    mim_db_t *db;
+    mim_error_t err = {0};
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    mim_db_close(&db);
+    assert_false(has_table(store, "descriptors"));
+    assert_true(has_table(store, "encodings"));
+    /* add the table as an older mimic created it (integer keys, empty) */
+    MDB_env *env;
+    MDB_txn *txn;
+    MDB_dbi dbi;
+    assert_int_equal(mdb_env_create(&env), 0);
+    mdb_env_set_maxdbs(env, 16);
+    assert_int_equal(mdb_env_open(env, store, 0, 0664), 0);
+    assert_int_equal(mdb_txn_begin(env, NULL, 0, &txn), 0);
+    assert_int_equal(mdb_dbi_open(txn, "descriptors", MDB_CREATE | MDB_INTEGERKEY, &dbi), 0);
+    assert_int_equal(mdb_txn_commit(txn), 0);
+    mdb_env_close(env);
+    assert_true(has_table(store, "descriptors"));
+
+    mim_db_options_t ro = {.read_only = 1};
+    int rc = mim_db_open(&db, store, &ro, &err);
+    if (rc) fprintf(stderr, "%s\n", err.msg);
+    assert_int_equal(rc, 0);
+    mim_db_close(&db);
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    mim_db_txn_t *t;
+    assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
+    float p[12];
+    fill(p, 4, 1.0f);
+    mim_template_in_t in = {p, 4, mim_db_content_hash(p, 4), "a.ply", "s", "p"};
+    uint64_t id = 0;
+    assert_int_equal(mim_db_template_put(t, &in, &id, NULL, &err), 0);
+    assert_int_equal(mim_db_commit(&t, &err), 0);
+    mim_db_close(&db);
+    assert_true(has_table(store, "descriptors")); /* left as it was */
+    assert_int_equal(store_count(store), 1);
+    free(store);
+}
+
+/* The map size comes from the options only: the library reads no
+ * environment variable (the mimic command turns MIMIC_MAP_SIZE into the
+ * option). */
+static void test_map_size_option(void **s)
+{
+    (void)s;
+    char *store = ts_path(dir, "mapsize");
+    const char *old = getenv("MIMIC_MAP_SIZE");
+    char *saved = old ? strdup(old) : NULL;
+    setenv("MIMIC_MAP_SIZE", "1048576", 1);
+    mim_db_t *db;
+    mim_db_stat_t st;
+    mim_error_t err = {0};
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    assert_int_equal(mim_db_stat(db, &st, &err), 0);
+    assert_true(st.map_size == 256ULL << 30); /* the default, not the variable */
+    mim_db_close(&db);
+    mim_db_options_t o = {.map_size = 64ULL << 20};
+    assert_int_equal(mim_db_open(&db, store, &o, &err), 0);
+    assert_int_equal(mim_db_stat(db, &st, &err), 0);
+    assert_true(st.map_size == 64ULL << 20);
+    mim_db_close(&db);
+    if (saved) setenv("MIMIC_MAP_SIZE", saved, 1);
+    else unsetenv("MIMIC_MAP_SIZE");
+    free(saved), free(store);
+}
+
 static void test_readers_while_writing(void **s)
 {
     (void)s;
@@ -468,6 +564,8 @@ int main(void)
         cmocka_unit_test(test_readers_while_writing),
         cmocka_unit_test(test_kill_during_ingest),
         cmocka_unit_test(test_encodings),
+        cmocka_unit_test(test_legacy_descriptors_table),
+        cmocka_unit_test(test_map_size_option),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

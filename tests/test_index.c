@@ -5,6 +5,7 @@
 #include "test_support.h"
 
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -320,6 +321,144 @@ static void test_build_query_blob(void **s)
     synth_set_free(&ss);
 }
 
+/* The same input gives the same index, byte for byte; and neither building
+ * nor querying touches libc's generator (no srand: a library must not
+ * reseed the process's rand(), and FLANN reseeds it whenever it is given a
+ * seed). */
+static void test_reproducible_without_rand(void **s)
+{
+    (void)s;
+    synth_set_t ss;
+    synth_set(&ss, 4, 12, 17);
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_options_t o = {.features = 40};
+    mim_index_t *ix1 = NULL, *ix2 = NULL;
+    srand(1);
+    int r0 = rand(), r0b = rand();
+    srand(1);
+    assert_int_equal(mim_index_build(&ix1, &in, &o, NULL, NULL), 0);
+    int r1 = rand(), r1b = rand();
+    assert_int_equal(r0, r1); /* the build left the caller's stream where it was */
+    assert_int_equal(r0b, r1b);
+    assert_int_equal(mim_index_build(&ix2, &in, &o, NULL, NULL), 0);
+    void *b1 = NULL, *b2 = NULL;
+    size_t l1 = 0, l2 = 0;
+    assert_int_equal(mim_index_save(ix1, &b1, &l1, NULL), 0);
+    assert_int_equal(mim_index_save(ix2, &b2, &l2, NULL), 0);
+    assert_int_equal(l1, l2);
+    assert_memory_equal(b1, b2, l1);
+    /* queries, with and without missing landmarks */
+    uint8_t present[16];
+    memset(present, 1, sizeof present);
+    present[4] = 0;
+    srand(1);
+    for (uint32_t t = 0; t < ss.n; t++) {
+        mim_index_hit_t hits[2];
+        mim_index_answer_t a;
+        mim_index_query_options_t qo = {.k = 2};
+        assert_int_equal(mim_index_query(ix1, ss.lm + 48 * t, t % 2 ? present : NULL, &qo, &a, hits, NULL), 0);
+    }
+    assert_int_equal(rand(), r0);
+    /* loading the blob (FLANN indexes rebuilt) leaves it too */
+    mim_index_t *ix3 = NULL;
+    srand(1);
+    assert_int_equal(mim_index_load(&ix3, b1, l1, NULL), 0);
+    assert_int_equal(rand(), r0);
+    free(b1), free(b2);
+    mim_index_close(&ix1), mim_index_close(&ix2), mim_index_close(&ix3);
+    synth_set_free(&ss);
+}
+
+/* mim_index_query is thread-safe on one index: threads querying at once get
+ * exactly the serial answers (exact scans, and kd-forests: exact_max 2). */
+enum { CQ_THREADS = 4, CQ_ROUNDS = 6, CQ_K = 3 };
+typedef struct {
+    const mim_index_t *ix;
+    const float *frames;   /* n * 48 */
+    const uint8_t *present; /* n * 16 */
+    uint32_t n, shift;
+    const mim_index_answer_t *want_a;
+    const mim_index_hit_t *want_h; /* n * CQ_K */
+    uint32_t mismatches, failures;
+} cq_job_t;
+
+static int same_answer(const mim_index_answer_t *a, const mim_index_hit_t *h, const mim_index_answer_t *b,
+                       const mim_index_hit_t *g)
+{
+    if (a->cls != b->cls || a->probability != b->probability || a->n_hits != b->n_hits || a->missing != b->missing)
+        return 0;
+    for (uint32_t i = 0; i < a->n_hits; i++)
+        if (h[i].id != g[i].id || h[i].distance != g[i].distance) return 0;
+    return 1;
+}
+
+static void *cq_run(void *arg)
+{
+    cq_job_t *j = arg;
+    for (uint32_t r = 0; r < CQ_ROUNDS; r++)
+        for (uint32_t i = 0; i < j->n; i++) {
+            uint32_t f = (i * 7 + j->shift + r) % j->n; /* each thread in its own order */
+            mim_index_query_options_t qo = {.k = CQ_K};
+            mim_index_answer_t a;
+            mim_index_hit_t h[CQ_K];
+            if (mim_index_query(j->ix, j->frames + 48 * f, j->present + 16 * f, &qo, &a, h, NULL)) j->failures++;
+            else if (!same_answer(&a, h, &j->want_a[f], j->want_h + CQ_K * f)) j->mismatches++;
+        }
+    return NULL;
+}
+
+static void test_concurrent_queries(void **s)
+{
+    (void)s;
+    synth_set_t ss;
+    synth_set(&ss, 4, 12, 19);
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    /* frames: each template as is, perturbed, and with two landmarks missing */
+    uint32_t n = 3 * ss.n;
+    float *frames = malloc(sizeof(float) * 48 * n);
+    uint8_t *present = malloc(16 * n);
+    uint64_t seed = 23;
+    for (uint32_t f = 0; f < n; f++) {
+        uint32_t t = f % ss.n, kind = f / ss.n;
+        memset(present + 16 * f, 1, 16);
+        for (int i = 0; i < 48; i++) {
+            seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+            frames[48 * f + i] = ss.lm[48 * t + i] + (kind == 1 ? 0.03f * ((float)(seed >> 40) / 16777216.0f - 0.5f) : 0);
+        }
+        if (kind == 2) present[16 * f + (t % 16)] = present[16 * f + ((t + 5) % 16)] = 0;
+    }
+    for (int variant = 0; variant < 2; variant++) {
+        mim_index_options_t o = {.features = 40, .exact_max = variant ? 2 : 0};
+        mim_index_report_t rep;
+        mim_index_t *ix = NULL;
+        assert_int_equal(mim_index_build(&ix, &in, &o, &rep, NULL), 0);
+        assert_int_equal(rep.exact_classes, variant ? 0 : rep.n_classes);
+        mim_index_answer_t *want_a = malloc(sizeof *want_a * n);
+        mim_index_hit_t *want_h = malloc(sizeof *want_h * CQ_K * n);
+        for (uint32_t f = 0; f < n; f++) {
+            mim_index_query_options_t qo = {.k = CQ_K};
+            assert_int_equal(mim_index_query(ix, frames + 48 * f, present + 16 * f, &qo, &want_a[f], want_h + CQ_K * f,
+                                             NULL),
+                             0);
+        }
+        pthread_t th[CQ_THREADS];
+        cq_job_t jobs[CQ_THREADS];
+        for (int i = 0; i < CQ_THREADS; i++) {
+            jobs[i] = (cq_job_t){ix, frames, present, n, (uint32_t)i * 13, want_a, want_h, 0, 0};
+            assert_int_equal(pthread_create(&th[i], NULL, cq_run, &jobs[i]), 0);
+        }
+        for (int i = 0; i < CQ_THREADS; i++) {
+            pthread_join(th[i], NULL);
+            assert_int_equal(jobs[i].failures, 0);
+            assert_int_equal(jobs[i].mismatches, 0);
+        }
+        free(want_a), free(want_h);
+        mim_index_close(&ix);
+    }
+    free(frames), free(present);
+    synth_set_free(&ss);
+}
+
 /* Without pose labels the store is clustered: k = round(sqrt(n / 2)). */
 static void test_kmeans_classes(void **s)
 {
@@ -366,6 +505,8 @@ int main(void)
         cmocka_unit_test(test_selection),
         cmocka_unit_test(test_build_query_blob),
         cmocka_unit_test(test_kmeans_classes),
+        cmocka_unit_test(test_reproducible_without_rand),
+        cmocka_unit_test(test_concurrent_queries),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

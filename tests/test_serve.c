@@ -1,23 +1,20 @@
 /* mimic serve end to end: the real binary on 127.0.0.1 (an ephemeral port)
  * over a synth store made here, spoken to with real sockets and plain
- * HTTP/1.1 written by hand. Status, avatar, query, transfer (GLB), metrics,
- * each error status, and a clean exit on SIGTERM. */
+ * HTTP/1.1 (support/http_client.c). Status, avatar, query, transfer (GLB),
+ * metrics, each error status, and a clean exit on SIGTERM. */
 #include "mim_io.h"
 #include "test_support.h"
 
+#include "http_client.h"
 #include "mim_ingest.h"
 #include "vest_support.h"
 
-#include <arpa/inet.h>
-#include <errno.h>
 #include <jansson.h>
-#include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -117,76 +114,22 @@ static int teardown(void **state)
     return 0;
 }
 
-typedef struct reply {
+/* One request on a fresh connection (support/http_client.h), read until
+ * the server closes: it must connect, be sent whole, and be answered with
+ * an HTTP/1.1 status line and headers. Headers (may be NULL) are extra
+ * lines, each ending in \r\n; Content-Length is added for a body unless
+ * given. */
+static hc_reply_t http(const char *method, const char *path, const char *headers, const void *body, size_t len)
+{
+    hc_reply_t rep;
+    assert_int_equal(hc_request(&rep, port, method, path, headers, body, len, HC_FOREVER), HC_OK);
+    assert_non_null(rep.head);
     int status;
-    char *head; /* status line and headers, NUL-terminated */
-    char *body; /* NUL-terminated */
-    size_t len;
-} reply_t;
-
-static void reply_free(reply_t *r)
-{
-    free(r->head);
-    memset(r, 0, sizeof *r);
-}
-
-static void write_all(int s, const void *p, size_t n)
-{
-    const char *c = p;
-    while (n) {
-        ssize_t w = write(s, c, n);
-        if (w < 0 && errno == EINTR)
-            continue;
-        assert_true(w > 0);
-        c += w, n -= (size_t)w;
-    }
-}
-
-/* One request on a fresh connection. headers (may be NULL) are extra lines,
- * each ending in \r\n; Content-Length is added for a body unless given. */
-static reply_t http(const char *method, const char *path, const char *headers, const void *body, size_t len)
-{
-    int s = socket(AF_INET, SOCK_STREAM, 0);
-    assert_true(s >= 0);
-    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port)};
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    assert_int_equal(connect(s, (struct sockaddr *)&a, sizeof a), 0);
-    char head[1024];
-    int n = snprintf(head, sizeof head, "%s %s HTTP/1.1\r\nHost: 127.0.0.1:%d\r\nConnection: close\r\n%s", method,
-                     path, port, headers ? headers : "");
-    if (body && !(headers && strstr(headers, "Content-Length")))
-        n += snprintf(head + n, sizeof head - (size_t)n, "Content-Length: %zu\r\n", len);
-    n += snprintf(head + n, sizeof head - (size_t)n, "\r\n");
-    write_all(s, head, (size_t)n);
-    if (body)
-        write_all(s, body, len);
-    shutdown(s, SHUT_WR); /* the server sees the end of what we send */
-    size_t cap = 65536, got = 0;
-    char *buf = malloc(cap);
-    for (;;) {
-        if (got + 1 == cap)
-            assert_non_null(buf = realloc(buf, cap *= 2));
-        ssize_t r = read(s, buf + got, cap - 1 - got);
-        if (r < 0 && errno == EINTR)
-            continue;
-        if (r <= 0)
-            break;
-        got += (size_t)r;
-    }
-    close(s);
-    buf[got] = 0;
-    reply_t rep = {0};
-    char *end = strstr(buf, "\r\n\r\n");
-    assert_non_null(end);
-    *end = 0;
-    rep.head = buf;
-    rep.body = end + 4;
-    rep.len = got - (size_t)(rep.body - buf);
-    assert_int_equal(sscanf(buf, "HTTP/1.1 %d", &rep.status), 1);
+    assert_int_equal(sscanf(rep.raw, "HTTP/1.1 %d", &status), 1);
     return rep;
 }
 
-static json_t *json_of(const reply_t *r)
+static json_t *json_of(const hc_reply_t *r)
 {
     json_error_t je;
     json_t *j = json_loadb(r->body, r->len, 0, &je);
@@ -223,7 +166,7 @@ static char *landmarks_body(int s, int p, uint64_t tmpl)
 static void test_status(void **state)
 {
     (void)state;
-    reply_t r = http("GET", "/api/status", NULL, NULL, 0);
+    hc_reply_t r = http("GET", "/api/status", NULL, NULL, 0);
     assert_int_equal(r.status, 200);
     assert_non_null(strstr(r.head, "Content-Type: application/json"));
     json_t *j = json_of(&r);
@@ -238,7 +181,7 @@ static void test_status(void **state)
     assert_int_equal(json_integer_value(json_object_get(j, "frames")), 0);
     assert_true(json_is_null(json_object_get(j, "vest")));
     json_decref(j);
-    reply_free(&r);
+    hc_reply_free(&r);
 }
 
 static void test_avatar(void **state)
@@ -247,7 +190,7 @@ static void test_avatar(void **state)
     char *path = ts_path(bodies, "synth_s00_p00.ply"); /* template 1, the avatar */
     mim_mesh_t m = {0};
     assert_int_equal(mim_io_read_mesh(path, &m, NULL), 0);
-    reply_t r = http("GET", "/api/avatar", NULL, NULL, 0);
+    hc_reply_t r = http("GET", "/api/avatar", NULL, NULL, 0);
     assert_int_equal(r.status, 200);
     json_t *j = json_of(&r);
     assert_int_equal(json_integer_value(json_object_get(j, "vertices")), m.n_vertices);
@@ -258,7 +201,7 @@ static void test_avatar(void **state)
     for (size_t i = 0; i < 3 * (size_t)m.n_vertices; i++)
         assert_true((float)json_number_value(json_array_get(pos, i)) == m.positions[i]);
     json_decref(j);
-    reply_free(&r);
+    hc_reply_free(&r);
     mim_mesh_free(&m);
     free(path);
 }
@@ -269,7 +212,7 @@ static void test_query_self(void **state)
     const int cases[][2] = {{0, 3}, {1, 7}, {2, 11}};
     for (int c = 0; c < 3; c++) {
         char *body = landmarks_body(cases[c][0], cases[c][1], 0);
-        reply_t r = http("POST", "/api/query?k=2", "Content-Type: application/json\r\n", body, strlen(body));
+        hc_reply_t r = http("POST", "/api/query?k=2", "Content-Type: application/json\r\n", body, strlen(body));
         assert_int_equal(r.status, 200);
         json_t *j = json_of(&r);
         json_t *res = json_object_get(json_array_get(json_object_get(j, "frames"), 0), "results");
@@ -278,12 +221,12 @@ static void test_query_self(void **state)
                          1 + cases[c][0] * POSES + cases[c][1]);
         assert_true(json_real_value(json_object_get(json_array_get(res, 0), "distance")) < 1e-6);
         json_decref(j);
-        reply_free(&r);
+        hc_reply_free(&r);
         free(body);
     }
 }
 
-static void assert_glb(const reply_t *r)
+static void assert_glb(const hc_reply_t *r)
 {
     assert_int_equal(r->status, 200);
     assert_non_null(strstr(r->head, "Content-Type: model/gltf-binary"));
@@ -298,10 +241,10 @@ static void test_transfer(void **state)
 {
     (void)state;
     const char *by_id = "{\"template\": 5}";
-    reply_t r = http("POST", "/api/transfer", NULL, by_id, strlen(by_id));
+    hc_reply_t r = http("POST", "/api/transfer", NULL, by_id, strlen(by_id));
     assert_glb(&r);
     assert_non_null(strstr(r.head, "X-Mimic-Template: 5\r\n"));
-    reply_free(&r);
+    hc_reply_free(&r);
     /* landmarks alone: the template is their nearest pose */
     char *body = landmarks_body(2, 6, 0);
     r = http("POST", "/api/transfer", NULL, body, strlen(body));
@@ -309,20 +252,20 @@ static void test_transfer(void **state)
     char want[64];
     snprintf(want, sizeof want, "X-Mimic-Template: %d\r\n", 1 + 2 * POSES + 6);
     assert_non_null(strstr(r.head, want));
-    reply_free(&r);
+    hc_reply_free(&r);
     free(body);
     body = landmarks_body(1, 2, 9);
     r = http("POST", "/api/transfer", NULL, body, strlen(body));
     assert_glb(&r);
     assert_non_null(strstr(r.head, "X-Mimic-Template: 9\r\n"));
-    reply_free(&r);
+    hc_reply_free(&r);
     free(body);
 }
 
 static void test_metrics(void **state)
 {
     (void)state;
-    reply_t r = http("GET", "/metrics", NULL, NULL, 0);
+    hc_reply_t r = http("GET", "/metrics", NULL, NULL, 0);
     assert_int_equal(r.status, 200);
     assert_non_null(strstr(r.head, "Content-Type: text/plain; version=0.0.4"));
     const char *names[] = {"\nmimic_queries_total 3\n", "\nmimic_transfers_total 3\n", "\nmimic_frames_total 0\n",
@@ -335,10 +278,10 @@ static void test_metrics(void **state)
     for (const char *l = r.body; *l; l = strchr(l, '\n') ? strchr(l, '\n') + 1 : l + strlen(l))
         if (*l != '#' && *l != '\n')
             assert_int_equal(strncmp(l, "mimic_", 6), 0);
-    reply_free(&r);
+    hc_reply_free(&r);
 }
 
-static void assert_error(const reply_t *r, int status, const char *needle)
+static void assert_error(const hc_reply_t *r, int status, const char *needle)
 {
     assert_int_equal(r->status, status);
     json_t *j = json_of(r);
@@ -354,44 +297,44 @@ static void test_errors(void **state)
 {
     (void)state;
     const char *bad = "{\"landmarks\": [[0, 1, 2],";
-    reply_t r = http("POST", "/api/query", NULL, bad, strlen(bad));
+    hc_reply_t r = http("POST", "/api/query", NULL, bad, strlen(bad));
     assert_error(&r, 400, "request body:1:");
-    reply_free(&r);
+    hc_reply_free(&r);
     const char *bad2 = "{\"template\": 5,\n \"tmpl\": }";
     r = http("POST", "/api/transfer", NULL, bad2, strlen(bad2));
     assert_error(&r, 400, "request body:2:");
-    reply_free(&r);
+    hc_reply_free(&r);
     const char *unknown = "{\"template\": 999}";
     r = http("POST", "/api/transfer", NULL, unknown, strlen(unknown));
     assert_error(&r, 400, "no template 999");
-    reply_free(&r);
+    hc_reply_free(&r);
     const char *few = "{\"landmarks\": [[0, 1, 2]]}";
     r = http("POST", "/api/query", NULL, few, strlen(few));
     assert_error(&r, 400, "landmark map has 16");
-    reply_free(&r);
+    hc_reply_free(&r);
     /* oversized: a declared length over the limit is refused unread... */
     r = http("POST", "/api/query", "Content-Length: 2097152\r\n", "", 0);
     assert_error(&r, 413, "limit");
-    reply_free(&r);
+    hc_reply_free(&r);
     /* ...and so is a body that really is that long */
     size_t big = (size_t)3 << 19;
     char *blob = malloc(big);
     memset(blob, ' ', big);
     r = http("POST", "/api/transfer", NULL, blob, big);
     assert_error(&r, 413, "limit");
-    reply_free(&r);
+    hc_reply_free(&r);
     free(blob);
     r = http("GET", "/api/nothing", NULL, NULL, 0);
     assert_error(&r, 404, "/api/nothing");
-    reply_free(&r);
+    hc_reply_free(&r);
     r = http("GET", "/api/query", NULL, NULL, 0);
     assert_error(&r, 405, "POST");
     assert_non_null(strstr(r.head, "Allow: POST"));
-    reply_free(&r);
+    hc_reply_free(&r);
     /* still serving after all that */
     r = http("GET", "/api/status", NULL, NULL, 0);
     assert_int_equal(r.status, 200);
-    reply_free(&r);
+    hc_reply_free(&r);
 }
 
 static void test_sigterm(void **state)
@@ -458,11 +401,11 @@ static void test_vest_loop(void **state)
     assert_int_equal(start_server(rec), 0);
     json_t *vest = NULL, *j = NULL;
     for (int tries = 0; tries < 600; tries++) { /* the recording lasts about a second */
-        reply_t r = http("GET", "/api/status", NULL, NULL, 0);
+        hc_reply_t r = http("GET", "/api/status", NULL, NULL, 0);
         assert_int_equal(r.status, 200);
         json_decref(j);
         j = json_of(&r);
-        reply_free(&r);
+        hc_reply_free(&r);
         vest = json_object_get(j, "vest");
         assert_true(json_is_object(vest));
         if (strcmp(json_string_value(json_object_get(vest, "state")), "streaming"))
@@ -477,12 +420,12 @@ static void test_vest_loop(void **state)
     json_int_t last = json_integer_value(json_object_get(vest, "last_template"));
     assert_true(last >= 1 && last <= SUBJECTS * POSES);
     json_decref(j);
-    reply_t r = http("GET", "/metrics", NULL, NULL, 0);
+    hc_reply_t r = http("GET", "/metrics", NULL, NULL, 0);
     char want[64];
     snprintf(want, sizeof want, "\nmimic_key_frames_total %lld\n", (long long)frames);
     assert_non_null(strstr(r.body, want));
     assert_non_null(strstr(r.body, "\nmimic_vest_errors_total 0\n"));
-    reply_free(&r);
+    hc_reply_free(&r);
     test_sigterm(NULL);
     /* a vest that is not there: a clear error, exit 1 */
     char *out = NULL, *err = NULL;

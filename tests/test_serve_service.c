@@ -27,37 +27,25 @@
 
 static char *dir, *store;
 static int templates_in_store[SUBJECTS * POSES + 1]; /* [id] = 1 when `mimic list` has it */
-static int n_templates;
 static ss_svc_t A; /* the shared service: the demo motion at 60 Hz, no faults */
 
 static int setup(void **state)
 {
     (void)state;
-    signal(SIGPIPE, SIG_IGN);
-    srand(12345);
-    dir = ts_tempdir("serve-service");
-    n_templates = ss_make_store(dir, SUBJECTS, &store, templates_in_store, SUBJECTS * POSES);
-    if (n_templates != SUBJECTS * POSES) {
-        fprintf(stderr, "the store holds %d templates, not %d\n", n_templates, SUBJECTS * POSES);
-        return -1;
-    }
-    return ss_svc_start(&A, dir, store, "a", NULL, NULL);
+    return ss_fixture_open("serve-service", SUBJECTS, &dir, &store, templates_in_store, &A);
 }
 
 static int teardown(void **state)
 {
     (void)state;
-    ss_svc_free(&A);
-    ss_kill_children();
-    ts_rmtree(dir);
-    free(dir), free(store);
+    ss_fixture_close(&dir, &store, &A);
     return 0;
 }
 
 /* ---- 4. malformed HTTP ---- */
 static void expect_4xx_or_closed(int port, const char *req, size_t n, const char *what, int want)
 {
-    ss_reply_t r = ss_http_raw(port, req, n);
+    hc_reply_t r = ss_http_raw(port, req, n);
     if (r.status)
         print_message("%s: %d\n", what, r.status);
     else
@@ -66,7 +54,7 @@ static void expect_4xx_or_closed(int port, const char *req, size_t n, const char
         fail_msg("%s: status %d, not %d:\n%s", what, r.status, want, r.raw);
     if (r.status && (r.status < 400 || r.status > 499))
         fail_msg("%s: status %d, not 4xx", what, r.status);
-    ss_reply_free(&r);
+    hc_reply_free(&r);
     ss_assert_alive(port);
 }
 
@@ -93,34 +81,35 @@ static void test_http_malformed(void **state)
     const char shortb[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nContent-Length: 1000\r\n\r\n{\"landmarks\": [";
     expect_4xx_or_closed(p, shortb, sizeof shortb - 1, "a short body", 400);
     /* the same, closed outright without reading */
-    int s = ws_tcp_connect(p, 0);
+    int s = hc_connect(p, 0);
     assert_true(s >= 0);
-    ws_send_all(s, shortb, sizeof shortb - 1);
+    hc_send_all(s, shortb, sizeof shortb - 1);
     close(s);
     ss_assert_alive(p);
 
     /* a chunked body over the limit (1 MiB by default) */
-    int c = ws_tcp_connect(p, 0);
+    int c = hc_connect(p, 0);
     assert_true(c >= 0);
     const char head[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nConnection: close\r\nTransfer-Encoding: chunked\r\n\r\n";
-    assert_int_equal(ws_send_all(c, head, sizeof head - 1), 0);
+    assert_int_equal(hc_send_all(c, head, sizeof head - 1), 0);
     char chunk[65536 + 16];
     int hl = snprintf(chunk, 16, "10000\r\n");
     memset(chunk + hl, ' ', 65536);
     memcpy(chunk + hl + 65536, "\r\n", 2);
     for (int k = 0; k < 24; k++) /* 1.5 MiB */
-        if (ws_send_all(c, chunk, (size_t)hl + 65538))
+        if (hc_send_all(c, chunk, (size_t)hl + 65538))
             break; /* the server may stop reading once over the limit */
-    ws_send_all(c, "0\r\n\r\n", 5);
+    hc_send_all(c, "0\r\n\r\n", 5);
     shutdown(c, SHUT_WR);
-    ss_reply_t r = ss_read_reply(c);
+    hc_reply_t r;
+    assert_int_equal(hc_read_reply(&r, c, 15000), HC_OK); /* until the server closes, or 15 s */
     close(c);
     if (r.status != 413)
         fail_msg("a chunked body of 1.5 MiB: status %d, not 413:\n%.400s", r.status, r.raw);
     json_t *j = ss_json_body(&r);
     assert_non_null(strstr(json_string_value(json_object_get(j, "error")), "limit"));
     json_decref(j);
-    ss_reply_free(&r);
+    hc_reply_free(&r);
     /* a chunked body under the limit works */
     const char okchunk[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nConnection: close\r\nTransfer-Encoding: chunked\r\n\r\n"
                            "3\r\n{\"l\r\n0\r\n\r\n";
@@ -129,7 +118,7 @@ static void test_http_malformed(void **state)
     j = ss_json_body(&r);
     assert_non_null(strstr(json_string_value(json_object_get(j, "error")), "request body"));
     json_decref(j);
-    ss_reply_free(&r);
+    hc_reply_free(&r);
     ss_assert_alive(p);
 }
 
@@ -171,7 +160,7 @@ static void test_vest_outage(void **state)
         ws_msg_t m;
         while (ws_recv(&w, &m, 2) == 1) {
             if (m.opcode == WS_BINARY) {
-                ss_frame_t f = ss_parse_frame(&m);
+                mimf_t f = ss_parse_frame(&m);
                 assert_true(f.number > last_frame);
                 last_frame = f.number;
             }

@@ -30,30 +30,18 @@
 
 static char *dir, *store;
 static int templates_in_store[SUBJECTS * POSES + 1]; /* [id] = 1 when `mimic list` has it */
-static int n_templates;
 static ss_svc_t A; /* the shared service: the demo motion at 60 Hz, no faults */
 
 static int setup(void **state)
 {
     (void)state;
-    signal(SIGPIPE, SIG_IGN);
-    srand(12345);
-    dir = ts_tempdir("serve-stream");
-    n_templates = ss_make_store(dir, SUBJECTS, &store, templates_in_store, SUBJECTS * POSES);
-    if (n_templates != SUBJECTS * POSES) {
-        fprintf(stderr, "the store holds %d templates, not %d\n", n_templates, SUBJECTS * POSES);
-        return -1;
-    }
-    return ss_svc_start(&A, dir, store, "a", NULL, NULL);
+    return ss_fixture_open("serve-stream", SUBJECTS, &dir, &store, templates_in_store, &A);
 }
 
 static int teardown(void **state)
 {
     (void)state;
-    ss_svc_free(&A);
-    ss_kill_children();
-    ts_rmtree(dir);
-    free(dir), free(store);
+    ss_fixture_close(&dir, &store, &A);
     return 0;
 }
 
@@ -88,7 +76,7 @@ static void test_stream_basics(void **state)
     while (ss_now_s() < end) {
         ws_msg_t m;
         assert_int_equal(ss_next_frame(&w, &m, 2000, NULL), 1);
-        ss_frame_t f = ss_parse_frame(&m);
+        mimf_t f = ss_parse_frame(&m);
         assert_int_equal(f.n, N);
         assert_int_equal(f.L, L);
         assert_int_equal(f.i16, 0);
@@ -110,7 +98,7 @@ static void test_stream_basics(void **state)
         assert_true(now_us - f.arrival < 2000000);
         int touches[6] = {0};
         for (size_t i = 0; i < 3 * (size_t)N; i++) {
-            float x = ss_frame_x(&f, i);
+            float x = mimf_x(&f, i);
             int a = (int)(i % 3);
             assert_true(isfinite(x));
             assert_true(x >= f.lo[a] && x <= f.hi[a]);
@@ -123,7 +111,7 @@ static void test_stream_basics(void **state)
         for (int k = 0; k < 6; k++)
             assert_true(touches[k]); /* the bounds are the positions' own */
         for (size_t i = 0; i < 3 * (size_t)L; i++)
-            assert_true(isfinite(ss_get_f32(f.lm + 4 * i)));
+            assert_true(isfinite(mimf_f32(f.lm + 4 * i)));
         if (!have_first)
             have_first = 1, t_first = ss_now_s();
         frames++;
@@ -165,7 +153,7 @@ static void test_i16(void **state)
     json_decref(r);
     ws_msg_t m;
     assert_int_equal(ss_next_frame(&c, &m, 2000, NULL), 1);
-    ss_frame_t fc = ss_parse_frame(&m);
+    mimf_t fc = ss_parse_frame(&m);
     assert_int_equal(fc.i16, 1);
     ws_msg_free(&m);
 
@@ -182,7 +170,7 @@ static void test_i16(void **state)
                 ws_msg_free(&m);
                 continue;
             }
-            ss_frame_t f = ss_parse_frame(&m);
+            mimf_t f = ss_parse_frame(&m);
             assert_int_equal(f.i16, k != 0);
             if (k == 0 && na < KEEP)
                 fa[na].number = f.number, fa[na++].m = m;
@@ -198,7 +186,7 @@ static void test_i16(void **state)
         for (size_t j = 0; j < na; j++) {
             if (fi[i].number != fa[j].number)
                 continue;
-            ss_frame_t q = ss_parse_frame(&fi[i].m), x = ss_parse_frame(&fa[j].m);
+            mimf_t q = ss_parse_frame(&fi[i].m), x = ss_parse_frame(&fa[j].m);
             assert_int_equal(q.n, x.n);
             assert_int_equal(q.L, x.L);
             assert_int_equal(q.flags & 1, x.flags & 1);
@@ -209,11 +197,11 @@ static void test_i16(void **state)
                 int ax = (int)(k % 3);
                 double range = (double)x.hi[ax] - x.lo[ax];
                 double tol = range / 131070.0 + 4.0 * FLT_EPSILON * fmax(fabs(x.lo[ax]), fabs(x.hi[ax]));
-                double e = fabs((double)ss_frame_x(&q, k) - ss_frame_x(&x, k));
+                double e = fabs((double)mimf_x(&q, k) - mimf_x(&x, k));
                 worst = fmax(worst, range > 0 ? e / (range / 131070.0) : 0);
                 if (e > tol)
                     fail_msg("frame %llu coordinate %zu: int16 %.9g, float %.9g (tolerance %.3g)",
-                             (unsigned long long)x.number, k, (double)ss_frame_x(&q, k), (double)ss_frame_x(&x, k), tol);
+                             (unsigned long long)x.number, k, (double)mimf_x(&q, k), (double)mimf_x(&x, k), tol);
             }
             assert_memory_equal(q.lm, x.lm, 12 * (size_t)x.L); /* landmarks stay float32 */
             compared++;
@@ -244,7 +232,7 @@ static void expect_error_then_frames(ws_client_t *w, const char *what)
     for (int k = 0; k < 3; k++) { /* still streaming, still f32 */
         if (!ss_next_frame(w, &m, 2000, NULL))
             fail_msg("%s: no frames after the error", what);
-        ss_frame_t f = ss_parse_frame(&m);
+        mimf_t f = ss_parse_frame(&m);
         assert_int_equal(f.i16, 0);
         ws_msg_free(&m);
     }
@@ -467,7 +455,7 @@ static void test_key_rate(void **state)
     while (ss_now_s() < end) {
         ws_msg_t m;
         assert_int_equal(ss_next_frame(&w, &m, 2000, NULL), 1);
-        ss_frame_t f = ss_parse_frame(&m);
+        mimf_t f = ss_parse_frame(&m);
         assert_int_equal(f.key_interval, 4);
         if (f.flags & 1) {
             if (morphed && last_key && prev + 1 == f.number && f.number - last_key == 4)

@@ -329,7 +329,7 @@ static void test_bad_inputs(void **s)
          "unexpected argument 'extra'"},
         {{"transfer", "--store", store, "--avatar", "1", "--landmarks", two, "--template", "2", "-o", outp}, 1,
          "two.json: has 2 frames; transfer takes one"},
-        {{"transfer", "--store", store, "--avatar", "1", "--landmarks", lm, "-o", outp}, 1,
+        {{"transfer", "--store", store, "--avatar", "1", "--landmarks", lm, "-o", outp}, 2,
          "store has no index (run mimic index)"},
         {{"transfer", "--store", empty, "--avatar", "1", "--template", "2", "-o", outp}, 2,
          "the store is empty (run mimic ingest first)"},

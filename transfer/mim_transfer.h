@@ -138,14 +138,19 @@ typedef struct mim_xfer_options {
     uint32_t max_iterations; /* 0: MIM_XFER_DEFAULT_MAX_ITERATIONS */
     double tol;              /* 0: MIM_XFER_DEFAULT_TOL; < 0: never converge */
     double damping;          /* 0: MIM_XFER_DEFAULT_DAMPING; in (0, 1] */
-    int no_early_stop;       /* 1: do not stop when the move per iteration grows */
-    double stop_ratio;       /* 0: MIM_XFER_DEFAULT_STOP_RATIO; early stop when
-                                move_k > stop_ratio * move_{k-1} (k >= 3) */
+    /* Early stop. With k counting the iterates so far (the solves, plus one
+     * for a warm start) and move_k the largest vertex move from iterate
+     * k-1 to k: from k = 3 on, stop as soon as the move no longer shrinks
+     * by stop_ratio, move_k > stop_ratio * move_{k-1} (with the default
+     * 0.5: no longer halves), and return the mean of the last two
+     * iterates, the middle of an oscillation. It is tested before tol. */
+    int no_early_stop;       /* 1: never stop early (only tol or the cap) */
+    double stop_ratio;       /* 0: MIM_XFER_DEFAULT_STOP_RATIO; > 0 */
     /* Warm start (3 * n, optional): a previous solution, e.g. the last key
-     * frame's of a real-time stream. It is iterate 0: the first solve (with
-     * frames0) is damped from it and the move tests count it, so the
-     * iteration stops about one solve sooner; on slowly changing landmarks
-     * that costs ~0.6x the time at ~13 % more error (bench/warm_start.c).
+     * frame's of a real-time stream. It counts as the first iterate: the
+     * first solve (with frames0) is damped from it and the move tests count
+     * it, so the iteration stops about one solve sooner; on slowly changing
+     * landmarks that costs ~0.6x the time at ~13 % more error (bench/warm_start.c).
      * NULL: start from frames0 alone (the paper). */
     const float *start;
     const float *truth;      /* optional ground truth (3 * n) for error_by_iteration */
@@ -156,7 +161,8 @@ typedef struct mim_xfer_report {
     uint32_t iterations; /* solves done */
     double last_move;    /* largest vertex move of the last iteration (metres) */
     int converged;       /* last_move < tol */
-    int early_stopped;   /* stopped because the move grew (oscillation) */
+    int early_stopped;   /* stopped because the move no longer shrank by stop_ratio; the
+                            result is the mean of the last two iterates */
 } mim_xfer_report_t;
 
 /* Transfers the avatar (its encoding W, 3 * n) to the pose given by the

@@ -11,70 +11,15 @@
  * their frames instead of shortening along chords. */
 #include "internal.h"
 
-#include <math.h>
-#include <string.h>
-
-/* Rotation matrix with columns f1 f2 f3 -> unit quaternion (x y z w),
- * Shepperd's method: branch on the largest diagonal term for accuracy. */
-static void matrix_to_quat(const double *f, double *q)
-{
-    /* m[r][c] = component r of column c = f[3c + r] */
-    double m00 = f[0], m11 = f[4], m22 = f[8];
-    double m01 = f[3], m10 = f[1], m02 = f[6], m20 = f[2], m12 = f[7], m21 = f[5];
-    double tr = m00 + m11 + m22, x, y, z, w;
-    if (tr > 0.0) {
-        double s = 2.0 * sqrt(1.0 + tr);
-        w = 0.25 * s, x = (m21 - m12) / s, y = (m02 - m20) / s, z = (m10 - m01) / s;
-    } else if (m00 > m11 && m00 > m22) {
-        double s = 2.0 * sqrt(1.0 + m00 - m11 - m22);
-        w = (m21 - m12) / s, x = 0.25 * s, y = (m01 + m10) / s, z = (m02 + m20) / s;
-    } else if (m11 > m22) {
-        double s = 2.0 * sqrt(1.0 + m11 - m00 - m22);
-        w = (m02 - m20) / s, x = (m01 + m10) / s, y = 0.25 * s, z = (m12 + m21) / s;
-    } else {
-        double s = 2.0 * sqrt(1.0 + m22 - m00 - m11);
-        w = (m10 - m01) / s, x = (m02 + m20) / s, y = (m12 + m21) / s, z = 0.25 * s;
-    }
-    double inv = 1.0 / sqrt(x * x + y * y + z * z + w * w);
-    q[0] = x * inv, q[1] = y * inv, q[2] = z * inv, q[3] = w * inv;
-}
-
-static void quat_to_matrix(const double *q, double *f)
-{
-    double x = q[0], y = q[1], z = q[2], w = q[3];
-    f[0] = 1 - 2 * (y * y + z * z), f[1] = 2 * (x * y + z * w), f[2] = 2 * (x * z - y * w);
-    f[3] = 2 * (x * y - z * w), f[4] = 1 - 2 * (x * x + z * z), f[5] = 2 * (y * z + x * w);
-    f[6] = 2 * (x * z + y * w), f[7] = 2 * (y * z - x * w), f[8] = 1 - 2 * (x * x + y * y);
-}
-
+/* Frames are rotation matrices with columns f1 f2 f3 (mim_core.h's layout);
+ * quaternions are x y z w. */
 void mim_xfer_frames_to_quats(uint32_t n_vertices, const double *frames, double *quats)
 {
-    for (size_t i = 0; i < n_vertices; i++)
-        matrix_to_quat(frames + 9 * i, quats + 4 * i);
-}
-
-/* slerp along the shorter arc; nlerp when the two are nearly equal */
-static void slerp(const double *a, const double *b, double t, double *out)
-{
-    double d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3], sb = 1.0;
-    if (d < 0.0)
-        d = -d, sb = -1.0;
-    double wa, wb;
-    if (d > 0.9995) {
-        wa = 1.0 - t, wb = t;
-    } else {
-        double th = acos(d), s = sin(th);
-        wa = sin((1.0 - t) * th) / s, wb = sin(t * th) / s;
+    for (size_t i = 0; i < n_vertices; i++) {
+        mim_quat q = mim_quat_from_matrix(frames + 9 * i);
+        double *o = quats + 4 * i;
+        o[0] = q.x, o[1] = q.y, o[2] = q.z, o[3] = q.w;
     }
-    wb *= sb;
-    double q[4], len = 0.0;
-    for (int k = 0; k < 4; k++) {
-        q[k] = wa * a[k] + wb * b[k];
-        len += q[k] * q[k];
-    }
-    len = 1.0 / sqrt(len);
-    for (int k = 0; k < 4; k++)
-        out[k] = q[k] * len;
 }
 
 int mim_xfer_morph(mim_xfer_solver_t *s, mim_xfer_morph_method_t method, const mim_xfer_key_t *a,
@@ -101,9 +46,9 @@ int mim_xfer_morph(mim_xfer_solver_t *s, mim_xfer_morph_method_t method, const m
     for (size_t k = 0; k < 3 * (size_t)s->nc; k++)
         u[k] = (float)((1.0 - t) * a->landmarks[k] + t * b->landmarks[k]);
     for (size_t i = 0; i < n; i++) {
-        double q[4];
-        slerp(a->quats + 4 * i, b->quats + 4 * i, t, q);
-        quat_to_matrix(q, s->mframes + 9 * i);
+        const double *qa = a->quats + 4 * i, *qb = b->quats + 4 * i;
+        mim_quat A = {qa[0], qa[1], qa[2], qa[3]}, B = {qb[0], qb[1], qb[2], qb[3]};
+        mim_quat_to_matrix(mim_quat_slerp(A, B, t), s->mframes + 9 * i);
     }
     for (size_t i = 0; i < 3 * (size_t)n; i++)
         s->mW[i] = (1.0 - t) * a->W[i] + t * b->W[i];

@@ -6,7 +6,7 @@
  * frame. Forward kinematics (kinematics.c) then places the landmarks in the
  * avatar's proportions, as seed 000 (sec. 3.2) maps tracked landmarks into
  * the avatar's mesh space. */
-#include "mim_vest.h"
+#include "mim_vest_kinematics.h"
 
 #include <math.h>
 #include <string.h>

@@ -8,7 +8,8 @@
  * landmark segments and does not need one): p_s = p_parent + R_parent j_s,
  * and landmark i on segment s is p_s + R_s o_i. A segment without a recent
  * reading, or below one, has unknown landmarks: they are NaN, not frozen. */
-#include "mim_vest.h"
+#include "mim_vest_decode.h"
+#include "mim_vest_kinematics.h"
 
 #include <math.h>
 #include <string.h>

@@ -1,7 +1,8 @@
 /* Devices that look like vests: USB serial ports of YOST Labs' vendor id
  * (0x2476), found through sysfs, and HID devices of that vendor through
  * hidapi. */
-#include "mim_vest.h"
+#include "mim_vest_protocol.h"
+#include "mim_vest_transport.h"
 
 #include <dirent.h>
 #include <hidapi/hidapi.h>

@@ -74,23 +74,8 @@ static int snap(mim_vec3 v, mim_vec3 *out)
 /* Quaternion of the rotation whose matrix has rows r0, r1, r2. */
 static mim_quat from_rows(mim_vec3 r0, mim_vec3 r1, mim_vec3 r2)
 {
-    double m00 = r0.x, m01 = r0.y, m02 = r0.z, m10 = r1.x, m11 = r1.y, m12 = r1.z, m20 = r2.x, m21 = r2.y,
-           m22 = r2.z, tr = m00 + m11 + m22;
-    mim_quat q;
-    if (tr > 0) {
-        double s = sqrt(tr + 1.0) * 2;
-        q.w = 0.25 * s, q.x = (m21 - m12) / s, q.y = (m02 - m20) / s, q.z = (m10 - m01) / s;
-    } else if (m00 > m11 && m00 > m22) {
-        double s = sqrt(1.0 + m00 - m11 - m22) * 2;
-        q.w = (m21 - m12) / s, q.x = 0.25 * s, q.y = (m01 + m10) / s, q.z = (m02 + m20) / s;
-    } else if (m11 > m22) {
-        double s = sqrt(1.0 + m11 - m00 - m22) * 2;
-        q.w = (m02 - m20) / s, q.x = (m01 + m10) / s, q.y = 0.25 * s, q.z = (m12 + m21) / s;
-    } else {
-        double s = sqrt(1.0 + m22 - m00 - m11) * 2;
-        q.w = (m10 - m01) / s, q.x = (m02 + m20) / s, q.y = (m12 + m21) / s, q.z = 0.25 * s;
-    }
-    return mim_quat_normalize(q);
+    const double m[9] = {r0.x, r1.x, r2.x, r0.y, r1.y, r2.y, r0.z, r1.z, r2.z}; /* column-major */
+    return mim_quat_from_matrix(m);
 }
 
 int mim__motion_build(mim_vest_motion_t *m, const mim__motion_src_t *src, const char *origin, mim_error_t *err)

@@ -5,7 +5,7 @@
  * from outside. It is made as BVH text (Y up, the body's left +X, forward
  * +Z, a T-pose rest) and read by the ordinary BVH reader, so it takes the
  * same path as any user's motion. */
-#include "mim_vest.h"
+#include "mim_vest_motion.h"
 
 #include <math.h>
 #include <stdio.h>

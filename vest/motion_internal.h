@@ -2,7 +2,7 @@
 #ifndef MIM_VEST_MOTION_INTERNAL_H
 #define MIM_VEST_MOTION_INTERNAL_H
 
-#include "mim_vest.h"
+#include "mim_vest_motion.h"
 
 #define MIM__MOTION_MAX_JOINTS 1024u
 #define MIM__MOTION_MAX_VALUES 200000000ull /* frames x joints */

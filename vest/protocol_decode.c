@@ -10,7 +10,7 @@
  * A wired sensor streaming by itself sends the response header and its slot
  * data without sync bytes or hub block; that form is decoded the same way
  * with a fixed packet length. */
-#include "mim_vest.h"
+#include "mim_vest_decode.h"
 
 #include <math.h>
 #include <stdlib.h>

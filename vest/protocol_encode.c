@@ -2,7 +2,7 @@
  * hub stream packets (schemas/vest-protocol.md). The simulated vest and the
  * tests encode through these functions, so the decoder is checked against
  * the one definition of the layout. */
-#include "mim_vest.h"
+#include "mim_vest_protocol.h"
 
 #include <string.h>
 

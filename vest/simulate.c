@@ -3,7 +3,8 @@
  * steady rate, with injected faults: dropped packets, corrupted bytes and a
  * disconnect. Outputs: a pseudo-terminal (what a USB CDC serial port looks
  * like to mimic), UDP landmark frames, or a recording file. */
-#include "mim_vest.h"
+#include "mim_vest_simulate.h"
+#include "mim_vest_transport.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -23,17 +24,8 @@ struct mim_vest_sim {
     const mim_vest_motion_t *m;
     mim_vest_sim_options_t o;
     uint64_t period; /* stream frames in one pass over the motion */
-    uint64_t rng;
+    mim_rng_t rng; /* the faults: deterministic for a seed */
 };
-
-static uint64_t rnd(mim_vest_sim_t *s)
-{ /* xorshift64* */
-    uint64_t x = s->rng;
-    x ^= x >> 12, x ^= x << 25, x ^= x >> 27;
-    s->rng = x;
-    return x * 0x2545F4914F6CDD1Dull;
-}
-static double rnd01(mim_vest_sim_t *s) { return (double)(rnd(s) >> 11) / 9007199254740992.0; }
 
 int mim_vest_sim_open(mim_vest_sim_t **out, const mim_vest_motion_t *m, const mim_vest_sim_options_t *opt,
                       mim_error_t *err)
@@ -54,8 +46,7 @@ int mim_vest_sim_open(mim_vest_sim_t **out, const mim_vest_motion_t *m, const mi
     if (!s->o.header_flags) s->o.header_flags = MIM_VEST_HDR_DEFAULT;
     double dur = m->n_frames > 1 ? (m->n_frames - 1) * m->frame_time : 1.0;
     s->period = (uint64_t)floor(dur * s->o.rate_hz + 1e-9) + 1;
-    s->rng = s->o.seed * 0x9E3779B97F4A7C15ull + 0x1234567ull;
-    if (!s->rng) s->rng = 1;
+    mim_rng_seed(&s->rng, s->o.seed, 0x7e57u);
     *out = s;
     return 0;
 }
@@ -116,13 +107,13 @@ size_t mim_vest_sim_frame(mim_vest_sim_t *s, uint64_t k, uint8_t *buf, size_t ca
         size_t len = mim_vest_encode_hub_packet(buf + n, cap - n, &p);
         if (!len) break;
         made++;
-        if (s->o.drop > 0 && rnd01(s) < s->o.drop) {
+        if (s->o.drop > 0 && mim_rng_unit(&s->rng) < s->o.drop) {
             dropped++;
             continue;
         }
-        if (s->o.corrupt > 0 && rnd01(s) < s->o.corrupt) {
-            size_t at = (size_t)(rnd(s) % len);
-            buf[n + at] ^= (uint8_t)(1 + rnd(s) % 255);
+        if (s->o.corrupt > 0 && mim_rng_unit(&s->rng) < s->o.corrupt) {
+            size_t at = (size_t)mim_rng_below(&s->rng, len);
+            buf[n + at] ^= (uint8_t)(1 + mim_rng_below(&s->rng, 255));
             corrupted++;
         }
         n += len;
@@ -259,14 +250,15 @@ int mim_vest_sim_run(mim_vest_sim_t *s, const mim_vest_sim_run_t *run, mim_error
             float xyz[3 * MIM_LANDMARKS_MAX];
             uint8_t present[MIM_LANDMARKS_MAX];
             mim_vest_fk_orient(run->rig, q, have, xyz, present);
-            if (s->o.drop > 0 && rnd01(s) < s->o.drop) continue;
+            if (s->o.drop > 0 && mim_rng_unit(&s->rng) < s->o.drop) continue;
             char *js = mim_vest_udp_format(t, xyz, present, run->rig->n_landmarks);
             if (!js) {
                 rc = mim_error_set(err, MIM_ENOMEM, "vest simulate: out of memory");
                 break;
             }
             size_t len = strlen(js);
-            if (s->o.corrupt > 0 && rnd01(s) < s->o.corrupt && len) js[rnd(s) % len] ^= (char)(1 + rnd(s) % 127);
+            if (s->o.corrupt > 0 && mim_rng_unit(&s->rng) < s->o.corrupt && len)
+                js[mim_rng_below(&s->rng, len)] ^= (char)(1 + mim_rng_below(&s->rng, 127));
             if (send(fd, js, len, 0) < 0 && errno != ECONNREFUSED) /* nobody listening yet is fine */
                 rc = mim_error_set(err, -errno, "vest simulate: %s: %s", out, strerror(errno));
             free(js);

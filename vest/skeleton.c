@@ -8,7 +8,7 @@
  * as a fraction of stature (a shoulder joint lies about 4 cm below the
  * acromion, a hip joint about 6 cm inside the trochanter). The avatar is in
  * mimic's frame: +Y up, facing +Z, its own left +X. */
-#include "mim_vest.h"
+#include "mim_vest_kinematics.h"
 
 #include <float.h>
 #include <math.h>

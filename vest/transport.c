@@ -1,7 +1,8 @@
 /* One interface over the vest's links: spec parsing, timeouts, and the
  * reconnect-with-backoff loop that live links (serial, HID) share. A device
- * that vanishes gets one line saying so; reads then retry opening it with
- * doubling waits until it is back or the reconnect limit passes. */
+ * that vanishes gets one line saying so (through the options' log
+ * callback); reads then retry opening it with doubling waits until it is
+ * back or the reconnect limit passes. */
 #include "transport_internal.h"
 
 #include <errno.h>
@@ -147,7 +148,8 @@ int mim_vest_transport_read(mim_vest_transport_t *t, mim_vest_chunk_t *chunk, mi
             }
             t->connected = 1, t->restart_pending = 1, t->reconnects++;
             t->backoff_ms = t->o.backoff_min_ms;
-            mim_log("%s: reconnected after %.2f s", t->desc, mim_now() - t->t_disconnected);
+            mim_log_emit(t->o.log, t->o.log_ctx, MIM_LOG_INFO, "%s: reconnected after %.2f s", t->desc,
+                         mim_now() - t->t_disconnected);
             deadline = mim_now() + t->o.timeout_ms / 1000.0;
         }
         double left = deadline - mim_now();
@@ -173,6 +175,6 @@ int mim_vest_transport_read(mim_vest_transport_t *t, mim_vest_chunk_t *chunk, mi
         t->connected = 0;
         t->t_disconnected = mim_now();
         if (t->o.no_reconnect) return mim_error_set(err, n, "%s", mim_error_text(&e2));
-        mim_log("%s; reconnecting", mim_error_text(&e2));
+        mim_log_emit(t->o.log, t->o.log_ctx, MIM_LOG_WARN, "%s; reconnecting", mim_error_text(&e2));
     }
 }

@@ -3,7 +3,7 @@
 #ifndef MIM_VEST_TRANSPORT_INTERNAL_H
 #define MIM_VEST_TRANSPORT_INTERNAL_H
 
-#include "mim_vest.h"
+#include "mim_vest_transport.h"
 
 #include <stdio.h>
 

@@ -5,7 +5,6 @@
 
 #include <errno.h>
 #include <jansson.h>
-#include <math.h>
 #include <netdb.h>
 #include <poll.h>
 #include <stdlib.h>
@@ -76,29 +75,11 @@ int mim_vest_udp_parse(const char *text, size_t len, uint64_t *t_us, float *xyz,
         rc = mim_error_set(err, MIM_EFORMAT, "udp frame: %zu landmarks (at most %u)", n, max);
         goto done;
     }
+    /* any count up to max: the caller matches it against its landmark map */
+    rc = mim_landmark_array_parse(lm, (uint32_t)n, (uint32_t)n, "udp frame", -1, xyz, present, err);
+    if (rc)
+        goto done;
     *t_us = (uint64_t)json_integer_value(t);
-    for (size_t i = 0; i < n; i++) {
-        json_t *p = json_array_get(lm, i);
-        if (json_is_null(p)) {
-            xyz[3 * i] = xyz[3 * i + 1] = xyz[3 * i + 2] = NAN;
-            present[i] = 0;
-            continue;
-        }
-        if (!json_is_array(p) || json_array_size(p) != 3) {
-            rc = mim_error_set(err, MIM_EFORMAT, "udp frame: landmark %zu is not [x, y, z] or null", i);
-            goto done;
-        }
-        for (int c = 0; c < 3; c++) {
-            json_t *v = json_array_get(p, (size_t)c);
-            double d = json_number_value(v);
-            if (!json_is_number(v) || !isfinite(d)) {
-                rc = mim_error_set(err, MIM_EFORMAT, "udp frame: landmark %zu has a non-number coordinate", i);
-                goto done;
-            }
-            xyz[3 * i + (size_t)c] = (float)d;
-        }
-        present[i] = 1;
-    }
     *count = (uint32_t)n;
 done:
     json_decref(root);

@@ -3,12 +3,10 @@
 
 #include <errno.h>
 #include <fcntl.h>
-#include <poll.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/socket.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -200,64 +198,26 @@ void ss_svc_term(ss_svc_t *s)
 }
 
 
-void ss_reply_free(ss_reply_t *r)
-{
-    free(r->raw);
-    memset(r, 0, sizeof *r);
-}
+/* The timeout of the checked requests. */
+#define HTTP_TIMEOUT_MS 15000
 
-/* Reads what the server sends until it closes (or 15 s pass). */
-ss_reply_t ss_read_reply(int s)
+hc_reply_t ss_http_raw(int port, const void *req, size_t n)
 {
-    size_t cap = 65536, got = 0;
-    char *buf = malloc(cap);
-    double end = ss_now_s() + 15;
-    while (ss_now_s() < end) {
-        if (got + 1 == cap)
-            assert_non_null(buf = realloc(buf, cap *= 2));
-        struct pollfd p = {s, POLLIN, 0};
-        if (poll(&p, 1, 200) <= 0)
-            continue;
-        ssize_t r = recv(s, buf + got, cap - 1 - got, 0);
-        if (r < 0 && errno == EINTR)
-            continue;
-        if (r <= 0)
-            break; /* EOF, or a reset after what arrived */
-        got += (size_t)r;
-    }
-    buf[got] = 0;
-    ss_reply_t rep = {0};
-    rep.raw = buf;
-    char *end_head = strstr(buf, "\r\n\r\n");
-    if (sscanf(buf, "HTTP/1.%*d %d", &rep.status) != 1)
-        rep.status = 0;
-    rep.head = buf;
-    rep.body = end_head ? end_head + 4 : buf + got;
-    rep.len = got - (size_t)(rep.body - buf);
-    return rep;
-}
-
-/* Sends the bytes on a fresh connection, half-closes, reads the reply. */
-ss_reply_t ss_http_raw(int port, const void *req, size_t n)
-{
-    int s = ws_tcp_connect(port, 0);
-    assert_true(s >= 0);
-    ws_send_all(s, req, n); /* the server may close early: what it said is read below */
-    shutdown(s, SHUT_WR);
-    ss_reply_t r = ss_read_reply(s);
-    close(s);
+    hc_reply_t r;
+    int rc = hc_raw(&r, port, req, n, HTTP_TIMEOUT_MS);
+    assert_true(rc == HC_OK || rc == HC_ESEND); /* the server may close early: what it said is read */
     return r;
 }
 
-ss_reply_t ss_http_get(int port, const char *path)
+hc_reply_t ss_http_get(int port, const char *path)
 {
-    char req[512];
-    int n = snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: 127.0.0.1:%d\r\nConnection: close\r\n\r\n", path,
-                     port);
-    return ss_http_raw(port, req, (size_t)n);
+    hc_reply_t r;
+    int rc = hc_request(&r, port, "GET", path, NULL, NULL, 0, HTTP_TIMEOUT_MS);
+    assert_true(rc == HC_OK || rc == HC_ESEND);
+    return r;
 }
 
-json_t *ss_json_body(const ss_reply_t *r)
+json_t *ss_json_body(const hc_reply_t *r)
 {
     json_error_t je;
     json_t *j = json_loadb(r->body, r->len, 0, &je);
@@ -268,10 +228,10 @@ json_t *ss_json_body(const ss_reply_t *r)
 
 json_t *ss_get_status(int port)
 {
-    ss_reply_t r = ss_http_get(port, "/api/status");
+    hc_reply_t r = ss_http_get(port, "/api/status");
     assert_int_equal(r.status, 200);
     json_t *j = ss_json_body(&r);
-    ss_reply_free(&r);
+    hc_reply_free(&r);
     return j;
 }
 
@@ -293,7 +253,7 @@ const char *ss_vest_state(json_t *j)
 /* One sample of /metrics (a line "NAME VALUE"). */
 double ss_metric(int port, const char *name)
 {
-    ss_reply_t r = ss_http_get(port, "/metrics");
+    hc_reply_t r = ss_http_get(port, "/metrics");
     assert_int_equal(r.status, 200);
     char want[128];
     snprintf(want, sizeof want, "\n%s ", name);
@@ -301,75 +261,32 @@ double ss_metric(int port, const char *name)
     if (!p)
         fail_msg("/metrics has no %s", name);
     double v = strtod(p + strlen(want), NULL);
-    ss_reply_free(&r);
+    hc_reply_free(&r);
     return v;
 }
 
 void ss_assert_alive(int port)
 {
-    ss_reply_t r = ss_http_get(port, "/api/status");
+    hc_reply_t r = ss_http_get(port, "/api/status");
     if (r.status != 200)
         fail_msg("/api/status answered %d, not 200: %s", r.status, r.raw);
-    ss_reply_free(&r);
+    hc_reply_free(&r);
 }
 
 /* ---- stream frames ---- */
-static uint16_t get_u16(const unsigned char *p)
-{
-    return (uint16_t)(p[0] | p[1] << 8);
-}
-static uint32_t get_u32(const unsigned char *p)
-{
-    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-static uint64_t get_u64(const unsigned char *p)
-{
-    return (uint64_t)get_u32(p) | (uint64_t)get_u32(p + 4) << 32;
-}
-float ss_get_f32(const unsigned char *p)
-{
-    uint32_t u = get_u32(p);
-    float f;
-    memcpy(&f, &u, 4);
-    return f;
-}
-
-
 /* Parses a binary message and checks what the spec fixes: magic, version,
  * length. */
-ss_frame_t ss_parse_frame(const ws_msg_t *m)
+mimf_t ss_parse_frame(const ws_msg_t *m)
 {
-    ss_frame_t f = {0};
     assert_int_equal(m->opcode, WS_BINARY);
-    assert_true(m->len >= SS_HEADER);
-    const unsigned char *b = m->data;
-    assert_memory_equal(b, "MIMF", 4);
-    assert_int_equal(get_u16(b + 4), 1);
-    f.flags = get_u16(b + 6);
+    assert_true(m->len >= MIMF_HEADER);
+    assert_memory_equal(m->data, "MIMF", 4);
+    mimf_t f;
+    mimf_decode(m->data, m->len, &f);
+    assert_int_equal(f.version, 1);
     assert_int_equal(f.flags & ~3u, 0);
-    f.i16 = (f.flags & 2) != 0;
-    f.number = get_u64(b + 8), f.t_vest = get_u64(b + 16), f.tmpl = get_u64(b + 24);
-    f.n = get_u32(b + 32), f.L = get_u32(b + 36), f.compute = get_u32(b + 40), f.key_interval = get_u32(b + 44);
-    f.arrival = get_u64(b + 48);
-    memcpy(f.label, b + 56, 32);
-    for (int a = 0; a < 3; a++)
-        f.lo[a] = ss_get_f32(b + 88 + 4 * a), f.hi[a] = ss_get_f32(b + 100 + 4 * a);
-    size_t pos = f.i16 ? 6 * (size_t)f.n + 2 * (f.n & 1u) : 12 * (size_t)f.n;
-    assert_int_equal(m->len, SS_HEADER + pos + 12 * (size_t)f.L);
-    f.pos = b + SS_HEADER;
-    f.lm = b + SS_HEADER + pos;
+    assert_int_equal(m->len, mimf_size(&f));
     return f;
-}
-
-float ss_frame_x(const ss_frame_t *f, size_t i) /* coordinate i of the positions, decoded */
-{
-    if (!f->i16)
-        return ss_get_f32(f->pos + 4 * i);
-    int a = (int)(i % 3);
-    int q = (int16_t)get_u16(f->pos + 2 * i);
-    if (f->hi[a] == f->lo[a])
-        return f->lo[a];
-    return (float)((double)f->lo[a] + ((double)q + 32768.0) / 65535.0 * ((double)f->hi[a] - (double)f->lo[a]));
 }
 
 /* The next binary message within timeout_ms (text ones are skipped and
@@ -449,7 +366,7 @@ uint64_t *ss_collect_numbers(ws_client_t *w, int ms, size_t *n)
         int left = (int)((end - ss_now_s()) * 1000);
         if (left <= 0 || !ss_next_frame(w, &m, left, NULL))
             break;
-        ss_frame_t f = ss_parse_frame(&m);
+        mimf_t f = ss_parse_frame(&m);
         if (*n == cap)
             v = realloc(v, (cap *= 2) * sizeof *v);
         v[(*n)++] = f.number;
@@ -513,4 +430,27 @@ int ss_make_store(const char *dir, int subjects, char **store, int *have, int ma
     }
     json_decref(l);
     return rc ? -1 : count;
+}
+
+int ss_fixture_open(const char *tag, int subjects, char **dir, char **store, int *have, ss_svc_t *svc)
+{
+    signal(SIGPIPE, SIG_IGN);
+    srand(12345);
+    *dir = ts_tempdir(tag);
+    int n = *dir ? ss_make_store(*dir, subjects, store, have, subjects * 12) : -1;
+    if (n != subjects * 12) {
+        fprintf(stderr, "the store holds %d templates, not %d\n", n, subjects * 12);
+        return -1;
+    }
+    return ss_svc_start(svc, *dir, *store, "a", NULL, NULL);
+}
+
+void ss_fixture_close(char **dir, char **store, ss_svc_t *svc)
+{
+    ss_svc_free(svc);
+    ss_kill_children();
+    if (*dir)
+        ts_rmtree(*dir);
+    free(*dir), free(*store);
+    *dir = *store = NULL;
 }

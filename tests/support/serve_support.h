@@ -1,12 +1,13 @@
 /* What the end-to-end tests of mimic serve's stream share
  * (test_serve_stream.c, test_serve_service.c): child processes that are
  * all killed at the end, a service (a simulated vest on a pty and `mimic
- * serve` reading it), HTTP/1.1 by hand, and the /ws frames of
- * schemas/serve-ws-frame.md read through ws_client.h. The checks fail the
- * running cmocka test. */
+ * serve` reading it), and checked HTTP requests and /ws frames
+ * (schemas/serve-ws-frame.md) over the one client (http_client.h,
+ * ws_client.h). The checks fail the running cmocka test. */
 #ifndef MIM_TEST_SERVE_SUPPORT_H
 #define MIM_TEST_SERVE_SUPPORT_H
 
+#include "http_client.h"
 #include "test_support.h"
 #include "ws_client.h"
 
@@ -15,32 +16,12 @@
 #include <stdint.h>
 #include <sys/types.h>
 
-#define SS_HEADER 112u /* bytes of a /ws frame header */
-
 /* ---- a service: a simulated vest on a pty and mimic serve reading it ---- */
 typedef struct ss_svc {
     pid_t vest, server;
     int port;
     char *link, *vout, *verr, *sout, *serr;
 } ss_svc_t;
-
-/* ---- HTTP by hand ---- */
-typedef struct ss_reply {
-    int status; /* 0: the connection closed without a response */
-    char *raw;  /* all of it, NUL-terminated */
-    char *head, *body;
-    size_t len; /* of body */
-} ss_reply_t;
-
-typedef struct ss_frame {
-    uint16_t flags;
-    uint64_t number, t_vest, tmpl, arrival;
-    uint32_t n, L, compute, key_interval;
-    char label[33];
-    float lo[3], hi[3];
-    int i16;
-    const unsigned char *pos, *lm; /* into the message */
-} ss_frame_t;
 
 
 double ss_now_s(void);
@@ -63,24 +44,21 @@ int ss_svc_start(ss_svc_t *s, const char *dir, const char *store, const char *ta
 void ss_svc_free(ss_svc_t *s);
 /* SIGTERM to the server: it must exit 0 within a few seconds, cleanly. */
 void ss_svc_term(ss_svc_t *s);
-void ss_reply_free(ss_reply_t *r);
-/* Reads what the server sends until it closes (or 15 s pass). */
-ss_reply_t ss_read_reply(int s);
-/* Sends the bytes on a fresh connection, half-closes, reads the reply. */
-ss_reply_t ss_http_raw(int port, const void *req, size_t n);
-ss_reply_t ss_http_get(int port, const char *path);
-json_t *ss_json_body(const ss_reply_t *r);
+/* The reply (free with hc_reply_free) to the bytes sent as they are on a
+ * fresh connection (whether or not the server takes them all), read until
+ * the server closes or 15 s pass. */
+hc_reply_t ss_http_raw(int port, const void *req, size_t n);
+hc_reply_t ss_http_get(int port, const char *path);
+json_t *ss_json_body(const hc_reply_t *r);
 json_t *ss_get_status(int port);
 json_int_t ss_status_int(json_t *j, const char *obj, const char *key);
 const char *ss_vest_state(json_t *j);
 /* One sample of /metrics (a line "NAME VALUE"). */
 double ss_metric(int port, const char *name);
 void ss_assert_alive(int port);
-float ss_get_f32(const unsigned char *p);
 /* Parses a binary message and checks what the spec fixes: magic, version,
  * length. */
-ss_frame_t ss_parse_frame(const ws_msg_t *m);
-float ss_frame_x(const ss_frame_t *f, size_t i);
+mimf_t ss_parse_frame(const ws_msg_t *m);
 /* The next binary message within timeout_ms (text ones are skipped and
  * counted in *texts when given): 1, or 0 when none came. */
 int ss_next_frame(ws_client_t *w, ws_msg_t *m, int timeout_ms, int *texts);
@@ -99,5 +77,14 @@ void ss_kill_children(void);
  * `mimic list` gives (have holds max_id + 1). The number of templates, or
  * -1 after printing why. */
 int ss_make_store(const char *dir, int subjects, char **store, int *have, int max_id);
+
+/* The serve tests' shared fixture: a temp folder (*dir) named after tag,
+ * a store of subjects x 12 poses in it (*store, have as ss_make_store), and
+ * the service svc on the demo motion at 60 Hz without faults. SIGPIPE is
+ * ignored and rand() seeded, so a run is repeatable. 0, or -1 after
+ * printing why. ss_fixture_close stops the service and every child, and
+ * removes the folder. */
+int ss_fixture_open(const char *tag, int subjects, char **dir, char **store, int *have, ss_svc_t *svc);
+void ss_fixture_close(char **dir, char **store, ss_svc_t *svc);
 
 #endif

@@ -1,27 +1,16 @@
-/* A small RFC 6455 WebSocket client for tests (ws_client.h). */
+/* The WebSocket client of the serve tests and bench/serve (ws_client.h). */
 #ifndef _GNU_SOURCE
 #define _GNU_SOURCE /* memmem */
 #endif
 #include "ws_client.h"
 
-#include <arpa/inet.h>
 #include <errno.h>
-#include <netinet/in.h>
-#include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
 #include <sys/socket.h>
-#include <time.h>
 #include <unistd.h>
-
-static double now_ms(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
-}
 
 /* ---- SHA-1 (FIPS 180-4) and base64, for the accept header only ---- */
 static uint32_t rol(uint32_t x, int n)
@@ -88,42 +77,87 @@ void ws_base64(const unsigned char *in, size_t n, char *out)
     out[o] = 0;
 }
 
-/* ---- sockets ---- */
-int ws_tcp_connect(int port, int rcvbuf)
+/* ---- the frame reader ---- */
+size_t ws_reader_next(ws_reader_t *r, unsigned char *p, size_t n, ws_event_t *ev)
 {
-    int s = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    if (s < 0)
-        return -1;
-    if (rcvbuf > 0)
-        setsockopt(s, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
-    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port)};
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    if (connect(s, (struct sockaddr *)&a, sizeof a)) {
-        close(s);
-        return -1;
+    memset(ev, 0, sizeof *ev);
+    size_t used = 0;
+    if (!r->in_payload) {
+        while (used < n && (r->hlen < 2 || r->hlen < r->hneed)) {
+            r->hb[r->hlen++] = p[used++];
+            if (r->hlen == 2) {
+                unsigned l7 = r->hb[1] & 0x7fu;
+                r->hneed = 2 + (l7 == 126 ? 2 : l7 == 127 ? 8 : 0) + ((r->hb[1] & 0x80) ? 4 : 0);
+            }
+        }
+        if (r->hlen < 2 || r->hlen < r->hneed)
+            return used;
+        const unsigned char *b = r->hb;
+        uint64_t len = b[1] & 0x7fu;
+        unsigned o = 2;
+        if (len == 126) {
+            len = (uint64_t)b[2] << 8 | b[3];
+            o = 4;
+        } else if (len == 127) {
+            len = 0;
+            for (int k = 0; k < 8; k++)
+                len = len << 8 | b[2 + k];
+            o = 10;
+        }
+        r->opcode = b[0] & 0x0f, r->fin = (b[0] & 0x80) != 0, r->masked = (b[1] & 0x80) != 0;
+        if (r->masked)
+            memcpy(r->key, b + o, 4);
+        r->len = len, r->got = 0;
+        if (r->opcode < 8) {
+            if (r->opcode != WS_CONT)
+                r->msg_opcode = r->opcode, r->msg_len = 0;
+            else if (r->msg_done)
+                r->msg_opcode = 0, r->msg_len = 0; /* a continuation of nothing */
+            r->msg_done = 0;
+        } else {
+            r->ctl_len = 0;
+        }
+        r->in_payload = 1, r->hlen = 0, r->hneed = 0;
+        ev->type = WS_EV_HEAD;
+        return used;
     }
-    return s;
+    if (r->got == r->len) {
+        r->in_payload = 0;
+        if (r->opcode < 8 && r->fin)
+            r->msg_done = 1;
+        ev->type = WS_EV_END;
+        return 0;
+    }
+    if (!n)
+        return 0;
+    size_t k = r->len - r->got < n ? (size_t)(r->len - r->got) : n;
+    if (r->masked)
+        for (size_t i = 0; i < k; i++)
+            p[i] ^= r->key[(r->got + i) & 3];
+    if (r->opcode < 8) {
+        ev->type = WS_EV_DATA, ev->data = p, ev->len = k, ev->offset = r->msg_len;
+        r->msg_len += k;
+    } else if (r->ctl_len < sizeof r->ctl) {
+        size_t c = sizeof r->ctl - r->ctl_len < k ? sizeof r->ctl - r->ctl_len : k;
+        memcpy(r->ctl + r->ctl_len, p, c);
+        r->ctl_len += c;
+    }
+    r->got += k;
+    if (ev->type == WS_EV_NONE) /* a control frame's bytes: on to its end */
+        return k + ws_reader_next(r, p + k, n - k, ev);
+    return k;
 }
 
-int ws_send_all(int fd, const void *p, size_t n)
-{
-    const char *c = p;
-    while (n) {
-        ssize_t w = send(fd, c, n, MSG_NOSIGNAL);
-        if (w < 0 && errno == EINTR)
-            continue;
-        if (w <= 0)
-            return -1;
-        c += w, n -= (size_t)w;
-    }
-    return 0;
-}
-
+/* ---- a client connection ---- */
 /* Reads more bytes into the buffer before the deadline: 1, 0 timeout, -1 closed. */
 static int fill(ws_client_t *w, double deadline)
 {
     if (w->fd < 0)
         return -1;
+    if (w->pos) { /* what is consumed goes */
+        memmove(w->buf, w->buf + w->pos, w->len - w->pos);
+        w->len -= w->pos, w->pos = 0;
+    }
     if (w->cap - w->len < 65536) {
         size_t cap = w->cap ? 2 * w->cap : 1 << 17;
         unsigned char *b = realloc(w->buf, cap);
@@ -131,38 +165,27 @@ static int fill(ws_client_t *w, double deadline)
             return -1;
         w->buf = b, w->cap = cap;
     }
-    for (;;) {
-        double left = deadline - now_ms();
-        if (left <= 0)
-            return 0;
-        struct pollfd p = {w->fd, POLLIN, 0};
-        int r = poll(&p, 1, (int)left + 1);
-        if (r < 0 && errno == EINTR)
-            continue;
-        if (r < 0)
-            return -1;
-        if (r == 0)
-            continue; /* the loop checks the deadline */
-        ssize_t n = recv(w->fd, w->buf + w->len, w->cap - w->len, 0);
-        if (n < 0 && errno == EINTR)
-            continue;
-        if (n <= 0)
-            return -1;
-        w->len += (size_t)n;
-        return 1;
-    }
+    long n = hc_recv(w->fd, w->buf + w->len, w->cap - w->len, deadline);
+    if (n <= 0)
+        return n < 0 ? -1 : 0;
+    w->len += (size_t)n;
+    return 1;
 }
 
-static void consume(ws_client_t *w, size_t n)
+void ws_close(ws_client_t *w)
 {
-    memmove(w->buf, w->buf + n, w->len - n);
-    w->len -= n;
+    if (w->fd >= 0)
+        close(w->fd);
+    w->fd = -1;
+    free(w->buf), free(w->msg);
+    w->buf = w->msg = NULL, w->pos = w->len = w->cap = w->msg_len = 0;
+    memset(&w->rd, 0, sizeof w->rd);
 }
 
 int ws_connect(ws_client_t *w, int port, const char *path, int rcvbuf)
 {
     memset(w, 0, sizeof *w);
-    w->fd = ws_tcp_connect(port, rcvbuf);
+    w->fd = hc_connect(port, rcvbuf);
     if (w->fd < 0)
         return -1;
     unsigned char nonce[16];
@@ -174,22 +197,23 @@ int ws_connect(ws_client_t *w, int port, const char *path, int rcvbuf)
                      "GET %s HTTP/1.1\r\nHost: 127.0.0.1:%d\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
                      "Sec-WebSocket-Key: %s\r\nSec-WebSocket-Version: 13\r\n\r\n",
                      path, port, key);
-    if (ws_send_all(w->fd, req, (size_t)n))
+    if (hc_send_all(w->fd, req, (size_t)n))
         goto fail;
-    double deadline = now_ms() + 10000;
+    double deadline = hc_now_ms() + 10000;
     unsigned char *end = NULL;
     while (!(end = w->len >= 4 ? memmem(w->buf, w->len, "\r\n\r\n", 4) : NULL))
         if (fill(w, deadline) <= 0)
             break;
     size_t hl = end ? (size_t)(end - w->buf) + 4 : w->len;
     size_t keep = hl < sizeof w->head ? hl : sizeof w->head - 1;
-    memcpy(w->head, w->buf, keep);
+    if (keep)
+        memcpy(w->head, w->buf, keep);
     w->head[keep] = 0;
     if (sscanf(w->head, "HTTP/1.1 %d", &w->http_status) != 1)
         w->http_status = 0;
     if (!end || w->http_status != 101)
         goto fail;
-    consume(w, hl);
+    w->pos = hl;
     /* Sec-WebSocket-Accept = base64(SHA-1(key + GUID)) */
     char cat[128], want[64];
     unsigned char dig[20];
@@ -210,10 +234,7 @@ int ws_connect(ws_client_t *w, int port, const char *path, int rcvbuf)
         goto fail;
     return 0;
 fail:
-    close(w->fd);
-    w->fd = -1;
-    free(w->buf);
-    w->buf = NULL, w->len = w->cap = 0;
+    ws_close(w);
     return -1;
 }
 
@@ -246,7 +267,7 @@ int ws_send_frame(ws_client_t *w, unsigned first, int masked, const void *data, 
     const unsigned char *d = data;
     for (size_t i = 0; i < len; i++)
         f[o + i] = d[i] ^ key[i & 3];
-    int rc = ws_send_all(w->fd, f, o + len);
+    int rc = hc_send_all(w->fd, f, o + len);
     free(f);
     return rc;
 }
@@ -263,7 +284,12 @@ int ws_send_text(ws_client_t *w, const char *text)
 
 int ws_send_raw(ws_client_t *w, const void *data, size_t len)
 {
-    return ws_send_all(w->fd, data, len);
+    return hc_send_all(w->fd, data, len);
+}
+
+int ws_pong(ws_client_t *w)
+{
+    return ws_send(w, WS_PONG, w->rd.ctl, w->rd.ctl_len);
 }
 
 void ws_msg_free(ws_msg_t *m)
@@ -272,106 +298,91 @@ void ws_msg_free(ws_msg_t *m)
     memset(m, 0, sizeof *m);
 }
 
-/* One whole frame from the buffer, if there: its header length, or 0. */
-static size_t frame_ready(const ws_client_t *w, unsigned *first, uint64_t *plen)
+/* The message for m: the buffer's n bytes (NULL: an empty one), NUL-terminated. */
+static int message(ws_msg_t *m, int opcode, unsigned char *data, size_t n)
 {
-    if (w->len < 2)
-        return 0;
-    const unsigned char *b = w->buf;
-    size_t hl = 2 + ((b[1] & 0x80) ? 4 : 0);
-    uint64_t n = b[1] & 0x7f;
-    if (n == 126) {
-        hl += 2;
-        if (w->len < hl)
-            return 0;
-        n = (uint64_t)b[2] << 8 | b[3];
-    } else if (n == 127) {
-        hl += 8;
-        if (w->len < hl)
-            return 0;
-        n = 0;
-        for (int k = 0; k < 8; k++)
-            n = n << 8 | b[2 + k];
-    }
-    if (w->len < hl || w->len - hl < n)
-        return 0;
-    *first = b[0], *plen = n;
-    return hl;
+    if (!data && !(data = calloc(1, 1)))
+        return -1;
+    m->opcode = opcode, m->data = data, m->len = n;
+    return 1;
 }
 
 int ws_recv(ws_client_t *w, ws_msg_t *m, int timeout_ms)
 {
     memset(m, 0, sizeof *m);
-    double deadline = now_ms() + timeout_ms;
-    unsigned char *acc = NULL;
-    size_t alen = 0;
-    int aop = -1;
+    double deadline = hc_now_ms() + timeout_ms;
+    ws_reader_t *r = &w->rd;
     for (;;) {
-        unsigned first;
-        uint64_t n;
-        size_t hl = frame_ready(w, &first, &n);
-        if (!hl) {
-            int r = fill(w, deadline);
-            if (r <= 0) {
-                free(acc);
-                return r;
-            }
+        ws_event_t ev;
+        w->pos += ws_reader_next(r, w->buf ? w->buf + w->pos : NULL, w->len - w->pos, &ev);
+        if (ev.type == WS_EV_NONE) {
+            int got = fill(w, deadline);
+            if (got <= 0)
+                return got;
+        } else if (ev.type == WS_EV_HEAD) {
+            if (r->opcode != WS_CONT && r->opcode < 8)
+                w->msg_len = 0; /* a new message */
+        } else if (ev.type == WS_EV_DATA) {
+            unsigned char *b = realloc(w->msg, w->msg_len + ev.len + 1);
+            if (!b)
+                return -1;
+            w->msg = b;
+            memcpy(b + w->msg_len, ev.data, ev.len);
+            w->msg_len += ev.len;
+            b[w->msg_len] = 0;
+        } else if (r->opcode == WS_PING) {
+            ws_pong(w);
+        } else if (r->opcode == WS_PONG) {
             continue;
-        }
-        const unsigned char *p = w->buf + hl;
-        int op = (int)(first & 0x0f), fin = (first & 0x80) != 0;
-        if (w->buf[1] & 0x80) { /* a masked server frame: unmask in place */
-            unsigned char key[4];
-            memcpy(key, w->buf + hl - 4, 4);
-            for (uint64_t i = 0; i < n; i++)
-                w->buf[hl + i] ^= key[i & 3];
-        }
-        if (op == WS_PING) {
-            ws_send(w, WS_PONG, p, (size_t)n);
-            consume(w, hl + (size_t)n);
-            continue;
-        }
-        if (op == WS_PONG) {
-            consume(w, hl + (size_t)n);
-            continue;
-        }
-        if (op != WS_CONT)
-            aop = op, alen = 0;
-        unsigned char *na = realloc(acc, alen + (size_t)n + 1);
-        if (!na) {
-            free(acc);
-            return -1;
-        }
-        acc = na;
-        memcpy(acc + alen, p, (size_t)n);
-        alen += (size_t)n;
-        acc[alen] = 0;
-        consume(w, hl + (size_t)n);
-        if (fin || op == WS_CLOSE) {
-            m->opcode = aop < 0 ? op : aop, m->data = acc, m->len = alen;
-            return 1;
+        } else if (r->opcode >= 8) { /* close (or a reserved control opcode) */
+            unsigned char *b = malloc(r->ctl_len + 1);
+            if (!b)
+                return -1;
+            memcpy(b, r->ctl, r->ctl_len);
+            b[r->ctl_len] = 0;
+            w->msg_len = 0;
+            return message(m, r->opcode, b, r->ctl_len);
+        } else if (r->fin) {
+            unsigned char *b = w->msg;
+            size_t n = w->msg_len;
+            if (b)
+                b[n] = 0; /* (it holds n + 1 bytes or more) */
+            w->msg = NULL, w->msg_len = 0;
+            return message(m, r->msg_opcode, b, n);
         }
     }
 }
 
 long ws_read_raw(ws_client_t *w, void *out, size_t n, int timeout_ms)
 {
-    if (!w->len) {
-        int r = fill(w, now_ms() + timeout_ms);
+    if (w->pos == w->len) {
+        int r = fill(w, hc_now_ms() + timeout_ms);
         if (r <= 0)
             return r;
     }
-    size_t k = n < w->len ? n : w->len;
-    memcpy(out, w->buf, k);
-    consume(w, k);
+    size_t k = n < w->len - w->pos ? n : w->len - w->pos;
+    memcpy(out, w->buf + w->pos, k);
+    w->pos += k;
     return (long)k;
+}
+
+unsigned char *ws_take_buffered(ws_client_t *w, size_t *n)
+{
+    *n = w->len - w->pos;
+    unsigned char *b = w->buf;
+    if (b && *n)
+        memmove(b, b + w->pos, *n);
+    else
+        free(b), b = NULL;
+    w->buf = NULL, w->pos = w->len = w->cap = 0;
+    return b;
 }
 
 int ws_wait_closed(ws_client_t *w, int timeout_ms)
 {
-    double deadline = now_ms() + timeout_ms;
+    double deadline = hc_now_ms() + timeout_ms;
     for (;;) {
-        w->len = 0; /* what still arrives is of no interest */
+        w->pos = w->len = 0; /* what still arrives is of no interest */
         int r = fill(w, deadline);
         if (r < 0)
             return 1;
@@ -380,11 +391,60 @@ int ws_wait_closed(ws_client_t *w, int timeout_ms)
     }
 }
 
-void ws_close(ws_client_t *w)
+/* ---- mimic's binary /ws frames ---- */
+static uint16_t le16(const unsigned char *p)
 {
-    if (w->fd >= 0)
-        close(w->fd);
-    w->fd = -1;
-    free(w->buf);
-    w->buf = NULL, w->len = w->cap = 0;
+    return (uint16_t)(p[0] | p[1] << 8);
+}
+
+static uint32_t le32(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static uint64_t le64(const unsigned char *p)
+{
+    return (uint64_t)le32(p) | (uint64_t)le32(p + 4) << 32;
+}
+
+float mimf_f32(const unsigned char *p)
+{
+    uint32_t u = le32(p);
+    float f;
+    memcpy(&f, &u, 4);
+    return f;
+}
+
+void mimf_decode(const unsigned char *b, size_t len, mimf_t *f)
+{
+    memset(f, 0, sizeof *f);
+    f->version = le16(b + 4), f->flags = le16(b + 6);
+    f->i16 = (f->flags & 2) != 0;
+    f->number = le64(b + 8), f->t_vest = le64(b + 16), f->tmpl = le64(b + 24);
+    f->n = le32(b + 32), f->L = le32(b + 36), f->compute = le32(b + 40), f->key_interval = le32(b + 44);
+    f->arrival = le64(b + 48);
+    memcpy(f->label, b + 56, 32);
+    for (int a = 0; a < 3; a++)
+        f->lo[a] = mimf_f32(b + 88 + 4 * a), f->hi[a] = mimf_f32(b + 100 + 4 * a);
+    if (len >= mimf_size(f)) {
+        f->pos = b + MIMF_HEADER;
+        f->lm = b + mimf_size(f) - 12 * (size_t)f->L;
+    }
+}
+
+size_t mimf_size(const mimf_t *f)
+{
+    size_t pos = f->i16 ? 6 * (size_t)f->n + 2 * (f->n & 1u) : 12 * (size_t)f->n;
+    return MIMF_HEADER + pos + 12 * (size_t)f->L;
+}
+
+float mimf_x(const mimf_t *f, size_t i)
+{
+    if (!f->i16)
+        return mimf_f32(f->pos + 4 * i);
+    int a = (int)(i % 3);
+    int q = (int16_t)le16(f->pos + 2 * i);
+    if (f->hi[a] == f->lo[a])
+        return f->lo[a];
+    return (float)((double)f->lo[a] + ((double)q + 32768.0) / 65535.0 * ((double)f->hi[a] - (double)f->lo[a]));
 }

@@ -1,0 +1,66 @@
+/* mimic vest, motion data: BVH and ASF/AMC motion files turned into the
+ * tared orientations a vest would report, and the built-in demo motion.
+ * Implemented by motion.c (the shared builder, sampling), motion_bvh.c,
+ * motion_amc.c and motion_demo.c.
+ *
+ * A loaded motion is plain data plus one malloc'd array (q): read-only use
+ * from many threads is safe. The readers only read the files they are given. */
+#ifndef MIM_VEST_MOTION_H
+#define MIM_VEST_MOTION_H
+
+#include "mim_core.h"
+#include "mim_vest_kinematics.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct mim_vest_motion {
+    uint32_t n_frames;
+    double frame_time;                      /* seconds */
+    uint8_t have[MIM_VEST_SEGMENTS];        /* segments the motion drives */
+    mim_quat *q;                            /* n_frames x 17 tared orientations, avatar frame; malloc'd */
+    char joint[MIM_VEST_SEGMENTS][64];      /* the motion joint behind each segment */
+    double rest_arm_deg; /* upper arms from vertical in the rest pose (T ~90, A ~45), -1 unknown */
+} mim_vest_motion_t;
+
+/* BVH (HIERARCHY/MOTION), or ASF skeleton + AMC motion (taken as 120 Hz, as
+ * CMU captures). Each segment's orientation is its world rotation relative
+ * to the motion's rest pose (all channels zero), turned into the avatar frame
+ * (up and left axes found from the rest pose). Segments the motion lacks
+ * stay at identity with have[s] = 0; the root stands in for a missing pelvis.
+ *
+ * On success *m owns m->q: free it with mim_vest_motion_free. On failure
+ * nothing is left to free: *m is zeroed or partly filled with m->q NULL, or
+ * left untouched when read_bvh cannot read its file or parse_bvh rejects
+ * its arguments.
+ * Returns 0, or: reading a file: -errno (cannot open), MIM_EIO, MIM_ENOMEM,
+ * MIM_EFORMAT (over 1 GiB); parsing: MIM_EFORMAT (syntax, counts, limits, no
+ * head joint, no left/right hip or arm pair, up and left not told apart),
+ * MIM_ETRUNCATED (BVH text ends early), MIM_EEMPTY (no joints or frames),
+ * MIM_ENOMEM. err names the file and line. */
+int mim_vest_motion_read_bvh(mim_vest_motion_t *m, const char *path, mim_error_t *err);
+int mim_vest_motion_read_amc(mim_vest_motion_t *m, const char *asf_path, const char *amc_path, mim_error_t *err);
+/* Parses BVH text (len bytes, need not be NUL-terminated; read during the
+ * call only); origin names it in messages (NULL = "bvh"). Returns as above,
+ * and MIM_EINVAL if m is NULL or text is NULL with len > 0. */
+int mim_vest_motion_parse_bvh(mim_vest_motion_t *m, const char *text, size_t len, const char *origin,
+                              mim_error_t *err);
+/* Frees m->q and zeroes *m. Accepts NULL and a zeroed motion. */
+void mim_vest_motion_free(mim_vest_motion_t *m);
+/* The built-in demo motion (motion_demo.c): eight poses a synth store also
+ * holds (rest, T, arms up, wave, reach, squat, walk, bow), 1.5 s each at
+ * 30 fps (12 s), T-pose rest. Free with mim_vest_motion_free. Returns 0 or
+ * MIM_ENOMEM only. */
+int mim_vest_motion_demo(mim_vest_motion_t *m, mim_error_t *err);
+/* Orientations at time t seconds (slerp between frames; clamped to the ends,
+ * NaN = 0). m must hold at least one frame (not checked). */
+void mim_vest_motion_sample(const mim_vest_motion_t *m, double t, mim_quat q[MIM_VEST_SEGMENTS]);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
