@@ -1,8 +1,7 @@
 /* Shared bench helpers: timing statistics and the datasets (bench_data.h). */
-#include "mim_io.h"
 #include "bench_data.h"
+#include "mim_io.h"
 
-#include "mim_ingest.h"
 #include "mim_synth.h"
 
 #include <math.h>

@@ -13,7 +13,6 @@
  * ../shared/data/mh-bodies beside the source tree; it is skipped when absent. */
 #include "bench_data.h"
 #include "mim_core.h"
-#include "mim_ingest.h"
 #include "mim_synth.h"
 #include "mim_transfer.h"
 

@@ -4,9 +4,9 @@
  * WebSocket stream, API) on that vest -> demo.glb, the served sequence as
  * a morph-target animation. The steps are the subcommands themselves, run
  * in this process, so the demo shows what a user would run by hand. */
-#include "mim_io.h"
 #include "args.h"
 #include "commands.h"
+#include "mim_io.h"
 #include "mim_serve.h"
 #include "mim_vest.h"
 #include "output.h"

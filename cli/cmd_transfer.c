@@ -1,8 +1,8 @@
 /* mimic transfer: one avatar into one pose (seed 000, Section 3.4), written
  * as PLY, OBJ, OFF or GLB. JSON report: schemas/transfer.schema.json. */
-#include "mim_io.h"
 #include "args.h"
 #include "commands.h"
+#include "mim_io.h"
 #include "mim_session.h"
 
 #include <getopt.h>

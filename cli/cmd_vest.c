@@ -1,8 +1,8 @@
 /* mimic vest: list, record, replay and simulate a tracking vest (mim_vest.h).
  * Replay prints one JSON object per line: schemas/vest-replay.schema.json. */
-#include "mim_io.h"
 #include "args.h"
 #include "commands.h"
+#include "mim_io.h"
 #include "mim_synth.h"
 #include "mim_vest.h"
 #include "output.h"

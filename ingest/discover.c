@@ -1,7 +1,7 @@
 /* Dataset discovery: the mesh files under the paths a user gives, in a
  * stable (sorted) order so that ingest assigns ids deterministically. */
-#include "mim_io.h"
 #include "mim_ingest.h"
+#include "mim_io.h"
 
 #include <dirent.h>
 #include <errno.h>

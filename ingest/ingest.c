@@ -4,8 +4,8 @@
  * commits one transaction per batch. Readers also compute each template's
  * transfer encoding (frames and W, seed 000 §3.1), stored beside it. A kill part-way loses at most the
  * uncommitted batch; a re-run skips what is stored (content hash). */
-#include "mim_io.h"
 #include "mim_ingest.h"
+#include "mim_io.h"
 #include "mim_transfer.h"
 
 #include <pthread.h>

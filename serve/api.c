@@ -1,8 +1,8 @@
 /* The JSON API handlers of mimic serve (mim_serve.h lists the routes and
  * their schemas). Bodies are untrusted: every problem is a 400 with the
  * reason (jansson's line and column for malformed JSON). */
-#include "mim_io.h"
 #include "internal.h"
+#include "mim_io.h"
 
 #include <civetweb.h>
 #include <math.h>

@@ -311,7 +311,8 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
                            .n_landmarks = L,
                            .positions = pos,
                            .landmarks = shown};
-    snprintf(f.label, sizeof f.label, "%s", b->label);
+    /* the stream's header holds 31 bytes of label (schemas/serve-ws-frame.md) */
+    snprintf(f.label, sizeof f.label, "%.*s", (int)sizeof f.label - 1, b->label);
     mim__ws_publish(sv->ws, &f);
     if (l->opt.on_frame)
         l->opt.on_frame(l->opt.user, &f);

@@ -1,7 +1,6 @@
 /* db/: store round trip, zero-copy views, schema mismatch, foreign stores,
  * two reader processes while one writes, and kill -9 during an ingest. */
 #include "mim_db.h"
-#include "mim_ingest.h"
 #include "test_support.h"
 
 #include <lmdb.h>
@@ -152,6 +151,18 @@ static void test_dedupe(void **s)
     free(store);
 }
 
+/* A raw LMDB transaction on store, under mimic's feet (as another program,
+ * an older mimic or damage would leave it); flags MDB_RDONLY or 0. */
+static MDB_txn *raw_begin(const char *store, unsigned flags, MDB_env **env)
+{
+    assert_int_equal(mdb_env_create(env), 0);
+    mdb_env_set_maxdbs(*env, 16);
+    assert_int_equal(mdb_env_open(*env, store, flags, 0664), 0);
+    MDB_txn *txn;
+    assert_int_equal(mdb_txn_begin(*env, NULL, flags & MDB_RDONLY, &txn), 0);
+    return txn;
+}
+
 static void test_schema_mismatch(void **s)
 {
     (void)s;
@@ -162,12 +173,8 @@ static void test_schema_mismatch(void **s)
     mim_db_close(&db);
     /* rewrite the version underneath, as a future mimic would have written it */
     MDB_env *env;
-    MDB_txn *txn;
+    MDB_txn *txn = raw_begin(store, 0, &env);
     MDB_dbi dbi;
-    assert_int_equal(mdb_env_create(&env), 0);
-    mdb_env_set_maxdbs(env, 16);
-    assert_int_equal(mdb_env_open(env, store, 0, 0664), 0);
-    assert_int_equal(mdb_txn_begin(env, NULL, 0, &txn), 0);
     assert_int_equal(mdb_dbi_open(txn, "meta", 0, &dbi), 0);
     uint64_t v = 99;
     MDB_val k = {14, "schema_version"}, d = {8, &v};
@@ -296,15 +303,11 @@ static int reader_loop(const char *store, double seconds)
 static int has_table(const char *store, const char *name)
 {
     MDB_env *env;
-    MDB_txn *txn;
+    MDB_txn *txn = raw_begin(store, MDB_RDONLY, &env);
     MDB_dbi main_dbi;
     MDB_cursor *c;
     MDB_val k, d;
     int found = 0;
-    assert_int_equal(mdb_env_create(&env), 0);
-    mdb_env_set_maxdbs(env, 16);
-    assert_int_equal(mdb_env_open(env, store, MDB_RDONLY, 0664), 0);
-    assert_int_equal(mdb_txn_begin(env, NULL, MDB_RDONLY, &txn), 0);
     assert_int_equal(mdb_dbi_open(txn, NULL, 0, &main_dbi), 0);
     assert_int_equal(mdb_cursor_open(txn, main_dbi, &c), 0);
     for (int r = mdb_cursor_get(c, &k, &d, MDB_FIRST); r == 0; r = mdb_cursor_get(c, &k, &d, MDB_NEXT))
@@ -330,12 +333,8 @@ static void test_legacy_descriptors_table(void **s)
     assert_true(has_table(store, "encodings"));
     /* add the table as an older mimic created it (integer keys, empty) */
     MDB_env *env;
-    MDB_txn *txn;
+    MDB_txn *txn = raw_begin(store, 0, &env);
     MDB_dbi dbi;
-    assert_int_equal(mdb_env_create(&env), 0);
-    mdb_env_set_maxdbs(env, 16);
-    assert_int_equal(mdb_env_open(env, store, 0, 0664), 0);
-    assert_int_equal(mdb_txn_begin(env, NULL, 0, &txn), 0);
     assert_int_equal(mdb_dbi_open(txn, "descriptors", MDB_CREATE | MDB_INTEGERKEY, &dbi), 0);
     assert_int_equal(mdb_txn_commit(txn), 0);
     mdb_env_close(env);
@@ -519,12 +518,8 @@ static void test_encodings(void **s)
 
     /* damage records underneath, as a disk or another program could */
     MDB_env *env;
-    MDB_txn *txn;
+    MDB_txn *txn = raw_begin(store, 0, &env);
     MDB_dbi dbi;
-    assert_int_equal(mdb_env_create(&env), 0);
-    mdb_env_set_maxdbs(env, 16);
-    assert_int_equal(mdb_env_open(env, store, 0, 0664), 0);
-    assert_int_equal(mdb_txn_begin(env, NULL, 0, &txn), 0);
     assert_int_equal(mdb_dbi_open(txn, "encodings", MDB_INTEGERKEY, &dbi), 0);
     unsigned char rec[4096] = {0};
     memcpy(rec, "XXXX", 4);

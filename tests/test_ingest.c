@@ -1,9 +1,9 @@
 /* ingest/: readers on every format and every bad-file case, labels,
  * manifests, discovery, and the pipeline (bad files skipped, topology
  * mismatch, idempotency, landmark map checks). */
-#include "mim_io.h"
 #include "mim_db.h"
 #include "mim_ingest.h"
+#include "mim_io.h"
 #include "test_support.h"
 
 #include <math.h>

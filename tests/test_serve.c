@@ -6,7 +6,6 @@
 #include "test_support.h"
 
 #include "http_client.h"
-#include "mim_ingest.h"
 #include "vest_support.h"
 
 #include <jansson.h>

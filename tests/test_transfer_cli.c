@@ -6,7 +6,6 @@
 #include "test_support.h"
 
 #include "mim_db.h"
-#include "mim_ingest.h"
 #include "mim_transfer.h"
 
 #include <jansson.h>

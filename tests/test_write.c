@@ -4,7 +4,6 @@
  * (node tests/gltf_validate.mjs; skipped when node or the npm package is
  * missing), and bad input leaving no file behind. */
 #include "mim_io.h"
-#include "mim_ingest.h"
 #include "mim_synth.h"
 #include "mim_transfer.h"
 #include "test_support.h"

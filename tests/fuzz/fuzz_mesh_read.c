@@ -3,7 +3,6 @@
  * mesh whose face indices are all in range and coordinates finite, or an
  * error with a message; never a crash, leak or sanitizer report. */
 #include "mim_io.h"
-#include "mim_ingest.h"
 
 #include <math.h>
 #include <stdio.h>
