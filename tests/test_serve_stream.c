@@ -273,11 +273,10 @@ static void test_ws_malformed(void **state)
                 ws_send_frame(&g, proto[i].first, proto[i].masked, proto[i].payload, strlen(proto[i].payload)), 0);
         } else {
             unsigned char junk[256];
-            uint64_t x = 0x9E3779B97F4A7C15ull;
-            for (size_t k = 0; k < sizeof junk; k++) {
-                x ^= x << 13, x ^= x >> 7, x ^= x << 17;
-                junk[k] = (unsigned char)x;
-            }
+            mim_rng_t x;
+            mim_rng_seed(&x, 1, i);
+            for (size_t k = 0; k < sizeof junk; k++)
+                junk[k] = (unsigned char)mim_rng_u64(&x);
             ws_send_raw(&g, junk, sizeof junk);
         }
         if (!ws_wait_closed(&g, 5000))

@@ -6,13 +6,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-static uint64_t rng = 88172645463325252ull;
-uint64_t vs_rnd(void)
-{
-    rng ^= rng << 13, rng ^= rng >> 7, rng ^= rng << 17;
-    return rng;
-}
-static double rnd01(void) { return (double)(vs_rnd() >> 11) / 9007199254740992.0; }
+static mim_rng_t rng = {0x9e3779b97f4a7c15ULL}; /* core's generator: the same sequence on every run */
+uint64_t vs_rnd(void) { return mim_rng_u64(&rng); }
+static double rnd01(void) { return mim_rng_unit(&rng); }
 
 void vs_rand_quat(float q[4])
 {

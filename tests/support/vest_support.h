@@ -8,7 +8,7 @@
 #include "mim_vest.h"
 #include "test_support.h"
 
-/* xorshift64: the same sequence on every run. */
+/* Core's seeded generator (mim_rng_u64): the same sequence on every run. */
 uint64_t vs_rnd(void);
 /* A random unit quaternion (x, y, z, w). */
 void vs_rand_quat(float q[4]);
