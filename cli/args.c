@@ -2,6 +2,7 @@
 #include "args.h"
 
 #include "mim_vest_kinematics.h"
+#include "output.h"
 
 #include <errno.h>
 #include <math.h>
@@ -107,5 +108,7 @@ mim_db_options_t mim_cli_db_options(int read_only)
         if (!errno && !*end)
             map = v;
     }
-    return (mim_db_options_t){.map_size = map, .read_only = read_only};
+    /* a read-write open of an older store migrates it: the user sees it */
+    return (mim_db_options_t){.map_size = map, .read_only = read_only, .progress = mim_cli_progress,
+                              .log = mim_cli_log};
 }

@@ -30,8 +30,9 @@ int mim_cli_listen(const char *cmd, const char *listen);
  * --name. Prints one line and returns -1 otherwise. */
 int mim_cli_template_id(const char *cmd, const char *name, const char *text, uint64_t *id);
 
-/* Store options for every command: read_only, and the LMDB map size from
- * MIMIC_MAP_SIZE (bytes; unset or not a whole number: the default). */
+/* Store options for every command: read_only, the LMDB map size from
+ * MIMIC_MAP_SIZE (bytes; unset or not a whole number: the default), and the
+ * terminal's progress line and log for a migration of an older store. */
 mim_db_options_t mim_cli_db_options(int read_only);
 
 /* The wearer's pose at the tare given to --name: rest, t or a (T and A

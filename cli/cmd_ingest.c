@@ -87,9 +87,13 @@ int mim_cmd_ingest(int argc, char **argv)
         fprintf(stderr, "mimic ingest: %s\n", mim_error_text(&err));
         return 2;
     }
-    printf("ingested %llu files in %.2f s (%.1f files/s): %llu added, %llu already stored, %llu failed; store holds %llu templates\n",
+    char skipped[64] = "";
+    if (rep.skipped) /* symlink loops, each reported above */
+        snprintf(skipped, sizeof skipped, ", %llu skipped", (unsigned long long)rep.skipped);
+    printf("ingested %llu files in %.2f s (%.1f files/s): %llu added, %llu already stored, %llu failed%s; store holds "
+           "%llu templates\n",
            (unsigned long long)rep.files, rep.seconds, rep.seconds > 0 ? (double)rep.files / rep.seconds : 0.0,
-           (unsigned long long)rep.added, (unsigned long long)rep.duplicates, (unsigned long long)rep.failed,
+           (unsigned long long)rep.added, (unsigned long long)rep.duplicates, (unsigned long long)rep.failed, skipped,
            (unsigned long long)rep.templates);
     return rep.failed ? 1 : 0;
 }

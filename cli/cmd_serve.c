@@ -11,6 +11,7 @@
 #include <signal.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/resource.h>
 
 static void help(FILE *out)
 {
@@ -123,6 +124,14 @@ int mim_cmd_serve(int argc, char **argv)
     sigaddset(&stop, SIGTERM);
     pthread_sigmask(SIG_BLOCK, &stop, NULL);
     signal(SIGPIPE, SIG_IGN); /* a client that hangs up is a write error, not a crash */
+    /* Every connection is a file descriptor, and the service must outlast
+     * hundreds of idle or hostile ones: the soft limit goes up to the hard
+     * one. A process-wide act, so the program does it, not serve/. */
+    struct rlimit nofile;
+    if (!getrlimit(RLIMIT_NOFILE, &nofile) && nofile.rlim_cur < nofile.rlim_max) {
+        nofile.rlim_cur = nofile.rlim_max;
+        setrlimit(RLIMIT_NOFILE, &nofile);
+    }
 
     mim_error_t err = {0};
     mim_session_t *session = NULL;

@@ -7,6 +7,7 @@
 int mim_cmd_synth(int argc, char **argv);
 int mim_cmd_ingest(int argc, char **argv);
 int mim_cmd_info(int argc, char **argv);
+int mim_cmd_store(int argc, char **argv);
 int mim_cmd_list(int argc, char **argv);
 int mim_cmd_index(int argc, char **argv);
 int mim_cmd_query(int argc, char **argv);

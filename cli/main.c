@@ -13,6 +13,7 @@ static const struct {
     {"synth", mim_cmd_synth, "generate synthetic human bodies (subjects x poses, one connectivity)"},
     {"ingest", mim_cmd_ingest, "put mesh files into a template store"},
     {"info", mim_cmd_info, "describe a template store"},
+    {"store", mim_cmd_store, "check a template store's integrity, or migrate an older one"},
     {"list", mim_cmd_list, "list the templates of a store"},
     {"index", mim_cmd_index, "build the pose recognition index of a store"},
     {"query", mim_cmd_query, "find the nearest-pose templates of landmark frames"},

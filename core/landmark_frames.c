@@ -6,7 +6,10 @@
  * in the order of the store's landmark map. null marks a landmark the
  * tracker lost. JSON through jansson: malformed text is reported with line
  * and column; a wrong count or a bad coordinate names the frame and the
- * landmark. */
+ * landmark. Each frame must be a plausible skeleton (plausible.c). A file
+ * is read through a counting callback so that input past
+ * MIM_LANDMARK_FRAMES_MAX_BYTES is refused however it arrives (a pipe has
+ * no size): jansson's tree takes several times the text's size. */
 #include "mim_core.h"
 
 #include <errno.h>
@@ -15,6 +18,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 void mim_landmark_frames_free(mim_landmark_frames_t *f)
 {
@@ -74,7 +78,8 @@ int mim_landmark_array_parse(const json_t *lm, uint32_t n, uint32_t max_missing,
     if (missing > max_missing)
         return mim_error_set(err, MIM_EFORMAT, "%s has %u missing landmarks, at most %u allowed",
                              where(wb, sizeof wb, origin, frame), missing, max_missing);
-    return 0;
+    /* finite numbers, but a body? (one place for files, the API and UDP) */
+    return mim_landmarks_check(pos, present, n, origin, frame, err);
 }
 
 static int parse_root(json_t *root, const char *origin, uint32_t n, uint32_t max_missing,
@@ -147,6 +152,42 @@ int mim_landmark_frames_parse(const char *text, size_t len, const char *origin, 
     return finish(root, origin, n_landmarks, max_missing, out, err);
 }
 
+/* jansson pulls the file through this, so the cap holds for pipes too and
+ * the text is never held whole. */
+typedef struct {
+    FILE *f;
+    size_t total, limit;
+    int over;
+} capped_t;
+
+static size_t capped_read(void *buf, size_t size, void *data)
+{
+    capped_t *c = data;
+    if (c->total >= c->limit) {
+        /* one byte more tells whether there is more than the limit */
+        int ch = fgetc(c->f);
+        if (ch == EOF)
+            return 0;
+        c->over = 1;
+        return (size_t)-1;
+    }
+    size_t want = c->limit - c->total < size ? c->limit - c->total : size;
+    size_t got = fread(buf, 1, want, c->f);
+    c->total += got;
+    return got;
+}
+
+static int too_big(const char *path, unsigned long long bytes, int stopped, mim_error_t *err)
+{
+    if (stopped) /* a pipe: how much more there was is not known */
+        return mim_error_set(err, MIM_EUNSUPPORTED,
+                             "%s: more than the %zu MiB a landmark batch may have (stopped reading at %llu bytes): split it into smaller files",
+                             path, MIM_LANDMARK_FRAMES_MAX_BYTES >> 20, bytes);
+    return mim_error_set(err, MIM_EUNSUPPORTED,
+                         "%s: %llu bytes (%.1f MiB), more than the %zu MiB a landmark batch may have: split it into smaller files",
+                         path, bytes, (double)bytes / (1 << 20), MIM_LANDMARK_FRAMES_MAX_BYTES >> 20);
+}
+
 int mim_landmark_frames_read(const char *path, uint32_t n_landmarks, uint32_t max_missing,
                              mim_landmark_frames_t *out, mim_error_t *err)
 {
@@ -157,10 +198,20 @@ int mim_landmark_frames_read(const char *path, uint32_t n_landmarks, uint32_t ma
     if (!f)
         return mim_error_set(err, errno == ENOENT ? MIM_ENOTFOUND : MIM_EIO, "%s: cannot open: %s", path,
                              strerror(errno));
+    struct stat st;
+    if (fstat(fileno(f), &st) == 0 && S_ISREG(st.st_mode) && (uint64_t)st.st_size > MIM_LANDMARK_FRAMES_MAX_BYTES) {
+        fclose(f);
+        return too_big(path, (unsigned long long)st.st_size, 0, err);
+    }
+    capped_t c = {f, 0, MIM_LANDMARK_FRAMES_MAX_BYTES, 0};
     json_error_t je;
-    json_t *root = json_loadf(f, JSON_REJECT_DUPLICATES, &je);
+    json_t *root = json_load_callback(capped_read, &c, JSON_REJECT_DUPLICATES, &je);
     int rerr = ferror(f);
     fclose(f);
+    if (c.over) {
+        json_decref(root);
+        return too_big(path, (unsigned long long)c.total, 1, err);
+    }
     if (!root)
         return mim_error_set(err, rerr ? MIM_EIO : MIM_EFORMAT, "%s:%d:%d: %s", path, je.line, je.column,
                              je.text);

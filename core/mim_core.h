@@ -136,8 +136,14 @@ typedef struct mim_landmark_frames {
  * landmark count differs from n_landmarks, a coordinate that is not a
  * number, or more than max_missing nulls in a frame (MIM_EFORMAT, naming
  * the frame and landmark); a number that is not a finite float
- * (MIM_ENONFINITE); a file that cannot be opened (MIM_ENOTFOUND/MIM_EIO).
- * On error *out is left empty. */
+ * (MIM_ENONFINITE); a frame that is no body (mim_landmarks_check,
+ * MIM_EFORMAT); a file that cannot be opened (MIM_ENOTFOUND/MIM_EIO).
+ * mim_landmark_frames_read takes at most MIM_LANDMARK_FRAMES_MAX_BYTES
+ * (64 MiB, about 100 000 frames of 16 landmarks: half an hour at 60 Hz):
+ * the parsed JSON needs several times the file's size in memory, so a
+ * longer file (or stream) is refused with a message naming its size and
+ * the limit (MIM_EUNSUPPORTED); split it. On error *out is left empty. */
+#define MIM_LANDMARK_FRAMES_MAX_BYTES ((size_t)64 << 20)
 int mim_landmark_frames_read(const char *path, uint32_t n_landmarks, uint32_t max_missing,
                              mim_landmark_frames_t *out, mim_error_t *err);
 int mim_landmark_frames_parse(const char *text, size_t len, const char *origin, uint32_t n_landmarks,
@@ -151,10 +157,42 @@ void mim_landmark_frames_free(mim_landmark_frames_t *f); /* accepts NULL and an 
  * coordinate. Errors: not an array of n entries, an entry that is not
  * [x, y, z] or null, a coordinate that is not a number, more than
  * max_missing nulls (MIM_EFORMAT); a number that is not a finite float
- * (MIM_ENONFINITE). On error positions and present are partly written. */
+ * (MIM_ENONFINITE); landmarks that are no body (mim_landmarks_check below:
+ * MIM_EFORMAT). On error positions and present are partly written. */
 struct json_t;
 int mim_landmark_array_parse(const struct json_t *array, uint32_t n, uint32_t max_missing, const char *origin,
                              long frame, float *positions, uint8_t *present, mim_error_t *err);
+
+/* ---- plausibility: what a body and a landmark skeleton can be (plausible.c) ----
+ * The one statement of the range; positions are in metres.
+ * - A body fits in a 10 m box: its positions span at most
+ *   MIM_PLAUSIBLE_BOX_M along each axis (3e38 among a body's coordinates,
+ *   or a mesh in millimetres, is outside it).
+ * - It lies within MIM_PLAUSIBLE_REACH_M (1 km) of the origin, where
+ *   float32 still resolves 0.1 mm.
+ * - It is not a point: its positions span at least
+ *   MIM_PLAUSIBLE_MIN_SPAN_M (10 mm) along the widest axis.
+ * - Coordinates are finite.
+ * Landmarks follow the same rules over the present ones (nulls are left
+ * out; a frame without any passes: a vest may lose them all), with the
+ * minimum span asked of 3 or more present landmarks (two may touch), and
+ * no two present landmarks at one point: the pose descriptor's angles are
+ * between the segments joining landmarks, and a segment of length zero has
+ * no direction (16 identical landmarks leave no angle at all).
+ * Meshes are checked where a body enters (ingest, the session's avatar),
+ * not by the readers, which read any mesh; landmarks in
+ * mim_landmark_array_parse, which every landmark input goes through.
+ * Both return 0, or MIM_ENONFINITE / MIM_EFORMAT (MIM_EEMPTY: no
+ * vertices) with one line: "origin: vertex 12: coordinate y = 3e+38
+ * outside the 10 m box a body fits in (...)", "origin: frame 3: landmarks
+ * span 0.0 mm: not a body (at least 10 mm)". present may be NULL (all
+ * present); frame < 0 leaves ": frame F" out. */
+#define MIM_PLAUSIBLE_BOX_M 10.0
+#define MIM_PLAUSIBLE_REACH_M 1000.0
+#define MIM_PLAUSIBLE_MIN_SPAN_M 0.01
+int mim_body_check(const float *positions, uint32_t n, const char *origin, mim_error_t *err);
+int mim_landmarks_check(const float *positions, const uint8_t *present, uint32_t n, const char *origin, long frame,
+                        mim_error_t *err);
 
 /* ---- random numbers: one seeded generator, explicit state (random.c) ---- */
 typedef struct mim_rng {

@@ -11,7 +11,21 @@
  *
  * Many readers and one writer may work at once, from different processes.
  * Data lent out of the store (pointers in views) points into the memory map
- * and is valid until the transaction that produced it ends. */
+ * and is valid until the transaction that produced it ends.
+ *
+ * Integrity (schema version 2): every template, encoding, landmark and
+ * index-build record carries an XXH3-64 checksum, written on put and checked
+ * on every read; the topology record is checked against its own hash. A
+ * record that fails is never lent out: the call fails with MIM_ESTORE and
+ * "store damaged: DIR: template N: checksum mismatch" (or what else is
+ * wrong). A damaged data.mdb (truncated, not LMDB, tables missing, a
+ * damaged page in LMDB's table list or at the root of a table) fails
+ * mim_db_open the same way. mim_db_check verifies a whole store.
+ *
+ * Version-1 stores (no checksums): a read-only open reads them as they are
+ * (mim_db_meta_t.schema_version says 1); the first read-write open rewrites
+ * every record as version 2 in one transaction (all or nothing), refusing
+ * if a template's positions do not match their content hash. */
 #ifndef MIM_DB_H
 #define MIM_DB_H
 
@@ -33,16 +47,28 @@ typedef struct mim_db_options {
      * MIMIC_MAP_SIZE here. */
     uint64_t map_size;
     int read_only; /* open an existing store for reading only */
+    /* A read-write open of a version-1 store migrates it (above): progress
+     * over its records (label "migrate") and one log line when done. NULL:
+     * quiet. */
+    mim_progress_fn progress;
+    void *progress_ctx;
+    mim_log_fn log;
+    void *log_ctx;
 } mim_db_options_t;
 
 /* Opens (creating if missing and not read_only) the store in directory dir.
- * Fails with MIM_ESCHEMA for another schema version, MIM_ESTORE for a
- * directory that holds something other than a mimic store. */
+ * Fails with MIM_ESCHEMA for another schema version; MIM_ESTORE ("store
+ * damaged: ...") for a data.mdb that is truncated, not LMDB, or an LMDB
+ * environment that is not a complete mimic store (such a directory is
+ * never written to); MIM_ENOTFOUND (read_only) when there is no store. */
 int mim_db_open(mim_db_t **out, const char *dir, const mim_db_options_t *opt, mim_error_t *err);
 void mim_db_close(mim_db_t **db); /* accepts NULL; nulls the pointer */
 const char *mim_db_path(const mim_db_t *db);
 
-/* Transactions: write ones serialise across threads and processes. */
+/* Transactions: write ones serialise across threads and processes. A
+ * write transaction's failure to commit, or a put's, because the map or the
+ * disk is full says so (MIM_ESTORE, or -ENOSPC / -EIO / -EFBIG), and that
+ * every transaction committed before it is intact. */
 int mim_db_begin(mim_db_t *db, int write, mim_db_txn_t **out, mim_error_t *err);
 int mim_db_commit(mim_db_txn_t **txn, mim_error_t *err); /* frees the txn, even on failure */
 void mim_db_abort(mim_db_txn_t **txn);                   /* accepts NULL */
@@ -146,6 +172,42 @@ typedef struct mim_db_stat {
     uint64_t template_bytes;  /* bytes of pages holding template records and their index */
 } mim_db_stat_t;
 int mim_db_stat(mim_db_t *db, mim_db_stat_t *out, mim_error_t *err);
+
+/* ---- integrity check (mimic store check) ----
+ * Reads every LMDB page of one snapshot from the file (a table whose pages
+ * are damaged is reported and not read further), then every record, and
+ * reports each problem found:
+ * records that do not decode or fail their checksum, positions that do
+ * not match their content hash, and broken cross-references (a template's
+ * encoding missing its vertex count, a hash-index entry without its
+ * template, a landmark map or connectivity that is not valid, an index
+ * blob whose checksum fails, a next_id at or below a stored id). */
+typedef struct mim_db_problem {
+    const char *table;   /* "templates", "encodings", "by_hash", "topology", "landmarks", "meta", "index", "lmdb" */
+    uint64_t id;         /* the template the problem concerns; 0 when none */
+    const char *message; /* one line: "store damaged: DIR: template 3: checksum mismatch" */
+} mim_db_problem_t;
+typedef void (*mim_db_problem_fn)(void *ctx, const mim_db_problem_t *p);
+
+typedef struct mim_db_check_options {
+    mim_db_problem_fn problem; /* each problem, as found; NULL: only counted */
+    void *problem_ctx;
+    mim_progress_fn progress;  /* records checked of records (label "check"); NULL: none */
+    void *progress_ctx;
+} mim_db_check_options_t;
+
+typedef struct mim_db_check_report {
+    uint32_t schema_version;
+    uint64_t templates, encodings, hash_entries; /* records read */
+    uint64_t templates_without_encoding;         /* allowed: readers compute it */
+    int topology, landmarks, index;              /* present (and checked) */
+    uint64_t problems;
+    double seconds;
+} mim_db_check_report_t;
+
+/* 0 when the check ran (damage found or not: out->problems); an error when
+ * it could not (no snapshot). */
+int mim_db_check(mim_db_t *db, const mim_db_check_options_t *opt, mim_db_check_report_t *out, mim_error_t *err);
 
 #ifdef __cplusplus
 }

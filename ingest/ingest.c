@@ -79,6 +79,7 @@ static void *reader_main(void *arg)
 
         slot_t s = {0};
         s.rc = mim_io_read_mesh(w->paths[i], &s.mesh, &s.err);
+        if (!s.rc) s.rc = mim_body_check(s.mesh.positions, s.mesh.n_vertices, w->paths[i], &s.err);
         if (!s.rc) s.content_hash = mim_db_content_hash(s.mesh.positions, s.mesh.n_vertices);
         if (!s.rc) s.rc = encode(&r, &s, w->paths[i]);
 
@@ -150,7 +151,18 @@ static int set_reference(writer_t *wr, const char *path, const mim_mesh_t *m, mi
     int rc = mim_landmarks_validate(&wr->landmarks, m->n_vertices, "landmark map", &lm_err);
     if (rc) return mim_error_set(err, rc, "%s (checked against the first mesh, %s)", lm_err.msg, path);
     wr->landmarks.topology_vertices = m->n_vertices;
-    if ((rc = mim_db_topology_put(wr->txn, m->faces, m->n_faces, m->n_vertices, err))) return rc;
+    mim_error_t put_err = {0};
+    if ((rc = mim_db_topology_put(wr->txn, m->faces, m->n_faces, m->n_vertices, &put_err))) {
+        /* The store was empty when this run looked; another ingest's first
+         * batch committed since (write transactions take turns). */
+        mim_db_topology_t now;
+        if (rc == MIM_EINVAL && mim_db_topology_get(wr->txn, &now, NULL) == 0)
+            return mim_error_set(err, rc,
+                                 "another ingest fixed the store's connectivity first (%u vertices, %u faces) while this "
+                                 "one was starting on the empty store; nothing from this run was stored: re-run mimic ingest",
+                                 now.n_vertices, now.n_faces);
+        return mim_error_set(err, rc, "%s", put_err.msg[0] ? put_err.msg : mim_strerror(rc));
+    }
     if ((rc = mim_db_landmarks_put(wr->txn, &wr->landmarks, err))) return rc;
     wr->have_topology = 1;
     wr->n_vertices = m->n_vertices;
@@ -195,7 +207,14 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
     if (!rc && opt->manifest_path) rc = mim_manifest_load(&manifest, opt->manifest_path, err);
     if (!rc) rc = mim_discover(paths, n_paths, &files, err);
     if (rc) goto out;
-    report->files = files.count;
+    /* what the walk found but cannot read: loops skipped, dangling links failed */
+    for (size_t i = 0; i < files.n_skipped && !opt->quiet; i++)
+        mim_log_emit(opt->log, opt->log_ctx, MIM_LOG_WARN, "%s", files.skipped[i]);
+    for (size_t i = 0; i < files.n_failed && !opt->quiet; i++)
+        mim_log_emit(opt->log, opt->log_ctx, MIM_LOG_ERROR, "%s", files.failed[i]);
+    report->skipped = files.n_skipped;
+    report->failed = files.n_failed;
+    report->files = files.count + files.n_failed;
 
     work_t w = {0};
     w.paths = files.paths;

@@ -14,9 +14,21 @@ extern "C" {
 typedef struct mim_file_list {
     char **paths; /* sorted; owned */
     size_t count;
+    /* Entries found while walking that give no file to read, one line each
+     * naming the path, sorted: */
+    char **failed;  /* input lost: "PATH: dangling symlink to TARGET", a
+                       folder that cannot be listed or nests too deep */
+    size_t n_failed;
+    char **skipped; /* nothing lost: "PATH: symlink loop (already walked as
+                       OTHER), skipped", a link that resolves to itself */
+    size_t n_skipped;
 } mim_file_list_t;
 /* Files given as files are kept whatever their extension (so a bad one is
- * reported); folders are walked recursively for known mesh extensions. */
+ * reported); folders are walked recursively for known mesh extensions,
+ * following symlinks, each real folder (device and inode) once: a link
+ * back to a folder already walked, or to one that holds the folder given,
+ * is a loop and skipped; a dangling link is failed. Errors (the walk could
+ * not run): a folder given that cannot be listed, out of memory. */
 int mim_discover(char *const *paths, size_t n, mim_file_list_t *out, mim_error_t *err);
 void mim_file_list_free(mim_file_list_t *l);
 /* landmarks.json beside the dataset: in a folder PATH, or beside a file PATH. */
@@ -60,14 +72,16 @@ typedef struct mim_ingest_report {
     uint64_t files;      /* files considered */
     uint64_t added;      /* new templates */
     uint64_t duplicates; /* content already in the store */
-    uint64_t failed;     /* files rejected (each reported through the log callback) */
+    uint64_t failed;     /* files rejected, dangling symlinks (each reported through the log callback) */
+    uint64_t skipped;    /* symlink loops left out (each reported as a warning); not in files */
     uint64_t templates;  /* templates in the store afterwards */
     double seconds;
 } mim_ingest_report_t;
 
 /* Reads the files on `threads` threads, checks each against the store's
- * connectivity, and commits them in batches. Bad files are reported
- * (opt->log) and skipped. Returns 0 unless the ingest could not run at all
+ * connectivity and that it is a body (mim_body_check: a 10 m box, not a
+ * point), and commits them in batches. Bad files are reported (opt->log)
+ * and skipped. Returns 0 unless the ingest could not run at all
  * (store error, no landmark map for an empty store); per-file failures are
  * in report. */
 int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_ingest_options_t *opt,

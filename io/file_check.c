@@ -375,7 +375,7 @@ int mim__off_check(const char *path, const char *text, size_t len, mim__decl_t *
             if (++v == nv) stage = 3;
         } else {
             long k = is_number(w[0], wl[0], 1) ? strtol(w[0], NULL, 10) : -1;
-            if (last && (k < 3 || n < k + 1))
+            if (last && (k < 3 || (k <= 256 && n < k + 1))) /* k bounded first: k + 1 must not overflow */
                 return mim_error_set(err, MIM_ETRUNCATED, "%s:%llu: truncated in a face line", path, (unsigned long long)line);
             if (k < 3 || k > 256 || n < k + 1)
                 return mim_error_set(err, MIM_EFORMAT, "%s:%llu: a face line needs 'k i1 .. ik' with 3 <= k <= 256", path,

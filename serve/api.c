@@ -1,10 +1,13 @@
 /* The JSON API handlers of mimic serve (mim_serve.h lists the routes and
  * their schemas). Bodies are untrusted: every problem is a 400 with the
- * reason (jansson's line and column for malformed JSON). */
+ * reason (jansson's line and column for malformed JSON); a template id
+ * that is not in the store is a 404, and what needs the recognition index
+ * is a 503 without one. Handlers only fill in a reply (internal.h): the
+ * service thread sends it, and query, transfer and avatar run on the
+ * worker pool (workers.c). */
 #include "internal.h"
 #include "mim_io.h"
 
-#include <civetweb.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -16,9 +19,11 @@ static int status_of(int rc)
     return rc == MIM_EFORMAT || rc == MIM_ENONFINITE || rc == MIM_EINVAL || rc == MIM_ENOTFOUND ? 400 : 500;
 }
 
-int mim__api_status(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len)
+static const char no_index[] = "%s: the store has no index (run mimic index, then restart serve)";
+
+int mim__api_status(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 {
-    (void)body, (void)len;
+    (void)rq;
     const mim_query_status_t *qs = mim_session_index_status(sv->s);
     json_t *index = json_pack("{s:b, s:b, s:I}", "present", qs->has_index, "stale", qs->stale, "templates",
                               (json_int_t)(qs->has_index ? qs->built.templates : 0));
@@ -31,12 +36,12 @@ int mim__api_status(mim_serve_t *sv, struct mg_connection *c, const char *body, 
                           (json_int_t)mim__metrics_get(&sv->m, MIM__C_KEY_FRAMES), "frames_dropped",
                           (json_int_t)mim__metrics_get(&sv->m, MIM__C_DROPS), "stream", mim__ws_status(sv->ws),
                           "vest", mim__loop_status(sv->loop));
-    return mim__reply_json(c, 200, j);
+    return mim__reply_json(rp, 200, j);
 }
 
-int mim__api_avatar(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len)
+int mim__api_avatar(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 {
-    (void)body, (void)len;
+    (void)rq;
     const mim_mesh_t *m = sv->mesh;
     json_t *pos = json_array(), *faces = json_array();
     for (size_t i = 0; pos && i < 3 * (size_t)m->n_vertices; i++)
@@ -45,29 +50,30 @@ int mim__api_avatar(mim_serve_t *sv, struct mg_connection *c, const char *body, 
         json_array_append_new(faces, json_integer(m->faces[i]));
     json_t *j = json_pack("{s:s, s:i, s:i, s:o, s:o}", "avatar", mim_session_avatar(sv->s), "vertices", (int)m->n_vertices,
                           "faces", (int)m->n_faces, "positions", pos, "indices", faces);
-    return mim__reply_json(c, 200, j);
+    return mim__reply_json(rp, 200, j);
 }
 
 /* k from the query string (?k=N, 1..1000), else 1. 0 if malformed. */
-static uint32_t query_k(struct mg_connection *c)
+static uint32_t query_k(const mim__request_t *rq)
 {
-    const struct mg_request_info *ri = mg_get_request_info(c);
-    char v[32];
-    if (!ri->query_string || mg_get_var(ri->query_string, strlen(ri->query_string), "k", v, sizeof v) < 0)
+    if (!rq->k_given)
         return 1;
+    if (rq->k_given < 0 || rq->k[0] < '0' || rq->k[0] > '9')
+        return 0;
     char *end = NULL;
-    unsigned long k = strtoul(v, &end, 10);
-    return *v && !*end && k >= 1 && k <= 1000 ? (uint32_t)k : 0;
+    unsigned long k = strtoul(rq->k, &end, 10);
+    return !*end && k >= 1 && k <= 1000 ? (uint32_t)k : 0;
 }
 
-int mim__api_query(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len)
+int mim__api_query(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 {
+    const char *body = rq->body;
+    size_t len = rq->len;
     if (!sv->q)
-        return mim__reply_error(c, 503, "%s: the store has no index (run mimic index, then restart serve)",
-                                sv->store);
-    mim_index_query_options_t qo = {.k = query_k(c)};
+        return mim__reply_error(rp, 503, no_index, sv->store);
+    mim_index_query_options_t qo = {.k = query_k(rq)};
     if (!qo.k)
-        return mim__reply_error(c, 400, "query string: k must be a whole number from 1 to 1000");
+        return mim__reply_error(rp, 400, "query string: k must be a whole number from 1 to 1000");
     mim_error_t err = {0};
     mim_landmark_frames_t f = {0};
     int rc = mim_landmark_frames_parse(body, len, "request body", mim_query_landmark_count(sv->q), 3, &f, &err);
@@ -82,11 +88,11 @@ int mim__api_query(mim_serve_t *sv, struct mg_connection *c, const char *body, s
         rc = mim_query_batch(sv->q, &f, &qo, &a, hits, &err);
     int status;
     if (rc) {
-        status = mim__reply_error(c, status_of(rc), "%s", mim_error_text(&err));
+        status = mim__reply_error(rp, status_of(rc), "%s", mim_error_text(&err));
     } else {
         mim__metrics_observe(&sv->m, MIM__H_QUERY, mim_now() - t0);
         mim__metrics_add(&sv->m, MIM__C_QUERIES, 1);
-        status = mim__reply_json(c, 200, json_pack("{s:[o]}", "frames", mim_session_answer_json(sv->q, &a, hits)));
+        status = mim__reply_json(rp, 200, json_pack("{s:[o]}", "frames", mim_session_answer_json(sv->q, &a, hits)));
     }
     free(hits);
     mim_landmark_frames_free(&f);
@@ -141,8 +147,10 @@ static int parse_transfer(mim_serve_t *sv, const char *body, size_t len, xfer_re
     return rc;
 }
 
-int mim__api_transfer(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len)
+int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 {
+    const char *body = rq->body;
+    size_t len = rq->len;
     mim_error_t err = {0};
     xfer_req_t *r = calloc(1, sizeof *r);
     const uint32_t n = sv->mesh->n_vertices;
@@ -151,9 +159,17 @@ int mim__api_transfer(mim_serve_t *sv, struct mg_connection *c, const char *body
     if (!rc)
         rc = parse_transfer(sv, body, len, r, &err);
     mim_session_report_t rep = {0};
-    if (!rc) {
+    int status = 0;
+    if (!rc && !r->id && !sv->q) {
+        /* landmarks alone need the index to find their template: as /api/query */
+        status = mim__reply_error(rp, 503, no_index, sv->store);
+        rc = MIM_ENOTFOUND;
+    } else if (!rc) {
         mim_session_request_t req = {.template_id = r->id, .landmarks = r->has_landmarks ? r->u : NULL};
         rc = mim_session_transfer(sv->s, &req, out, &rep, &err);
+        /* the one thing a well-formed request can name that is not there */
+        if (rc == MIM_ENOTFOUND)
+            status = mim__reply_error(rp, r->id ? 404 : 500, "%s", mim_error_text(&err));
     }
     unsigned char *glb = NULL;
     size_t glen = 0;
@@ -165,30 +181,29 @@ int mim__api_transfer(mim_serve_t *sv, struct mg_connection *c, const char *body
         if (rc && status_of(rc) == 400)
             rc = MIM_EIO; /* an encoder failure is ours, not the client's */
     }
-    int status;
-    if (rc) {
-        status = mim__reply_error(c, status_of(rc), "%s", mim_error_text(&err));
-    } else {
+    if (rc && !status) {
+        status = mim__reply_error(rp, status_of(rc), "%s", mim_error_text(&err));
+    } else if (!rc) {
         /* the label is "subject/pose" from the store: keep header-safe bytes */
         for (char *p = rep.label; *p; p++)
             if ((unsigned char)*p < 0x20 || *p == 0x7f) *p = '?';
-        char hdr[512];
-        snprintf(hdr, sizeof hdr, "X-Mimic-Template: %llu\r\nX-Mimic-Template-Label: %s\r\nX-Mimic-Iterations: %u\r\n",
-                 (unsigned long long)rep.template_id, rep.label, rep.xfer.iterations);
-        status = mim__reply(c, 200, "model/gltf-binary", glb, glen, hdr);
+        status = mim__reply_take(rp, 200, "model/gltf-binary", glb, glen);
+        glb = NULL;
+        if (status == 200)
+            snprintf(rp->headers, sizeof rp->headers,
+                     "X-Mimic-Template: %llu\r\nX-Mimic-Template-Label: %s\r\nX-Mimic-Iterations: %u\r\n",
+                     (unsigned long long)rep.template_id, rep.label, rep.xfer.iterations);
     }
     free(glb), free(r), free(out);
     return status;
 }
 
-int mim__api_metrics(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len)
+int mim__api_metrics(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 {
-    (void)body, (void)len;
+    (void)rq;
     mim__metrics_set(&sv->m, MIM__G_WS_CLIENTS, mim__ws_clients(sv->ws));
     char *txt = mim__metrics_text(&sv->m);
     if (!txt)
-        return mim__reply_error(c, 500, "out of memory for the metrics");
-    int status = mim__reply(c, 200, "text/plain; version=0.0.4; charset=utf-8", txt, strlen(txt), NULL);
-    free(txt);
-    return status;
+        return mim__reply_error(rp, 500, "out of memory for the metrics");
+    return mim__reply_take(rp, 200, "text/plain; version=0.0.4; charset=utf-8", txt, strlen(txt));
 }

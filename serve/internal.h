@@ -1,5 +1,7 @@
-/* serve/ internals shared by server.c (civetweb, routing), api.c
- * (handlers) and metrics.c. */
+/* serve/ internals shared by server.c (libwebsockets context, service
+ * thread), http.c (HTTP transactions), workers.c (the handler pool),
+ * api.c (handlers), ws.c (the /ws stream), loop.c (the vest thread) and
+ * metrics.c. */
 #ifndef MIM_SERVE_INTERNAL_H
 #define MIM_SERVE_INTERNAL_H
 
@@ -12,8 +14,8 @@
 #include <stdatomic.h>
 #include <stdint.h>
 
-struct mg_connection;
-struct mg_context;
+struct lws;
+struct lws_context;
 
 /* ---- metrics.c ---- */
 typedef enum mim__counter {
@@ -77,19 +79,120 @@ void mim__metrics_request(mim__metrics_t *m, mim__route_t r, int status, double 
 /* Prometheus text exposition format 0.0.4 (malloc'd; NULL when out of memory). */
 char *mim__metrics_text(mim__metrics_t *m);
 
+/* ---- a request and its reply, as the handlers see them ---- */
+typedef struct mim__request {
+    const char *path;   /* the decoded path, without the query */
+    const char *body;   /* NUL-terminated (not counted in len); NULL for GET */
+    size_t len;
+    int head;           /* a HEAD request: the reply's headers only */
+    int k_given;        /* ?k= : 0 absent, 1 given (in k), -1 too long to be a number */
+    char k[32];
+} mim__request_t;
+
+/* Built by a handler on any thread, sent by the service thread. */
+typedef struct mim__reply {
+    int status;
+    const char *type;              /* a string literal */
+    unsigned char *body;           /* malloc'd, owned; or NULL with */
+    const unsigned char *fixed;    /* bytes that live as long as the program (viewer assets) */
+    size_t len;
+    char headers[512];             /* extra header lines, each "Name: value\r\n" */
+    const char *cache;             /* Cache-Control value; NULL: no-store */
+} mim__reply_t;
+
+/* Each returns the status. A reply that cannot be built becomes a 500 with
+ * a fixed body; error messages are made one line of valid UTF-8 (bytes of
+ * a request path that are not, or are control characters, show as '?'). */
+int mim__reply_take(mim__reply_t *r, int status, const char *type, void *body_malloced, size_t len);
+int mim__reply_json(mim__reply_t *r, int status, json_t *j); /* steals j */
+int mim__reply_error(mim__reply_t *r, int status, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+void mim__reply_free(mim__reply_t *r);
+/* Copies s into out (size n) as printable ASCII and valid UTF-8 only,
+ * everything else as '?'. */
+void mim__printable(const char *s, size_t len, char *out, size_t n);
+
+/* ---- api.c: handlers (body is NUL-terminated; NULL for GET) ---- */
+typedef int (*mim__handler_t)(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
+int mim__api_status(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
+int mim__api_avatar(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
+int mim__api_query(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
+int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
+int mim__api_metrics(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
+
+/* ---- viewer.c ---- */
+/* The embedded file at path ("/", "/viewer.js", ...) for GET or HEAD: 200,
+ * or 0 (nothing set) when path is none of them. */
+int mim__viewer_reply(const char *path, mim__reply_t *rp);
+
+/* ---- workers.c: the handler pool ---- */
+/* Handlers that take milliseconds (query, transfer, the avatar's JSON) run
+ * on these threads, so that the service thread never stalls the stream. A
+ * job is owned by the pool from submit until the service thread takes it
+ * back from mim__workers_done. */
+typedef struct mim__job {
+    mim__handler_t fn;
+    mim__request_t rq;
+    char *body;             /* malloc'd, the request's (rq.body points here) */
+    char path[64];
+    mim__reply_t rp;
+    int status;
+    struct lws *wsi;        /* the connection waiting for it (service thread only) */
+    int orphaned;           /* the connection closed first (service thread only) */
+    struct mim__job *next;
+} mim__job_t;
+typedef struct mim__workers mim__workers_t;
+int mim__workers_open(mim__workers_t **out, mim_serve_t *sv, unsigned threads, mim_error_t *err);
+/* The context whose service thread a finished job wakes (NULL: none, before
+ * it is destroyed). */
+void mim__workers_attach(mim__workers_t *w, struct lws_context *ctx);
+/* 0, or -1 when the pool's queue is full (the caller answers 503). */
+int mim__workers_submit(mim__workers_t *w, mim__job_t *job);
+/* Jobs waiting or running now (for the queue bound and status). */
+unsigned mim__workers_pending(mim__workers_t *w);
+/* The finished jobs, oldest first, handed over; NULL when none. */
+mim__job_t *mim__workers_done(mim__workers_t *w);
+/* A job not yet started is taken back (1: the caller frees it); a running
+ * one is left to finish (0). */
+int mim__workers_cancel(mim__workers_t *w, mim__job_t *job);
+/* After the context is destroyed: joins, frees the jobs left; accepts NULL. */
+void mim__workers_close(mim__workers_t **w);
+void mim__job_free(mim__job_t *job);
+
+/* ---- http.c: HTTP transactions on the service thread ---- */
+/* The lws protocol callback's HTTP reasons; returns what lws expects. */
+int mim__http_callback(mim_serve_t *sv, struct lws *wsi, int reason, void *user, void *in, size_t len);
+/* A finished job back on the service thread: its reply goes out. */
+void mim__http_job_done(mim_serve_t *sv, mim__job_t *job);
+/* A JSON error written at once (a refused WebSocket upgrade). 0 or -1. */
+int mim__http_answer_now(mim_serve_t *sv, struct lws *wsi, int status, const char *why);
+/* The value of URL argument name as lws decoded it: 1 (value in out), 0
+ * absent, -1 longer than out holds. */
+int mim__url_arg(struct lws *wsi, const char *name, char *out, size_t n);
+
 /* ---- ws.c: the WebSocket avatar stream ---- */
 typedef struct mim__ws mim__ws_t;
 int mim__ws_open(mim__ws_t **out, mim_serve_t *sv, unsigned max_clients, mim_error_t *err);
-void mim__ws_attach(mim__ws_t *ws, struct mg_context *ctx); /* registers /ws */
+/* From now on publish wakes the service thread of ctx (NULL: stop). */
+void mim__ws_attach(mim__ws_t *ws, struct lws_context *ctx);
 /* Queues f for every client (each client's oldest frame is dropped when its
- * queue is full); returns at once whatever the clients do. */
+ * queue is full) and wakes the service thread; returns at once whatever the
+ * clients do. Any thread (the vest loop's). */
 void mim__ws_publish(mim__ws_t *ws, const mim_serve_frame_t *f);
-void mim__ws_close(mim__ws_t **ws); /* after civetweb has stopped; accepts NULL */
+/* The upgrade of GET /ws, on the service thread: 0 accepts it; else the
+ * HTTP status to refuse it with and its reason in why. */
+int mim__ws_confirm(mim__ws_t *ws, struct lws *wsi, char *why, size_t why_size);
+/* The lws protocol callback's WebSocket reasons; returns what lws expects. */
+int mim__ws_callback(mim__ws_t *ws, struct lws *wsi, int reason, void *user, void *in, size_t len);
+/* On the service thread after a wake-up: asks for a writable callback for
+ * every client with something queued. */
+void mim__ws_service(mim__ws_t *ws);
+void mim__ws_close(mim__ws_t **ws); /* after the context is destroyed; accepts NULL */
 json_t *mim__ws_status(mim__ws_t *ws);
 unsigned mim__ws_clients(mim__ws_t *ws);
 /* A client's text message (untrusted): the format it asks for (0 f32, 1
  * i16), or -1 with the reason, one line, in why. */
 int mim__ws_parse_message(const char *data, size_t len, char *why, size_t why_size);
+#define MIM__WS_MESSAGE_MAX 4096u /* bytes of one client message, fragments joined */
 
 /* ---- loop.c: the vest thread ---- */
 typedef struct mim__loop mim__loop_t;
@@ -99,6 +202,12 @@ int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t
 const char *mim__loop_state(mim__loop_t *l);
 void mim__loop_close(mim__loop_t **l); /* stops and joins; accepts NULL */
 json_t *mim__loop_status(mim__loop_t *l); /* null without a vest */
+
+/* ---- the per-connection data lws keeps for us (protocol user space) ---- */
+typedef struct mim__conn {
+    struct mim__http_tx *tx;       /* http.c: the HTTP transaction under way */
+    struct mim__ws_client *client; /* ws.c: once the upgrade is done */
+} mim__conn_t;
 
 /* ---- the service ---- */
 struct mim_serve {
@@ -110,25 +219,17 @@ struct mim_serve {
     const char *store;          /* the store's path */
     double t_start;
     size_t max_body;
-    struct mg_context *ctx;
+    size_t body_bytes;          /* request bodies held now (service thread) */
+    struct lws_context *ctx;
+    struct lws_vhost *vhost;
+    pthread_t service;          /* the lws service thread */
+    int service_started;
+    atomic_int stop;
     int port;
+    mim__workers_t *workers;
     mim__loop_t *loop;          /* NULL without --vest */
     mim__ws_t *ws;              /* the /ws stream */
     mim__metrics_t m;
 };
-
-/* ---- server.c: replies (each returns the status sent) ---- */
-int mim__reply(struct mg_connection *c, int status, const char *type, const void *body, size_t len,
-               const char *extra_headers);
-int mim__reply_json(struct mg_connection *c, int status, json_t *j); /* steals j */
-int mim__reply_error(struct mg_connection *c, int status, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
-
-/* ---- api.c: handlers (body is NUL-terminated; NULL for GET) ---- */
-int mim__api_status(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len);
-int mim__api_avatar(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len);
-int mim__api_query(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len);
-int mim__api_transfer(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len);
-int mim__api_metrics(mim_serve_t *sv, struct mg_connection *c, const char *body, size_t len);
 
 #endif

@@ -25,10 +25,16 @@
  * enough, the loop skips to the newest vest frame instead of falling
  * behind (flush_frames). A fixed key rate (--key-rate) overrides the
  * choice of k. Lost landmarks are held at their last position, so a short
- * dropout does not stop the stream. */
+ * dropout does not stop the stream.
+ *
+ * A vest that goes away is waited for: a device unplugged (serial, HID),
+ * or any vest silent for SILENCE_S (or 5 vest periods, if longer), e.g. a
+ * UDP sender that stopped. Status then says "reconnecting", with an
+ * error that tells the time since (it grows: "unplugged for 3.2 s", "no
+ * data for 3.2 s"), and that error goes once frames come again: it
+ * describes the outage, not a frame. */
 #include "internal.h"
 
-#include <civetweb.h>
 #include <errno.h>
 #include <limits.h>
 #include <math.h>
@@ -41,6 +47,7 @@
 #define K_MAX 30u           /* never fewer key frames than one every 30 vest frames */
 #define PERIOD_SAMPLES 15 /* vest intervals the period is the median of */
 #define EWMA 0.2            /* weight of a new cost sample */
+#define SILENCE_S 1.0       /* a vest silent this long has gone away */
 
 typedef struct key {
     int valid, morph_ready;
@@ -79,6 +86,7 @@ struct mim__loop {
     double dt[PERIOD_SAMPLES]; /* the latest intervals between vest frames, seconds */
     uint32_t n_dt, i_dt;
     double arrival;    /* mim_now() when the chunk being decoded arrived */
+    double t_data;     /* mim_now() when the latest bytes came (at first: when the vest was opened) */
     int pending;       /* a vest frame completed in this chunk: at pending_t, */
     uint64_t pending_t;
     float pending_xyz[3 * MIM_LANDMARKS_MAX]; /* with these landmarks */
@@ -89,6 +97,7 @@ struct mim__loop {
     pthread_mutex_t lock; /* guards what /api/status reads: */
     const char *state; /* a string literal: streaming, reconnecting, ended, failed, stopped */
     char error[512];
+    int outage;        /* error tells of the vest being away (cleared when it is back) */
     uint64_t last_template, warm_starts, iterations, key_frames;
     char last_label[MIM_SESSION_LABEL_MAX];
     double key_rate_hz, frame_rate_hz;
@@ -107,6 +116,16 @@ static void set_error(mim__loop_t *l, const char *error)
 {
     pthread_mutex_lock(&l->lock);
     snprintf(l->error, sizeof l->error, "%s", error);
+    l->outage = 0;
+    pthread_mutex_unlock(&l->lock);
+}
+
+/* The outage's message, renewed at every timeout while the vest is away. */
+static void set_outage(mim__loop_t *l, const char *error)
+{
+    pthread_mutex_lock(&l->lock);
+    snprintf(l->error, sizeof l->error, "%.500s", error);
+    l->outage = 1;
     pthread_mutex_unlock(&l->lock);
 }
 
@@ -395,6 +414,12 @@ static void link_state(mim__loop_t *l, int up, const char *why)
     if (up == was_up)
         return;
     set_state(l, up ? "streaming" : "reconnecting", why);
+    if (up) { /* the outage is over: its message no longer says how things are */
+        pthread_mutex_lock(&l->lock);
+        if (l->outage)
+            l->error[0] = 0, l->outage = 0;
+        pthread_mutex_unlock(&l->lock);
+    }
     mim__metrics_add(&l->sv->m, up ? MIM__C_VEST_RECONNECTS : MIM__C_VEST_DISCONNECTS, 1);
     mim__metrics_set(&l->sv->m, MIM__G_VEST_UP, up);
     if (!up) { /* no frames while it is away: the rates say so, not their last values */
@@ -419,8 +444,16 @@ static void *run(void *arg)
         int r = mim_vest_transport_read(l->t, &ch, &err);
         l->arrival = mim_now();
         if (r == -ETIMEDOUT) {
-            if (!mim_vest_transport_connected(l->t))
-                link_state(l, 0, mim_error_text(&err));
+            double silent = l->arrival - l->t_data, limit = fmax(SILENCE_S, 5.0 * l->period);
+            char msg[512];
+            if (!mim_vest_transport_connected(l->t)) /* unplugged: the transport says for how long */
+                snprintf(msg, sizeof msg, "%.500s", mim_error_text(&err));
+            else if (silent > limit) /* there, but silent (a UDP sender that stopped) */
+                snprintf(msg, sizeof msg, "vest %.400s: no data for %.1f s", l->spec, silent);
+            else
+                continue;
+            link_state(l, 0, msg);
+            set_outage(l, msg);
             continue;
         }
         if (r == 0) {
@@ -439,8 +472,8 @@ static void *run(void *arg)
             set_state(l, "failed", mim_error_text(&err));
             return NULL;
         }
-        if (ch.restart || !mim_vest_transport_connected(l->t))
-            link_state(l, 1, NULL);
+        l->t_data = l->arrival;
+        link_state(l, 1, NULL); /* (nothing to do unless it was away) */
         if (ch.kind == MIM_VEST_CHUNK_STREAM) {
             if (ch.restart) {
                 mim_vest_decoder_reset(l->dec);
@@ -514,8 +547,10 @@ int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t
         if (!rc && mim_vest_decoder_open(&l->dec, &dopt, on_packet, l))
             rc = mim_error_set(err, MIM_ENOMEM, "out of memory for the vest decoder");
     }
-    if (!rc)
+    if (!rc) {
         mim__metrics_set(&sv->m, MIM__G_VEST_UP, 1);
+        l->t_data = mim_now();
+    }
     if (!rc && (rc = -pthread_create(&l->thread, NULL, run, l)) != 0)
         rc = mim_error_set(err, rc, "cannot start the vest thread: %s", strerror(-rc));
     if (l)

@@ -1,4 +1,4 @@
-/* mimic serve: the real-time service (DESIGN.md, serve/), on civetweb:
+/* mimic serve: the real-time service (DESIGN.md, serve/), on libwebsockets:
  *   GET  /               the web viewer (three.js, embedded at build time)
  *   GET  /ws             WebSocket avatar stream, schemas/serve-ws-frame.md
  *   GET  /api/status     schemas/serve-status.schema.json
@@ -12,7 +12,17 @@
  * when time is short) as often as its measured compute time allows, fills
  * the frames between by morphing (seed 000 Section 3.5) and publishes
  * every frame to the stream. serve composes db/, query/, transfer/ and vest/; cli/ sits above
- * it. */
+ * it.
+ *
+ * Threads: serve starts its own, with default attributes (the host needs
+ * to do nothing about them): one libwebsockets service thread that does
+ * all the network I/O, the vest loop, and a small pool (threads, below)
+ * for the requests that compute. What a hostile client meets (limits and
+ * timeouts) is in serve/http.c and serve/ws.c. Two effects reach the whole
+ * process, both libwebsockets': its log level (serve turns it off) and
+ * SIGPIPE, ignored when the context is created. Each connection needs a
+ * file descriptor: a host that expects many clients raises its own
+ * RLIMIT_NOFILE before mim_serve_open (mimic serve does). */
 #ifndef MIM_SERVE_H
 #define MIM_SERVE_H
 
@@ -48,7 +58,7 @@ typedef struct mim_serve_frame {
 typedef struct mim_serve_options {
     const char *listen; /* HOST:PORT (port 0: any free port); NULL: MIM_SERVE_DEFAULT_LISTEN */
     size_t max_body;    /* request body limit in bytes (413 above it); 0: MIM_SERVE_DEFAULT_MAX_BODY */
-    unsigned threads;   /* HTTP worker threads; 0: 4 */
+    unsigned threads;   /* threads for query, transfer and avatar requests; 0: 2 */
     const char *vest;   /* NULL: no vest; else a vest spec (mim_vest_transport_open: a recording,
                            serial:PATH, hid:..., udp:HOST:PORT), read by the real-time loop */
     int vest_pose;      /* the wearer's pose at the tare: MIM_VEST_POSE_* (0: as the avatar rests) */
@@ -74,19 +84,6 @@ typedef struct mim_serve_options {
 
 typedef struct mim_serve mim_serve_t;
 
-/* Thread stacks: the host program must give civetweb's threads at least
- * 1 MiB of stack. Debian's civetweb (1.15) starts them with a fixed 100 KiB
- * (a compile-time setting, no run-time option), and glibc carves the
- * process's static TLS out of every thread stack: with OpenBLAS and METIS
- * loaded (through CHOLMOD, about 90 KiB of TLS) a worker overflows on its
- * first request. serve/ does not change thread attributes itself (that
- * would act on the whole process); the mimic program does, in
- * cli/stack_size.c, by interposing pthread_attr_setstacksize. Another host
- * can do the same, or link a civetweb built with CIVETWEB_THREAD_STACK_SIZE
- * of 1 MiB or more (or 0, the system's default). The threads serve creates
- * itself (the vest loop, a sender per WebSocket client) use the default
- * attributes. */
-
 /* Serves session s: its store, index (without one /api/query answers 503),
  * avatar and factor (mim_session_open, then mim_session_load_avatar). The
  * session is borrowed: the caller closes it after mim_serve_close. Starts
@@ -102,8 +99,9 @@ const char *mim_serve_vest_state(mim_serve_t *s);
  * until close, and the number of frames published so far. */
 const mim_mesh_t *mim_serve_avatar_mesh(const mim_serve_t *s);
 uint64_t mim_serve_frames(mim_serve_t *s);
-/* Stops listening (waits for requests in flight) and frees everything.
- * Accepts NULL; nulls the pointer. */
+/* Stops listening, closes every connection (a request being computed is
+ * waited for, its answer dropped) and frees everything. Accepts NULL;
+ * nulls the pointer. */
 void mim_serve_close(mim_serve_t **s);
 
 #ifdef __cplusplus

@@ -1,161 +1,198 @@
-/* The HTTP side of mimic serve: civetweb start and stop, one handler that
- * routes by path and method, the request body limit, and JSON replies.
- * civetweb (Debian libcivetweb-dev) gives HTTP/1.1 and WebSocket in one C
- * library with its own worker threads, so handlers are plain functions. */
+/* The network side of mimic serve on libwebsockets (Debian
+ * libwebsockets-dev 4.1.6): the context, its one service thread, and the
+ * protocol callback that hands HTTP to http.c and the stream to ws.c.
+ *
+ * Threads, and why (issue 12):
+ *  - one lws service thread, started here and stopped in close. It alone
+ *    reads and writes every socket: lws is event-driven, so a connection
+ *    costs a few KiB and no thread, and a slow or silent client costs
+ *    nothing but its socket (civetweb held a thread per connection, and
+ *    300 slowloris sockets took the service down). lws reads a WebSocket
+ *    frame in pieces as it arrives (civetweb buffered whole frames: 2.5 GB
+ *    for 40 hostile clients), which lets ws.c cap client messages.
+ *  - the vest loop's thread (loop.c) publishes frames into the clients'
+ *    queues and wakes the service thread with lws_cancel_service; on
+ *    LWS_CALLBACK_EVENT_WAIT_CANCELLED the service thread asks for
+ *    writable callbacks (ws.c).
+ *  - a pool of two worker threads (workers.c) runs the handlers that take
+ *    milliseconds (query, transfer, the avatar's JSON), so that they never
+ *    hold the stream up; a finished one wakes the service thread the same
+ *    way and its reply goes out from there (http.c).
+ * All threads are serve's own, with default attributes: nothing needs big
+ * stacks from the host program any more.
+ *
+ * lws's logging is global to the library in a process: serve turns it off
+ * (mimic reports its own errors, and a library must not print); a host
+ * that wants lws's log can set it after mim_serve_open. lws also ignores
+ * SIGPIPE for the process when a context is created (Debian's build). */
 #include "internal.h"
-#include "viewer.h"
 
-#include <civetweb.h>
+#include <arpa/inet.h>
 #include <errno.h>
-#include <stdarg.h>
+#include <libwebsockets.h>
+#include <netdb.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
-int mim__reply(struct mg_connection *c, int status, const char *type, const void *body, size_t len,
-               const char *extra_headers)
-{
-    char clen[32];
-    snprintf(clen, sizeof clen, "%zu", len);
-    mg_response_header_start(c, status);
-    mg_response_header_add(c, "Content-Type", type, -1);
-    mg_response_header_add(c, "Content-Length", clen, -1);
-    mg_response_header_add(c, "Cache-Control", "no-store", -1);
-    if (extra_headers)
-        mg_response_header_add_lines(c, extra_headers);
-    mg_response_header_send(c);
-    if (len)
-        mg_write(c, body, len);
-    return status;
-}
+#define HEADERS_S 10 /* a connection's request headers must be whole within this */
+#define IDLE_S 10    /* a request body may pause this long (lws's timeout_secs) */
+#define WORKERS 2u
 
-int mim__reply_json(struct mg_connection *c, int status, json_t *j)
+static int callback(struct lws *wsi, enum lws_callback_reasons reason, void *user, void *in, size_t len)
 {
-    char *txt = j ? json_dumps(j, JSON_COMPACT | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(9)) : NULL;
-    json_decref(j);
-    if (!txt) {
-        static const char oom[] = "{\"error\":\"out of memory for the reply\"}";
-        return mim__reply(c, 500, "application/json", oom, sizeof oom - 1, NULL);
+    struct lws_context *ctx = wsi ? lws_get_context(wsi) : NULL;
+    mim_serve_t *sv = ctx ? lws_context_user(ctx) : NULL;
+    if (!sv)
+        return 0;
+    switch (reason) {
+    case LWS_CALLBACK_EVENT_WAIT_CANCELLED: /* a worker or the vest loop woke us */
+        for (mim__job_t *j = mim__workers_done(sv->workers), *next; j; j = next) {
+            next = j->next;
+            j->next = NULL;
+            mim__http_job_done(sv, j);
+        }
+        mim__ws_service(sv->ws);
+        return 0;
+    case LWS_CALLBACK_SERVER_NEW_CLIENT_INSTANTIATED: {
+        /* a frame's last bytes must not wait for the client's ACK (Nagle) */
+        int fd = lws_get_socket_fd(wsi), one = 1;
+        if (fd >= 0)
+            setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+        return 0;
     }
-    int rc = mim__reply(c, status, "application/json", txt, strlen(txt), NULL);
-    free(txt);
-    return rc;
+    case LWS_CALLBACK_HTTP_CONFIRM_UPGRADE: {
+        char why[256];
+        int status = mim__ws_confirm(sv->ws, wsi, why, sizeof why);
+        if (!status)
+            return 0;
+        return mim__http_answer_now(sv, wsi, status, why) ? -1 : 1;
+    }
+    case LWS_CALLBACK_HTTP:
+    case LWS_CALLBACK_HTTP_BODY:
+    case LWS_CALLBACK_HTTP_BODY_COMPLETION:
+    case LWS_CALLBACK_HTTP_WRITEABLE:
+    case LWS_CALLBACK_TIMER:
+    case LWS_CALLBACK_CLOSED_HTTP:
+        return mim__http_callback(sv, wsi, (int)reason, user, in, len);
+    case LWS_CALLBACK_ESTABLISHED:
+    case LWS_CALLBACK_RECEIVE:
+    case LWS_CALLBACK_SERVER_WRITEABLE:
+    case LWS_CALLBACK_CLOSED:
+        return mim__ws_callback(sv->ws, wsi, (int)reason, user, in, len);
+    default:
+        return 0;
+    }
 }
 
-int mim__reply_error(struct mg_connection *c, int status, const char *fmt, ...)
-{
-    char msg[768];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    return mim__reply_json(c, status, json_pack("{s:s, s:i}", "error", msg, "status", status));
-}
-
-typedef int (*handler_fn)(mim_serve_t *, struct mg_connection *, const char *, size_t);
-static const struct {
-    const char *path, *method;
-    mim__route_t route;
-    handler_fn fn;
-} routes[] = {
-    {"/api/status", "GET", MIM__R_STATUS, mim__api_status},
-    {"/api/avatar", "GET", MIM__R_AVATAR, mim__api_avatar},
-    {"/api/query", "POST", MIM__R_QUERY, mim__api_query},
-    {"/api/transfer", "POST", MIM__R_TRANSFER, mim__api_transfer},
-    {"/metrics", "GET", MIM__R_METRICS, mim__api_metrics},
+static const struct lws_protocols protocols[] = {
+    /* HTTP and the stream on one protocol: a client that names none gets
+     * protocols[0]. Client messages arrive in pieces of at most
+     * rx_buffer_size; a frame goes out in one send() (tx_packet_size). */
+    {"mimic", callback, sizeof(mim__conn_t), MIM__WS_MESSAGE_MAX, 0, NULL, (size_t)1 << 20},
+    {NULL, NULL, 0, 0, 0, NULL, 0},
 };
 
-/* Reads the whole body into a NUL-terminated buffer, refusing more than
- * max bytes (a declared length is checked before reading anything). Returns
- * 0, or the HTTP status already sent. */
-static int read_body(mim_serve_t *sv, struct mg_connection *c, char **out, size_t *len)
+static void *service(void *arg)
 {
-    const struct mg_request_info *ri = mg_get_request_info(c);
-    *out = NULL, *len = 0;
-    if (ri->content_length > (long long)sv->max_body)
-        return mim__reply_error(c, 413, "request body: %lld bytes, the limit is %zu", ri->content_length,
-                                sv->max_body);
-    size_t cap = ri->content_length >= 0 ? (size_t)ri->content_length + 1 : 65536, n = 0;
-    char *b = malloc(cap);
-    if (!b)
-        return mim__reply_error(c, 500, "out of memory for a %zu-byte request body", cap);
-    for (;;) {
-        if (n + 1 >= cap) {
-            if (cap > sv->max_body + 1) {
-                free(b);
-                return mim__reply_error(c, 413, "request body: over the limit of %zu bytes", sv->max_body);
-            }
-            char *nb = realloc(b, 2 * cap);
-            if (!nb) {
-                free(b);
-                return mim__reply_error(c, 500, "out of memory for the request body");
-            }
-            b = nb, cap *= 2;
-        }
-        int r = mg_read(c, b + n, cap - 1 - n);
-        if (r < 0) {
-            free(b);
-            return mim__reply_error(c, 400, "request body: read error");
-        }
-        if (r == 0)
+    mim_serve_t *sv = arg;
+    while (!atomic_load(&sv->stop))
+        if (lws_service(sv->ctx, 0) < 0)
             break;
-        n += (size_t)r;
+    return NULL;
+}
+
+/* HOST:PORT (HOST may be [v6], empty, * or 0.0.0.0 for every interface, a
+ * name or a number) into a numeric host for lws (empty: all) and a port.
+ * 0, or -1 with why. */
+static int parse_listen(const char *listen, char *host, size_t host_size, int *port, int *v6, char *why,
+                        size_t why_size)
+{
+    const char *colon = strrchr(listen, ':');
+    char *end = NULL;
+    long p = colon ? strtol(colon + 1, &end, 10) : -1;
+    if (!colon || !colon[1] || *end || p < 0 || p > 65535) {
+        snprintf(why, why_size, "not HOST:PORT");
+        return -1;
     }
-    if (n > sv->max_body) {
-        free(b);
-        return mim__reply_error(c, 413, "request body: over the limit of %zu bytes", sv->max_body);
+    *port = (int)p;
+    size_t hl = (size_t)(colon - listen);
+    const char *h = listen;
+    if (hl >= 2 && h[0] == '[' && h[hl - 1] == ']')
+        h++, hl -= 2;
+    char name[256];
+    if (hl >= sizeof name) {
+        snprintf(why, why_size, "host name too long");
+        return -1;
     }
-    b[n] = 0;
-    *out = b, *len = n;
+    memcpy(name, h, hl), name[hl] = 0;
+    *v6 = 0;
+    host[0] = 0;
+    if (!hl || !strcmp(name, "*") || !strcmp(name, "0.0.0.0"))
+        return 0;
+    struct addrinfo hints = {.ai_socktype = SOCK_STREAM, .ai_flags = AI_PASSIVE}, *ai = NULL;
+    int g = getaddrinfo(name, NULL, &hints, &ai);
+    if (g) {
+        snprintf(why, why_size, "%s", gai_strerror(g));
+        return -1;
+    }
+    struct addrinfo *pick = ai;
+    for (struct addrinfo *a = ai; a; a = a->ai_next)
+        if (a->ai_family == AF_INET) { /* v4 first: "localhost" means 127.0.0.1 */
+            pick = a;
+            break;
+        }
+    *v6 = pick->ai_family == AF_INET6;
+    int r = getnameinfo(pick->ai_addr, pick->ai_addrlen, host, (socklen_t)host_size, NULL, 0, NI_NUMERICHOST);
+    freeaddrinfo(ai);
+    if (r) {
+        snprintf(why, why_size, "%s", gai_strerror(r));
+        return -1;
+    }
+    if (*v6 && !strcmp(host, "::"))
+        host[0] = 0;
     return 0;
 }
 
-static int handle(struct mg_connection *c, void *cbdata)
+/* Why binding host:port fails, for the one-line error (lws does not say). */
+static void bind_error(const char *host, int port, int v6, char *why, size_t why_size)
 {
-    mim_serve_t *sv = cbdata;
-    double t0 = mim_now();
-    const struct mg_request_info *ri = mg_get_request_info(c);
-    const char *path = ri->local_uri ? ri->local_uri : "";
-    mim__route_t route = MIM__R_OTHER;
-    int status = 0;
-    size_t i = 0, n = sizeof routes / sizeof routes[0];
-    while (i < n && strcmp(routes[i].path, path))
-        i++;
-    if (i == n && (status = mim__viewer_serve(c, path)) != 0) { /* it answers GET and HEAD only */
-        route = MIM__R_VIEWER;
-    } else if (i == n) {
-        status = mim__reply_error(c, 404, "%s: no such route (see schemas/ for the API)", path);
-    } else if (route = routes[i].route, strcmp(ri->request_method, routes[i].method)) {
-        char allow[64];
-        snprintf(allow, sizeof allow, "Allow: %s\r\n", routes[i].method);
-        char msg[256];
-        int m = snprintf(msg, sizeof msg, "{\"error\":\"%s: use %s\",\"status\":405}", routes[i].path,
-                         routes[i].method);
-        status = mim__reply(c, 405, "application/json", msg, (size_t)m, allow);
-    } else if (!strcmp(routes[i].method, "POST")) {
-        char *body;
-        size_t len;
-        if (!(status = read_body(sv, c, &body, &len)))
-            status = routes[i].fn(sv, c, body, len);
-        free(body);
+    struct sockaddr_storage ss = {0};
+    socklen_t sl;
+    if (v6) {
+        struct sockaddr_in6 *a = (struct sockaddr_in6 *)&ss;
+        a->sin6_family = AF_INET6, a->sin6_port = htons((uint16_t)port);
+        inet_pton(AF_INET6, host[0] ? host : "::", &a->sin6_addr);
+        sl = sizeof *a;
     } else {
-        status = routes[i].fn(sv, c, NULL, 0);
+        struct sockaddr_in *a = (struct sockaddr_in *)&ss;
+        a->sin_family = AF_INET, a->sin_port = htons((uint16_t)port);
+        inet_pton(AF_INET, host[0] ? host : "0.0.0.0", &a->sin_addr);
+        sl = sizeof *a;
     }
-    mim__metrics_request(&sv->m, route, status, mim_now() - t0);
-    return status; /* civetweb: a status >= 1 means handled */
-}
-
-static int quiet_log(const struct mg_connection *c, const char *message)
-{
-    (void)c, (void)message;
-    return 1; /* mimic reports its own errors; civetweb's go nowhere */
+    int s = socket(v6 ? AF_INET6 : AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0), one = 1;
+    snprintf(why, why_size, "libwebsockets could not listen");
+    if (s < 0)
+        return;
+    setsockopt(s, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+    if (bind(s, (struct sockaddr *)&ss, sl))
+        snprintf(why, why_size, "%s", strerror(errno));
+    close(s);
 }
 
 int mim_serve_open(mim_serve_t **out, mim_session_t *s, const mim_serve_options_t *opt, mim_error_t *err)
 {
     *out = NULL;
     mim_serve_options_t o = opt ? *opt : (mim_serve_options_t){0};
+    const char *listen = o.listen ? o.listen : MIM_SERVE_DEFAULT_LISTEN;
+    char host[256], why[256] = "";
+    int port = 0, v6 = 0;
+    if (parse_listen(listen, host, sizeof host, &port, &v6, why, sizeof why))
+        return mim_error_set(err, MIM_EINVAL, "cannot listen on %s: %s", listen, why);
     mim_serve_t *sv = calloc(1, sizeof *sv);
     if (!sv)
         return mim_error_set(err, MIM_ENOMEM, "out of memory");
@@ -172,6 +209,8 @@ int mim_serve_open(mim_serve_t **out, mim_session_t *s, const mim_serve_options_
     const unsigned max_clients = o.max_clients ? o.max_clients : MIM_SERVE_DEFAULT_MAX_CLIENTS;
     if (!rc)
         rc = mim__ws_open(&sv->ws, sv, max_clients, err);
+    if (!rc)
+        rc = mim__workers_open(&sv->workers, sv, o.threads ? o.threads : WORKERS, err);
     if (!rc && o.vest)
         rc = mim__loop_open(&sv->loop, sv, &o, err);
     if (rc) {
@@ -179,42 +218,52 @@ int mim_serve_open(mim_serve_t **out, mim_session_t *s, const mim_serve_options_
         return rc;
     }
 
-    /* civetweb gives every WebSocket connection a worker thread for its
-     * life: room for max_clients of them plus the HTTP workers. A write
-     * to a client that stopped reading gives up after request_timeout_ms;
-     * websocket_timeout_ms is how often an idle read loop looks at the
-     * stop flag, so shutdown waits at most that long. */
-    char threads[16];
-    snprintf(threads, sizeof threads, "%u", (o.threads ? o.threads : 4) + max_clients);
-    const char *options[] = {"listening_ports", o.listen ? o.listen : MIM_SERVE_DEFAULT_LISTEN,
-                             "num_threads", threads,
-                             "request_timeout_ms", "10000",
-                             "websocket_timeout_ms", "500",
-                             "tcp_nodelay", "1", /* a frame's tail must not wait for an ACK (Nagle) */
-                             NULL};
-    /* civetweb starts its workers with 100 KiB stacks in Debian's build (a
-     * compile-time setting, no run-time option), too small once glibc has
-     * carved this process's static TLS out of them. Raising them is the
-     * host program's business (mim_serve.h; mimic's is cli/stack_size.c):
-     * a library must not change thread attributes for the whole process. */
-    struct mg_callbacks cb = {.log_message = quiet_log};
-    struct mg_init_data init = {.callbacks = &cb, .user_data = sv, .configuration_options = options};
-    char why[256] = "";
-    unsigned code = 0;
-    struct mg_error_data ed = {.code = &code, .text = why, .text_buffer_size = sizeof why};
-    mg_init_library(0);
-    sv->ctx = mg_start2(&init, &ed);
+    lws_set_log_level(0, NULL); /* see the top of the file */
+    struct lws_context_creation_info ci;
+    memset(&ci, 0, sizeof ci);
+    ci.options = LWS_SERVER_OPTION_EXPLICIT_VHOSTS | LWS_SERVER_OPTION_NO_LWS_SYSTEM_STATES;
+    ci.user = sv;
+    ci.timeout_secs = IDLE_S;
+    ci.timeout_secs_ah_idle = HEADERS_S;
+    /* lws reads 32 KiB at a time (bodies, and the rest of a refused frame) */
+    ci.pt_serv_buf_size = 32768;
+    /* every fd the process may open can be a connection, each with its
+     * header buffer while it sends headers: no slowloris can make others
+     * wait for one (lws's default; said here because it matters) */
+    ci.max_http_header_pool = 0;
+    ci.fd_limit_per_thread = 0;
+    sv->ctx = lws_create_context(&ci);
     if (!sv->ctx) {
-        rc = mim_error_set(err, MIM_EIO, "cannot listen on %s: %s", options[1], why[0] ? why : "civetweb failed");
+        rc = mim_error_set(err, MIM_EIO, "cannot listen on %s: libwebsockets: cannot create its context", listen);
         mim_serve_close(&sv);
-        mg_exit_library();
         return rc;
     }
-    mg_set_request_handler(sv->ctx, "/", handle, sv);
+    struct lws_context_creation_info vi;
+    memset(&vi, 0, sizeof vi);
+    vi.vhost_name = "mimic";
+    vi.port = port; /* 0: the kernel picks a free one (mim_serve_port) */
+    vi.iface = host[0] ? host : NULL;
+    vi.protocols = protocols;
+    vi.options = LWS_SERVER_OPTION_FAIL_UPON_UNABLE_TO_BIND | (v6 ? 0 : LWS_SERVER_OPTION_DISABLE_IPV6);
+    vi.timeout_secs = IDLE_S;
+    vi.timeout_secs_ah_idle = HEADERS_S;
+    vi.keepalive_timeout = 5;
+    sv->vhost = lws_create_vhost(sv->ctx, &vi);
+    if (!sv->vhost) {
+        bind_error(host, port, v6, why, sizeof why);
+        rc = mim_error_set(err, MIM_EIO, "cannot listen on %s: %s", listen, why);
+        mim_serve_close(&sv);
+        return rc;
+    }
+    sv->port = lws_get_vhost_listen_port(sv->vhost);
     mim__ws_attach(sv->ws, sv->ctx);
-    struct mg_server_port ports[4];
-    int np = mg_get_server_ports(sv->ctx, 4, ports);
-    sv->port = np > 0 ? ports[0].port : 0;
+    mim__workers_attach(sv->workers, sv->ctx);
+    if ((rc = pthread_create(&sv->service, NULL, service, sv)) != 0) {
+        rc = mim_error_set(err, -rc, "cannot start the service thread: %s", strerror(rc));
+        mim_serve_close(&sv);
+        return rc;
+    }
+    sv->service_started = 1;
     *out = sv;
     return 0;
 }
@@ -244,12 +293,22 @@ void mim_serve_close(mim_serve_t **ps)
     mim_serve_t *sv = ps ? *ps : NULL;
     if (!sv)
         return;
-    if (sv->ctx) {
-        mg_stop(sv->ctx); /* joins the workers: no handler runs after this */
-        mg_exit_library();
+    if (sv->service_started) { /* no callback runs after this but those of the destroy below */
+        atomic_store(&sv->stop, 1);
+        lws_cancel_service(sv->ctx);
+        pthread_join(sv->service, NULL);
     }
-    mim__loop_close(&sv->loop); /* after the workers: /api/status reads the loop */
-    mim__ws_close(&sv->ws);     /* after the loop, which publishes to it */
+    /* nobody may wake a context being destroyed */
+    if (sv->ws)
+        mim__ws_attach(sv->ws, NULL);
+    if (sv->workers)
+        mim__workers_attach(sv->workers, NULL);
+    mim__loop_close(&sv->loop); /* it publishes to the stream */
+    if (sv->ctx)
+        lws_context_destroy(sv->ctx); /* closes every connection: their jobs are orphaned, clients freed */
+    sv->ctx = NULL;
+    mim__workers_close(&sv->workers); /* waits for a running handler, frees what is left */
+    mim__ws_close(&sv->ws);
     mim__metrics_destroy(&sv->m);
     free(sv);
     *ps = NULL;

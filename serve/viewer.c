@@ -3,9 +3,8 @@
  * so `mimic serve` needs nothing beside it at run time: serve/viewer/ (the
  * page) and three.js from node_modules (npm ci; a placeholder module when it
  * was missing at configure time, and the page then says so). */
-#include "viewer.h"
+#include "internal.h"
 
-#include <civetweb.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
@@ -60,26 +59,17 @@ static const struct asset {
     {"/three/addons/controls/OrbitControls.js", JS, mim__va_orbit, &mim__va_orbit_len},
 };
 
-int mim__viewer_serve(struct mg_connection *c, const char *path)
+int mim__viewer_reply(const char *path, mim__reply_t *rp)
 {
-    const struct mg_request_info *ri = mg_get_request_info(c);
-    int head = ri && ri->request_method && !strcmp(ri->request_method, "HEAD");
-    if (!path || (ri && ri->request_method && !head && strcmp(ri->request_method, "GET")))
-        return 0;
-    for (size_t i = 0; i < sizeof assets / sizeof assets[0]; i++) {
+    for (size_t i = 0; path && i < sizeof assets / sizeof assets[0]; i++) {
         const struct asset *a = &assets[i];
         if (strcmp(a->path, path))
             continue;
-        char clen[32];
-        snprintf(clen, sizeof clen, "%llu", (unsigned long long)*a->len);
-        mg_response_header_start(c, 200);
-        mg_response_header_add(c, "Content-Type", a->type, -1);
-        mg_response_header_add(c, "Content-Length", clen, -1);
-        /* revalidate every time: a rebuilt binary serves new files */
-        mg_response_header_add(c, "Cache-Control", "no-cache", -1);
-        mg_response_header_send(c);
-        if (!head && *a->len)
-            mg_write(c, a->data, (size_t)*a->len);
+        rp->status = 200;
+        rp->type = a->type;
+        rp->fixed = a->data;
+        rp->len = (size_t)*a->len;
+        rp->cache = "no-cache"; /* revalidate every time: a rebuilt binary serves new files */
         return 200;
     }
     return 0;

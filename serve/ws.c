@@ -1,19 +1,43 @@
 /* The WebSocket avatar stream of mimic serve at /ws
- * (schemas/serve-ws-frame.md). The real-time loop publishes each frame once:
- * it is encoded into an immutable, reference-counted message and put on
- * every client's short queue (QUEUE frames), which the client's own sender
- * thread empties. So the loop never waits for a client: a client that is
- * slow to read only blocks its own sender, and once its queue is full the
- * oldest queued frame is dropped for it (counted), so it stays near the
- * newest. The queue is there for a client that keeps up: a sender thread
- * that the scheduler keeps waiting past one vest period on a busy machine
- * must not cost it frames (with only the latest frame kept, it did).
- * civetweb runs each connection's read loop on a worker thread and locks
- * the connection inside mg_websocket_write, so the sender thread and the
- * worker (text replies, pongs) may both write. */
+ * (schemas/serve-ws-frame.md), on the lws service thread (server.c).
+ *
+ * The real-time loop publishes each frame once (mim__ws_publish, on the
+ * vest thread): it is encoded once per format some client wants into an
+ * immutable, reference-counted message and put on every client's queue,
+ * then the service thread is woken (lws_cancel_service). There, on
+ * LWS_CALLBACK_EVENT_WAIT_CANCELLED, every client with something queued
+ * asks for a writable callback, and each LWS_CALLBACK_SERVER_WRITEABLE
+ * writes one message: every write to a client happens on that one thread.
+ * So the loop never waits for a client: a client that is slow to read
+ * only fills its own socket, and once QUEUE frames wait for it the oldest
+ * is dropped (counted), so it stays near the newest. The queue is there
+ * for a client that keeps up: a writable callback that comes a little
+ * late on a busy machine must not cost it frames.
+ *
+ * The text messages (hello, format, error) go on the same queue, in order
+ * with the frames, and are never dropped. A format switch takes effect
+ * under the queue's lock together with queuing its reply, and publish
+ * picks each client's encoding under that lock: every frame queued before
+ * the {"type": "format"} reply is in the old format, every one after it in
+ * the new (issue 12, defect 7). A client that sends messages without
+ * reading the replies is stopped reading (lws rx flow control) while
+ * TEXT_PAUSE replies wait, and closed at TEXT_MAX.
+ *
+ * Client messages are capped at MIM__WS_MESSAGE_MAX bytes, fragments
+ * joined (defect 1): lws hands a frame over in pieces of the protocol's
+ * rx_buffer_size as they arrive, with the frame's remaining length, so a
+ * frame (or a fragmented message) that would pass the cap is refused at
+ * its first piece, before it is held, with close status 1009; the rest of
+ * it is read and dropped by lws while the close handshake runs.
+ *
+ * lws writes a frame's header into the LWS_PRE bytes before the payload,
+ * which every client's copy of a message shares: harmless, because all
+ * writes happen on the one service thread, one after the other, and the
+ * header of a given message is the same for every client (server frames
+ * are not masked, and no extension is negotiated). */
 #include "internal.h"
 
-#include <civetweb.h>
+#include <libwebsockets.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -25,36 +49,59 @@ static const char *const fmt_names[N_FMT] = {"f32", "i16"};
 
 #define HEADER_BYTES 112u
 #define LABEL_BYTES 32u
-#define QUEUE 4u /* frames a client may lag behind before its oldest is dropped (67 ms at 60 Hz) */
+#define QUEUE 4u       /* frames a client may lag behind before its oldest is dropped (67 ms at 60 Hz) */
+#define TEXT_PAUSE 8u  /* text replies waiting: stop reading the client's messages */
+#define TEXT_MAX 16u   /* and close it (1008) if it still sends */
+#define RING (QUEUE + TEXT_MAX)
 
 typedef struct msg {
     atomic_int refs;
     size_t len;
-    unsigned char bytes[];
+    unsigned char *bytes; /* room + LWS_PRE */
+    unsigned char room[];
 } msg_t;
 
-typedef struct client {
+typedef struct item {
+    msg_t *m;
+    int text;
+} item_t;
+
+typedef struct mim__ws_client {
     mim__ws_t *ws;
-    struct mg_connection *conn;
-    pthread_t thread;
-    int started;       /* under ws->lock: its sender runs and takes frames */
-    int stop;          /* under ws->lock */
-    atomic_int format; /* FMT_* */
-    msg_t *queue[QUEUE]; /* under ws->lock: frames to send, oldest at head */
-    unsigned head, count;
+    struct lws *wsi;
+    int format;             /* FMT_*, under ws->lock */
+    item_t q[RING];         /* under ws->lock: to send, oldest at head */
+    unsigned head, count, frames, texts;
     uint64_t drops;
-    struct client *next;
+    int paused;             /* rx flow control off (service thread) */
+    int in_msg, msg_binary; /* a client message is being read (service thread) */
+    size_t msg_len;
+    char msg[MIM__WS_MESSAGE_MAX + 1];
+    struct mim__ws_client *next;
 } client_t;
 
 struct mim__ws {
     mim_serve_t *sv;
-    pthread_mutex_t lock; /* clients, their queues and stop flags */
-    pthread_cond_t fresh; /* a new frame or a stop */
+    pthread_mutex_t lock; /* clients, their queues and formats, ctx */
+    struct lws_context *ctx; /* woken by publish; NULL before listening and once closing */
     client_t *clients;
     unsigned n_clients, max_clients;
-    atomic_uint n_i16;    /* clients that want int16: only then is it encoded */
     uint64_t joined, left;
+    struct lws **wake;    /* max_clients: scratch of the service thread */
 };
+
+/* A message of len bytes after LWS_PRE bytes of room for lws's frame
+ * header, one reference held. */
+static msg_t *msg_new(size_t len)
+{
+    msg_t *m = malloc(sizeof *m + LWS_PRE + len);
+    if (!m)
+        return NULL;
+    atomic_init(&m->refs, 1);
+    m->len = len;
+    m->bytes = m->room + LWS_PRE;
+    return m;
+}
 
 static void msg_unref(msg_t *m)
 {
@@ -94,11 +141,9 @@ static msg_t *encode(const mim_serve_frame_t *f, int format)
 {
     const uint32_t n = f->n_vertices, L = f->n_landmarks;
     size_t len = frame_bytes(n, L, format == FMT_I16);
-    msg_t *m = malloc(sizeof *m + len);
+    msg_t *m = msg_new(len);
     if (!m)
         return NULL;
-    atomic_init(&m->refs, 1);
-    m->len = len;
     unsigned char *b = m->bytes;
     memset(b, 0, HEADER_BYTES);
     memcpy(b, "MIMF", 4);
@@ -145,27 +190,89 @@ static msg_t *encode(const mim_serve_frame_t *f, int format)
     return m;
 }
 
+
+/* ---- a client's queue (under ws->lock) ---- */
+static item_t *at(client_t *c, unsigned i)
+{
+    return &c->q[(c->head + i) % RING];
+}
+
+/* Appends; a frame past QUEUE drops the oldest frame queued (not a text
+ * message: those are never dropped, and the order of the rest is kept).
+ * 1 if a frame was dropped. */
+static int push(client_t *c, msg_t *m, int text)
+{
+    int dropped = 0;
+    if (!text && c->frames == QUEUE) {
+        unsigned i = 0;
+        while (at(c, i)->text)
+            i++;
+        msg_unref(at(c, i)->m);
+        for (; i + 1 < c->count; i++)
+            *at(c, i) = *at(c, i + 1);
+        c->count--, c->frames--, c->drops++;
+        dropped = 1;
+    }
+    atomic_fetch_add(&m->refs, 1);
+    *at(c, c->count) = (item_t){m, text};
+    c->count++;
+    if (text)
+        c->texts++;
+    else
+        c->frames++;
+    return dropped;
+}
+
+static item_t pop(client_t *c)
+{
+    item_t it = *at(c, 0);
+    c->head = (c->head + 1) % RING, c->count--;
+    if (it.text)
+        c->texts--;
+    else
+        c->frames--;
+    return it;
+}
+
 void mim__ws_publish(mim__ws_t *ws, const mim_serve_frame_t *f)
 {
     if (!ws)
         return;
-    msg_t *m[N_FMT] = {encode(f, FMT_F32), atomic_load(&ws->n_i16) ? encode(f, FMT_I16) : NULL};
+    msg_t *m[N_FMT] = {NULL, NULL};
     uint64_t dropped = 0;
+    /* Each client's format is read under the lock, where it changes: an
+     * encoding missing for it is made outside the lock and the check
+     * repeated (a switch in between is rare), so no client ever gets a
+     * frame in a format it has left. */
     pthread_mutex_lock(&ws->lock);
-    for (client_t *c = ws->clients; c; c = c->next) {
-        /* a client that just asked for i16 may get one more f32 frame (its flags say so) */
-        msg_t *mc = m[atomic_load(&c->format)] ? m[atomic_load(&c->format)] : m[FMT_F32];
-        if (!c->started || c->stop || !mc)
-            continue;
-        if (c->count == QUEUE) { /* full: the oldest is dropped, so the client stays near the newest */
-            msg_unref(c->queue[c->head]);
-            c->head = (c->head + 1) % QUEUE, c->count--;
-            c->drops++, dropped++;
-        }
-        atomic_fetch_add(&mc->refs, 1);
-        c->queue[(c->head + c->count) % QUEUE] = mc, c->count++;
+    for (;;) {
+        int need[N_FMT] = {0, 0}, missing = 0;
+        for (client_t *c = ws->clients; c; c = c->next)
+            need[c->format] = 1;
+        for (int k = 0; k < N_FMT; k++)
+            missing |= need[k] && !m[k];
+        if (!missing)
+            break;
+        pthread_mutex_unlock(&ws->lock);
+        for (int k = 0; k < N_FMT; k++)
+            if (need[k] && !m[k] && !(m[k] = encode(f, k)))
+                break;
+        pthread_mutex_lock(&ws->lock);
+        int failed = 0;
+        for (int k = 0; k < N_FMT; k++)
+            failed |= need[k] && !m[k];
+        if (failed)
+            break; /* out of memory: clients of that format miss this frame */
     }
-    pthread_cond_broadcast(&ws->fresh);
+    int woken = 0;
+    for (client_t *c = ws->clients; c; c = c->next) {
+        if (!m[c->format])
+            continue;
+        dropped += (uint64_t)push(c, m[c->format], 0);
+        woken = 1;
+    }
+    if (woken && ws->ctx)
+        lws_cancel_service(ws->ctx); /* under the lock: close detaches ctx before destroying it */
     pthread_mutex_unlock(&ws->lock);
     if (dropped)
         mim__metrics_add(&ws->sv->m, MIM__C_DROPS, dropped);
@@ -173,90 +280,129 @@ void mim__ws_publish(mim__ws_t *ws, const mim_serve_frame_t *f)
         msg_unref(m[k]); /* the queues hold their own references */
 }
 
-static void *sender(void *arg)
+/* ---- the service thread ---- */
+void mim__ws_service(mim__ws_t *ws)
 {
-    client_t *c = arg;
-    mim__ws_t *ws = c->ws;
+    unsigned n = 0;
     pthread_mutex_lock(&ws->lock);
-    while (!c->stop) {
-        if (!c->count) {
-            pthread_cond_wait(&ws->fresh, &ws->lock);
-            continue;
-        }
-        msg_t *m = c->queue[c->head];
-        c->head = (c->head + 1) % QUEUE, c->count--;
-        pthread_mutex_unlock(&ws->lock);
-        int w = mg_websocket_write(c->conn, MG_WEBSOCKET_OPCODE_BINARY, (const char *)m->bytes, m->len);
-        msg_unref(m);
-        if (w > 0)
-            mim__metrics_add(&ws->sv->m, MIM__C_WS_SENT, 1);
-        pthread_mutex_lock(&ws->lock);
-        if (w <= 0) {
-            c->stop = 1; /* the peer is gone: civetweb's read loop sees it and closes */
-            break;
-        }
-    }
+    for (client_t *c = ws->clients; c && n < ws->max_clients; c = c->next)
+        if (c->count)
+            ws->wake[n++] = c->wsi;
     pthread_mutex_unlock(&ws->lock);
-    return NULL;
+    for (unsigned i = 0; i < n; i++)
+        lws_callback_on_writable(ws->wake[i]);
 }
 
-static int send_text(struct mg_connection *conn, json_t *j)
+/* Queues a text message (a JSON object) for c, the format switch first
+ * when fmt >= 0 (both under the lock: see the top of the file). */
+static int queue_text(client_t *c, json_t *j, int fmt)
 {
+    mim__ws_t *ws = c->ws;
     char *txt = j ? json_dumps(j, JSON_COMPACT | JSON_PRESERVE_ORDER) : NULL;
     json_decref(j);
-    int w = txt ? mg_websocket_write(conn, MG_WEBSOCKET_OPCODE_TEXT, txt, strlen(txt)) : -1;
+    msg_t *m = txt ? msg_new(strlen(txt)) : NULL;
+    if (m)
+        memcpy(m->bytes, txt, m->len);
     free(txt);
-    return w;
+    if (!m)
+        return -1;
+    pthread_mutex_lock(&ws->lock);
+    int full = c->texts >= TEXT_MAX;
+    if (!full) {
+        if (fmt >= 0)
+            c->format = fmt;
+        push(c, m, 1);
+    }
+    unsigned texts = c->texts;
+    pthread_mutex_unlock(&ws->lock);
+    msg_unref(m);
+    if (full)
+        return -1;
+    if (texts >= TEXT_PAUSE && !c->paused) { /* it sends faster than it reads: wait for it */
+        lws_rx_flow_control(c->wsi, 0);
+        c->paused = 1;
+    }
+    lws_callback_on_writable(c->wsi);
+    return 0;
 }
 
-static int send_error(struct mg_connection *conn, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static int send_error(struct mg_connection *conn, const char *fmt, ...)
+static int send_error(client_t *c, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static int send_error(client_t *c, const char *fmt, ...)
 {
     char msg[256];
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
-    return send_text(conn, json_pack("{s:s, s:s}", "type", "error", "error", msg));
+    return queue_text(c, json_pack("{s:s, s:s}", "type", "error", "error", msg), -1);
 }
 
-/* ?format=f32|i16 on the URL; -1 if malformed */
-static int url_format(const struct mg_connection *conn)
+/* ?format=f32|i16 on the URL: the format, or -1 if malformed */
+static int url_format(struct lws *wsi)
 {
-    const struct mg_request_info *ri = mg_get_request_info(conn);
     char v[16];
-    int n = ri->query_string ? mg_get_var(ri->query_string, strlen(ri->query_string), "format", v, sizeof v) : -1;
-    if (n == -1)
-        return FMT_F32; /* absent (-2: too long for any format name) */
-    if (n < 0)
-        return -1;
-    for (int k = 0; k < N_FMT; k++)
+    int r = mim__url_arg(wsi, "format", v, sizeof v);
+    if (r == 0)
+        return FMT_F32;
+    for (int k = 0; r > 0 && k < N_FMT; k++)
         if (!strcmp(v, fmt_names[k]))
             return k;
     return -1;
 }
 
-static void set_format(client_t *c, int fmt)
+int mim__ws_confirm(mim__ws_t *ws, struct lws *wsi, char *why, size_t why_size)
 {
-    int was = atomic_exchange(&c->format, fmt);
-    if (was != FMT_I16 && fmt == FMT_I16)
-        atomic_fetch_add(&c->ws->n_i16, 1);
-    else if (was == FMT_I16 && fmt != FMT_I16)
-        atomic_fetch_sub(&c->ws->n_i16, 1);
+    char path[64] = "";
+    if (lws_hdr_copy(wsi, path, sizeof path, WSI_TOKEN_GET_URI) < 0 || strcmp(path, "/ws")) {
+        char shown[80];
+        mim__printable(path, strlen(path), shown, sizeof shown);
+        snprintf(why, why_size, "%s: no WebSocket here (the stream is /ws)", shown);
+        return 404;
+    }
+    if (url_format(wsi) < 0) {
+        snprintf(why, why_size, "/ws: ?format= must be f32 or i16");
+        return 400;
+    }
+    pthread_mutex_lock(&ws->lock);
+    int full = ws->n_clients >= ws->max_clients;
+    pthread_mutex_unlock(&ws->lock);
+    if (full) {
+        snprintf(why, why_size, "/ws: the stream has its %u clients (--max-clients); try again later",
+                 ws->max_clients);
+        return 503;
+    }
+    return 0;
 }
 
-/* civetweb: 0 accepts the handshake, 1 refuses it */
-static int on_connect(const struct mg_connection *conn, void *cbdata)
+static int on_established(mim__ws_t *ws, struct lws *wsi, mim__conn_t *conn)
 {
-    mim__ws_t *ws = cbdata;
-    int fmt = url_format(conn);
-    if (fmt < 0)
-        return 1;
+    int fmt = url_format(wsi);
     client_t *c = calloc(1, sizeof *c);
-    if (!c)
-        return 1;
+    const mim_serve_t *sv = ws->sv;
+    json_t *names = json_array();
+    for (uint32_t i = 0; i < sv->map->count; i++)
+        json_array_append_new(names, json_string(sv->map->names[i]));
+    json_t *j = json_pack("{s:s, s:i, s:i, s:i, s:i, s:o, s:s}", "type", "hello", "version", 1, "vertices",
+                          (int)sv->mesh->n_vertices, "faces", (int)sv->mesh->n_faces, "landmarks", (int)sv->map->count,
+                          "landmark_names", names, "format", fmt_names[fmt < 0 ? 0 : fmt]);
+    char *txt = j ? json_dumps(j, JSON_COMPACT | JSON_PRESERVE_ORDER) : NULL;
+    json_decref(j);
+    msg_t *hello = txt ? msg_new(strlen(txt)) : NULL;
+    if (hello)
+        memcpy(hello->bytes, txt, hello->len);
+    free(txt);
+    if (!c || fmt < 0 || !hello) {
+        free(c);
+        msg_unref(hello);
+        return -1;
+    }
     c->ws = ws;
-    atomic_init(&c->format, FMT_F32);
+    c->wsi = wsi;
+    c->format = fmt;
+    /* the hello is queued before the client is on the list that publish
+     * walks: it goes first, every frame after it */
+    push(c, hello, 1);
+    msg_unref(hello);
     pthread_mutex_lock(&ws->lock);
     int full = ws->n_clients >= ws->max_clients;
     if (!full) {
@@ -264,34 +410,133 @@ static int on_connect(const struct mg_connection *conn, void *cbdata)
         ws->n_clients++, ws->joined++;
     }
     pthread_mutex_unlock(&ws->lock);
-    if (full) {
+    if (full) { /* confirmed a moment ago; cannot happen on one thread, but cheap to check */
+        msg_unref(pop(c).m);
         free(c);
-        return 1;
+        return -1;
     }
-    set_format(c, fmt);
-    mg_set_user_connection_data(conn, c);
+    conn->client = c;
+    mim__metrics_add(&ws->sv->m, MIM__C_WS_JOINED, 1);
+    lws_callback_on_writable(wsi);
     return 0;
 }
 
-static void on_ready(struct mg_connection *conn, void *cbdata)
+static int on_writable(mim__ws_t *ws, client_t *c)
 {
-    mim__ws_t *ws = cbdata;
-    client_t *c = mg_get_user_connection_data(conn);
-    if (!c)
-        return;
-    c->conn = conn;
-    const mim_serve_t *sv = ws->sv;
-    json_t *names = json_array();
-    for (uint32_t i = 0; i < sv->map->count; i++)
-        json_array_append_new(names, json_string(sv->map->names[i]));
-    send_text(conn, json_pack("{s:s, s:i, s:i, s:i, s:i, s:o, s:s}", "type", "hello", "version", 1, "vertices",
-                              (int)sv->mesh->n_vertices, "faces", (int)sv->mesh->n_faces, "landmarks",
-                              (int)sv->map->count, "landmark_names", names, "format",
-                              fmt_names[atomic_load(&c->format)]));
     pthread_mutex_lock(&ws->lock);
-    c->started = pthread_create(&c->thread, NULL, sender, c) == 0; /* frames from now on */
+    if (!c->count) {
+        pthread_mutex_unlock(&ws->lock);
+        return 0;
+    }
+    item_t it = pop(c);
+    int more = c->count > 0;
+    unsigned texts = c->texts;
     pthread_mutex_unlock(&ws->lock);
-    mim__metrics_add(&ws->sv->m, MIM__C_WS_JOINED, 1);
+    int w = lws_write(c->wsi, it.m->bytes, it.m->len, it.text ? LWS_WRITE_TEXT : LWS_WRITE_BINARY);
+    msg_unref(it.m);
+    if (w < 0)
+        return -1; /* the peer is gone */
+    if (!it.text)
+        mim__metrics_add(&ws->sv->m, MIM__C_WS_SENT, 1);
+    if (c->paused && texts < TEXT_PAUSE / 2) {
+        lws_rx_flow_control(c->wsi, 1);
+        c->paused = 0;
+    }
+    if (more)
+        lws_callback_on_writable(c->wsi);
+    return 0;
+}
+
+/* A whole client message: {"format": "f32"|"i16"}; anything else gets an
+ * error reply and changes nothing. */
+static int on_message(mim__ws_t *ws, client_t *c)
+{
+    mim__metrics_add(&ws->sv->m, MIM__C_WS_MESSAGES, 1);
+    if (c->msg_binary) {
+        mim__metrics_add(&ws->sv->m, MIM__C_WS_BAD, 1);
+        return send_error(c, "binary message of %zu bytes: the stream takes JSON text ({\"format\": \"f32\"|\"i16\"})",
+                          c->msg_len);
+    }
+    char why[256];
+    int fmt = mim__ws_parse_message(c->msg, c->msg_len, why, sizeof why);
+    if (fmt < 0) {
+        mim__metrics_add(&ws->sv->m, MIM__C_WS_BAD, 1);
+        return send_error(c, "%s", why);
+    }
+    return queue_text(c, json_pack("{s:s, s:s}", "type", "format", "format", fmt_names[fmt]), fmt);
+}
+
+static int refuse_close(struct lws *wsi, enum lws_close_status status, const char *why)
+{
+    lws_close_reason(wsi, status, (unsigned char *)why, strlen(why));
+    return -1;
+}
+
+/* A piece of a client message: joined with the others of its message,
+ * which must stay within MIM__WS_MESSAGE_MAX. */
+static int on_receive(mim__ws_t *ws, struct lws *wsi, client_t *c, const void *in, size_t len)
+{
+    if (lws_get_reserved_bits(wsi)) { /* no extension was agreed: RFC 6455 5.2 fails the connection */
+        mim__metrics_add(&ws->sv->m, MIM__C_WS_BAD, 1);
+        return refuse_close(wsi, LWS_CLOSE_STATUS_PROTOCOL_ERR, "reserved bits set");
+    }
+    if (!c->in_msg) {
+        c->in_msg = 1;
+        c->msg_len = 0;
+        c->msg_binary = lws_frame_is_binary(wsi);
+    }
+    size_t rest = lws_remaining_packet_payload(wsi);
+    if (len > MIM__WS_MESSAGE_MAX - c->msg_len || rest > MIM__WS_MESSAGE_MAX - c->msg_len - len) {
+        mim__metrics_add(&ws->sv->m, MIM__C_WS_BAD, 1);
+        return refuse_close(wsi, LWS_CLOSE_STATUS_MESSAGE_TOO_LARGE, "message over 4096 bytes");
+    }
+    memcpy(c->msg + c->msg_len, in, len);
+    c->msg_len += len;
+    if (!lws_is_final_fragment(wsi) || rest)
+        return 0;
+    c->in_msg = 0;
+    c->msg[c->msg_len] = 0;
+    if (on_message(ws, c))
+        return refuse_close(wsi, LWS_CLOSE_STATUS_POLICY_VIOLATION, "too many replies unread");
+    return 0;
+}
+
+static void on_closed(mim__ws_t *ws, client_t *c)
+{
+    pthread_mutex_lock(&ws->lock);
+    for (client_t **p = &ws->clients; *p; p = &(*p)->next)
+        if (*p == c) {
+            *p = c->next;
+            break;
+        }
+    ws->n_clients--, ws->left++;
+    while (c->count)
+        msg_unref(pop(c).m);
+    pthread_mutex_unlock(&ws->lock);
+    mim__metrics_add(&ws->sv->m, MIM__C_WS_LEFT, 1);
+    free(c);
+}
+
+int mim__ws_callback(mim__ws_t *ws, struct lws *wsi, int reason, void *user, void *in, size_t len)
+{
+    mim__conn_t *conn = user;
+    client_t *c = conn ? conn->client : NULL;
+    switch (reason) {
+    case LWS_CALLBACK_ESTABLISHED:
+        return conn ? on_established(ws, wsi, conn) : -1;
+    case LWS_CALLBACK_SERVER_WRITEABLE:
+        return c ? on_writable(ws, c) : 0;
+    case LWS_CALLBACK_RECEIVE:
+        return c ? on_receive(ws, wsi, c, in, len) : -1;
+    case LWS_CALLBACK_CLOSED:
+        if (c) {
+            on_closed(ws, c);
+            conn->client = NULL;
+        }
+        return 0;
+    default:
+        return 0;
+    }
 }
 
 int mim__ws_parse_message(const char *data, size_t len, char *why, size_t why_size)
@@ -337,86 +582,28 @@ int mim__ws_parse_message(const char *data, size_t len, char *why, size_t why_si
     return why[0] ? -1 : fmt;
 }
 
-/* A client message: {"format": "f32"|"i16"}; anything else gets an error
- * reply and changes nothing. Returns 1 to keep the connection. */
-static int on_data(struct mg_connection *conn, int bits, char *data, size_t len, void *cbdata)
-{
-    mim__ws_t *ws = cbdata;
-    client_t *c = mg_get_user_connection_data(conn);
-    int op = bits & 0x0f;
-    if (op == MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE)
-        return 0;
-    if ((bits & 0x70) || (op > MG_WEBSOCKET_OPCODE_BINARY && op < MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE) ||
-        op > MG_WEBSOCKET_OPCODE_PONG) {
-        /* RSV bits without an extension, or a reserved opcode: RFC 6455 5.2
-         * says fail the connection (civetweb passes them on) */
-        mim__metrics_add(&ws->sv->m, MIM__C_WS_BAD, 1);
-        return 0;
-    }
-    if (op == MG_WEBSOCKET_OPCODE_PING || op == MG_WEBSOCKET_OPCODE_PONG || !c)
-        return 1; /* civetweb answers pings itself */
-    mim__metrics_add(&ws->sv->m, MIM__C_WS_MESSAGES, 1);
-    if (op != MG_WEBSOCKET_OPCODE_TEXT) {
-        mim__metrics_add(&ws->sv->m, MIM__C_WS_BAD, 1);
-        send_error(conn, "binary message of %zu bytes: the stream takes JSON text ({\"format\": \"f32\"|\"i16\"})",
-                   len);
-        return 1;
-    }
-    char why[256];
-    int fmt = mim__ws_parse_message(data, len, why, sizeof why);
-    if (fmt < 0) {
-        mim__metrics_add(&ws->sv->m, MIM__C_WS_BAD, 1);
-        send_error(conn, "%s", why);
-        return 1;
-    }
-    set_format(c, fmt);
-    send_text(conn, json_pack("{s:s, s:s}", "type", "format", "format", fmt_names[fmt]));
-    return 1;
-}
-
-static void on_close(const struct mg_connection *conn, void *cbdata)
-{
-    mim__ws_t *ws = cbdata;
-    client_t *c = mg_get_user_connection_data(conn);
-    if (!c)
-        return;
-    pthread_mutex_lock(&ws->lock);
-    c->stop = 1;
-    pthread_cond_broadcast(&ws->fresh);
-    pthread_mutex_unlock(&ws->lock);
-    if (c->started)
-        pthread_join(c->thread, NULL); /* before civetweb frees the connection */
-    for (; c->count; c->count--, c->head = (c->head + 1) % QUEUE)
-        msg_unref(c->queue[c->head]);
-    set_format(c, FMT_F32);
-    pthread_mutex_lock(&ws->lock);
-    for (client_t **p = &ws->clients; *p; p = &(*p)->next)
-        if (*p == c) {
-            *p = c->next;
-            break;
-        }
-    ws->n_clients--, ws->left++;
-    pthread_mutex_unlock(&ws->lock);
-    mim__metrics_add(&ws->sv->m, MIM__C_WS_LEFT, 1);
-    free(c);
-}
 
 int mim__ws_open(mim__ws_t **out, mim_serve_t *sv, unsigned max_clients, mim_error_t *err)
 {
     mim__ws_t *ws = calloc(1, sizeof *ws);
+    if (ws && !(ws->wake = calloc(max_clients ? max_clients : 1, sizeof *ws->wake))) {
+        free(ws);
+        ws = NULL;
+    }
     if (!ws)
         return mim_error_set(err, MIM_ENOMEM, "out of memory for the WebSocket stream");
     ws->sv = sv;
     ws->max_clients = max_clients;
     pthread_mutex_init(&ws->lock, NULL);
-    pthread_cond_init(&ws->fresh, NULL);
     *out = ws;
     return 0;
 }
 
-void mim__ws_attach(mim__ws_t *ws, struct mg_context *ctx)
+void mim__ws_attach(mim__ws_t *ws, struct lws_context *ctx)
 {
-    mg_set_websocket_handler(ctx, "/ws", on_connect, on_ready, on_data, on_close, ws);
+    pthread_mutex_lock(&ws->lock);
+    ws->ctx = ctx;
+    pthread_mutex_unlock(&ws->lock);
 }
 
 void mim__ws_close(mim__ws_t **pws)
@@ -424,10 +611,10 @@ void mim__ws_close(mim__ws_t **pws)
     mim__ws_t *ws = pws ? *pws : NULL;
     if (!ws)
         return;
-    /* civetweb has stopped: every connection is closed, its sender joined
-     * and its queue emptied */
-    pthread_cond_destroy(&ws->fresh);
+    /* the context is destroyed: every connection has closed and freed its
+     * client and queue (on_closed) */
     pthread_mutex_destroy(&ws->lock);
+    free(ws->wake);
     free(ws);
     *pws = NULL;
 }

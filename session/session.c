@@ -78,12 +78,16 @@ static int load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err)
         uint64_t id = strtoull(avatar, NULL, 10);
         snprintf(s->avatar, sizeof s->avatar, "template %llu", (unsigned long long)id);
         rc = mim_session_template(s, id, s->mesh.positions, F, NULL, 0, err);
+        if (!rc) /* stored by an older mimic, which did not check bodies */
+            rc = mim_body_check(s->mesh.positions, n, s->avatar, err);
     } else {
         snprintf(s->avatar, sizeof s->avatar, "%s", avatar);
         mim_mesh_t m = {0};
         rc = mim_io_read_mesh(avatar, &m, err);
         if (!rc)
             rc = mim_xfer_check_mesh(s->topo, &m, avatar, err);
+        if (!rc) /* an avatar must be a body (a 10 m box, not a point) before it is factored */
+            rc = mim_body_check(m.positions, m.n_vertices, avatar, err);
         if (!rc) {
             memcpy(s->mesh.positions, m.positions, 3 * (size_t)n * sizeof(float));
             mim_xfer_frames(s->topo, s->mesh.positions, F);

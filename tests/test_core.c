@@ -11,6 +11,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 static void test_errors(void **s)
 {
@@ -430,6 +432,166 @@ static void test_landmark_array(void **s)
     }
 }
 
+/* The plausibility range (plausible.c): a body fits in a 10 m box, lies
+ * within 1 km of the origin, is not a point; landmarks likewise, and no two
+ * present landmarks at one point. One line each, naming what and where. */
+static void test_body_check(void **s)
+{
+    (void)s;
+    enum { N = 40 };
+    float pos[3 * N];
+    for (int i = 0; i < N; i++) /* a 1.8 m tall column of points */
+        pos[3 * i] = 0.2f * (float)(i % 3), pos[3 * i + 1] = 1.8f * (float)i / (N - 1), pos[3 * i + 2] = 0.01f * (float)i;
+    mim_error_t e = {0};
+    assert_int_equal(mim_body_check(pos, N, "body.ply", &e), 0);
+    /* one coordinate of 3e38 among a body's: the vertex and the box */
+    pos[3 * 12 + 1] = 3e38f;
+    assert_int_equal(mim_body_check(pos, N, "body.ply", &e), MIM_EFORMAT);
+    assert_non_null(strstr(e.msg, "body.ply: vertex 12: coordinate y = 3e+38 outside the 10 m box a body fits in"));
+    assert_null(strchr(e.msg, '\n'));
+    pos[3 * 12 + 1] = 0.5f;
+    /* every vertex at one point */
+    float point[3 * N];
+    for (int i = 0; i < 3 * N; i++) point[i] = 0.25f;
+    e = (mim_error_t){0};
+    assert_int_equal(mim_body_check(point, N, "point.ply", &e), MIM_EFORMAT);
+    assert_string_equal(e.msg, "point.ply: the 40 vertices span 0.0 mm: not a body (at least 10 mm)");
+    /* all at 3e38: no spread, but far beyond the origin's reach */
+    for (int i = 0; i < 3 * N; i++) point[i] = 3e38f;
+    e = (mim_error_t){0};
+    assert_int_equal(mim_body_check(point, N, "far.ply", &e), MIM_EFORMAT);
+    assert_non_null(strstr(e.msg, "far.ply: vertex 0: coordinate x = 3e+38 is more than 1000 m from the origin"));
+    /* a body in millimetres is outside the box too */
+    float mm[3 * N];
+    for (int i = 0; i < 3 * N; i++) mm[i] = pos[i] * 1000;
+    e = (mim_error_t){0};
+    assert_int_equal(mim_body_check(mm, N, "mm.ply", &e), MIM_EFORMAT);
+    assert_non_null(strstr(e.msg, "span 1800 m along y"));
+    /* a body 500 m from the origin is fine */
+    for (int i = 0; i < N; i++) mm[3 * i] = pos[3 * i] + 500;
+    for (int i = 0; i < N; i++) mm[3 * i + 1] = pos[3 * i + 1], mm[3 * i + 2] = pos[3 * i + 2];
+    assert_int_equal(mim_body_check(mm, N, "there.ply", NULL), 0);
+    /* not finite, and nothing at all */
+    pos[3 * 5 + 2] = NAN;
+    e = (mim_error_t){0};
+    assert_int_equal(mim_body_check(pos, N, "nan.ply", &e), MIM_ENONFINITE);
+    assert_string_equal(e.msg, "nan.ply: vertex 5: coordinate z = nan is not finite");
+    e = (mim_error_t){0};
+    assert_int_equal(mim_body_check(pos, 0, "none.ply", &e), MIM_EEMPTY);
+}
+
+static void test_landmarks_check(void **s)
+{
+    (void)s;
+    /* a standing body's 16 landmarks (metres) */
+    const float body[48] = {0, 1.6f, 0,     0, 1.3f, 0,      0, 1, 0,          0.2f, 1.4f, 0,
+                            -0.2f, 1.4f, 0, 0.45f, 1.4f, 0, -0.45f, 1.4f, 0,   0.7f, 1.4f, 0,
+                            -0.7f, 1.4f, 0, 0.1f, 0.95f, 0, -0.1f, 0.95f, 0,   0.1f, 0.5f, 0.02f,
+                            -0.1f, 0.5f, 0.02f, 0.1f, 0.08f, 0, -0.1f, 0.08f, 0, 0, 1.15f, -0.05f};
+    float p[48];
+    uint8_t present[16];
+    memset(present, 1, sizeof present);
+    mim_error_t e = {0};
+    assert_int_equal(mim_landmarks_check(body, present, 16, "f.json", 3, &e), 0);
+    assert_int_equal(mim_landmarks_check(body, NULL, 16, "f.json", 3, &e), 0);
+    /* 16 identical landmarks */
+    for (int i = 0; i < 48; i++) p[i] = i % 3 == 1 ? 1.0f : 0.0f;
+    assert_int_equal(mim_landmarks_check(p, present, 16, "f.json", 3, &e), MIM_EFORMAT);
+    assert_string_equal(e.msg, "f.json: frame 3: landmarks span 0.0 mm: not a body (at least 10 mm)");
+    /* 3e38 for one landmark */
+    memcpy(p, body, sizeof p);
+    p[3 * 7] = 3e38f;
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmarks_check(p, present, 16, "udp frame", -1, &e), MIM_EFORMAT);
+    assert_non_null(strstr(e.msg, "udp frame, landmark 7: coordinate x = 3e+38 outside the 10 m box a body fits in"));
+    /* two landmarks at one point: the descriptor's segment between them has no direction */
+    memcpy(p, body, sizeof p);
+    memcpy(p + 3 * 4, p + 3 * 3, 12);
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmarks_check(p, present, 16, "q", 0, &e), MIM_EFORMAT);
+    assert_string_equal(e.msg, "q: frame 0: landmarks 3 and 4 are at one point (0.2, 1.4, 0): the pose angles need a segment between them");
+    /* ... unless one of them is lost */
+    present[4] = 0;
+    p[12] = p[13] = p[14] = NAN;
+    assert_int_equal(mim_landmarks_check(p, present, 16, "q", 0, NULL), 0);
+    /* everything lost passes (a vest frame may be all nulls); two close landmarks too */
+    uint8_t none[16] = {0};
+    assert_int_equal(mim_landmarks_check(p, none, 16, "q", 0, NULL), 0);
+    uint8_t two[16] = {1, 1};
+    float close[48] = {0, 1, 0, 0.004f, 1, 0};
+    assert_int_equal(mim_landmarks_check(close, two, 16, "q", 0, NULL), 0);
+    /* three within 10 mm are no skeleton */
+    uint8_t three[16] = {1, 1, 1};
+    close[6] = 0.002f, close[7] = 1.003f;
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmarks_check(close, three, 16, "q", -1, &e), MIM_EFORMAT);
+    assert_string_equal(e.msg, "q: landmarks span 4.0 mm: not a body (at least 10 mm)");
+}
+
+/* Through the parser, which every landmark input uses: one line each. */
+static void test_landmark_frames_implausible(void **s)
+{
+    (void)s;
+    mim_landmark_frames_t f;
+    mim_error_t e = {0};
+    char text[2048];
+    size_t k = (size_t)snprintf(text, sizeof text, "{\"frames\": [{\"landmarks\": [");
+    for (int i = 0; i < 16; i++) k += (size_t)snprintf(text + k, sizeof text - k, "%s[0.1, 1.2, 0.3]", i ? ", " : "");
+    snprintf(text + k, sizeof text - k, "]}]}");
+    assert_int_equal(mim_landmark_frames_parse(text, strlen(text), "same.json", 16, 3, &f, &e), MIM_EFORMAT);
+    assert_string_equal(e.msg, "same.json: frame 0: landmarks span 0.0 mm: not a body (at least 10 mm)");
+    assert_null(f.positions);
+    const char *big = "{\"landmarks\": [[0,0,0],[1,0,0],[0,3e38,0],[0,0,1]]}";
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(big, strlen(big), "big.json", 4, 3, &f, &e), MIM_EFORMAT);
+    assert_non_null(strstr(e.msg, "big.json: frame 0, landmark 2: coordinate y = 3e+38 outside the 10 m box"));
+    json_t *j = json_loads("[[0, 1, 0], [0, 1, 0], null, [0.3, 1, 0]]", 0, NULL);
+    float pos[12];
+    uint8_t present[4];
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_array_parse(j, 4, 4, "udp frame", -1, pos, present, &e), MIM_EFORMAT);
+    assert_string_equal(e.msg, "udp frame: landmarks 0 and 1 are at one point (0, 1, 0): the pose angles need a segment between them");
+    json_decref(j);
+}
+
+/* mim_landmark_frames_read refuses a batch over 64 MiB, from a file (by its
+ * size, before reading) or from a pipe (counting as it reads). */
+static void test_landmark_frames_cap(void **s)
+{
+    (void)s;
+    char *dir = ts_tempdir("cap");
+    char *path = ts_path(dir, "huge.json");
+    FILE *fp = fopen(path, "wb");
+    assert_non_null(fp);
+    assert_int_equal(ftruncate(fileno(fp), (off_t)MIM_LANDMARK_FRAMES_MAX_BYTES + 1), 0); /* sparse */
+    fclose(fp);
+    mim_landmark_frames_t f;
+    mim_error_t e = {0};
+    assert_int_equal(mim_landmark_frames_read(path, 16, 3, &f, &e), MIM_EUNSUPPORTED);
+    assert_non_null(strstr(e.msg, "huge.json: 67108865 bytes (64.0 MiB), more than the 64 MiB a landmark batch may have"));
+    assert_null(f.positions);
+    /* a pipe has no size: the reader counts */
+    char *fifo = ts_path(dir, "pipe.json");
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        FILE *w = fopen(fifo, "wb");
+        static char spaces[1 << 16];
+        memset(spaces, ' ', sizeof spaces);
+        for (size_t done = 0; w && done <= MIM_LANDMARK_FRAMES_MAX_BYTES; done += sizeof spaces)
+            if (fwrite(spaces, 1, sizeof spaces, w) != sizeof spaces) break;
+        _exit(0);
+    }
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_read(fifo, 16, 3, &f, &e), MIM_EUNSUPPORTED);
+    assert_non_null(strstr(e.msg, "pipe.json: more than the 64 MiB a landmark batch may have (stopped reading at 67108864 bytes)"));
+    int status;
+    waitpid(pid, &status, 0);
+    ts_rmtree(dir);
+    free(fifo), free(path), free(dir);
+}
+
 typedef struct {
     int calls, phase[8], level;
     uint64_t done[8], total;
@@ -505,6 +667,10 @@ int main(void)
         cmocka_unit_test(test_rng),
         cmocka_unit_test(test_landmark_array),
         cmocka_unit_test(test_callbacks),
+        cmocka_unit_test(test_body_check),
+        cmocka_unit_test(test_landmarks_check),
+        cmocka_unit_test(test_landmark_frames_implausible),
+        cmocka_unit_test(test_landmark_frames_cap),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,9 +1,12 @@
 /* db/: store round trip, zero-copy views, schema mismatch, foreign stores,
- * two reader processes while one writes, and kill -9 during an ingest. */
+ * two reader processes while one writes, kill -9 during an ingest, damaged
+ * encodings, fresh environments, a full map. (Damaged files, migration and
+ * mimic store check: test_store_damage.c and test_store_write.c.) */
 #include "mim_db.h"
 #include "test_support.h"
 
 #include <lmdb.h>
+#include <xxhash.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -526,26 +529,130 @@ static void test_encodings(void **s)
     size_t key = 9;
     MDB_val k = {sizeof key, &key}, d = {sizeof rec, rec};
     assert_int_equal(mdb_put(txn, dbi, &k, &d, 0), 0);
-    /* right magic, but n_vertices says more than the record holds */
-    uint32_t hdr = 32, n = 1000, fo = 32, wo = 32 + 24 * 1000;
+    /* right magic and checksum, but n_vertices says more than the record holds */
+    uint32_t hdr = 48, n = 1000, fo = 48, wo = 48 + 24 * 1000;
     uint64_t id = 10;
-    memcpy(rec, "MEN1", 4), memcpy(rec + 4, &hdr, 4), memcpy(rec + 8, &id, 8);
-    memcpy(rec + 16, &n, 4), memcpy(rec + 20, &fo, 4), memcpy(rec + 24, &wo, 4);
+    memcpy(rec, "MEN2", 4), memcpy(rec + 4, &hdr, 4), memcpy(rec + 16, &id, 8);
+    memcpy(rec + 24, &n, 4), memcpy(rec + 28, &fo, 4), memcpy(rec + 32, &wo, 4);
+    uint64_t ck = XXH3_64bits(rec + 16, sizeof rec - 16);
+    memcpy(rec + 8, &ck, 8);
     key = 10;
+    assert_int_equal(mdb_put(txn, dbi, &k, &d, 0), 0);
+    /* a consistent record whose checksum does not match: one bit flipped */
+    n = 10, wo = 48 + 240, id = 11;
+    memcpy(rec + 16, &id, 8), memcpy(rec + 24, &n, 4), memcpy(rec + 32, &wo, 4);
+    ck = XXH3_64bits(rec + 16, sizeof rec - 16);
+    memcpy(rec + 8, &ck, 8);
+    key = 11;
+    assert_int_equal(mdb_put(txn, dbi, &k, &d, 0), 0);
+    rec[100] ^= 4;
+    key = 12, id = 12;
+    memcpy(rec + 16, &id, 8);
     assert_int_equal(mdb_put(txn, dbi, &k, &d, 0), 0);
     assert_int_equal(mdb_txn_commit(txn), 0);
     mdb_env_close(env);
 
     assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
     assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    char want[512];
     err = (mim_error_t){0};
     assert_int_equal(mim_db_encoding_get(t, 9, &e, &err), MIM_ESTORE);
-    assert_non_null(strstr(err.msg, "template 9: encoding record has a bad magic"));
+    snprintf(want, sizeof want, "store damaged: %s: template 9: encoding record has a bad magic", store);
+    assert_string_equal(err.msg, want);
     err = (mim_error_t){0};
     assert_int_equal(mim_db_encoding_get(t, 10, &e, &err), MIM_ESTORE);
     assert_non_null(strstr(err.msg, "template 10: encoding record layout is inconsistent"));
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_encoding_get(t, 12, &e, &err), MIM_ESTORE);
+    assert_non_null(strstr(err.msg, "template 12: encoding checksum mismatch"));
+    assert_null(e.frames); /* nothing lent out */
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_encoding_get(t, 11, &e, &err), 0); /* the intact one reads */
+    assert_int_equal(e.n_vertices, 10);
+    /* mimic store check lists each one */
     mim_db_abort(&t);
+    mim_db_check_report_t r;
+    assert_int_equal(mim_db_check(db, NULL, &r, &err), 0);
+    assert_int_equal(r.encodings, 5);
+    assert_true(r.problems >= 3);
     mim_db_close(&db);
+    free(store);
+}
+
+/* An LMDB environment that never committed (a creation cut short between
+ * LMDB's own set-up and mimic's first transaction) is no store yet: read-only
+ * says so, a read-write open makes the store in it. One that committed but
+ * holds no table is not a mimic store, and is left alone. */
+static void test_fresh_environment(void **s)
+{
+    (void)s;
+    char *store = ts_path(dir, "fresh");
+    mkdir(store, 0755);
+    MDB_env *env;
+    assert_int_equal(mdb_env_create(&env), 0);
+    assert_int_equal(mdb_env_open(env, store, 0, 0664), 0);
+    mdb_env_close(env);
+    mim_db_t *db;
+    mim_error_t err = {0};
+    mim_db_options_t ro = {.read_only = 1};
+    assert_int_equal(mim_db_open(&db, store, &ro, &err), MIM_ENOTFOUND);
+    assert_non_null(strstr(err.msg, "no mimic store here"));
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    mim_db_check_report_t r;
+    assert_int_equal(mim_db_check(db, NULL, &r, &err), 0);
+    assert_int_equal(r.problems, 0);
+    assert_int_equal(r.schema_version, 2);
+    mim_db_close(&db);
+
+    char *other = ts_path(dir, "committed_empty");
+    mkdir(other, 0755);
+    MDB_txn *txn = raw_begin(other, 0, &env);
+    MDB_dbi main_dbi;
+    assert_int_equal(mdb_dbi_open(txn, NULL, 0, &main_dbi), 0);
+    MDB_val k = {1, "k"}, v = {1, "v"};
+    assert_int_equal(mdb_put(txn, main_dbi, &k, &v, 0), 0);
+    assert_int_equal(mdb_del(txn, main_dbi, &k, NULL), 0);
+    assert_int_equal(mdb_txn_commit(txn), 0);
+    mdb_env_close(env);
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_open(&db, other, NULL, &err), MIM_ESTORE);
+    assert_non_null(strstr(err.msg, "store damaged: "));
+    assert_non_null(strstr(err.msg, "not a mimic store"));
+    free(store), free(other);
+}
+
+/* A map that fills: the put fails saying so and that what was committed is
+ * intact; it is. */
+static void test_full_map(void **s)
+{
+    (void)s;
+    char *store = ts_path(dir, "full");
+    mim_db_options_t o = {.map_size = 1 << 20};
+    mim_db_t *db;
+    mim_error_t err = {0};
+    assert_int_equal(mim_db_open(&db, store, &o, &err), 0);
+    enum { N = 20000 }; /* 240 KB a template */
+    float *p = malloc(12 * N);
+    int committed = 0, rc = 0;
+    for (int i = 0; i < 8 && !rc; i++) {
+        mim_db_txn_t *t;
+        assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
+        fill(p, N, (float)i);
+        mim_template_in_t in = {p, N, mim_db_content_hash(p, N), "x.ply", "", ""};
+        rc = mim_db_template_put(t, &in, NULL, NULL, &err);
+        if (!rc) rc = mim_db_commit(&t, &err);
+        if (!rc) committed++;
+        mim_db_abort(&t);
+    }
+    free(p);
+    assert_int_equal(rc, MIM_ESTORE);
+    assert_non_null(strstr(err.msg, store));
+    assert_non_null(strstr(err.msg, "the store's map is full"));
+    assert_non_null(strstr(err.msg, "everything committed before it is intact"));
+    mim_db_close(&db);
+    assert_true(committed >= 1);
+    assert_int_equal(store_count(store), (uint64_t)committed);
     free(store);
 }
 
@@ -561,6 +668,8 @@ int main(void)
         cmocka_unit_test(test_encodings),
         cmocka_unit_test(test_legacy_descriptors_table),
         cmocka_unit_test(test_map_size_option),
+        cmocka_unit_test(test_fresh_environment),
+        cmocka_unit_test(test_full_map),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -491,6 +491,261 @@ static void test_discover(void **s)
     free(sub), free(d);
 }
 
+/* What the log callback heard: one entry per line, with its level. */
+typedef struct {
+    int n;
+    int level[32];
+    char msg[32][600];
+} heard_t;
+
+static void hear(void *ctx, int level, const char *msg)
+{
+    heard_t *h = ctx;
+    if (h->n < 32) {
+        h->level[h->n] = level;
+        snprintf(h->msg[h->n], sizeof h->msg[0], "%s", msg);
+        h->n++;
+    }
+}
+
+/* The line that contains `phrase`, asserting there is exactly one. */
+static const char *heard_line(const heard_t *h, const char *phrase)
+{
+    const char *found = NULL;
+    for (int i = 0; i < h->n; i++)
+        if (strstr(h->msg[i], phrase)) {
+            if (found) fail_msg("two lines say '%s'", phrase);
+            found = h->msg[i];
+        }
+    if (!found) {
+        for (int i = 0; i < h->n; i++) fprintf(stderr, "heard: %s\n", h->msg[i]);
+        fail_msg("no line says '%s'", phrase);
+    }
+    assert_null(strchr(found, '\n'));
+    return found;
+}
+
+/* A folder with good meshes, a loop back to itself (a -> .), a link to its
+ * parent (b -> ..), a link to itself and a dangling link: the good meshes go
+ * in, each odd entry is one line, loops are skipped, the dangling link is a
+ * failure (exit status 1 from the command). */
+static void test_symlinks(void **s)
+{
+    (void)s;
+    char *parent = ts_path(dir, "links");
+    mkdir(parent, 0755);
+    char *data = ts_path(parent, "data");
+    mkdir(data, 0755);
+    for (int i = 0; i < 3; i++) {
+        ts_polymesh_t m;
+        ts_sphere(&m, 12, 16, 0.5f + 0.01f * (float)i);
+        char fn[64];
+        snprintf(fn, sizeof fn, "ball_s00_p%02d.ply", i);
+        char *p = ts_path(data, fn);
+        ts_write_ply_binary(p, &m);
+        free(p);
+        ts_polymesh_free(&m);
+    }
+    char *lm = ts_path(data, "landmarks.json");
+    const char *lmt = "{\"landmarks\":[{\"name\":\"top\",\"vertex\":0},{\"name\":\"l_side\",\"vertex\":5},"
+                      "{\"name\":\"r_side\",\"vertex\":13},{\"name\":\"bottom\",\"vertex\":177}]}";
+    ts_write_file(lm, lmt, strlen(lmt));
+    char *a = ts_path(data, "a"), *b = ts_path(data, "b"), *self = ts_path(data, "self"), *gone = ts_path(data, "gone.ply");
+    assert_int_equal(symlink(".", a), 0);
+    assert_int_equal(symlink("..", b), 0);
+    assert_int_equal(symlink("self", self), 0);
+    assert_int_equal(symlink("/nonexistent/gone.ply", gone), 0);
+
+    char *store = ts_path(dir, "store_links");
+    mim_db_t *db;
+    mim_error_t err = {0};
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    heard_t h = {0};
+    mim_ingest_options_t opt = {.log = hear, .log_ctx = &h};
+    mim_ingest_report_t rep;
+    char *paths[] = {data};
+    int rc = mim_ingest_run(db, paths, 1, &opt, &rep, &err);
+    if (rc) fail_msg("ingest failed: %s", mim_error_text(&err));
+    assert_int_equal(rep.added, 3);
+    assert_int_equal(rep.templates, 3);
+    assert_int_equal(rep.failed, 1);
+    assert_int_equal(rep.skipped, 3);
+    assert_int_equal(rep.files, 4); /* 3 meshes and the dangling link */
+    assert_int_equal(h.n, 4);
+    char want[4200];
+    snprintf(want, sizeof want, "%s: symlink loop (already walked as %s), skipped", a, data);
+    assert_string_equal(heard_line(&h, "/data/a:"), want);
+    assert_non_null(strstr(heard_line(&h, "/data/b:"), "/data/b: symlink loop (to "));
+    assert_non_null(strstr(heard_line(&h, "/data/b:"), "links, which holds "));
+    assert_non_null(strstr(heard_line(&h, "/data/self:"), "/data/self: symlink loop (the link to self never resolves), skipped"));
+    snprintf(want, sizeof want, "%s: dangling symlink to /nonexistent/gone.ply", gone);
+    assert_string_equal(heard_line(&h, "gone.ply"), want);
+    for (int i = 0; i < h.n; i++)
+        assert_int_equal(h.level[i], strstr(h.msg[i], "dangling") ? MIM_LOG_ERROR : MIM_LOG_WARN);
+    mim_db_close(&db);
+
+    /* the command: exit status 1 (some input failed), one line each */
+    char *store2 = ts_path(dir, "store_links_cli");
+    const char *args[] = {"ingest", "--store", store2, data, NULL};
+    char *out = NULL, *errs = NULL;
+    assert_int_equal(ts_run_mimic(&out, &errs, args), 1);
+    assert_non_null(strstr(out, "3 added, 0 already stored, 1 failed, 3 skipped"));
+    assert_non_null(strstr(errs, "dangling symlink to /nonexistent/gone.ply\n"));
+    assert_non_null(strstr(errs, "/data/a: symlink loop (already walked as "));
+    free(out), free(errs);
+    free(store2), free(store), free(a), free(b), free(self), free(gone), free(lm), free(data), free(parent);
+}
+
+/* A .gltf whose buffer is the triangulated sphere in an external file: the
+ * .bin at bin_path, the JSON at path naming it as `uri` (JSON text: it may
+ * hold escapes). Optional extra members for the root (images). */
+static void write_gltf_external(const char *path, const char *uri, const char *bin_path, const char *extra)
+{
+    mim_mesh_t m;
+    ts_triangulate(&sphere, &m);
+    if (bin_path) {
+        FILE *f = fopen(bin_path, "wb");
+        assert_non_null(f);
+        fwrite(m.positions, 12, m.n_vertices, f);
+        fwrite(m.faces, 12, m.n_faces, f);
+        fclose(f);
+    }
+    mim_mesh_free(&m);
+    /* ts_write_gltf's JSON, its data: URI replaced by uri */
+    char *tmp = ts_path(dir, "embedded_tmp.gltf");
+    assert_int_equal(ts_write_gltf(tmp, &sphere), 0);
+    size_t len;
+    char *text = ts_read_file(tmp, &len);
+    char *u = strstr(text, "\"uri\":\"");
+    assert_non_null(u);
+    u += 7;
+    char *end = strchr(u, '"');
+    size_t cap = len + strlen(uri) + (extra ? strlen(extra) : 0) + 16;
+    char *out = malloc(cap);
+    int n = snprintf(out, cap, "%.*s%s%s", (int)(u - text), text, uri, end);
+    if (extra) { /* before the root's closing brace */
+        out[n - 1] = 0;
+        strcat(out, ",");
+        strcat(out, extra);
+        strcat(out, "}");
+    }
+    assert_int_equal(ts_write_file(path, out, strlen(out)), 0);
+    free(out), free(text), free(tmp);
+}
+
+/* glTF buffers and images are read only from the .gltf's folder: no `..`
+ * out of it (however encoded), no absolute path, no scheme but data:, no
+ * symlink out of it. A .bin beside the .gltf (or below it) still works. */
+static void test_gltf_uris(void **s)
+{
+    (void)s;
+    char *g = ts_path(dir, "gltf_uris"), *sub = ts_path(g, "sub"), *deeper = ts_path(sub, "bin");
+    mkdir(g, 0755), mkdir(sub, 0755), mkdir(deeper, 0755);
+    char *outside_bin = ts_path(g, "mesh.bin"); /* a valid buffer, outside sub/ */
+    char *ok = ts_path(sub, "ok.gltf"), *inner = ts_path(sub, "inner.bin");
+    write_gltf_external(ok, "inner.bin", inner, NULL);
+    write_gltf_external(ok, "inner.bin", outside_bin, NULL); /* the same bytes outside */
+    char *ok2 = ts_path(sub, "ok2.gltf"), *inner2 = ts_path(deeper, "inner2.bin");
+    write_gltf_external(ok2, "./bin/../bin/inner2.bin", inner2, NULL);
+    char *ok3 = ts_path(g, "beside.gltf");
+    write_gltf_external(ok3, "mesh.bin", NULL, NULL);
+    const char *good[] = {ok, ok2, ok3};
+    for (int i = 0; i < 3; i++) {
+        mim_mesh_t m;
+        mim_error_t err = {0};
+        int rc = mim_io_read_mesh(good[i], &m, &err);
+        if (rc) fail_msg("%s: %s", good[i], err.msg);
+        assert_int_equal(m.n_vertices, sphere.n_vertices);
+        mim_mesh_free(&m);
+    }
+    char *link = ts_path(sub, "link.bin");
+    assert_int_equal(symlink("../mesh.bin", link), 0);
+    char abs_uri[4200], file_uri[4200];
+    snprintf(abs_uri, sizeof abs_uri, "%s", outside_bin);
+    snprintf(file_uri, sizeof file_uri, "file://%s", outside_bin);
+    struct {
+        const char *name, *uri, *extra, *phrase;
+    } bad[] = {
+        {"dotdot.gltf", "../mesh.bin", NULL, "'../mesh.bin' refused: it leaves the glTF file's folder"},
+        {"deep.gltf", "bin/../../mesh.bin", NULL, "'bin/../../mesh.bin' refused: it leaves the glTF file's folder"},
+        {"escaped.gltf", "\\u002e\\u002e/mesh.bin", NULL, "'../mesh.bin' refused: it leaves the glTF file's folder"},
+        {"percent.gltf", "%2e%2e/mesh.bin", NULL, "'../mesh.bin' refused: it leaves the glTF file's folder"},
+        {"absolute.gltf", abs_uri, NULL, "refused: it is an absolute path"},
+        {"file.gltf", file_uri, NULL, "refused: it is a URI with the scheme 'file:'"},
+        {"http.gltf", "http://127.0.0.1:9/mesh.bin", NULL, "refused: it is a URI with the scheme 'http:'"},
+        {"symlink.gltf", "link.bin", NULL, "refused: it resolves to "},
+        {"passwd.gltf", "../../../../../../../../etc/passwd", NULL, "leaves the glTF file's folder"},
+        {"image.gltf", "inner.bin", "\"images\":[{\"uri\":\"../mesh.bin\"}]", "'../mesh.bin' refused: it leaves"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char *p = ts_path(sub, bad[i].name);
+        write_gltf_external(p, bad[i].uri, NULL, bad[i].extra);
+        mim_mesh_t m;
+        mim_error_t err = {0};
+        int rc = mim_io_read_mesh(p, &m, &err);
+        if (rc != MIM_EUNSUPPORTED || !strstr(err.msg, bad[i].phrase) || !strstr(err.msg, "refused"))
+            fail_msg("%s: rc %d, message: %s", bad[i].name, rc, err.msg);
+        assert_non_null(strstr(err.msg, p));
+        assert_null(strchr(err.msg, '\n'));
+        assert_null(m.positions);
+        free(p);
+    }
+    /* tinygltf would also try the name from the current directory: never */
+    char *cwd_gltf = ts_path(sub, "cwd.gltf"), here[4096];
+    write_gltf_external(cwd_gltf, "mesh.bin", NULL, NULL); /* no sub/mesh.bin, but there is one in g */
+    assert_non_null(getcwd(here, sizeof here));
+    assert_int_equal(chdir(g), 0);
+    mim_mesh_t m;
+    mim_error_t err = {0};
+    int rc = mim_io_read_mesh(cwd_gltf, &m, &err);
+    assert_int_equal(chdir(here), 0);
+    if (rc != MIM_EFORMAT || !strstr(err.msg, "File not found : mesh.bin")) fail_msg("cwd.gltf: rc %d, %s", rc, err.msg);
+    free(cwd_gltf);
+    free(link), free(ok3), free(inner2), free(ok2), free(inner), free(ok), free(outside_bin);
+    free(deeper), free(sub), free(g);
+}
+
+/* A mesh that is no body (plausible.c) is reported and not stored: every
+ * vertex at one point, a coordinate of 3e38. */
+static void test_implausible_meshes(void **s)
+{
+    (void)s;
+    char *data = make_dataset("ds_implausible", 3, 1);
+    ts_polymesh_t m;
+    ts_sphere(&m, 12, 16, 0.5f);
+    for (uint32_t v = 0; v < m.n_vertices; v++) m.pos[3 * v] = 0.1f, m.pos[3 * v + 1] = 1.0f, m.pos[3 * v + 2] = 0;
+    char *point = ts_path(data, "zz_point.ply");
+    ts_write_ply_binary(point, &m);
+    ts_polymesh_free(&m);
+    ts_sphere(&m, 12, 16, 0.5f);
+    m.pos[3 * 12 + 1] = 3e38f;
+    char *far = ts_path(data, "zz_far.ply");
+    ts_write_ply_binary(far, &m);
+    ts_polymesh_free(&m);
+
+    char *store = ts_path(dir, "store_implausible");
+    mim_db_t *db;
+    mim_error_t err = {0};
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    heard_t h = {0};
+    mim_ingest_options_t opt = {.log = hear, .log_ctx = &h};
+    mim_ingest_report_t rep;
+    char *paths[] = {data};
+    assert_int_equal(mim_ingest_run(db, paths, 1, &opt, &rep, &err), 0);
+    assert_int_equal(rep.added, 3);
+    assert_int_equal(rep.failed, 2);
+    assert_int_equal(rep.templates, 3);
+    assert_int_equal(h.n, 2);
+    char want[4200];
+    snprintf(want, sizeof want, "%s: the %u vertices span 0.0 mm: not a body (at least 10 mm)", point,
+             sphere.n_vertices);
+    assert_string_equal(heard_line(&h, "zz_point.ply"), want);
+    snprintf(want, sizeof want, "%s: vertex 12: coordinate y = 3e+38 outside the 10 m box a body fits in", far);
+    assert_non_null(strstr(heard_line(&h, "zz_far.ply"), want));
+    mim_db_close(&db);
+    free(store), free(far), free(point), free(data);
+}
+
 /* The real dataset, when it is beside the project: all 96 go in, labelled. */
 static void test_mh_bodies(void **s)
 {
@@ -528,7 +783,8 @@ int main(void)
         cmocka_unit_test(test_labels),
         cmocka_unit_test(test_manifest),        cmocka_unit_test(test_discover),
         cmocka_unit_test(test_pipeline),        cmocka_unit_test(test_landmark_requirements),
-        cmocka_unit_test(test_mh_bodies),
+        cmocka_unit_test(test_mh_bodies),       cmocka_unit_test(test_symlinks),
+        cmocka_unit_test(test_gltf_uris),       cmocka_unit_test(test_implausible_meshes),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

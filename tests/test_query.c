@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 static char *g_dir, *g_bodies, *g_store;
 
@@ -237,14 +238,31 @@ static void test_cli_query_and_bad_input(void **st)
         {"{\"landmarks\": [null, null, null, null, [0,0,0], [1,0,0], [0,1,0], [0,0,1], [1,1,0], [1,0,1], [0,1,1], "
          "[1,1,1], [2,0,0], [0,2,0], [0,0,2], [2,2,2]]}",
          "missing"},
+        /* no body (plausible.c): 16 identical landmarks, and one at 3e38 */
+        {"{\"landmarks\": [[0.1,1,0], [0.1,1,0], [0.1,1,0], [0.1,1,0], [0.1,1,0], [0.1,1,0], [0.1,1,0], [0.1,1,0], "
+         "[0.1,1,0], [0.1,1,0], [0.1,1,0], [0.1,1,0], [0.1,1,0], [0.1,1,0], [0.1,1,0], [0.1,1,0]]}",
+         "frames.json: frame 0: landmarks span 0.0 mm: not a body (at least 10 mm)"},
+        {"{\"landmarks\": [[0,1.6,0],[0,1.3,0],[0,1,0],[0.2,1.4,0],[-0.2,1.4,0],[0.45,1.4,0],[-0.45,1.4,0],"
+         "[3e38,1.4,0],[-0.7,1.4,0],[0.1,0.95,0],[-0.1,0.95,0],[0.1,0.5,0.02],[-0.1,0.5,0.02],[0.1,0.08,0],"
+         "[-0.1,0.08,0],[0,1.15,-0.05]]}",
+         "frames.json: frame 0, landmark 7: coordinate x = 3e+38 outside the 10 m box a body fits in"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         assert_int_equal(ts_write_file(frames, bad[i].text, strlen(bad[i].text)), 0);
         assert_int_equal(run(NULL, &err, q1), 1);
         assert_non_null(strstr(err, "frames.json"));
-        if (bad[i].expect) assert_non_null(strstr(err, bad[i].expect));
+        if (bad[i].expect && !strstr(err, bad[i].expect)) fail_msg("case %zu: %s", i, err);
+        assert_true(strchr(err, '\n') == err + strlen(err) - 1); /* one line */
         free(err);
     }
+    /* a batch over 64 MiB is refused before it is parsed */
+    FILE *big = fopen(frames, "wb");
+    assert_non_null(big);
+    assert_int_equal(ftruncate(fileno(big), (off_t)MIM_LANDMARK_FRAMES_MAX_BYTES + 1), 0);
+    fclose(big);
+    assert_int_equal(run(NULL, &err, q1), 1);
+    assert_non_null(strstr(err, "frames.json: 67108865 bytes (64.0 MiB), more than the 64 MiB a landmark batch may have"));
+    free(err);
     /* NaN in a coordinate: JSON has no NaN, so the file is malformed at that spot */
     const char *nan_text = "{\"landmarks\": [[0, 0, NaN]]}";
     assert_int_equal(ts_write_file(frames, nan_text, strlen(nan_text)), 0);

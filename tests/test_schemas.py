@@ -24,7 +24,8 @@ SCHEMAS = {s["$id"]: s for s in map(load, ["info.schema.json", "list.schema.json
                                             "morph.schema.json", "landmark-frames.schema.json",
                                             "vest-udp.schema.json", "vest-replay.schema.json",
                                             "serve-status.schema.json", "serve-avatar.schema.json",
-                                            "serve-transfer-request.schema.json", "serve-error.schema.json"])}
+                                            "serve-transfer-request.schema.json", "serve-error.schema.json",
+                                            "store-check.schema.json"])}
 
 
 def validator(schema_id):
@@ -137,6 +138,31 @@ def vest_cases(d):
             ("/mimic/schemas/landmark-frames.schema.json", marks[0], "vest replay landmarks as a query frame")]
 
 
+def store_check_cases(d, store, data):
+    """mimic store check --json on an intact store (exit 0) and on a copy
+    with one byte flipped in a template's positions (exit 1)."""
+    import shutil
+    clean = json.loads(run("store", "check", "--store", store, "--json"))
+    damaged = os.path.join(d, "damaged")
+    os.makedirs(damaged)
+    shutil.copy(os.path.join(store, "data.mdb"), os.path.join(damaged, "data.mdb"))
+    with open(os.path.join(data, "synth_s00_p01.ply"), "rb") as f:
+        ply = f.read()
+    positions = ply[ply.index(b"end_header\n") + len(b"end_header\n"):][:240]
+    with open(os.path.join(damaged, "data.mdb"), "r+b") as f:
+        db = bytearray(f.read())
+        at = db.index(positions) + 100
+        db[at] ^= 0x10
+        f.seek(0)
+        f.write(db)
+    p = subprocess.run([MIMIC, "store", "check", "--store", damaged, "--json"], capture_output=True, text=True)
+    if p.returncode != 1:
+        raise RuntimeError(f"mimic store check on a damaged store exited {p.returncode}: {p.stderr.strip()}")
+    found = json.loads(p.stdout)
+    return [("/mimic/schemas/store-check.schema.json", clean, "store check (clean)"),
+            ("/mimic/schemas/store-check.schema.json", found, "store check (a flipped byte)")]
+
+
 def serve_cases(store, one, vest_rec):
     """mimic serve's JSON answers (and a transfer request), fetched over HTTP;
     then its status with a vest recording played to the end."""
@@ -227,6 +253,8 @@ def main():
             ("/mimic/schemas/list.schema.json", json.loads(run("list", "--store", store, "--pose", "9", "--json")), "list (none)"),
             ("/mimic/schemas/landmarks.schema.json", landmarks, "synth landmarks.json"),
         ]
+        check_cases = store_check_cases(d, store, data)
+        cases += check_cases
         for schema_id, doc, what in cases + vest_cases(d) + serve_cases(store, one, os.path.join(d, "vest.rec")):
             errors = list(validator(schema_id).iter_errors(doc))
             if errors:
@@ -244,6 +272,15 @@ def main():
         else:
             failed += 1
             print("FAIL info schema accepted a string template count")
+        bad = json.loads(json.dumps(check_cases[1][1]))
+        if bad["problems"]:
+            bad["problems"][0]["message"] = "checksum mismatch"
+        if bad["problems"] and list(validator("/mimic/schemas/store-check.schema.json").iter_errors(bad)):
+            passed += 1
+            print("ok   store-check schema rejects a problem line without 'store damaged: '")
+        else:
+            failed += 1
+            print("FAIL store-check schema accepted a problem line without 'store damaged: ' (or none was found)")
         bad = dict(query_doc)
         bad["frames"] = [dict(query_doc["frames"][0], probability=1.5)]
         if list(validator("/mimic/schemas/query.schema.json").iter_errors(bad)):

@@ -77,9 +77,15 @@ static void test_http_malformed(void **state)
     expect_4xx_or_closed(p, badlen, sizeof badlen - 1, "Content-Length: twelve", -1);
     const char neglen[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nContent-Length: -5\r\n\r\n{}";
     expect_4xx_or_closed(p, neglen, sizeof neglen - 1, "Content-Length: -5", -1);
-    /* a body shorter than its Content-Length, then the client is done */
+    /* a body shorter than its Content-Length, then the client is done (it
+     * half-closes): libwebsockets 4.1 takes that for the client hanging
+     * up and closes at once (civetweb answered 400). Either is fine; a
+     * connection left waiting is not. */
     const char shortb[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nContent-Length: 1000\r\n\r\n{\"landmarks\": [";
-    expect_4xx_or_closed(p, shortb, sizeof shortb - 1, "a short body", 400);
+    double t_short = ss_now_s();
+    expect_4xx_or_closed(p, shortb, sizeof shortb - 1, "a short body", -1);
+    if (ss_now_s() - t_short > 3.0)
+        fail_msg("a short body, then a half-close: answered or closed after %.1f s, not at once", ss_now_s() - t_short);
     /* the same, closed outright without reading */
     int s = hc_connect(p, 0);
     assert_true(s >= 0);
@@ -110,10 +116,15 @@ static void test_http_malformed(void **state)
     assert_non_null(strstr(json_string_value(json_object_get(j, "error")), "limit"));
     json_decref(j);
     hc_reply_free(&r);
-    /* a chunked body under the limit works */
+    /* a chunked body under the limit works (the client waits for the
+     * answer without half-closing: see http_client.h) */
     const char okchunk[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nConnection: close\r\nTransfer-Encoding: chunked\r\n\r\n"
                            "3\r\n{\"l\r\n0\r\n\r\n";
-    r = ss_http_raw(p, okchunk, sizeof okchunk - 1);
+    c = hc_connect(p, 0);
+    assert_true(c >= 0);
+    assert_int_equal(hc_send_all(c, okchunk, sizeof okchunk - 1), 0);
+    assert_int_equal(hc_read_reply(&r, c, 15000), HC_OK);
+    close(c);
     assert_int_equal(r.status, 400); /* read whole, then refused as JSON: {"l is not */
     j = ss_json_body(&r);
     assert_non_null(strstr(json_string_value(json_object_get(j, "error")), "request body"));
@@ -209,6 +220,110 @@ static void test_vest_outage(void **state)
     ss_svc_free(&B);
 }
 
+/* ---- 7b. a UDP vest that stops sending (issue 12, defect 9) ---- */
+static int free_udp_port(void)
+{
+    int s = socket(AF_INET, SOCK_DGRAM, 0);
+    struct sockaddr_in a = {.sin_family = AF_INET};
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t al = sizeof a;
+    int port = s >= 0 && !bind(s, (struct sockaddr *)&a, sizeof a) && !getsockname(s, (struct sockaddr *)&a, &al)
+                   ? ntohs(a.sin_port)
+                   : -1;
+    if (s >= 0)
+        close(s);
+    return port;
+}
+
+/* The seconds in "... no data for N s" (-1 if the error says no such thing). */
+static double silent_for(json_t *st)
+{
+    const char *e = json_string_value(json_object_get(json_object_get(st, "vest"), "error"));
+    const char *p = e ? strstr(e, "no data for ") : NULL;
+    return p ? strtod(p + 12, NULL) : -1.0;
+}
+
+static void test_udp_vest_stops(void **state)
+{
+    (void)state;
+    int up = free_udp_port();
+    assert_true(up > 0);
+    char spec[64];
+    snprintf(spec, sizeof spec, "udp:127.0.0.1:%d", up);
+    ss_svc_t U = {0};
+    U.sout = ts_path(dir, "u.serve.out"), U.serr = ts_path(dir, "u.serve.err");
+    U.vout = ts_path(dir, "u.vest.out"), U.verr = ts_path(dir, "u.vest.err");
+    const char *sargs[] = {"serve", "--store", store, "--avatar", "1", "--vest", spec, "--listen", "127.0.0.1:0", NULL};
+    U.server = ss_spawn(sargs, U.sout, U.serr);
+    char *t = ss_wait_line(U.sout, "http://127.0.0.1:", U.server, 120);
+    assert_non_null(t);
+    U.port = atoi(strrchr(t, ':') + 1);
+    free(t);
+    char *bodies = ts_path(dir, "bodies"), *avatar = ts_path(bodies, "synth_s00_p00.ply"),
+         *map = ts_path(bodies, "landmarks.json");
+    const char *vargs[] = {"vest", "simulate", "--motion", "demo", "--loop", "--out", spec, "--avatar", avatar,
+                           "--map", map, NULL};
+    U.vest = ss_spawn(vargs, U.vout, U.verr);
+    /* streaming */
+    json_t *st = NULL;
+    double end = ss_now_s() + 30;
+    for (;;) {
+        json_decref(st);
+        st = ss_get_status(U.port);
+        if (!strcmp(ss_vest_state(st), "streaming") && ss_status_int(st, NULL, "frames") > 30)
+            break;
+        if (ss_now_s() > end)
+            fail_msg("the UDP vest did not stream: %s", json_dumps(st, 0));
+        ss_sleep_ms(100);
+    }
+    json_decref(st);
+    /* the sender stops: the vest is reported away, for a time that grows */
+    ss_child_kill(U.vest);
+    U.vest = 0;
+    const double t_stop = ss_now_s();
+    st = NULL;
+    double n1 = -1;
+    while (ss_now_s() < t_stop + 5) {
+        json_decref(st);
+        st = ss_get_status(U.port);
+        if (!strcmp(ss_vest_state(st), "reconnecting") && (n1 = silent_for(st)) > 0)
+            break;
+        ss_sleep_ms(100);
+    }
+    if (n1 <= 0)
+        fail_msg("5 s after the UDP sender stopped, status says: %s", json_dumps(json_object_get(st, "vest"), 0));
+    json_decref(st);
+    ss_sleep_ms(1500);
+    st = ss_get_status(U.port);
+    double n2 = silent_for(st);
+    const char *err = json_string_value(json_object_get(json_object_get(st, "vest"), "error"));
+    print_message("UDP vest stopped: '%s' (1.5 s before: %.1f s)\n", err ? err : "(null)", n1);
+    assert_string_equal(ss_vest_state(st), "reconnecting");
+    if (!(n2 >= n1 + 1.0))
+        fail_msg("the silence reported does not grow: %.1f s, then %.1f s 1.5 s later", n1, n2);
+    assert_true(json_real_value(json_object_get(json_object_get(st, "vest"), "frame_rate_hz")) == 0.0);
+    json_decref(st);
+    assert_true(ss_metric(U.port, "mimic_vest_up") == 0);
+    /* it sends again: streaming, and the outage's message is gone */
+    U.vest = ss_spawn(vargs, U.vout, U.verr);
+    st = NULL;
+    end = ss_now_s() + 15;
+    for (;;) {
+        json_decref(st);
+        st = ss_get_status(U.port);
+        if (!strcmp(ss_vest_state(st), "streaming"))
+            break;
+        if (ss_now_s() > end)
+            fail_msg("the UDP vest did not come back: %s", json_dumps(json_object_get(st, "vest"), 0));
+        ss_sleep_ms(100);
+    }
+    assert_true(json_is_null(json_object_get(json_object_get(st, "vest"), "error")));
+    json_decref(st);
+    ss_svc_term(&U);
+    ss_svc_free(&U);
+    free(bodies), free(avatar), free(map);
+}
+
 /* ---- 9. mimic demo ---- */
 static void run_demo(const char *ddir, int check_live)
 {
@@ -289,6 +404,7 @@ int main(void)
         cmocka_unit_test(test_http_malformed),
         cmocka_unit_test(test_sigterm_with_clients),
         cmocka_unit_test(test_vest_outage),
+        cmocka_unit_test(test_udp_vest_stops),
         cmocka_unit_test(test_demo),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

@@ -26,7 +26,7 @@
 
 #define SUBJECTS 3
 #define POSES 12
-#define VEST_HZ 60.0
+#define BASIC_FRAMES 90
 
 static char *dir, *store;
 static int templates_in_store[SUBJECTS * POSES + 1]; /* [id] = 1 when `mimic list` has it */
@@ -68,12 +68,13 @@ static void test_stream_basics(void **state)
         assert_true(json_string_length(json_array_get(names, i)) > 0);
     json_decref(hello);
 
+    /* 90 frames (1.5 s of the 60 Hz vest when the machine keeps up; a
+     * busy one takes longer, which does not matter here) */
     float *first = malloc(3 * (size_t)N * sizeof *first);
-    double max_change = 0.0, t_first = 0.0;
-    uint64_t last = 0;
-    int frames = 0, keys_checked = 0, have_first = 0;
-    double end = ss_now_s() + 1.5;
-    while (ss_now_s() < end) {
+    double max_change = 0.0;
+    uint64_t last = 0, t_vest_first = 0;
+    int frames = 0, keys = 0, keys_checked = 0, have_first = 0;
+    while (frames < BASIC_FRAMES) {
         ws_msg_t m;
         assert_int_equal(ss_next_frame(&w, &m, 2000, NULL), 1);
         mimf_t f = ss_parse_frame(&m);
@@ -88,10 +89,11 @@ static void test_stream_basics(void **state)
         assert_true(f.label[0] != 0); /* a key frame was made */
         assert_true(f.compute > 0);
         assert_true(f.key_interval >= 1);
-        if (f.key_interval == 1) {
+        if (f.key_interval == 1) { /* every vest frame a key frame: this one too */
             assert_int_equal(f.flags & 1, 1);
             keys_checked++;
         }
+        keys += f.flags & 1;
         /* arrival is the server's CLOCK_MONOTONIC: before now, and recent */
         uint64_t now_us = (uint64_t)(ss_now_s() * 1e6);
         assert_true(f.arrival <= now_us);
@@ -105,7 +107,7 @@ static void test_stream_basics(void **state)
             touches[a] |= x == f.lo[a], touches[3 + a] |= x == f.hi[a];
             if (!have_first)
                 first[i] = x;
-            else if (ss_now_s() - t_first > 0.8)
+            else if (f.t_vest - t_vest_first > 800000) /* 0.8 s of the vest's own time later */
                 max_change = fmax(max_change, fabs((double)x - first[i]));
         }
         for (int k = 0; k < 6; k++)
@@ -113,16 +115,19 @@ static void test_stream_basics(void **state)
         for (size_t i = 0; i < 3 * (size_t)L; i++)
             assert_true(isfinite(mimf_f32(f.lm + 4 * i)));
         if (!have_first)
-            have_first = 1, t_first = ss_now_s();
+            have_first = 1, t_vest_first = f.t_vest;
         frames++;
         ws_msg_free(&m);
     }
     ws_close(&w);
     free(first);
-    assert_true(frames >= 0.8 * VEST_HZ * 1.5);
-    assert_true(keys_checked > 0); /* the loop keeps up: key interval 1 */
+    /* Whether the loop affords a key frame at every vest frame (key
+     * interval 1) depends on the machine's load; that it makes key frames,
+     * and flags them, does not. */
+    print_message("%d frames: %d key frames, %d of them at key interval 1\n", frames, keys, keys_checked);
+    assert_true(keys > 0);
     if (!(max_change > 1e-3))
-        fail_msg("the avatar did not move over a second: max change %g", max_change);
+        fail_msg("the avatar did not move over 0.8 s of vest time: max change %g", max_change);
 }
 
 /* ---- 2. int16 positions ---- */
@@ -160,7 +165,7 @@ static void test_i16(void **state)
     /* a's f32 frames and b's and c's i16 frames, read in turn */
     kept_t *fa = calloc(KEEP, sizeof *fa), *fi = calloc(2 * KEEP, sizeof *fi);
     size_t na = 0, ni = 0;
-    double end = ss_now_s() + 1.5;
+    double end = ss_now_s() + 30; /* a deadline, not a window: done once KEEP frames are in */
     while (ss_now_s() < end && (na < KEEP || ni < 2 * KEEP)) {
         ws_client_t *cl[3] = {&a, &b, &c};
         for (int k = 0; k < 3; k++) {
@@ -217,6 +222,63 @@ static void test_i16(void **state)
     print_message("int16: %d frames compared, worst error %.3f half-steps (float32 rounding above 1)\n", compared, worst);
 }
 
+/* ---- 2b. the format switch is ordered (issue 12, defect 7) ---- */
+/* 1000 switches on one connection while the stream runs: every binary
+ * frame after a {"type": "format"} reply is in that reply's format until
+ * the next reply, and none is lost (the client keeps up). A switch is
+ * sent once the previous reply is in, a few milliseconds apart, so that
+ * switches fall at every point of the loop's publishing. */
+#define SWITCHES 1000
+static void test_format_order(void **state)
+{
+    (void)state;
+    ws_client_t w;
+    json_decref(ss_ws_open(&w, A.port, "/ws", 0));
+    int current = 0, frames = 0;
+    uint64_t last = 0;
+    double end = ss_now_s() + 60;
+    for (int i = 0; i < SWITCHES; i++) {
+        int want = i % 2 == 0; /* i16, f32, i16, ... */
+        assert_int_equal(ws_send_text(&w, want ? "{\"format\": \"i16\"}" : "{\"format\": \"f32\"}"), 0);
+        int replied = 0;
+        while (!replied) {
+            if (ss_now_s() > end)
+                fail_msg("switch %d: no reply within the test's minute", i);
+            ws_msg_t m;
+            int r = ws_recv(&w, &m, 5000);
+            if (r != 1)
+                fail_msg("switch %d: the connection %s", i, r ? "closed" : "went silent for 5 s");
+            if (m.opcode == WS_BINARY) {
+                mimf_t f = ss_parse_frame(&m);
+                if (f.i16 != current)
+                    fail_msg("switch %d: frame %llu is %s, but the last format reply said %s", i,
+                             (unsigned long long)f.number, f.i16 ? "i16" : "f32", current ? "i16" : "f32");
+                if (last && f.number != last + 1)
+                    fail_msg("switch %d: frame %llu follows %llu", i, (unsigned long long)f.number,
+                             (unsigned long long)last);
+                last = f.number;
+                frames++;
+            } else if (m.opcode == WS_TEXT) {
+                json_t *j = json_loadb((const char *)m.data, m.len, 0, NULL);
+                assert_non_null(j);
+                assert_string_equal(json_string_value(json_object_get(j, "type")), "format");
+                const char *fmt = json_string_value(json_object_get(j, "format"));
+                assert_string_equal(fmt, want ? "i16" : "f32");
+                current = want;
+                replied = 1;
+                json_decref(j);
+            }
+            ws_msg_free(&m);
+        }
+        ss_sleep_ms(2 + i % 3);
+    }
+    ws_close(&w);
+    print_message("%d format switches: %d frames between them, each in the format last announced\n", SWITCHES,
+                  frames);
+    if (frames < 50)
+        fail_msg("only %d frames came during %d switches: the order was hardly tested", frames, SWITCHES);
+}
+
 /* ---- 3. malformed WebSocket messages and protocol garbage ---- */
 static void expect_error_then_frames(ws_client_t *w, const char *what)
 {
@@ -253,7 +315,12 @@ static void test_ws_malformed(void **state)
     assert_int_equal(ws_send(&w, WS_BINARY, bin, sizeof bin), 0);
     expect_error_then_frames(&w, "a binary message");
 
-    /* protocol garbage: each closes that connection only */
+    /* protocol garbage: each fails that connection only. The server says
+     * so at once with a close frame (1002, protocol error); the TCP
+     * connection then closes when the client answers, or when the server
+     * stops waiting for the answer (libwebsockets: 5 s; these clients
+     * cannot answer, their stream being garbage): all are checked
+     * together at the end. */
     struct {
         const char *what;
         unsigned first;
@@ -264,30 +331,39 @@ static void test_ws_malformed(void **state)
         {"a frame with reserved opcode 0xB", 0x8B, 1, "abc"},
         {"a frame with RSV1 set", 0xC1, 1, "{\"format\": \"f32\"}"},
     };
-    for (size_t i = 0; i < sizeof proto / sizeof proto[0] + 1; i++) {
-        ws_client_t g;
-        json_decref(ss_ws_open(&g, A.port, "/ws", 0));
-        const char *what = i < sizeof proto / sizeof proto[0] ? proto[i].what : "random bytes";
-        if (i < sizeof proto / sizeof proto[0]) {
+    enum { N_PROTO = sizeof proto / sizeof proto[0] + 1 };
+    ws_client_t g[N_PROTO];
+    for (size_t i = 0; i < N_PROTO; i++) {
+        json_decref(ss_ws_open(&g[i], A.port, "/ws", 0));
+        const char *what = i < N_PROTO - 1 ? proto[i].what : "random bytes";
+        if (i < N_PROTO - 1) {
             assert_int_equal(
-                ws_send_frame(&g, proto[i].first, proto[i].masked, proto[i].payload, strlen(proto[i].payload)), 0);
+                ws_send_frame(&g[i], proto[i].first, proto[i].masked, proto[i].payload, strlen(proto[i].payload)), 0);
         } else {
             unsigned char junk[256];
             mim_rng_t x;
             mim_rng_seed(&x, 1, i);
             for (size_t k = 0; k < sizeof junk; k++)
                 junk[k] = (unsigned char)mim_rng_u64(&x);
-            ws_send_raw(&g, junk, sizeof junk);
+            ws_send_raw(&g[i], junk, sizeof junk);
         }
-        if (!ws_wait_closed(&g, 5000))
+        int st = ws_wait_close_frame(&g[i], 5000);
+        if (st == WS_CLOSE_TIMEOUT)
             fail_msg("%s: the connection stays open", what);
-        ws_close(&g);
+        if (st >= 0 && st != 1002)
+            fail_msg("%s: closed with status %d, not 1002 (protocol error)", what, st);
+        print_message("%s: %s %d\n", what, st >= 0 ? "close frame" : "closed", st);
         /* the other client streams on, the API answers */
         ws_msg_t m;
         if (!ss_next_frame(&w, &m, 2000, NULL))
             fail_msg("after %s: the other client gets no frames", what);
         ws_msg_free(&m);
         ss_assert_alive(A.port);
+    }
+    for (size_t i = 0; i < N_PROTO; i++) {
+        if (!ws_wait_closed(&g[i], 10000))
+            fail_msg("%s: the TCP connection stays open", i < N_PROTO - 1 ? proto[i].what : "random bytes");
+        ws_close(&g[i]);
     }
     ws_close(&w);
 
@@ -303,9 +379,10 @@ static void test_ws_malformed(void **state)
 }
 
 /* An unmasked client frame is a protocol error (RFC 6455 5.1): the
- * connection must close. civetweb 1.15 does not check the mask bit and does
- * not tell its data callback, so the service cannot see it: skipped, with
- * the proof, when civetweb took the frame as a valid message. */
+ * connection must close. libwebsockets 4.1 does not check the mask bit and
+ * does not tell its receive callback, so the service cannot see it:
+ * skipped, with the proof, when the library took the frame as a valid
+ * message. */
 static void test_ws_unmasked(void **state)
 {
     (void)state;
@@ -325,7 +402,7 @@ static void test_ws_unmasked(void **state)
     ws_close(&w);
     ss_assert_alive(A.port);
     if (accepted) {
-        print_message("civetweb accepted an unmasked client frame as a valid message (the service "
+        print_message("libwebsockets accepted an unmasked client frame as a valid message (the service "
                       "answered it): it cannot close such a connection\n");
         skip();
     }
@@ -361,9 +438,8 @@ static void test_disconnect_mid_frame(void **state)
         size_t n;
         uint64_t *v = ss_collect_numbers(&o, 1500, &n);
         ss_assert_consecutive(v, n, variant ? "after a reset" : "after a close mid-frame");
-        if (n < 0.8 * VEST_HZ * 1.5)
-            fail_msg("%zu frames in 1.5 s after a client vanished", n);
         free(v);
+        assert_true(ss_stream_reaches_newest(&o, A.port)); /* the other client keeps every frame coming */
         /* the client count comes back down */
         json_int_t now = -1;
         for (int k = 0; k < 60 && now != before; k++) {
@@ -403,8 +479,9 @@ static void test_slow_client(void **state)
     uint64_t *v = ss_collect_numbers(&fast, 3000, &n);
     double dt = ss_now_s() - t0;
     ss_assert_consecutive(v, n, "the reading client beside a slow one");
-    if (n < 0.8 * VEST_HZ * dt)
-        fail_msg("the reading client got %zu frames in %.2f s (%.1f Hz)", n, dt, n / dt);
+    print_message("the reading client beside a slow one: %zu frames in %.2f s\n", n, dt);
+    if (!n)
+        fail_msg("the reading client got no frame in %.2f s beside a slow one", dt);
     /* the kernel buffers some seconds of frames for it (the server's send
      * buffer grows to net.ipv4.tcp_wmem's max), then its frames are
      * dropped: the count grows while it still reads nothing, and the
@@ -430,6 +507,8 @@ static void test_slow_client(void **state)
     }
     print_message("slow client: %.0f frames dropped, worst client %lld, %.1f s after it stopped reading\n",
                   drops1 - drops0, (long long)worst, t_drops);
+    /* and the reading client still gets every frame the loop publishes */
+    assert_true(ss_stream_reaches_newest(&fast, A.port));
     if (!(drops1 > drops0))
         fail_msg("no drops counted for a client that never reads (%g -> %g)", drops0, drops1);
     assert_true(worst > 0);
@@ -450,10 +529,9 @@ static void test_key_rate(void **state)
     int keys = 0, morphs = 0, n = 0;
     uint64_t prev = 0, last_key = 0;
     int spaced = 0, morphed = 0; /* until the second key frame there is nothing to morph from */
-    double end = ss_now_s() + 1.5;
-    while (ss_now_s() < end) {
+    while (n < 40) { /* ten key intervals; however long the machine takes */
         ws_msg_t m;
-        assert_int_equal(ss_next_frame(&w, &m, 2000, NULL), 1);
+        assert_int_equal(ss_next_frame(&w, &m, 10000, NULL), 1);
         mimf_t f = ss_parse_frame(&m);
         assert_int_equal(f.key_interval, 4);
         if (f.flags & 1) {
@@ -489,6 +567,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_stream_basics),
         cmocka_unit_test(test_i16),
+        cmocka_unit_test(test_format_order),
         cmocka_unit_test(test_ws_malformed),
         cmocka_unit_test(test_ws_unmasked),
         cmocka_unit_test(test_disconnect_mid_frame),

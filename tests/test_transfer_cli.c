@@ -291,6 +291,29 @@ static void test_bad_inputs(void **s)
     sprintf(batch, "{\"frames\": [%s, %s]}", frame, frame);
     char *two = write_landmarks("two.json", NULL, batch);
     free(frame), free(batch);
+    /* implausible bodies (plausible.c): an avatar with every vertex at one
+     * point, one with a coordinate of 3e38, and landmarks likewise */
+    char *point_avatar = ts_path(dir, "point_avatar.ply"), *far_avatar = ts_path(dir, "far_avatar.ply");
+    mim_mesh_t av = {0};
+    read_mesh(truth_path, &av);
+    float keep = av.positions[3 * 12 + 1];
+    av.positions[3 * 12 + 1] = 3e38f;
+    assert_int_equal(ts_write_mesh_ply(far_avatar, &av), 0);
+    av.positions[3 * 12 + 1] = keep;
+    for (uint32_t v = 0; v < av.n_vertices; v++)
+        av.positions[3 * v] = 0.1f, av.positions[3 * v + 1] = 1.0f, av.positions[3 * v + 2] = 0.0f;
+    assert_int_equal(ts_write_mesh_ply(point_avatar, &av), 0);
+    mim_mesh_free(&av);
+    char same_text[1024] = "{\"landmarks\": [", far_text[1024] = "{\"landmarks\": [";
+    for (int k = 0; k < 16; k++) {
+        char one[64];
+        snprintf(one, sizeof one, "%s[0.1, 1.2, 0.3]", k ? ", " : "");
+        strcat(same_text, one);
+        snprintf(one, sizeof one, "%s[%g, %g, 0.3]", k ? ", " : "", k == 5 ? 3e38 : 0.1 * k, 0.1 * (k % 4));
+        strcat(far_text, one);
+    }
+    strcat(same_text, "]}"), strcat(far_text, "]}");
+    char *same_lm = write_landmarks("same.json", NULL, same_text), *far_lm = write_landmarks("far.json", NULL, far_text);
     char many[2048] = "2";
     for (int k = 0; k < 260; k++)
         strcat(many, ",2");
@@ -328,6 +351,14 @@ static void test_bad_inputs(void **s)
          "unexpected argument 'extra'"},
         {{"transfer", "--store", store, "--avatar", "1", "--landmarks", two, "--template", "2", "-o", outp}, 1,
          "two.json: has 2 frames; transfer takes one"},
+        {{"transfer", "--store", store, "--avatar", point_avatar, "--template", "2", "-o", outp}, 1,
+         "vertices span 0.0 mm: not a body (at least 10 mm)"},
+        {{"transfer", "--store", store, "--avatar", far_avatar, "--template", "2", "-o", outp}, 1,
+         "far_avatar.ply: vertex 12: coordinate y = 3e+38 outside the 10 m box a body fits in"},
+        {{"transfer", "--store", store, "--avatar", "1", "--landmarks", same_lm, "--template", "2", "-o", outp}, 1,
+         "same.json: frame 0: landmarks span 0.0 mm: not a body (at least 10 mm)"},
+        {{"transfer", "--store", store, "--avatar", "1", "--landmarks", far_lm, "--template", "2", "-o", outp}, 1,
+         "far.json: frame 0, landmark 5: coordinate x = 3e+38 outside the 10 m box a body fits in"},
         {{"transfer", "--store", store, "--avatar", "1", "--landmarks", lm, "-o", outp}, 2,
          "store has no index (run mimic index)"},
         {{"transfer", "--store", empty, "--avatar", "1", "--template", "2", "-o", outp}, 2,
@@ -356,6 +387,7 @@ static void test_bad_inputs(void **s)
     }
     free(outp), free(wrong_count), free(overflow), free(malformed), free(other), free(other_mesh);
     free(two), free(truth_path), free(lm), free(empty);
+    free(point_avatar), free(far_avatar), free(same_lm), free(far_lm);
 }
 
 int main(void)

@@ -12,6 +12,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -169,11 +170,17 @@ static void test_pty_end_to_end(void **state)
     so.rate_hz = 100;
     mim_vest_motion_t m;
     mim_vest_sim_t *sim = sim_of_motion(&m, 31, &so); /* one second */
+    /* through a link, which the simulator removes when it stops: a bare
+     * /dev/pts/N path, retried after the stream ends, could open the next
+     * process's pty (another test's vest) */
+    char *dir = ts_tempdir("vest-e2e");
+    char *link = ts_path(dir, "vest"), out[4200];
+    snprintf(out, sizeof out, "pty:%s", link);
     simthread_t st;
     pthread_t th;
-    sim_start(&st, &th, sim, "pty", NULL);
-    char spec[300];
-    snprintf(spec, sizeof spec, "serial:%s", st.path);
+    sim_start(&st, &th, sim, out, NULL);
+    char spec[4200];
+    snprintf(spec, sizeof spec, "serial:%s", link);
     mim_vest_transport_options_t to = {0};
     to.timeout_ms = 300, to.reconnect_limit_ms = 300, to.backoff_min_ms = 10;
     live_t L;
@@ -190,6 +197,8 @@ static void test_pty_end_to_end(void **state)
     mim_vest_sim_close(&sim);
     mim_vest_motion_free(&m);
     vs_avatar_free(&a);
+    ts_rmtree(dir);
+    free(link), free(dir);
 }
 
 static void test_pty_disconnect(void **state)
@@ -216,6 +225,10 @@ static void test_pty_disconnect(void **state)
     mim_vest_transport_t *t = live_decode(&L, spec, &to, &a.rig, sim); /* to the stream's end, past the outage */
     pthread_join(th, NULL);
     assert_int_equal(st.rc, 0);
+    /* a vest that went away leaves no link behind (a stale one would point
+     * at a /dev/pts number the next pty gets) */
+    struct stat lst;
+    assert_int_equal(lstat(link, &lst), -1);
     assert_true(mim_vest_transport_reconnects(t) >= 1);
     /* frames from before and after the outage, all right */
     assert_true(L.first_t < 500000);

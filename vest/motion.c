@@ -65,7 +65,10 @@ static int snap(mim_vec3 v, mim_vec3 *out)
     int k = 0;
     for (int i = 1; i < 3; i++)
         if (fabs(a[i]) > fabs(a[k])) k = i;
-    if (!(fabs(a[k]) > 0)) return -1;
+    if (!(fabs(a[k]) > 0)) {
+        *out = mim_v3(0, 0, 0); /* written on every path: no caller reads an unset axis */
+        return -1;
+    }
     double s = a[k] > 0 ? 1 : -1;
     *out = mim_v3(k == 0 ? s : 0, k == 1 ? s : 0, k == 2 ? s : 0);
     return k;

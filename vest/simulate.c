@@ -165,8 +165,13 @@ static int pty_open(pty_t *p, const char *link, mim_error_t *err)
     return 0;
 }
 
-static void pty_close(pty_t *p)
+/* The vest goes away: its pty closes and its link, if any, goes too, as a
+ * USB serial port's device node does. A link left behind would point at a
+ * /dev/pts number the kernel hands to the next process that opens a pty,
+ * and a reader reconnecting through it would read that stranger's stream. */
+static void pty_close(pty_t *p, const char *link)
 {
+    if (link) unlink(link);
     if (p->master >= 0) close(p->master);
     if (p->slave >= 0) close(p->slave);
     p->master = p->slave = -1;
@@ -229,7 +234,7 @@ int mim_vest_sim_run(mim_vest_sim_t *s, const mim_vest_sim_run_t *run, mim_error
         double tk = (double)k / s->o.rate_hz;
         if (realtime) sleep_until(t0 + tk);
         if (dis_at > 0 && tk >= dis_at && tk < dis_end) {
-            if (!down && kind == PTY) pty_close(&pty);
+            if (!down && kind == PTY) pty_close(&pty, link);
             down = 1;
             continue; /* the hub's clock runs on while it is away */
         }
@@ -284,7 +289,7 @@ int mim_vest_sim_run(mim_vest_sim_t *s, const mim_vest_sim_run_t *run, mim_error
             if (ioctl(pty.slave, FIONREAD, &q) || q <= 0) break;
             sleep_until(mim_now() + 0.01);
         }
-        pty_close(&pty);
+        pty_close(&pty, link);
     }
     if (fd >= 0) close(fd);
     if (rec) {

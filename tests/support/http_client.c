@@ -119,8 +119,9 @@ int hc_read_reply(hc_reply_t *r, int fd, int timeout_ms)
 }
 
 /* Sends the parts (n of them; a NULL part is skipped) on a fresh
- * connection, half-closes and reads the reply. */
-static int exchange(hc_reply_t *r, int port, const void *const *part, const size_t *size, int n, int timeout_ms)
+ * connection, half-closes if asked and reads the reply. */
+static int exchange(hc_reply_t *r, int port, const void *const *part, const size_t *size, int n, int half_close,
+                    int timeout_ms)
 {
     memset(r, 0, sizeof *r);
     int fd = hc_connect(port, 0);
@@ -130,7 +131,8 @@ static int exchange(hc_reply_t *r, int port, const void *const *part, const size
     for (int i = 0; i < n && rc == HC_OK; i++)
         if (part[i] && hc_send_all(fd, part[i], size[i]))
             rc = HC_ESEND; /* the server may close early: what it said is read below */
-    shutdown(fd, SHUT_WR); /* the server sees the end of what we send */
+    if (half_close)
+        shutdown(fd, SHUT_WR); /* the server sees the end of what we send */
     int rr = hc_read_reply(r, fd, timeout_ms);
     close(fd);
     return rr ? rr : rc;
@@ -139,7 +141,7 @@ static int exchange(hc_reply_t *r, int port, const void *const *part, const size
 int hc_raw(hc_reply_t *r, int port, const void *req, size_t n, int timeout_ms)
 {
     const void *part[1] = {req};
-    return exchange(r, port, part, &n, 1, timeout_ms);
+    return exchange(r, port, part, &n, 1, 1, timeout_ms);
 }
 
 int hc_request(hc_reply_t *r, int port, const char *method, const char *path, const char *headers,
@@ -157,7 +159,7 @@ int hc_request(hc_reply_t *r, int port, const char *method, const char *path, co
     snprintf(head, (size_t)n + 1, fmt, method, path, port, headers ? headers : "", length);
     const void *part[2] = {head, body};
     size_t size[2] = {(size_t)n, len};
-    int rc = exchange(r, port, part, size, 2, timeout_ms);
+    int rc = exchange(r, port, part, size, 2, 0, timeout_ms);
     free(head);
     return rc;
 }

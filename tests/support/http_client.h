@@ -45,12 +45,15 @@ long hc_recv(int fd, void *buf, size_t n, double deadline);
  * Connection: close, the extra header lines (each ending in \r\n; NULL:
  * none), Content-Length when there is a body (body not NULL) unless the
  * extra lines give one, the blank line, then the body. The client then
- * half-closes and reads the reply until the server closes or timeout_ms
- * passes (HC_FOREVER: no limit). *r is filled (free with hc_reply_free)
- * unless HC_ECONNECT or HC_ENOMEM is returned. */
+ * reads the reply until the server closes (as Connection: close asks) or
+ * timeout_ms passes (HC_FOREVER: no limit), without half-closing first as
+ * browsers do not either (libwebsockets 4.1 takes a half-close after a
+ * request body for the client hanging up). *r is filled (free with
+ * hc_reply_free) unless HC_ECONNECT or HC_ENOMEM is returned. */
 int hc_request(hc_reply_t *r, int port, const char *method, const char *path, const char *headers,
                const void *body, size_t len, int timeout_ms);
-/* The same with the n bytes of req sent as they are. */
+/* The n bytes of req sent as they are, then a half-close (the client has
+ * nothing more to say), then the reply read as above. */
 int hc_raw(hc_reply_t *r, int port, const void *req, size_t n, int timeout_ms);
 /* Reads a reply on an open connection until the server closes it (EOF or
  * a reset after what arrived) or timeout_ms passes: HC_OK or HC_ENOMEM. */

@@ -383,6 +383,29 @@ void ss_assert_consecutive(const uint64_t *v, size_t n, const char *what)
                      (unsigned long long)v[i - 1], (unsigned long long)(v[i] - v[i - 1] - 1));
 }
 
+int ss_stream_reaches_newest(ws_client_t *w, int port)
+{
+    json_t *st = ss_get_status(port);
+    const uint64_t newest = (uint64_t)ss_status_int(st, NULL, "frames");
+    json_decref(st);
+    uint64_t last = 0;
+    double end = ss_now_s() + 10;
+    while (ss_now_s() < end) {
+        ws_msg_t m;
+        if (!ss_next_frame(w, &m, (int)((end - ss_now_s()) * 1000) + 1, NULL))
+            break;
+        mimf_t f = ss_parse_frame(&m);
+        ws_msg_free(&m);
+        if (last && f.number != last + 1)
+            fail_msg("frame %llu follows %llu", (unsigned long long)f.number, (unsigned long long)last);
+        last = f.number;
+        if (last >= newest)
+            return 1;
+    }
+    print_message("the client reached frame %llu, not %llu, within 10 s\n", (unsigned long long)last,
+                  (unsigned long long)newest);
+    return 0;
+}
 
 void ss_kill_children(void)
 {

@@ -70,6 +70,11 @@ json_t *ss_ws_open(ws_client_t *w, int port, const char *path, int rcvbuf);
  * them) and their local arrival times. */
 uint64_t *ss_collect_numbers(ws_client_t *w, int ms, size_t *n);
 void ss_assert_consecutive(const uint64_t *v, size_t n, const char *what);
+/* A client that keeps up gets every frame the loop publishes: reads w's
+ * frames (consecutive numbers, checked) until it holds the newest one
+ * /api/status counted when asked, within 10 s. 1 if it did. Behaviour,
+ * not a rate: a slow machine only makes it take longer. */
+int ss_stream_reaches_newest(ws_client_t *w, int port);
 /* Kills every child still running (teardown). */
 void ss_kill_children(void);
 /* A store of synth bodies (subjects x 12 poses, 1500 vertices), ingested

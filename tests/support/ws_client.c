@@ -378,16 +378,51 @@ unsigned char *ws_take_buffered(ws_client_t *w, size_t *n)
     return b;
 }
 
-int ws_wait_closed(ws_client_t *w, int timeout_ms)
+int ws_wait_close_frame(ws_client_t *w, int timeout_ms)
 {
     double deadline = hc_now_ms() + timeout_ms;
     for (;;) {
-        w->pos = w->len = 0; /* what still arrives is of no interest */
-        int r = fill(w, deadline);
+        int left = (int)(deadline - hc_now_ms());
+        if (left <= 0)
+            return WS_CLOSE_TIMEOUT;
+        ws_msg_t m;
+        int r = ws_recv(w, &m, left);
         if (r < 0)
-            return 1;
+            return WS_CLOSE_EOF;
+        if (r == 0)
+            return WS_CLOSE_TIMEOUT;
+        int st = -3;
+        if (m.opcode == WS_CLOSE)
+            st = m.len >= 2 ? (m.data[0] << 8 | m.data[1]) : 0;
+        ws_msg_free(&m);
+        if (st != -3)
+            return st;
+    }
+}
+
+int ws_wait_closed(ws_client_t *w, int timeout_ms)
+{
+    double deadline = hc_now_ms() + timeout_ms;
+    int answered = 0;
+    w->close_status = -1;
+    for (;;) {
+        int left = (int)(deadline - hc_now_ms());
+        if (left <= 0)
+            return 0;
+        ws_msg_t m;
+        int r = ws_recv(w, &m, left);
+        if (r < 0)
+            return 1; /* EOF or reset */
         if (r == 0)
             return 0;
+        if (m.opcode == WS_CLOSE && !answered) {
+            /* the server closes: answer as RFC 6455 5.5.1 asks, then it
+             * closes the TCP connection */
+            w->close_status = m.len >= 2 ? (m.data[0] << 8 | m.data[1]) : 0;
+            ws_send(w, WS_CLOSE, m.data, m.len >= 2 ? 2 : 0);
+            answered = 1;
+        }
+        ws_msg_free(&m);
     }
 }
 

@@ -60,6 +60,7 @@ typedef struct ws_client {
     unsigned char *msg; /* the data message being put together by ws_recv */
     size_t msg_len;
     int http_status;    /* of the handshake's response (0 if none came) */
+    int close_status;   /* of the close frame ws_wait_closed saw (-1: none) */
     char head[4096];    /* the response's status line and headers */
 } ws_client_t;
 
@@ -98,8 +99,16 @@ long ws_read_raw(ws_client_t *w, void *out, size_t n, int timeout_ms);
  * handshake), *n of them in a malloc'd buffer (NULL when none), handed
  * over: the client keeps none. */
 unsigned char *ws_take_buffered(ws_client_t *w, size_t *n);
+/* Reads (and drops) messages until the server's close frame, within
+ * timeout_ms: its status code (0 when it has none), WS_CLOSE_EOF when the
+ * connection closed without one, WS_CLOSE_TIMEOUT when neither came. */
+#define WS_CLOSE_EOF (-1)
+#define WS_CLOSE_TIMEOUT (-2)
+int ws_wait_close_frame(ws_client_t *w, int timeout_ms);
 /* 1 when the peer has closed the connection (EOF or reset) within
- * timeout_ms, reading and discarding whatever still arrives; 0 if not. */
+ * timeout_ms, reading and discarding whatever still arrives (a close frame
+ * is answered, as a client must: its status goes to w->close_status, -1
+ * when none came); 0 if not. */
 int ws_wait_closed(ws_client_t *w, int timeout_ms);
 /* Closes the socket (no close handshake) and frees the buffers. */
 void ws_close(ws_client_t *w);
