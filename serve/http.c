@@ -623,8 +623,8 @@ static int on_request(mim_serve_t *sv, struct lws *wsi, mim__conn_t *conn, const
     tx->declared = 0;
     tx->method = method_of(wsi);
     tx->rq.head = tx->method == M_HEAD;
-    tx->rq.path = in;
     mim__printable(in, len, tx->path, sizeof tx->path);
+    tx->rq.path = tx->path; /* (in lives in lws's header buffer, which may go before the answer) */
 
     /* how the body is framed, before anything else: a request that cannot
      * be framed must not leave bytes behind for the next one */

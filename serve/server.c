@@ -67,7 +67,11 @@ static int callback(struct lws *wsi, enum lws_callback_reasons reason, void *use
     }
     case LWS_CALLBACK_HTTP_CONFIRM_UPGRADE: {
         char why[256];
-        int status = mim__ws_confirm(sv->ws, wsi, why, sizeof why);
+        int status = 400;
+        if (!in || strcmp(in, "websocket")) /* h2c and the like: the service speaks HTTP/1.1 */
+            snprintf(why, sizeof why, "only WebSocket upgrades are taken (at /ws)");
+        else
+            status = mim__ws_confirm(sv->ws, wsi, why, sizeof why);
         if (!status)
             return 0;
         return mim__http_answer_now(sv, wsi, status, why) ? -1 : 1;

@@ -40,6 +40,11 @@ static int run(const char *const *args)
  * vest is given) and reads the URL it prints to learn the port. */
 static int start_server_on(const char *st, const char *vest)
 {
+    if (server > 0) { /* a test that failed before stopping its server */
+        kill(server, SIGKILL);
+        waitpid(server, NULL, 0);
+        server = -1;
+    }
     int fd[2];
     if (pipe(fd))
         return -1;
