@@ -15,7 +15,7 @@ PACKAGES=(
   libopenmesh-dev libtinygltf-dev
   liblmdb-dev libjansson-dev libcmocka-dev
   libsuitesparse-dev libopenblas-dev libflann-dev libsvm-dev
-  libhidapi-dev libcivetweb-dev libwebsockets-dev libxxhash-dev
+  libhidapi-dev libwebsockets-dev libxxhash-dev
   python3-jsonschema
 )
 

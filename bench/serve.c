@@ -466,7 +466,7 @@ static int run_phase(int n, double seconds, int threads, result_t *R)
         R->vest_cpu = 100.0 * (s1.vest_cpu - s0.vest_cpu) / dt;
         R->self_cpu = 100.0 * (s1.self_cpu - s0.self_cpu) / dt;
         /* the serve's busiest thread (the vest loop: query, transfer,
-         * morph, encode) against all the rest (senders, civetweb) */
+         * morph, encode) against all the rest (senders, the lws service thread) */
         double d[MAX_TASKS];
         int nd = 0;
         for (int i = 0; i < s1.tasks.n; i++) {
