@@ -67,22 +67,16 @@ int mim__db_template_decode(const mim_db_txn_t *t, uint32_t version, const MDB_v
         memcpy(&ck, p + MIM__CK_OFFSET, 8);
         if (ck != mim__db_checksum(p, v->mv_size))
             return mim__db_damaged(t->db, err, "%s: checksum mismatch", what);
-        memcpy(&out->id, p + 16, 8);
-        memcpy(&out->content_hash, p + 24, 8);
-        memcpy(&out->n_vertices, p + 32, 4);
-        memcpy(&pos_off, p + 36, 4);
-        memcpy(&ls, p + 40, 2);
-        memcpy(&lsub, p + 42, 2);
-        memcpy(&lpose, p + 44, 2);
-    } else {
-        memcpy(&out->id, p + 8, 8);
-        memcpy(&out->content_hash, p + 16, 8);
-        memcpy(&out->n_vertices, p + 24, 4);
-        memcpy(&pos_off, p + 28, 4);
-        memcpy(&ls, p + 32, 2);
-        memcpy(&lsub, p + 34, 2);
-        memcpy(&lpose, p + 36, 2);
     }
+    /* the fields are laid out alike in both versions; v2's checksum moved them 8 bytes on */
+    const unsigned char *f = p + (version >= 2 ? 16 : 8);
+    memcpy(&out->id, f, 8);
+    memcpy(&out->content_hash, f + 8, 8);
+    memcpy(&out->n_vertices, f + 16, 4);
+    memcpy(&pos_off, f + 20, 4);
+    memcpy(&ls, f + 24, 2);
+    memcpy(&lsub, f + 26, 2);
+    memcpy(&lpose, f + 28, 2);
     size_t strings_end = (size_t)hdr + ls + 1 + lsub + 1 + lpose + 1;
     if (hdr != REC_HEADER || strings_end > pos_off || pos_off % 16 ||
         (uint64_t)pos_off + (uint64_t)out->n_vertices * 12 > v->mv_size || out->id != key)
