@@ -103,6 +103,18 @@ static msg_t *msg_new(size_t len)
     return m;
 }
 
+/* A text message of JSON object j (taken); NULL when out of memory. */
+static msg_t *msg_json(json_t *j)
+{
+    char *txt = j ? json_dumps(j, JSON_COMPACT | JSON_PRESERVE_ORDER) : NULL;
+    json_decref(j);
+    msg_t *m = txt ? msg_new(strlen(txt)) : NULL;
+    if (m)
+        memcpy(m->bytes, txt, m->len);
+    free(txt);
+    return m;
+}
+
 static void msg_unref(msg_t *m)
 {
     if (m && atomic_fetch_sub(&m->refs, 1) == 1)
@@ -298,12 +310,7 @@ void mim__ws_service(mim__ws_t *ws)
 static int queue_text(client_t *c, json_t *j, int fmt)
 {
     mim__ws_t *ws = c->ws;
-    char *txt = j ? json_dumps(j, JSON_COMPACT | JSON_PRESERVE_ORDER) : NULL;
-    json_decref(j);
-    msg_t *m = txt ? msg_new(strlen(txt)) : NULL;
-    if (m)
-        memcpy(m->bytes, txt, m->len);
-    free(txt);
+    msg_t *m = msg_json(j);
     if (!m)
         return -1;
     pthread_mutex_lock(&ws->lock);
@@ -385,12 +392,7 @@ static int on_established(mim__ws_t *ws, struct lws *wsi, mim__conn_t *conn)
     json_t *j = json_pack("{s:s, s:i, s:i, s:i, s:i, s:o, s:s}", "type", "hello", "version", 1, "vertices",
                           (int)sv->mesh->n_vertices, "faces", (int)sv->mesh->n_faces, "landmarks", (int)sv->map->count,
                           "landmark_names", names, "format", fmt_names[fmt < 0 ? 0 : fmt]);
-    char *txt = j ? json_dumps(j, JSON_COMPACT | JSON_PRESERVE_ORDER) : NULL;
-    json_decref(j);
-    msg_t *hello = txt ? msg_new(strlen(txt)) : NULL;
-    if (hello)
-        memcpy(hello->bytes, txt, hello->len);
-    free(txt);
+    msg_t *hello = msg_json(j);
     if (!c || fmt < 0 || !hello) {
         free(c);
         msg_unref(hello);

@@ -62,13 +62,25 @@ static void test_help(void **s)
 static void test_usage_errors(void **s)
 {
     (void)s;
-    struct { const char *args[6]; const char *phrase; } cases[] = {
+    struct { const char *args[14]; const char *phrase; } cases[] = {
         {{"ingest", "x.ply", NULL}, "--store DIR is required"},
         {{"ingest", "--store", "/tmp/never-made", NULL}, "no PATH given"},
         {{"ingest", "--store", "s", "--batch", "zero", NULL}, "--batch 'zero' is not a number in 1..1000000"},
         {{"info", NULL}, "--store DIR is required"},
         {{"list", "--bogus", NULL}, "unknown or incomplete option '--bogus'"},
         {{"info", "--store", "/nonexistent/store", NULL}, "/nonexistent/store"},
+        /* the shared option kinds of cli/args.c, one case each */
+        {{"serve", "--store", "s", "--avatar", "1", "--vest-pose", "q", NULL}, "mimic serve: --vest-pose 'q' is not rest, t or a"},
+        {{"vest", "replay", "--pose", "z", "x.rec", NULL}, "mimic vest replay: --pose 'z' is not rest, t or a"},
+        {{"demo", "--duration", "0", NULL}, "mimic demo: --duration '0' is not a number of seconds in (0, 86400]"},
+        {{"vest", "record", "--device", "udp:127.0.0.1:9", "--duration", "-1", "-o", "x", NULL},
+         "mimic vest record: --duration '-1' is not a number in 0.001..1e+07"},
+        {{"vest", "simulate", "--motion", "demo", "--rate", "nan", "--out", "x", NULL},
+         "mimic vest simulate: --rate 'nan' is not a number in 1..2000"},
+        {{"transfer", "--store", "s", "--avatar", "1", "--template", "0", "-o", "o.ply", NULL},
+         "mimic transfer: --template '0' is not a template id (a number from mimic list)"},
+        {{"morph", "--store", "s", "--avatar", "1", "--keys", "1,x", "--frames-between", "1", "-o", "o.glb", NULL},
+         "mimic morph: --keys 'x' is not a template id (a number from mimic list)"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         char *out, *err;

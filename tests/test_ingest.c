@@ -508,6 +508,21 @@ static void hear(void *ctx, int level, const char *msg)
     }
 }
 
+/* Ingests folder data into a new store dir/NAME, the library's log lines
+ * heard in h; the store stays open in *db for the test's checks. */
+static void ingest_heard(const char *name, char *data, heard_t *h, mim_db_t **db, mim_ingest_report_t *rep)
+{
+    char *store = ts_path(dir, name);
+    mim_error_t err = {0};
+    assert_int_equal(mim_db_open(db, store, NULL, &err), 0);
+    memset(h, 0, sizeof *h);
+    mim_ingest_options_t opt = {.log = hear, .log_ctx = h};
+    char *paths[] = {data};
+    if (mim_ingest_run(*db, paths, 1, &opt, rep, &err))
+        fail_msg("ingest failed: %s", mim_error_text(&err));
+    free(store);
+}
+
 /* The line that contains `phrase`, asserting there is exactly one. */
 static const char *heard_line(const heard_t *h, const char *phrase)
 {
@@ -556,16 +571,10 @@ static void test_symlinks(void **s)
     assert_int_equal(symlink("self", self), 0);
     assert_int_equal(symlink("/nonexistent/gone.ply", gone), 0);
 
-    char *store = ts_path(dir, "store_links");
     mim_db_t *db;
-    mim_error_t err = {0};
-    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
-    heard_t h = {0};
-    mim_ingest_options_t opt = {.log = hear, .log_ctx = &h};
+    heard_t h;
     mim_ingest_report_t rep;
-    char *paths[] = {data};
-    int rc = mim_ingest_run(db, paths, 1, &opt, &rep, &err);
-    if (rc) fail_msg("ingest failed: %s", mim_error_text(&err));
+    ingest_heard("store_links", data, &h, &db, &rep);
     assert_int_equal(rep.added, 3);
     assert_int_equal(rep.templates, 3);
     assert_int_equal(rep.failed, 1);
@@ -593,7 +602,7 @@ static void test_symlinks(void **s)
     assert_non_null(strstr(errs, "dangling symlink to /nonexistent/gone.ply\n"));
     assert_non_null(strstr(errs, "/data/a: symlink loop (already walked as "));
     free(out), free(errs);
-    free(store2), free(store), free(a), free(b), free(self), free(gone), free(lm), free(data), free(parent);
+    free(store2), free(a), free(b), free(self), free(gone), free(lm), free(data), free(parent);
 }
 
 /* A .gltf whose buffer is the triangulated sphere in an external file: the
@@ -723,15 +732,10 @@ static void test_implausible_meshes(void **s)
     ts_write_ply_binary(far, &m);
     ts_polymesh_free(&m);
 
-    char *store = ts_path(dir, "store_implausible");
     mim_db_t *db;
-    mim_error_t err = {0};
-    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
-    heard_t h = {0};
-    mim_ingest_options_t opt = {.log = hear, .log_ctx = &h};
+    heard_t h;
     mim_ingest_report_t rep;
-    char *paths[] = {data};
-    assert_int_equal(mim_ingest_run(db, paths, 1, &opt, &rep, &err), 0);
+    ingest_heard("store_implausible", data, &h, &db, &rep);
     assert_int_equal(rep.added, 3);
     assert_int_equal(rep.failed, 2);
     assert_int_equal(rep.templates, 3);
@@ -743,7 +747,7 @@ static void test_implausible_meshes(void **s)
     snprintf(want, sizeof want, "%s: vertex 12: coordinate y = 3e+38 outside the 10 m box a body fits in", far);
     assert_non_null(strstr(heard_line(&h, "zz_far.ply"), want));
     mim_db_close(&db);
-    free(store), free(far), free(point), free(data);
+    free(far), free(point), free(data);
 }
 
 /* The real dataset, when it is beside the project: all 96 go in, labelled. */
