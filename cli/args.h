@@ -39,4 +39,12 @@ mim_db_options_t mim_cli_db_options(int read_only);
  * too), as MIM_VEST_POSE_*. Prints one line and returns -1 otherwise. */
 int mim_cli_pose(const char *cmd, const char *name, const char *text, int *pose);
 
+/* For --register and mimic register: the store's index (a query) and a
+ * registrar over the store's connectivity that finds starting templates
+ * through it (mim_ingest_registrar_open with mim_query_nearest). Prints
+ * one line and returns 2 when the store is empty or has no index. */
+struct mim_query;
+struct mim_ingest_registrar;
+int mim_cli_registrar_open(mim_db_t *db, const char *cmd, struct mim_query **q, struct mim_ingest_registrar **r);
+
 #endif

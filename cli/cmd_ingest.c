@@ -3,6 +3,7 @@
 #include "commands.h"
 #include "mim_db.h"
 #include "mim_ingest.h"
+#include "mim_query.h"
 #include "output.h"
 
 #include <getopt.h>
@@ -13,15 +14,23 @@
 static void help(FILE *out)
 {
     fprintf(out,
-            "usage: mimic ingest --store DIR [--landmarks FILE] [--manifest CSV] [--batch N] [--threads N] PATH...\n\n"
+            "usage: mimic ingest --store DIR [--landmarks FILE] [--manifest CSV] [--batch N] [--threads N]\n"
+            "                    [--register [--max-distance-mm MM]] PATH...\n\n"
             "Reads every mesh under each PATH (a file, or a folder walked recursively for\n"
             ".off .ply .obj .stl .gltf .glb), checks it, and stores it as a template.\n\n"
             "  --store DIR       the template store (created if missing)\n"
-            "  --landmarks FILE  landmark map for a new store (default: landmarks.json beside the meshes)\n"
+            "  --landmarks FILE  landmark map for a new store (default: landmarks.json beside the meshes);\n"
+            "                    with --register, a landmark map of the meshes' own connectivity\n"
             "  --manifest CSV    labels: a CSV with columns file,subject,pose (default: labels from\n"
             "                    file names: FAUST tr_reg_NNN, SCAPE meshNNN, NAME_sSS_pPP)\n"
             "  --batch N         templates per committed transaction (default 64)\n"
             "  --threads N       reader threads (default: one per core)\n"
+            "  --register        register meshes of another connectivity onto the store's (landmarks from\n"
+            "                    NAME.landmarks.json beside each, --landmarks or landmarks.json beside the\n"
+            "                    dataset as a map of their connectivity, or a built-in map such as SMPL's);\n"
+            "                    needs the store's index (mimic index)\n"
+            "  --max-distance-mm MM  refuse a registration whose surface distance p95 is over MM\n"
+            "                    (default 15)\n"
             "  -q, --quiet       no per-file error lines\n"
             "  -h, --help        this help\n\n"
             "The first ingest into an empty store fixes its connectivity; later meshes must share it.\n"
@@ -36,8 +45,10 @@ int mim_cmd_ingest(int argc, char **argv)
         {"store", required_argument, 0, 's'},   {"landmarks", required_argument, 0, 'l'},
         {"manifest", required_argument, 0, 'm'}, {"batch", required_argument, 0, 'b'},
         {"threads", required_argument, 0, 't'}, {"quiet", no_argument, 0, 'q'},
+        {"register", no_argument, 0, 'r'},      {"max-distance-mm", required_argument, 0, 'D'},
         {"help", no_argument, 0, 'h'},          {0, 0, 0, 0},
     };
+    int do_register = 0;
     const char *store = NULL;
     mim_ingest_options_t opt = {.log = mim_cli_log, .progress = mim_cli_progress};
     optind = 0;
@@ -58,6 +69,12 @@ int mim_cmd_ingest(int argc, char **argv)
             opt.threads = (uint32_t)v;
             break;
         case 'q': opt.quiet = 1; break;
+        case 'r': do_register = 1; break;
+        case 'D':
+            if (mim_cli_real("ingest", "max-distance-mm", optarg, 0.0, 1000.0, 1, "is not a distance in (0, 1000] mm",
+                             &opt.max_distance_mm))
+                return 2;
+            break;
         case 'h': help(stdout); return 0;
         default:
             fprintf(stderr, "mimic ingest: unknown or incomplete option '%s' (see mimic ingest --help)\n", argv[optind - 1]);
@@ -80,20 +97,29 @@ int mim_cmd_ingest(int argc, char **argv)
         fprintf(stderr, "mimic ingest: %s\n", mim_error_text(&err));
         return 2;
     }
+    mim_query_t *q = NULL;
+    if (do_register && (rc = mim_cli_registrar_open(db, "ingest", &q, &opt.registrar))) {
+        mim_db_close(&db);
+        return rc;
+    }
     mim_ingest_report_t rep;
     rc = mim_ingest_run(db, argv + optind, (size_t)(argc - optind), &opt, &rep, &err);
+    mim_ingest_registrar_close(&opt.registrar);
+    mim_query_close(&q);
     mim_db_close(&db);
     if (rc) {
         fprintf(stderr, "mimic ingest: %s\n", mim_error_text(&err));
         return 2;
     }
-    char skipped[64] = "";
+    char skipped[64] = "", registered[64] = "";
+    if (rep.registered)
+        snprintf(registered, sizeof registered, " (%llu registered)", (unsigned long long)rep.registered);
     if (rep.skipped) /* symlink loops, each reported above */
         snprintf(skipped, sizeof skipped, ", %llu skipped", (unsigned long long)rep.skipped);
-    printf("ingested %llu files in %.2f s (%.1f files/s): %llu added, %llu already stored, %llu failed%s; store holds "
+    printf("ingested %llu files in %.2f s (%.1f files/s): %llu added%s, %llu already stored, %llu failed%s; store holds "
            "%llu templates\n",
            (unsigned long long)rep.files, rep.seconds, rep.seconds > 0 ? (double)rep.files / rep.seconds : 0.0,
-           (unsigned long long)rep.added, (unsigned long long)rep.duplicates, (unsigned long long)rep.failed, skipped,
+           (unsigned long long)rep.added, registered, (unsigned long long)rep.duplicates, (unsigned long long)rep.failed, skipped,
            (unsigned long long)rep.templates);
     return rep.failed ? 1 : 0;
 }

@@ -12,7 +12,9 @@
 static void help(FILE *out)
 {
     fprintf(out, "usage: mimic list --store DIR [--subject S] [--pose P] [--json]\n\n"
-                 "Lists the templates of a store: id, subject, pose and source path.\n\n"
+                 "Lists the templates of a store: id, subject, pose and source path, and for a\n"
+                 "template registered from a mesh of another connectivity its fit to that mesh\n"
+                 "(\"registered MEAN/P95 mm\": mean and 95th-percentile surface distance).\n\n"
                  "  --store DIR    the template store\n"
                  "  --subject S    only templates of subject S\n"
                  "  --pose P       only templates in pose P\n"
@@ -22,6 +24,8 @@ static void help(FILE *out)
 
 typedef struct {
     const char *subject, *pose;
+    mim_db_txn_t *txn;
+    mim_error_t *err;
     json_t *rows; /* NULL: print text */
     uint64_t shown;
 } list_t;
@@ -32,11 +36,25 @@ static int row(const mim_template_view_t *t, void *user)
     if (l->subject && strcmp(l->subject, t->subject)) return 0;
     if (l->pose && strcmp(l->pose, t->pose)) return 0;
     l->shown++;
-    if (l->rows)
-        return json_array_append_new(l->rows, json_pack("{s:I, s:s, s:s, s:s}", "id", (json_int_t)t->id, "subject",
-                                                        t->subject, "pose", t->pose, "source", t->source));
-    printf("%8llu  %-10s %-10s %s\n", (unsigned long long)t->id, t->subject[0] ? t->subject : "-",
+    mim_db_registration_t reg;
+    int rc = mim_db_registration_get(l->txn, t->id, &reg, l->err);
+    if (rc && rc != MIM_ENOTFOUND) return rc; /* damage: the message is in l->err */
+    const int registered = rc == 0;
+    if (l->rows) {
+        json_t *o = json_pack("{s:I, s:s, s:s, s:s}", "id", (json_int_t)t->id, "subject", t->subject, "pose", t->pose,
+                              "source", t->source);
+        if (o && registered)
+            json_object_set_new(o, "registration",
+                                json_pack("{s:f, s:f, s:f, s:I, s:I}", "mean_mm", reg.mean_mm, "p95_mm", reg.p95_mm,
+                                          "max_mm", reg.max_mm, "iterations", (json_int_t)reg.iterations,
+                                          "source_vertices", (json_int_t)reg.source_vertices));
+        if (!o || json_array_append_new(l->rows, o)) return mim_error_set(l->err, MIM_ENOMEM, "out of memory");
+        return 0;
+    }
+    printf("%8llu  %-10s %-10s %s", (unsigned long long)t->id, t->subject[0] ? t->subject : "-",
            t->pose[0] ? t->pose : "-", t->source);
+    if (registered) printf("  registered %.2f/%.2f mm", reg.mean_mm, reg.p95_mm);
+    printf("\n");
     return 0;
 }
 
@@ -71,6 +89,8 @@ int mim_cmd_list(int argc, char **argv)
     mim_db_txn_t *t = NULL;
     int rc = mim_db_open(&db, store, &o, &err);
     if (!rc) rc = mim_db_begin(db, 0, &t, &err);
+    l.txn = t;
+    l.err = &err;
     if (!rc) {
         if (as_json) l.rows = json_array();
         else printf("%8s  %-10s %-10s %s\n", "id", "subject", "pose", "source");

@@ -16,5 +16,6 @@ int mim_cmd_transfer(int argc, char **argv);
 int mim_cmd_morph(int argc, char **argv);
 int mim_cmd_serve(int argc, char **argv);
 int mim_cmd_demo(int argc, char **argv);
+int mim_cmd_register(int argc, char **argv);
 
 #endif

@@ -150,6 +150,25 @@ int mim_landmark_frames_parse(const char *text, size_t len, const char *origin, 
                               uint32_t max_missing, mim_landmark_frames_t *out, mim_error_t *err);
 void mim_landmark_frames_free(mim_landmark_frames_t *f); /* accepts NULL and an empty set */
 
+/* A landmark file for one mesh (landmark_file.c), of either form: a
+ * landmark MAP (MIM_LANDMARK_FILE_MAP: it has "topology_vertices", or its
+ * landmarks are {"name", "vertex"} objects), parsed into map as
+ * mim_landmarks_parse does and holding n_landmarks landmarks; or ONE frame
+ * of landmark POSITIONS (MIM_LANDMARK_FILE_POSITIONS: {"landmarks":
+ * [[x, y, z], ...]} or {"frames": [one frame]}), n_landmarks of them, all
+ * present, into positions (3 * n_landmarks floats). Only the output of the
+ * kind found is written. Errors, one line naming path: malformed JSON
+ * (path:line:column, MIM_EFORMAT); more than one frame ("PATH: 3 frames: a
+ * landmark file for one mesh holds one"); a null landmark, named when
+ * n_landmarks is 16 ("PATH: landmark 3 (l_shoulder) is missing:
+ * registration needs all of them"); a map of another count; then the map's
+ * and the frames parser's errors; a file over
+ * MIM_LANDMARK_FRAMES_MAX_BYTES (MIM_EUNSUPPORTED); one that cannot be
+ * opened (MIM_ENOTFOUND/MIM_EIO); MIM_EINVAL for bad arguments. */
+typedef enum { MIM_LANDMARK_FILE_MAP = 1, MIM_LANDMARK_FILE_POSITIONS = 2 } mim_landmark_file_kind_t;
+int mim_landmark_file_read(const char *path, uint32_t n_landmarks, mim_landmark_file_kind_t *kind,
+                           mim_landmark_map_t *map, float *positions, mim_error_t *err);
+
 /* One landmark array, [[x, y, z] | null, ...] (a jansson value: the
  * landmark-frames files, vest UDP datagrams), into positions (3 * n floats,
  * NaN where null) and present (n: 1 present, 0 null). Messages begin with

@@ -8,6 +8,9 @@
  *   topology    hash of the faces; every face index below the vertex count
  *   landmarks   parses, and fits the topology
  *   index       build record and model checksums; built at or below next_id
+ *   registrations  belong to a stored template; listed in by_source
+ *   by_source   each entry names a registration from that source
+ *   bindings    decode and pass their checksum (opaque otherwise)
  * Before any of that, every LMDB page of the snapshot is read from the
  * file and checked (lmdb_walk.c), so that damage inside LMDB's own trees
  * is reported instead of followed. Problems are reported one line each
@@ -29,6 +32,11 @@ typedef struct {
 } tmpl_t;
 
 typedef struct {
+    uint64_t id, source_hash;
+    uint8_t bad; /* did not decode: no cross-checks */
+} reg_t;
+
+typedef struct {
     mim_db_txn_t *t;
     const mim_db_check_options_t *opt;
     mim_db_check_report_t *out;
@@ -37,6 +45,9 @@ typedef struct {
     tmpl_t *tm;
     size_t n_tm, cap_tm;
     int templates_read; /* the templates table was read: encodings can be matched to it */
+    reg_t *rg;          /* registrations read, in id order */
+    size_t n_rg, cap_rg;
+    int registrations_read;
 } ctx_t;
 
 static void report(ctx_t *c, const char *table, uint64_t id, const char *msg)
@@ -260,6 +271,89 @@ static void visit_encoding(ctx_t *c, uint64_t id, const MDB_val *v, void *user)
                 (unsigned long long)id, enc.n_vertices, r->n);
 }
 
+static reg_t *find_reg(ctx_t *c, uint64_t id)
+{
+    size_t lo = 0, hi = c->n_rg;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (c->rg[mid].id < id) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo < c->n_rg && c->rg[lo].id == id ? &c->rg[lo] : NULL;
+}
+
+static void visit_registration(ctx_t *c, uint64_t id, const MDB_val *v, void *user)
+{
+    MDB_cursor *by_source = user;
+    c->out->registrations++;
+    reg_t *r = NULL;
+    if (c->n_rg == c->cap_rg) {
+        size_t cap = c->cap_rg ? 2 * c->cap_rg : 256;
+        reg_t *p = realloc(c->rg, cap * sizeof *p);
+        if (p) c->rg = p, c->cap_rg = cap;
+    }
+    if (c->n_rg < c->cap_rg) { /* else counted, and its source-index entries go unmatched */
+        r = &c->rg[c->n_rg++];
+        memset(r, 0, sizeof *r);
+        r->id = id;
+    }
+    mim_db_registration_t reg;
+    mim_error_t e = {0};
+    if (mim__db_registration_decode(c->t, v, id, &reg, &e)) {
+        if (r) r->bad = 1;
+        report_err(c, "registrations", id, &e);
+        return;
+    }
+    if (r) r->source_hash = reg.source_hash;
+    if (c->templates_read && !find_tmpl(c, id))
+        reportf(c, "registrations", id, "registration %llu: template %llu is not stored", (unsigned long long)id,
+                (unsigned long long)id);
+    size_t h = (size_t)reg.source_hash, key = (size_t)id;
+    MDB_val hk = {sizeof h, &h}, hv = {sizeof key, &key};
+    if (by_source && mdb_cursor_get(by_source, &hk, &hv, MDB_GET_BOTH) != 0)
+        reportf(c, "registrations", id, "registration %llu: missing from the source index", (unsigned long long)id);
+}
+
+static void check_by_source(ctx_t *c)
+{
+    MDB_cursor *cur;
+    MDB_val k, v;
+    int rc = mdb_cursor_open(c->t->txn, c->t->db->dbi[DBI_BY_SOURCE], &cur);
+    if (!rc) {
+        for (rc = mdb_cursor_get(cur, &k, &v, MDB_FIRST); rc == 0; rc = mdb_cursor_get(cur, &k, &v, MDB_NEXT)) {
+            c->out->source_entries++;
+            step(c);
+            size_t h, id;
+            if (k.mv_size != sizeof h || v.mv_size != sizeof id) {
+                reportf(c, "by_source", 0, "source index: an entry of %zu + %zu bytes", k.mv_size, v.mv_size);
+                continue;
+            }
+            memcpy(&h, k.mv_data, sizeof h);
+            memcpy(&id, v.mv_data, sizeof id);
+            reg_t *r = find_reg(c, id);
+            if (!r)
+                reportf(c, "by_source", id, "source index: entry %016llx names template %llu, which has no registration",
+                        (unsigned long long)h, (unsigned long long)id);
+            else if (!r->bad && r->source_hash != h)
+                reportf(c, "by_source", id,
+                        "source index: entry %016llx names template %llu, registered from source %016llx",
+                        (unsigned long long)h, (unsigned long long)id, (unsigned long long)r->source_hash);
+        }
+        mdb_cursor_close(cur);
+    }
+    if (rc != MDB_NOTFOUND) reportf(c, "by_source", 0, "source index: cannot be read (%s)", mdb_strerror(rc));
+}
+
+static void visit_binding(ctx_t *c, uint64_t key, const MDB_val *v, void *user)
+{
+    (void)user;
+    c->out->bindings++;
+    const void *blob;
+    size_t len;
+    mim_error_t e = {0};
+    if (mim__db_binding_decode(c->t, v, key, &blob, &len, &e)) report_err(c, "bindings", 0, &e);
+}
+
 static void check_by_hash(ctx_t *c)
 {
     MDB_cursor *cur;
@@ -321,11 +415,12 @@ int mim_db_check(mim_db_t *db, const mim_db_check_options_t *opt, mim_db_check_r
     int rc = mim_db_begin(db, 0, &c.t, err);
     if (rc) return rc;
     out->schema_version = c.t->version;
-    MDB_stat s1, s2, s3;
     uint64_t total = 0;
-    if (!mdb_stat(c.t->txn, db->dbi[DBI_TEMPLATES], &s1)) total += s1.ms_entries;
-    if (db->have_encodings && !mdb_stat(c.t->txn, db->dbi[DBI_ENCODINGS], &s2)) total += s2.ms_entries;
-    if (!mdb_stat(c.t->txn, db->dbi[DBI_BY_HASH], &s3)) total += s3.ms_entries;
+    static const int counted[] = {DBI_TEMPLATES, DBI_ENCODINGS, DBI_BY_HASH, DBI_REGISTRATIONS, DBI_BY_SOURCE, DBI_BINDINGS};
+    for (size_t i = 0; i < sizeof counted / sizeof *counted; i++) {
+        MDB_stat st;
+        if (mim__db_have(db, counted[i]) && !mdb_stat(c.t->txn, db->dbi[counted[i]], &st)) total += st.ms_entries;
+    }
     c.prog = (mim_progress_t){.fn = opt->progress, .ctx = opt->progress_ctx};
     mim_progress_begin(&c.prog, "check", total);
 
@@ -340,7 +435,7 @@ int mim_db_check(mim_db_t *db, const mim_db_check_options_t *opt, mim_db_check_r
     }
 #define READABLE(i) (!(bad & (1u << MIM__WALK_LIST)) && !(bad & (1u << (i))))
     for (int i = 0; i < DBI_COUNT_; i++)
-        if (!READABLE(i) && (i != DBI_ENCODINGS || db->have_encodings))
+        if (!READABLE(i) && mim__db_have(db, i))
             reportf(&c, mim__db_table_names[i], 0, "table '%s': records not checked (its pages are damaged)",
                     mim__db_table_names[i]);
     mim_db_meta_t meta = {.next_id = UINT64_MAX};
@@ -358,11 +453,21 @@ int mim_db_check(mim_db_t *db, const mim_db_check_options_t *opt, mim_db_check_r
     for (size_t i = 0; i < c.n_tm; i++) out->templates_without_encoding += !c.tm[i].has_encoding && !c.tm[i].bad;
     if (READABLE(DBI_BY_HASH) && c.templates_read) check_by_hash(&c);
     if (READABLE(DBI_META)) check_index(&c, &meta);
+    if (db->have_registrations) {
+        MDB_cursor *by_source = NULL;
+        if (!READABLE(DBI_BY_SOURCE) || mdb_cursor_open(c.t->txn, db->dbi[DBI_BY_SOURCE], &by_source)) by_source = NULL;
+        c.registrations_read = READABLE(DBI_REGISTRATIONS);
+        if (c.registrations_read) walk(&c, DBI_REGISTRATIONS, "registrations", visit_registration, by_source);
+        if (by_source) mdb_cursor_close(by_source);
+        if (READABLE(DBI_BY_SOURCE) && c.registrations_read) check_by_source(&c);
+    }
+    if (db->have_bindings && READABLE(DBI_BINDINGS)) walk(&c, DBI_BINDINGS, "bindings", visit_binding, NULL);
 #undef READABLE
 
     mim_progress_end(&c.prog);
     mim_db_abort(&c.t);
     free(c.tm);
+    free(c.rg);
     out->seconds = mim_now() - t0;
     return 0;
 }

@@ -9,7 +9,18 @@
 #include <stdatomic.h>
 #include <xxhash.h>
 
-enum { DBI_META, DBI_TOPOLOGY, DBI_LANDMARKS, DBI_TEMPLATES, DBI_BY_HASH, DBI_ENCODINGS, DBI_COUNT_ };
+enum {
+    DBI_META,
+    DBI_TOPOLOGY,
+    DBI_LANDMARKS,
+    DBI_TEMPLATES,
+    DBI_BY_HASH,
+    DBI_ENCODINGS,
+    DBI_REGISTRATIONS, /* schema version 3 */
+    DBI_BY_SOURCE,     /* schema version 3 */
+    DBI_BINDINGS,      /* schema version 3 */
+    DBI_COUNT_
+};
 
 /* Table names, in DBI_* order, and the LMDB flags each is opened with. */
 extern const char *const mim__db_table_names[DBI_COUNT_];
@@ -19,6 +30,9 @@ struct mim_db {
     MDB_env *env;
     MDB_dbi dbi[DBI_COUNT_];
     int have_encodings; /* 0: a version-1 store without the table, opened read-only */
+    /* 0: a store of version 1 or 2 without these tables, opened read-only
+     * (registrations: both `registrations` and `by_source`) */
+    int have_registrations, have_bindings;
     char *path;
     int read_only;
     uint32_t page_size;
@@ -109,9 +123,30 @@ int mim__db_index_build_decode(const mim_db_txn_t *t, uint32_t version, const MD
 int mim__db_index_build_write(mim_db_txn_t *t, const void *blob, size_t len, const mim_db_index_meta_t *m,
                               mim_error_t *err);
 
-/* Rewrites a version-1 store as version 2 inside the write transaction t
- * (the caller commits; an error leaves t to be aborted, the store as it
- * was). */
+/* Whether the table of DBI_* i is open in db (tables added by a later
+ * schema version are missing from an older store opened read-only). */
+static inline int mim__db_have(const mim_db_t *db, int i)
+{
+    if (i == DBI_ENCODINGS) return db->have_encodings;
+    if (i == DBI_REGISTRATIONS || i == DBI_BY_SOURCE) return db->have_registrations;
+    if (i == DBI_BINDINGS) return db->have_bindings;
+    return 1;
+}
+
+/* Registration records (registration.c): the record of template `key`,
+ * checked (bounds, magic, size, checksum, id, values). */
+int mim__db_registration_decode(const mim_db_txn_t *t, const MDB_val *v, uint64_t key, mim_db_registration_t *out,
+                                mim_error_t *err);
+/* Binding records (binding.c): the blob of key `key`, checked, lent. */
+int mim__db_binding_decode(const mim_db_txn_t *t, const MDB_val *v, uint64_t key, const void **blob, size_t *len,
+                           mim_error_t *err);
+
+/* Brings a store of schema version t->version (1 or 2) to the current
+ * version inside the write transaction t, whose tables the caller has
+ * opened or created (1 -> 2: every record rewritten with its checksum;
+ * 2 -> 3: the new tables, created empty by the caller; then
+ * schema_version). The caller commits; an error leaves t to be aborted,
+ * the store as it was. */
 int mim__db_migrate(mim_db_txn_t *t, const mim_db_options_t *opt, mim_error_t *err);
 
 #endif

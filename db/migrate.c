@@ -1,21 +1,32 @@
-/* Schema version 1 -> 2: every template, encoding, landmark-map and
- * index-build record rewritten with its checksum (schemas/store.md), in the
- * one write transaction that opens the store for writing, so the store is
- * either all version 1 or all version 2 and readers of either snapshot see
- * a consistent one. Nothing damaged is stamped with a fresh checksum: a
- * version-1 template whose positions do not match their content hash, or
- * a record that does not decode, stops the migration and the store stays as
- * it was. The topology record does not change (its hash is its checksum);
- * nor does by_hash. */
+/* Migrations, in the one write transaction that opens an older store for
+ * writing, so the store is wholly of its old version or wholly of the
+ * current one and readers of either snapshot see a consistent one
+ * (schemas/store.md):
+ *   1 -> 2  every template, encoding, landmark-map and index-build record
+ *           rewritten with its checksum. Nothing damaged is stamped with a
+ *           fresh checksum: a version-1 template whose positions do not
+ *           match their content hash, or a record that does not decode,
+ *           stops the migration and the store stays as it was. The
+ *           topology record does not change (its hash is its checksum);
+ *           nor does by_hash.
+ *   2 -> 3  the registrations, by_source and bindings tables, empty (the
+ *           caller, init_store, creates every missing table in this same
+ *           transaction); no record changes.
+ * A version-1 store goes 1 -> 2 -> 3 in the one transaction; then
+ * schema_version is set to the current version. */
 #include "internal.h"
 #include "mim_schema_version.h"
 
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-static const char damage_suffix[] = " (found while migrating the store to schema version 2: nothing was changed; "
-                                    "mimic store check lists every problem)";
-static const char other_suffix[] = " (while migrating the store to schema version 2: nothing was changed)";
+#define STR_(x) #x
+#define STR(x) STR_(x)
+static const char damage_suffix[] = " (found while migrating the store to schema version " STR(MIM_STORE_SCHEMA_VERSION)
+                                    ": nothing was changed; mimic store check lists every problem)";
+static const char other_suffix[] =
+    " (while migrating the store to schema version " STR(MIM_STORE_SCHEMA_VERSION) ": nothing was changed)";
 
 /* A record copied out of the map (after its bounds are checked), so that
  * rewriting it never reads pages LMDB is handing back. */
@@ -134,24 +145,57 @@ static int migrate_index(mim_db_txn_t *t, mim_error_t *err)
     return rc;
 }
 
+/* 1 -> 2: every record gains its checksum. Decodes with version 1 (t's),
+ * writes version 2. */
+static int migrate_checksums(mim_db_txn_t *t, mim_progress_t *prog, mim_error_t *e)
+{
+    uint64_t done = 0;
+    mim_db_topology_t topo;
+    int rc = mim_db_topology_get(t, &topo, e);
+    if (rc == MIM_ENOTFOUND) rc = 0;
+    if (!rc) rc = migrate_landmarks(t, e);
+    if (!rc) rc = rewrite_table(t, DBI_TEMPLATES, "templates", rewrite_template, prog, &done, e);
+    if (!rc) rc = rewrite_table(t, DBI_ENCODINGS, "encodings", rewrite_encoding, prog, &done, e);
+    if (!rc) rc = migrate_index(t, e);
+    if (!rc) t->version = 2;
+    return rc;
+}
+
+/* 2 -> 3: the new tables must be there, empty (the caller created them in
+ * this transaction; a store of version 2 that already held one with
+ * records is not one mimic wrote). */
+static int migrate_tables(mim_db_txn_t *t, mim_error_t *e)
+{
+    static const int added[] = {DBI_REGISTRATIONS, DBI_BY_SOURCE, DBI_BINDINGS};
+    for (size_t i = 0; i < sizeof added / sizeof *added; i++) {
+        MDB_stat s;
+        int rc = mdb_stat(t->txn, t->db->dbi[added[i]], &s);
+        if (rc) return mim__db_fail(t->db, e, rc, mim__db_table_names[added[i]]);
+        if (s.ms_entries)
+            return mim__db_damaged(t->db, e, "a store of schema version 2 with %llu records in its '%s' table",
+                                   (unsigned long long)s.ms_entries, mim__db_table_names[added[i]]);
+    }
+    t->version = 3;
+    return 0;
+}
+
+_Static_assert(MIM_STORE_SCHEMA_VERSION == 3, "a new schema version needs its step in mim__db_migrate");
+
 int mim__db_migrate(mim_db_txn_t *t, const mim_db_options_t *opt, mim_error_t *err)
 {
     mim_db_t *db = t->db;
+    const uint32_t from = t->version;
     MDB_stat st, se;
     int rc = mdb_stat(t->txn, db->dbi[DBI_TEMPLATES], &st);
     if (!rc) rc = mdb_stat(t->txn, db->dbi[DBI_ENCODINGS], &se);
     if (rc) return mim__db_fail(db, err, rc, "migration");
+    if (from < 1 || from >= MIM_STORE_SCHEMA_VERSION)
+        return mim_error_set(err, MIM_EINVAL, "%s: no migration from schema version %u", db->path, from);
     mim_progress_t prog = {.fn = opt ? opt->progress : NULL, .ctx = opt ? opt->progress_ctx : NULL};
-    mim_progress_begin(&prog, "migrate", st.ms_entries + se.ms_entries);
-    uint64_t done = 0;
+    mim_progress_begin(&prog, "migrate", from == 1 ? st.ms_entries + se.ms_entries : 0);
     mim_error_t e = {0};
-    mim_db_topology_t topo;
-    rc = mim_db_topology_get(t, &topo, &e);
-    if (rc == MIM_ENOTFOUND) rc = 0;
-    if (!rc) rc = migrate_landmarks(t, &e);
-    if (!rc) rc = rewrite_table(t, DBI_TEMPLATES, "templates", rewrite_template, &prog, &done, &e);
-    if (!rc) rc = rewrite_table(t, DBI_ENCODINGS, "encodings", rewrite_encoding, &prog, &done, &e);
-    if (!rc) rc = migrate_index(t, &e);
+    if (t->version == 1) rc = migrate_checksums(t, &prog, &e);
+    if (!rc && t->version == 2) rc = migrate_tables(t, &e);
     if (!rc) {
         uint64_t ver = MIM_STORE_SCHEMA_VERSION;
         MDB_val k = {14, "schema_version"}, d = {8, &ver};
@@ -162,10 +206,15 @@ int mim__db_migrate(mim_db_txn_t *t, const mim_db_options_t *opt, mim_error_t *e
         return mim_error_set(err, rc, "%s%s", e.msg[0] ? e.msg : mim_strerror(rc),
                              strncmp(e.msg, "store damaged", 13) ? other_suffix : damage_suffix);
     t->version = MIM_STORE_SCHEMA_VERSION;
-    if (opt && opt->log)
+    if (opt && opt->log) {
+        char checksums[160] = "";
+        if (from == 1)
+            snprintf(checksums, sizeof checksums, "%llu templates and %llu encodings now carry checksums; ",
+                     (unsigned long long)st.ms_entries, (unsigned long long)se.ms_entries);
         mim_log_emit(opt->log, opt->log_ctx, MIM_LOG_INFO,
-                     "%s: migrated from schema version 1 to %d: %llu templates and %llu encodings now carry checksums",
-                     db->path, MIM_STORE_SCHEMA_VERSION, (unsigned long long)st.ms_entries,
-                     (unsigned long long)se.ms_entries);
+                     "%s: migrated from schema version %u to %d: %sadded the registrations, by_source and bindings "
+                     "tables (empty)",
+                     db->path, from, MIM_STORE_SCHEMA_VERSION, checksums);
+    }
     return 0;
 }

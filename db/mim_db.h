@@ -8,24 +8,32 @@
  *   templates   id -> template record (labels, source, float32 positions)
  *   by_hash     content hash -> ids (dedupe)
  *   encodings   id -> the template's intrinsic encoding (ingest adds it)
+ *   registrations  id -> how a registered template was made (register/)
+ *   by_source   source-mesh hash -> ids (idempotent re-ingest)
+ *   bindings    u64 key -> a cached avatar binding blob (register/)
  *
  * Many readers and one writer may work at once, from different processes.
  * Data lent out of the store (pointers in views) points into the memory map
  * and is valid until the transaction that produced it ends.
  *
- * Integrity (schema version 2): every template, encoding, landmark and
- * index-build record carries an XXH3-64 checksum, written on put and checked
- * on every read; the topology record is checked against its own hash. A
+ * Integrity (schema versions 2 and 3): every template, encoding, landmark,
+ * index-build, registration and binding record carries an XXH3-64
+ * checksum, written on put and checked on every read; the topology record
+ * is checked against its own hash. A
  * record that fails is never lent out: the call fails with MIM_ESTORE and
  * "store damaged: DIR: template N: checksum mismatch" (or what else is
  * wrong). A damaged data.mdb (truncated, not LMDB, tables missing, a
  * damaged page in LMDB's table list or at the root of a table) fails
  * mim_db_open the same way. mim_db_check verifies a whole store.
  *
- * Version-1 stores (no checksums): a read-only open reads them as they are
- * (mim_db_meta_t.schema_version says 1); the first read-write open rewrites
- * every record as version 2 in one transaction (all or nothing), refusing
- * if a template's positions do not match their content hash. */
+ * Older stores: a read-only open reads them as they are
+ * (mim_db_meta_t.schema_version says 1 or 2; without the tables of version
+ * 3, registrations and bindings are simply not found). The first
+ * read-write open migrates them to version 3 in one transaction (all or
+ * nothing): version 1 has every record rewritten with its checksum
+ * (refusing if a template's positions do not match their content hash),
+ * then versions 1 and 2 get the registrations, by_source and bindings
+ * tables, empty. */
 #ifndef MIM_DB_H
 #define MIM_DB_H
 
@@ -47,7 +55,7 @@ typedef struct mim_db_options {
      * MIMIC_MAP_SIZE here. */
     uint64_t map_size;
     int read_only; /* open an existing store for reading only */
-    /* A read-write open of a version-1 store migrates it (above): progress
+    /* A read-write open of an older store migrates it (above): progress
      * over its records (label "migrate") and one log line when done. NULL:
      * quiet. */
     mim_progress_fn progress;
@@ -162,6 +170,52 @@ int mim_db_encoding_put(mim_db_txn_t *txn, uint64_t id, const float *frames, con
  * encodings were kept: callers compute it from the positions). */
 int mim_db_encoding_get(mim_db_txn_t *txn, uint64_t id, mim_db_encoding_t *out, mim_error_t *err);
 
+/* ---- registrations (register/: meshes of another connectivity) ----
+ * One record per template that ingest made by registering the store's
+ * connectivity onto a foreign mesh: where it came from (the caller's hash
+ * of the source mesh) and how well it fits it. The registered positions
+ * depend on the store's state (its templates, its landmark map), so an
+ * ingest that meets the same source again finds it by the source's hash
+ * (mim_db_registration_find), not by the template's content hash.
+ * Layout: schemas/store.md. */
+typedef struct mim_db_registration {
+    uint64_t template_id;
+    uint64_t source_hash;     /* the caller's hash of the source mesh (positions and faces) */
+    uint32_t source_vertices; /* vertex count of the source mesh */
+    uint32_t iterations;
+    double mean_mm, p95_mm, max_mm; /* surface distance, registered result to the source */
+    double landmark_mean_mm;
+} mim_db_registration_t;
+/* Stores (or replaces) the registration of r->template_id, which must be
+ * stored (MIM_ENOTFOUND otherwise: a registration never outlives its
+ * template). source_vertices > 0; the distances finite and >= 0
+ * (MIM_EINVAL). Replacing a registration with another source_hash moves
+ * its entry in the source index. A stored record that fails its checks
+ * stops the put (MIM_ESTORE). Needs a write transaction. */
+int mim_db_registration_put(mim_db_txn_t *txn, const mim_db_registration_t *r, mim_error_t *err);
+/* MIM_ENOTFOUND when the template was not registered (and when the store
+ * predates registrations, opened read-only); err is left untouched then,
+ * as this is an ordinary answer. MIM_ESTORE ("store damaged: DIR:
+ * registration N: ...") for a record that fails its checks. */
+int mim_db_registration_get(mim_db_txn_t *txn, uint64_t template_id, mim_db_registration_t *out, mim_error_t *err);
+/* The registration of this source, MIM_ENOTFOUND if none (err untouched).
+ * When several templates were registered from one source, the one with
+ * the lowest id. The hash is trusted as the source's identity: two
+ * different meshes with one 64-bit hash are taken for the same source. */
+int mim_db_registration_find(mim_db_txn_t *txn, uint64_t source_hash, mim_db_registration_t *out, mim_error_t *err);
+
+/* ---- avatar bindings: a cache of register/'s binding blobs ----
+ * Keyed by the caller's u64 (its hash of the avatar mesh and the store's
+ * connectivity); a put replaces what the key held. Opaque to the store
+ * beyond its checksum. */
+int mim_db_binding_put(mim_db_txn_t *txn, uint64_t key, const void *blob, size_t len, mim_error_t *err);
+/* The blob, zero-copy from the map and 16-byte aligned: lent, valid until
+ * the txn ends (in a write transaction, until its next put). MIM_ENOTFOUND
+ * (err untouched) when the key holds none, or the store predates bindings
+ * (opened read-only); MIM_ESTORE ("store damaged: DIR: binding KEY: ...")
+ * for a record that fails its checks. */
+int mim_db_binding_get(mim_db_txn_t *txn, uint64_t key, const void **blob, size_t *len, mim_error_t *err);
+
 /* ---- size ---- */
 typedef struct mim_db_stat {
     uint64_t page_size;
@@ -181,9 +235,13 @@ int mim_db_stat(mim_db_t *db, mim_db_stat_t *out, mim_error_t *err);
  * not match their content hash, and broken cross-references (a template's
  * encoding missing its vertex count, a hash-index entry without its
  * template, a landmark map or connectivity that is not valid, an index
- * blob whose checksum fails, a next_id at or below a stored id). */
+ * blob whose checksum fails, a next_id at or below a stored id, a
+ * registration of a template that is not stored or missing from the
+ * source index, a source-index entry without its registration). */
 typedef struct mim_db_problem {
-    const char *table;   /* "templates", "encodings", "by_hash", "topology", "landmarks", "meta", "index", "lmdb" */
+    /* "templates", "encodings", "by_hash", "topology", "landmarks", "meta", "index", "registrations",
+     * "by_source", "bindings", "lmdb" */
+    const char *table;
     uint64_t id;         /* the template the problem concerns; 0 when none */
     const char *message; /* one line: "store damaged: DIR: template 3: checksum mismatch" */
 } mim_db_problem_t;
@@ -200,6 +258,7 @@ typedef struct mim_db_check_report {
     uint32_t schema_version;
     uint64_t templates, encodings, hash_entries; /* records read */
     uint64_t templates_without_encoding;         /* allowed: readers compute it */
+    uint64_t registrations, source_entries, bindings; /* records read (schema version 3) */
     int topology, landmarks, index;              /* present (and checked) */
     uint64_t problems;
     double seconds;

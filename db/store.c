@@ -19,8 +19,8 @@
 #include <sys/statvfs.h>
 #include <unistd.h>
 
-const char *const mim__db_table_names[DBI_COUNT_] = {"meta",      "topology", "landmarks",
-                                                     "templates", "by_hash",  "encodings"};
+const char *const mim__db_table_names[DBI_COUNT_] = {"meta",      "topology",      "landmarks", "templates", "by_hash",
+                                                     "encodings", "registrations", "by_source", "bindings"};
 /* Tables a store of this schema version may hold that mimic no longer
  * opens: stores created before it was dropped have an empty `descriptors`
  * table (reserved, never written; schemas/store.md). They are left as they
@@ -32,8 +32,8 @@ static const char *const legacy_names[] = {"descriptors"};
 
 unsigned mim__db_table_flags(int i)
 {
-    if (i == DBI_TEMPLATES || i == DBI_ENCODINGS) return MDB_INTEGERKEY;
-    if (i == DBI_BY_HASH) return MDB_INTEGERKEY | MDB_DUPSORT | MDB_DUPFIXED | MDB_INTEGERDUP;
+    if (i == DBI_TEMPLATES || i == DBI_ENCODINGS || i == DBI_REGISTRATIONS || i == DBI_BINDINGS) return MDB_INTEGERKEY;
+    if (i == DBI_BY_HASH || i == DBI_BY_SOURCE) return MDB_INTEGERKEY | MDB_DUPSORT | MDB_DUPFIXED | MDB_INTEGERDUP;
     return 0;
 }
 
@@ -140,6 +140,14 @@ static int get_meta_u64(MDB_txn *t, MDB_dbi dbi, const char *key, uint64_t *out)
     return 0;
 }
 
+/* The schema version a table first appeared in: an older store may lack it. */
+static int table_since(int i)
+{
+    if (i == DBI_ENCODINGS) return 2; /* optional in version 1 (stores filled before ingest kept encodings) */
+    if (i == DBI_REGISTRATIONS || i == DBI_BY_SOURCE || i == DBI_BINDINGS) return 3;
+    return 1;
+}
+
 static int schema_error(const mim_db_t *db, mim_error_t *err, uint64_t ver)
 {
     return mim_error_set(err, MIM_ESCHEMA,
@@ -174,7 +182,7 @@ static int create_store(mim_db_t *db, MDB_txn *t, mim_error_t *err)
         mdb_txn_abort(t);
         return mim__db_fail(db, err, rc, "creating the store");
     }
-    db->have_encodings = 1;
+    db->have_encodings = db->have_registrations = db->have_bindings = 1;
     return (rc = mdb_txn_commit(t)) ? mim__db_fail(db, err, rc, "creating the store") : 0;
 }
 
@@ -230,12 +238,13 @@ static int init_store(mim_db_t *db, const mim_db_options_t *opt, mim_error_t *er
     }
 
     /* An existing store: every table there, and of the kind mimic writes.
-     * encodings may be missing from a version-1 store (filled before
-     * ingest kept encodings); nothing is created before the version is
-     * known. */
+     * Tables of a later schema version may be missing (encodings from a
+     * version-1 store filled before ingest kept encodings; registrations,
+     * by_source and bindings from versions 1 and 2); nothing is created
+     * before the version is known. */
     for (int i = 0; i < DBI_COUNT_; i++) {
         if (!present[i]) {
-            if (i == DBI_ENCODINGS) continue;
+            if (table_since(i) > 1) continue;
             mdb_txn_abort(t);
             return mim__db_damaged(db, err, "it lacks its '%s' table", mim__db_table_names[i]);
         }
@@ -261,24 +270,31 @@ static int init_store(mim_db_t *db, const mim_db_options_t *opt, mim_error_t *er
         if (rc && rc != MDB_NOTFOUND && rc != MDB_BAD_VALSIZE) return mim__db_fail(db, err, rc, "store metadata");
         return mim__db_damaged(db, err, "its metadata has %s %s", rc == MDB_NOTFOUND ? "no" : "a malformed", bad);
     }
-    if (ver != 1 && ver != MIM_STORE_SCHEMA_VERSION) {
+    if (ver < 1 || ver > MIM_STORE_SCHEMA_VERSION) {
         mdb_txn_abort(t);
         return schema_error(db, err, ver);
     }
-    if (!present[DBI_ENCODINGS]) {
-        if (ver != 1) {
+    /* A table of the store's own version must be there; one of a later
+     * version is created by a read-write open (in this transaction, with
+     * the migration below) and is missing from a read-only one. */
+    for (int i = 0; i < DBI_COUNT_; i++) {
+        if (present[i]) continue;
+        if ((uint64_t)table_since(i) <= ver) {
             mdb_txn_abort(t);
-            return mim__db_damaged(db, err, "it lacks its 'encodings' table");
+            return mim__db_damaged(db, err, "it lacks its '%s' table", mim__db_table_names[i]);
         }
         if (!db->read_only &&
-            (rc = mdb_dbi_open(t, "encodings", MDB_CREATE | mim__db_table_flags(DBI_ENCODINGS), &db->dbi[DBI_ENCODINGS]))) {
+            (rc = mdb_dbi_open(t, mim__db_table_names[i], MDB_CREATE | mim__db_table_flags(i), &db->dbi[i]))) {
             mdb_txn_abort(t);
-            return mim__db_fail(db, err, rc, "encodings");
+            return mim__db_fail(db, err, rc, mim__db_table_names[i]);
         }
     }
     db->have_encodings = present[DBI_ENCODINGS] || !db->read_only;
-    if (ver == 1 && !db->read_only) {
-        mim_db_txn_t wt = {db, t, 1, 1};
+    /* (a version-2 store read as it is has none, whatever it holds) */
+    db->have_registrations = db->have_bindings = ver >= 3 || !db->read_only;
+    const int migrating = ver != MIM_STORE_SCHEMA_VERSION && !db->read_only;
+    if (migrating) {
+        mim_db_txn_t wt = {db, t, 1, (uint32_t)ver};
         if ((rc = mim__db_migrate(&wt, opt, err))) {
             mdb_txn_abort(t);
             return rc;
@@ -286,7 +302,7 @@ static int init_store(mim_db_t *db, const mim_db_options_t *opt, mim_error_t *er
     }
     /* Commit even when read-only: an aborted transaction closes the table
      * handles it opened. */
-    if ((rc = mdb_txn_commit(t))) return mim__db_fail(db, err, rc, ver == 1 && !db->read_only ? "migration" : "opening");
+    if ((rc = mdb_txn_commit(t))) return mim__db_fail(db, err, rc, migrating ? "migration" : "opening");
     return 0;
 }
 
@@ -425,7 +441,7 @@ int mim_db_begin(mim_db_t *db, int write, mim_db_txn_t **out, mim_error_t *err)
         rc = mim__db_damaged(db, err, "its metadata has %s schema_version", rc == MDB_NOTFOUND ? "no" : "a malformed");
     else if (rc)
         rc = mim__db_fail(db, err, rc, "store metadata");
-    else if ((ver != 1 && ver != MIM_STORE_SCHEMA_VERSION) || (write && ver != MIM_STORE_SCHEMA_VERSION))
+    else if (ver < 1 || ver > MIM_STORE_SCHEMA_VERSION || (write && ver != MIM_STORE_SCHEMA_VERSION))
         rc = schema_error(db, err, ver);
     if (rc) {
         mdb_txn_abort(t->txn);

@@ -2,13 +2,18 @@
  * cores); the calling thread, the store's single writer, takes them in file
  * order, checks them against the reference connectivity, labels them, and
  * commits one transaction per batch. Readers also compute each template's
- * transfer encoding (frames and W, seed 000 §3.1), stored beside it. A kill part-way loses at most the
- * uncommitted batch; a re-run skips what is stored (content hash). */
+ * transfer encoding (frames and W, seed 000 §3.1), stored beside it. With
+ * a registrar (--register), readers also register a mesh of another
+ * connectivity onto the store's (foreign.c), and its figures are stored
+ * with it. A kill part-way loses at most the uncommitted batch; a re-run
+ * skips what is stored (content hash; a registered source by its own
+ * hash, so it is not registered again). */
 #include "mim_ingest.h"
 #include "mim_io.h"
 #include "mim_transfer.h"
 
 #include <pthread.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -20,6 +25,10 @@ typedef struct {
     uint64_t content_hash;
     float *encoding; /* 6n frames then 3n W (transfer's stored encoding) */
     mim_error_t err;
+    /* a mesh of another connectivity, registered onto the store's */
+    int registered;         /* 1: mesh now holds the registered result */
+    uint64_t registered_as; /* > 0: this source was registered before, as that template */
+    mim_db_registration_t reg;
 } slot_t;
 
 typedef struct {
@@ -32,6 +41,11 @@ typedef struct {
     int stop;
     pthread_mutex_t mu;
     pthread_cond_t ready_cv, space_cv;
+    /* --register */
+    mim_db_t *db;
+    const mim_ingest_options_t *opt;
+    const mim_ingest_landmark_sources_t *sources;
+    double max_distance_mm;
 } work_t;
 
 /* The transfer encoding of a mesh, on the reader's connectivity (rebuilt
@@ -61,6 +75,57 @@ static int encode(reader_t *r, slot_t *s, const char *path)
                                      r->work, &s->err);
 }
 
+static int same_connectivity(const mim_mesh_t *m, const uint32_t *faces, uint32_t n, uint32_t n_faces)
+{
+    return m->n_vertices == n && m->n_faces == n_faces && !memcmp(m->faces, faces, (size_t)n_faces * 12);
+}
+
+/* A mesh of another connectivity (--register): found among earlier
+ * registrations by its hash, or registered now; the slot's mesh then
+ * becomes the result, on the store's connectivity. */
+static int register_foreign(work_t *w, slot_t *s, const char *path)
+{
+    mim_ingest_registrar_t *r = w->opt->registrar;
+    uint32_t nf;
+    const uint32_t *faces = mim_ingest_registrar_faces(r, &nf);
+    uint32_t n = mim_xfer_topology_n_vertices(mim_ingest_registrar_topology(r));
+    if (same_connectivity(&s->mesh, faces, n, nf)) return 0;
+    uint64_t hash = mim_ingest_mesh_hash(&s->mesh);
+    mim_db_txn_t *t = NULL;
+    mim_db_registration_t before;
+    int rc = mim_db_begin(w->db, 0, &t, &s->err);
+    if (!rc && (rc = mim_db_registration_find(t, hash, &before, &s->err)) == 0) s->registered_as = before.template_id;
+    mim_db_abort(&t);
+    if (rc != MIM_ENOTFOUND) return rc;
+    const mim_landmark_map_t *map = mim_ingest_registrar_map(r);
+    float lm[3 * MIM_LANDMARKS_MAX];
+    char how[4200];
+    if ((rc = mim_ingest_foreign_landmarks(path, &s->mesh, w->sources, map, lm, how, sizeof how, &s->err))) return rc;
+    mim_mesh_t out = {0};
+    if (mim_mesh_alloc(&out, n, nf)) return mim_error_set(&s->err, MIM_ENOMEM, "%s: out of memory", path);
+    memcpy(out.faces, faces, (size_t)nf * 12);
+    mim_reg_report_t rep;
+    uint64_t from;
+    if ((rc = mim_ingest_register_mesh(r, &s->mesh, lm, path, out.positions, &rep, &from, &s->err))) {
+        mim_mesh_free(&out);
+        return rc;
+    }
+    if (!(rep.p95_mm <= w->max_distance_mm)) {
+        mim_mesh_free(&out);
+        return mim_error_set(&s->err, MIM_ETOPOLOGY,
+                             "%s: registration too far from the surface: distance p95 %.1f mm over the %.1f mm limit "
+                             "(mean %.1f mm, landmarks %.1f mm off; from template %llu): not stored",
+                             path, rep.p95_mm, w->max_distance_mm, rep.mean_mm, rep.landmark_mean_mm,
+                             (unsigned long long)from);
+    }
+    s->reg = (mim_db_registration_t){0, hash, s->mesh.n_vertices, rep.iterations, rep.mean_mm, rep.p95_mm,
+                                     rep.max_mm, rep.landmark_mean_mm};
+    mim_mesh_free(&s->mesh);
+    s->mesh = out;
+    s->registered = 1;
+    return 0;
+}
+
 static void *reader_main(void *arg)
 {
     work_t *w = arg;
@@ -80,8 +145,9 @@ static void *reader_main(void *arg)
         slot_t s = {0};
         s.rc = mim_io_read_mesh(w->paths[i], &s.mesh, &s.err);
         if (!s.rc) s.rc = mim_body_check(s.mesh.positions, s.mesh.n_vertices, w->paths[i], &s.err);
-        if (!s.rc) s.content_hash = mim_db_content_hash(s.mesh.positions, s.mesh.n_vertices);
-        if (!s.rc) s.rc = encode(&r, &s, w->paths[i]);
+        if (!s.rc && w->opt->registrar) s.rc = register_foreign(w, &s, w->paths[i]);
+        if (!s.rc && !s.registered_as) s.content_hash = mim_db_content_hash(s.mesh.positions, s.mesh.n_vertices);
+        if (!s.rc && !s.registered_as) s.rc = encode(&r, &s, w->paths[i]);
 
         pthread_mutex_lock(&w->mu);
         s.ready = 1;
@@ -129,7 +195,8 @@ static int check_topology(const writer_t *wr, const char *path, const mim_mesh_t
 {
     if (m->n_vertices != wr->n_vertices || m->n_faces != wr->n_faces)
         return mim_error_set(err, MIM_ETOPOLOGY,
-                             "%s: connectivity differs from the store's: %u vertices and %u faces, the store has %u and %u",
+                             "%s: connectivity differs from the store's: %u vertices and %u faces, the store has %u and %u "
+                             "(mimic ingest --register registers it onto the store's)",
                              path, m->n_vertices, m->n_faces, wr->n_vertices, wr->n_faces);
     if (mim_db_topology_hash(m->faces, m->n_faces, m->n_vertices) != wr->topo_hash ||
         memcmp(m->faces, wr->faces, (size_t)m->n_faces * 12) != 0) {
@@ -186,6 +253,9 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
     uint32_t threads = opt->threads ? opt->threads : (uint32_t)(ncpu > 0 ? ncpu : 1);
 
     writer_t wr = {0};
+    mim_landmark_map_t dataset_map;
+    char dataset_map_path[4096];
+    mim_ingest_landmark_sources_t sources = {0};
     mim_manifest_t *manifest = NULL;
     mim_file_list_t files = {0};
     int rc = load_reference(db, &wr, err);
@@ -200,6 +270,16 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
                                mim_db_path(db));
         else if (!(rc = mim_landmarks_read(&wr.landmarks, lm, err)))
             wr.have_landmarks = 1;
+    } else if (!rc && opt->registrar) {
+        /* --register: a landmark map given or beside the dataset is the
+         * map of the meshes' own connectivity, landmark source (a). */
+        char found[4096];
+        const char *lm = opt->landmarks_path;
+        if (!lm && mim_discover_landmarks(paths, n_paths, found, sizeof found)) lm = found;
+        if (lm && !(rc = mim_landmarks_read(&dataset_map, lm, err))) {
+            snprintf(dataset_map_path, sizeof dataset_map_path, "%s", lm);
+            sources.dataset_map = &dataset_map, sources.dataset_map_path = dataset_map_path;
+        }
     } else if (!rc && opt->landmarks_path) {
         mim_log_emit(opt->log, opt->log_ctx, MIM_LOG_WARN, "note: the store already has a landmark map; ignoring %s",
                      opt->landmarks_path);
@@ -217,6 +297,8 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
     report->files = files.count + files.n_failed;
 
     work_t w = {0};
+    w.db = db, w.opt = opt, w.sources = &sources;
+    w.max_distance_mm = opt->max_distance_mm > 0 ? opt->max_distance_mm : MIM_INGEST_DEFAULT_MAX_DISTANCE_MM;
     w.paths = files.paths;
     w.n = files.count;
     w.window = batch + 4 * threads;
@@ -247,8 +329,10 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
         pthread_mutex_unlock(&w.mu);
 
         const char *path = files.paths[i];
-        if (!s.rc && wr.have_topology) s.rc = check_topology(&wr, path, &s.mesh, &s.err);
-        if (s.rc) {
+        if (!s.rc && wr.have_topology && !s.registered_as) s.rc = check_topology(&wr, path, &s.mesh, &s.err);
+        if (!s.rc && s.registered_as) {
+            report->duplicates++; /* this source was registered by an earlier run */
+        } else if (s.rc) {
             report->failed++;
             if (!opt->quiet) mim_log_emit(opt->log, opt->log_ctx, MIM_LOG_ERROR, "%s", mim_error_text(&s.err));
         } else {
@@ -269,6 +353,11 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
                 const uint32_t n = s.mesh.n_vertices;
                 if ((rc = mim_db_encoding_put(wr.txn, id, s.encoding, s.encoding + 6 * (size_t)n, n, err))) break;
                 if (existed) pending++;
+            }
+            if (s.registered && !existed) {
+                s.reg.template_id = id;
+                if ((rc = mim_db_registration_put(wr.txn, &s.reg, err))) break;
+                report->registered++;
             }
             if (existed) report->duplicates++;
             else report->added++, pending++;

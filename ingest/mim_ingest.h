@@ -5,6 +5,7 @@
 
 #include "mim_core.h"
 #include "mim_db.h"
+#include "mim_register.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -53,6 +54,61 @@ void mim_manifest_free(mim_manifest_t **m);
 /* 1 if the manifest has a row for path (matched by real path, then by name). */
 int mim_manifest_lookup(const mim_manifest_t *m, const char *path, mim_labels_t *out);
 
+/* ---- meshes of another connectivity (foreign.c; issue 13) ---- */
+/* The caller's hash of a mesh (its faces and positions): how a registered
+ * source is recognised again, and an avatar's binding found in the cache. */
+uint64_t mim_ingest_mesh_hash(const mim_mesh_t *m);
+
+typedef struct mim_ingest_landmark_sources {
+    /* (c) a file the user gave for this mesh: a landmark map of its
+     * connectivity, or its landmark positions (one frame, in the store
+     * map's order). NULL: none. */
+    const char *landmarks_path;
+    /* (a) a landmark map that came with the dataset: used for a mesh whose
+     * vertex count is its topology_vertices. NULL: none. */
+    const mim_landmark_map_t *dataset_map;
+    const char *dataset_map_path; /* names it in messages */
+} mim_ingest_landmark_sources_t;
+/* The landmarks of a foreign mesh (3 * store_map->count floats, in the
+ * store map's order), from the first that exists of: (c) the file given;
+ * (b) NAME.landmarks.json beside NAME.ext (mim_io_landmarks_sidecar), a
+ * map or positions; (a) the dataset's map of this connectivity; (d) a
+ * built-in map of a connectivity mimic knows by its faces
+ * (mim_reg_known_map: SMPL's, for FAUST and every SMPL-family mesh). A
+ * map's landmarks are matched to the store's by name. how (may be NULL
+ * with how_size 0) gets where they came from. Errors, one line naming the
+ * files: MIM_ENOLANDMARKS when none exists, a file's own errors, a map of
+ * another vertex count (MIM_ETOPOLOGY) or without a landmark the store
+ * needs (MIM_EFORMAT), missing or implausible positions. */
+int mim_ingest_foreign_landmarks(const char *mesh_path, const mim_mesh_t *mesh,
+                                 const mim_ingest_landmark_sources_t *src, const mim_landmark_map_t *store_map,
+                                 float *out, char *how, size_t how_size, mim_error_t *err);
+
+/* The nearest template to a landmark frame (3 * map count floats), found
+ * by the caller (through the store's index: query/ is not ingest's to
+ * use); 0 and *id, or an error with its message. Called from many threads
+ * at once. */
+typedef int (*mim_ingest_nearest_fn)(void *ctx, const float *landmarks, uint64_t *id, mim_error_t *err);
+
+/* A registrar: the store's connectivity and landmark map, the caller's
+ * nearest-template function, and a pool of registration contexts (one per
+ * thread registering at a time). Errors: the store's, MIM_ENOTFOUND for an
+ * empty store, MIM_ENOLANDMARKS. opt may be NULL (defaults). */
+typedef struct mim_ingest_registrar mim_ingest_registrar_t;
+int mim_ingest_registrar_open(mim_ingest_registrar_t **out, mim_db_t *db, mim_ingest_nearest_fn nearest,
+                              void *nearest_ctx, const mim_reg_options_t *opt, mim_error_t *err);
+void mim_ingest_registrar_close(mim_ingest_registrar_t **r); /* accepts NULL; nulls */
+const mim_landmark_map_t *mim_ingest_registrar_map(const mim_ingest_registrar_t *r);
+const mim_xfer_topology_t *mim_ingest_registrar_topology(const mim_ingest_registrar_t *r);
+const uint32_t *mim_ingest_registrar_faces(const mim_ingest_registrar_t *r, uint32_t *n_faces);
+/* Registers the store's connectivity onto mesh (mim_reg_run) from the
+ * nearest template to its landmarks: writes 3 * n floats (the store's
+ * vertex count) to out, the report, and the template it started from.
+ * Thread-safe. */
+int mim_ingest_register_mesh(mim_ingest_registrar_t *r, const mim_mesh_t *mesh, const float *landmarks,
+                             const char *origin, float *out, mim_reg_report_t *report, uint64_t *template_id,
+                             mim_error_t *err);
+
 /* ---- the pipeline ---- */
 typedef struct mim_ingest_options {
     const char *landmarks_path; /* NULL: landmarks.json beside the dataset */
@@ -66,7 +122,16 @@ typedef struct mim_ingest_options {
     void *log_ctx;
     mim_progress_fn progress;   /* files done of files found (label "ingest"); NULL: none */
     void *progress_ctx;
+    /* --register: a mesh of another connectivity than the store's is
+     * registered onto it (NULL: such a mesh is refused). Its landmarks
+     * come from mim_ingest_foreign_landmarks with landmarks_path (when it
+     * is a map of that connectivity) or the landmarks.json beside the
+     * dataset as (a). A registration whose surface distance p95 is over
+     * max_distance_mm is refused with the figures. */
+    mim_ingest_registrar_t *registrar;
+    double max_distance_mm;     /* 0: MIM_INGEST_DEFAULT_MAX_DISTANCE_MM */
 } mim_ingest_options_t;
+#define MIM_INGEST_DEFAULT_MAX_DISTANCE_MM 15.0
 
 typedef struct mim_ingest_report {
     uint64_t files;      /* files considered */
@@ -74,6 +139,7 @@ typedef struct mim_ingest_report {
     uint64_t duplicates; /* content already in the store */
     uint64_t failed;     /* files rejected, dangling symlinks (each reported through the log callback) */
     uint64_t skipped;    /* symlink loops left out (each reported as a warning); not in files */
+    uint64_t registered; /* of added: made by registering a mesh of another connectivity */
     uint64_t templates;  /* templates in the store afterwards */
     double seconds;
 } mim_ingest_report_t;

@@ -25,6 +25,17 @@ int mim_io_read_mesh(const char *path, mim_mesh_t *out, mim_error_t *err);
 /* 1 if the file name has an extension mim_io_read_mesh handles. */
 int mim_io_format_known(const char *path);
 
+/* ---- the landmark file beside a mesh (sidecar.c) ---- */
+/* Writes to out the path of the landmark file that goes with mesh_path:
+ * "dir/NAME.ext" gives "dir/NAME.landmarks.json" (only the last extension
+ * goes: "a.b.ply" gives "a.b.landmarks.json"; a name without one, or a
+ * dot-file like ".ply", keeps its whole name). Returns 1 when that path is
+ * a regular file, 0 when not (out holds the path either way), MIM_EINVAL
+ * when it does not fit in size bytes (with its NUL) or an argument is
+ * NULL; out must not overlap mesh_path. Read it with
+ * mim_landmark_file_read. */
+int mim_io_landmarks_sidecar(const char *mesh_path, char *out, size_t size);
+
 /* ---- writing (write.c, write_openmesh.cpp, write_gltf.cpp) ---- */
 /* Writes one mesh; the format comes from the extension of path (any case):
  * .ply (binary little-endian), .obj, .off (OpenMesh; text formats print 9

@@ -180,6 +180,18 @@ int mim_query_frame(const mim_query_t *q, const float *positions, const uint8_t 
     return mim_index_query(q->ix, positions, present, opt, ans, hits, err);
 }
 
+int mim_query_nearest(void *ctx, const float *positions, uint64_t *id, mim_error_t *err)
+{
+    const mim_query_t *q = ctx;
+    mim_index_answer_t ans;
+    mim_index_hit_t hit;
+    int rc = mim_index_query(q->ix, positions, NULL, NULL, &ans, &hit, err);
+    if (rc) return rc;
+    if (!ans.n_hits) return mim_error_set(err, MIM_ENOTFOUND, "the index found no template");
+    *id = hit.id;
+    return 0;
+}
+
 int mim_query_batch(const mim_query_t *q, const mim_landmark_frames_t *f, const mim_index_query_options_t *opt,
                     mim_index_answer_t *answers, mim_index_hit_t *hits, mim_error_t *err)
 {

@@ -1,11 +1,16 @@
 /* db/: store round trip, zero-copy views, schema mismatch, foreign stores,
  * two reader processes while one writes, kill -9 during an ingest, damaged
- * encodings, fresh environments, a full map. (Damaged files, migration and
- * mimic store check: test_store_damage.c and test_store_write.c.) */
+ * encodings, fresh environments, a full map; registrations and bindings
+ * (schema version 3: round trips, damaged records, mimic list), and a
+ * version-2 store read as it is and migrated to 3. (Damaged files, the
+ * migration from version 1 and mimic store check: test_store_damage.c and
+ * test_store_write.c.) */
 #include "mim_db.h"
 #include "test_support.h"
 
+#include <jansson.h>
 #include <lmdb.h>
+#include <math.h>
 #include <xxhash.h>
 #include <signal.h>
 #include <stdio.h>
@@ -602,7 +607,7 @@ static void test_fresh_environment(void **s)
     mim_db_check_report_t r;
     assert_int_equal(mim_db_check(db, NULL, &r, &err), 0);
     assert_int_equal(r.problems, 0);
-    assert_int_equal(r.schema_version, 2);
+    assert_int_equal(r.schema_version, 3); /* schemas/store-version */
     mim_db_close(&db);
 
     char *other = ts_path(dir, "committed_empty");
@@ -656,6 +661,559 @@ static void test_full_map(void **s)
     free(store);
 }
 
+/* ---- registrations and bindings (schema version 3) ---- */
+
+/* A store with n small templates (ids 1..n), a connectivity, a landmark
+ * map and, for the first n_enc, an encoding. */
+static void make_store(const char *store, int n, int n_enc)
+{
+    mim_db_t *db;
+    mim_db_txn_t *t;
+    mim_error_t err = {0};
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
+    uint32_t faces[] = {0, 1, 2, 0, 2, 3, 0, 3, 1, 1, 3, 2};
+    assert_int_equal(mim_db_topology_put(t, faces, 4, 4, &err), 0);
+    uint32_t lv[16];
+    for (int i = 0; i < 16; i++) lv[i] = (uint32_t)i % 4;
+    mim_landmark_map_t lm;
+    mim_landmarks_default(&lm, lv, 4);
+    assert_int_equal(mim_db_landmarks_put(t, &lm, &err), 0);
+    for (int i = 0; i < n; i++) {
+        float p[12], frames[24], W[12];
+        fill(p, 4, (float)i);
+        fill(frames, 8, (float)i);
+        fill(W, 4, -(float)i);
+        mim_template_in_t in = {p, 4, mim_db_content_hash(p, 4), "src.ply", "s", "p"};
+        uint64_t id = 0;
+        assert_int_equal(mim_db_template_put(t, &in, &id, NULL, &err), 0);
+        assert_int_equal(id, (uint64_t)i + 1);
+        if (i < n_enc) assert_int_equal(mim_db_encoding_put(t, id, frames, W, 4, &err), 0);
+    }
+    assert_int_equal(mim_db_commit(&t, &err), 0);
+    mim_db_close(&db);
+}
+
+static void assert_same_registration(const mim_db_registration_t *a, const mim_db_registration_t *b)
+{
+    assert_int_equal(a->template_id, b->template_id);
+    assert_int_equal(a->source_hash, b->source_hash);
+    assert_int_equal(a->source_vertices, b->source_vertices);
+    assert_int_equal(a->iterations, b->iterations);
+    assert_true(a->mean_mm == b->mean_mm && a->p95_mm == b->p95_mm && a->max_mm == b->max_mm &&
+                a->landmark_mean_mm == b->landmark_mean_mm);
+}
+
+/* Registrations: put, get and find by the source's hash round trip; an
+ * unknown hash or template is MIM_ENOTFOUND with err untouched; the
+ * lowest id answers for a source registered twice; a replaced source moves
+ * its index entry; bad figures and templates that are not stored are
+ * refused; store check is clean; mimic list shows them. */
+static void test_registrations(void **s)
+{
+    (void)s;
+    char *store = ts_path(dir, "registrations");
+    make_store(store, 4, 0);
+    mim_db_t *db;
+    mim_db_txn_t *t;
+    mim_error_t err = {0};
+    mim_db_registration_t r1 = {1, 0xA1A1A1A1A1A1A1A1ULL, 6890, 24, 0.41, 1.12, 3.5, 2.25};
+    mim_db_registration_t r2 = {2, 0xB2, 12500, 30, 0.3, 0.9, 2.0, 1.5};
+    mim_db_registration_t r3 = {3, r1.source_hash, 6890, 12, 0.5, 1.5, 4.0, 2.5}; /* r1's source again */
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
+    assert_int_equal(mim_db_registration_put(t, &r3, &err), 0);
+    assert_int_equal(mim_db_registration_put(t, &r1, &err), 0);
+    assert_int_equal(mim_db_registration_put(t, &r2, &err), 0);
+    assert_int_equal(mim_db_registration_put(t, &r1, &err), 0); /* the same again: no second index entry */
+    /* refused: a template that is not stored, a source without vertices, figures that are not distances */
+    mim_db_registration_t bad = r1;
+    bad.template_id = 99;
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_registration_put(t, &bad, &err), MIM_ENOTFOUND);
+    assert_non_null(strstr(err.msg, "registration of template 99: no such template"));
+    bad = r1;
+    bad.source_vertices = 0;
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_registration_put(t, &bad, &err), MIM_EINVAL);
+    bad = r1;
+    bad.p95_mm = NAN;
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_registration_put(t, &bad, &err), MIM_EINVAL);
+    bad = r1;
+    bad.max_mm = -1;
+    assert_int_equal(mim_db_registration_put(t, &bad, NULL), MIM_EINVAL);
+    /* visible inside the writing transaction */
+    mim_db_registration_t got;
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_registration_find(t, r2.source_hash, &got, &err), 0);
+    assert_same_registration(&got, &r2);
+    assert_int_equal(mim_db_commit(&t, &err), 0);
+
+    assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    assert_int_equal(mim_db_registration_get(t, 1, &got, &err), 0);
+    assert_same_registration(&got, &r1);
+    assert_int_equal(mim_db_registration_get(t, 3, &got, &err), 0);
+    assert_same_registration(&got, &r3);
+    assert_int_equal(mim_db_registration_find(t, r1.source_hash, &got, &err), 0);
+    assert_same_registration(&got, &r1); /* templates 1 and 3: the lowest id */
+    assert_int_equal(mim_db_registration_find(t, r2.source_hash, &got, &err), 0);
+    assert_same_registration(&got, &r2);
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_registration_find(t, 0xC3, &got, &err), MIM_ENOTFOUND);
+    assert_int_equal(err.code, 0); /* an ordinary answer, not an error */
+    assert_int_equal(got.template_id, 0);
+    assert_int_equal(mim_db_registration_get(t, 4, &got, &err), MIM_ENOTFOUND); /* stored, not registered */
+    assert_int_equal(mim_db_registration_get(t, 99, &got, &err), MIM_ENOTFOUND);
+    assert_int_equal(err.code, 0);
+    /* a read transaction cannot write */
+    assert_int_equal(mim_db_registration_put(t, &r1, &err), MIM_EINVAL);
+    mim_db_abort(&t);
+
+    /* template 2 registered again from another source: its entry moves */
+    mim_db_registration_t r2b = r2;
+    r2b.source_hash = 0xC3;
+    r2b.mean_mm = 0.25;
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
+    assert_int_equal(mim_db_registration_put(t, &r2b, &err), 0);
+    assert_int_equal(mim_db_commit(&t, &err), 0);
+    assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    assert_int_equal(mim_db_registration_find(t, 0xB2, &got, &err), MIM_ENOTFOUND);
+    assert_int_equal(mim_db_registration_find(t, 0xC3, &got, &err), 0);
+    assert_same_registration(&got, &r2b);
+    assert_int_equal(mim_db_registration_get(t, 2, &got, &err), 0);
+    assert_same_registration(&got, &r2b);
+    mim_db_abort(&t);
+    mim_db_check_report_t r;
+    assert_int_equal(mim_db_check(db, NULL, &r, &err), 0);
+    assert_int_equal(r.problems, 0);
+    assert_int_equal(r.registrations, 3);
+    assert_int_equal(r.source_entries, 3);
+    mim_db_close(&db);
+
+    /* mimic list: the figures of registered templates, nothing for the others */
+    char *out = NULL, *errs = NULL;
+    const char *json_args[] = {"list", "--store", store, "--json", NULL};
+    assert_int_equal(ts_run_mimic(&out, &errs, json_args), 0);
+    json_error_t je;
+    json_t *j = json_loads(out, 0, &je);
+    assert_non_null(j);
+    assert_int_equal(json_array_size(j), 4);
+    json_t *reg = json_object_get(json_array_get(j, 0), "registration");
+    assert_non_null(reg);
+    assert_true(json_real_value(json_object_get(reg, "mean_mm")) == 0.41);
+    assert_true(json_real_value(json_object_get(reg, "p95_mm")) == 1.12);
+    assert_true(json_real_value(json_object_get(reg, "max_mm")) == 3.5);
+    assert_int_equal(json_integer_value(json_object_get(reg, "iterations")), 24);
+    assert_int_equal(json_integer_value(json_object_get(reg, "source_vertices")), 6890);
+    assert_int_equal(json_object_size(reg), 5);
+    assert_true(json_real_value(json_object_get(json_object_get(json_array_get(j, 1), "registration"), "mean_mm")) == 0.25);
+    assert_null(json_object_get(json_array_get(j, 3), "registration"));
+    json_decref(j);
+    free(out), free(errs);
+    const char *text_args[] = {"list", "--store", store, NULL};
+    assert_int_equal(ts_run_mimic(&out, &errs, text_args), 0);
+    assert_non_null(strstr(out, "src.ply  registered 0.41/1.12 mm\n"));
+    assert_non_null(strstr(out, "       4  s          p          src.ply\n")); /* not registered: as before */
+    free(out), free(errs), free(store);
+}
+
+/* A registration record as mimic writes it (schemas/store.md), for raw puts. */
+static void registration_bytes(unsigned char rec[72], const mim_db_registration_t *r)
+{
+    uint32_t size = 72;
+    memset(rec, 0, 72);
+    memcpy(rec, "MRG3", 4), memcpy(rec + 4, &size, 4);
+    memcpy(rec + 16, &r->template_id, 8), memcpy(rec + 24, &r->source_hash, 8);
+    memcpy(rec + 32, &r->source_vertices, 4), memcpy(rec + 36, &r->iterations, 4);
+    memcpy(rec + 40, &r->mean_mm, 8), memcpy(rec + 48, &r->p95_mm, 8), memcpy(rec + 56, &r->max_mm, 8);
+    memcpy(rec + 64, &r->landmark_mean_mm, 8);
+    uint64_t ck = XXH3_64bits(rec + 16, 72 - 16);
+    memcpy(rec + 8, &ck, 8);
+}
+
+typedef struct {
+    char lines[16][512];
+    char tables[16][32];
+    uint64_t ids[16];
+    int n;
+} problems_t;
+
+static void collect_problem(void *ctx, const mim_db_problem_t *p)
+{
+    problems_t *ps = ctx;
+    if (ps->n >= 16) return;
+    snprintf(ps->lines[ps->n], sizeof ps->lines[0], "%s", p->message);
+    snprintf(ps->tables[ps->n], sizeof ps->tables[0], "%s", p->table);
+    ps->ids[ps->n++] = p->id;
+}
+
+/* Whether check reported `line` ("store damaged: STORE: " + line) for table and id. */
+static int has_problem(const problems_t *ps, const char *store, const char *line, const char *table, uint64_t id)
+{
+    char want[512];
+    snprintf(want, sizeof want, "store damaged: %s: %s", store, line);
+    for (int i = 0; i < ps->n; i++)
+        if (!strcmp(ps->lines[i], want) && !strcmp(ps->tables[i], table) && ps->ids[i] == id) return 1;
+    return 0;
+}
+
+/* Damaged registrations, written underneath through LMDB: a flipped byte
+ * fails its checksum for get, find and mimic list; a registration of a
+ * template that is not stored, one missing from the source index and a
+ * source-index entry without a registration are each a problem for store
+ * check; the intact registration still reads. */
+static void test_registration_damaged(void **s)
+{
+    (void)s;
+    char *store = ts_path(dir, "registrations_damaged");
+    make_store(store, 2, 0);
+    mim_db_t *db;
+    mim_db_txn_t *t;
+    mim_error_t err = {0};
+    mim_db_registration_t r1 = {1, 0xA1, 6890, 24, 0.41, 1.12, 3.5, 2.25}, r2 = {2, 0xB2, 6890, 20, 0.3, 0.9, 2.0, 1.5};
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
+    assert_int_equal(mim_db_registration_put(t, &r1, &err), 0);
+    assert_int_equal(mim_db_registration_put(t, &r2, &err), 0);
+    assert_int_equal(mim_db_commit(&t, &err), 0);
+    mim_db_close(&db);
+
+    MDB_env *env;
+    MDB_txn *txn = raw_begin(store, 0, &env);
+    MDB_dbi regs, by_source;
+    assert_int_equal(mdb_dbi_open(txn, "registrations", MDB_INTEGERKEY, &regs), 0);
+    assert_int_equal(mdb_dbi_open(txn, "by_source", MDB_INTEGERKEY | MDB_DUPSORT | MDB_DUPFIXED | MDB_INTEGERDUP,
+                                  &by_source), 0);
+    /* one bit of registration 1's p95 flipped */
+    size_t key = 1;
+    MDB_val k = {sizeof key, &key}, v;
+    assert_int_equal(mdb_get(txn, regs, &k, &v), 0);
+    assert_int_equal(v.mv_size, 72);
+    unsigned char rec[72];
+    memcpy(rec, v.mv_data, 72);
+    rec[50] ^= 0x10;
+    MDB_val d = {72, rec};
+    assert_int_equal(mdb_put(txn, regs, &k, &d, 0), 0);
+    /* a registration of template 42, which is not stored, and not in the source index */
+    mim_db_registration_t r42 = {42, 0x42, 100, 1, 1, 2, 3, 4};
+    registration_bytes(rec, &r42);
+    key = 42;
+    assert_int_equal(mdb_put(txn, regs, &k, &d, 0), 0);
+    /* a source-index entry naming template 2, which has a registration of another source, and
+     * one naming template 7, which has none */
+    size_t h = 0xDEAD, id = 2;
+    MDB_val hk = {sizeof h, &h}, hv = {sizeof id, &id};
+    assert_int_equal(mdb_put(txn, by_source, &hk, &hv, 0), 0);
+    h = 0xBEEF, id = 7;
+    assert_int_equal(mdb_put(txn, by_source, &hk, &hv, 0), 0);
+    assert_int_equal(mdb_txn_commit(txn), 0);
+    mdb_env_close(env);
+
+    mim_db_options_t ro = {.read_only = 1};
+    assert_int_equal(mim_db_open(&db, store, &ro, &err), 0);
+    assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    mim_db_registration_t got;
+    char want[512];
+    snprintf(want, sizeof want, "store damaged: %s: registration 1: checksum mismatch", store);
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_registration_get(t, 1, &got, &err), MIM_ESTORE);
+    assert_string_equal(err.msg, want);
+    assert_int_equal(got.template_id, 0); /* nothing handed out */
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_registration_find(t, 0xA1, &got, &err), MIM_ESTORE);
+    assert_string_equal(err.msg, want);
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_registration_find(t, 0xBEEF, &got, &err), MIM_ESTORE);
+    assert_non_null(strstr(err.msg, "source index: entry 000000000000beef names template 7, which has no registration"));
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_registration_find(t, 0xDEAD, &got, &err), MIM_ESTORE);
+    assert_non_null(strstr(err.msg, "names template 2, registered from source 00000000000000b2"));
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_registration_get(t, 2, &got, &err), 0); /* the intact one reads */
+    assert_same_registration(&got, &r2);
+    assert_int_equal(mim_db_registration_find(t, 0xB2, &got, &err), 0);
+    mim_db_abort(&t);
+
+    problems_t ps = {0};
+    mim_db_check_options_t co = {.problem = collect_problem, .problem_ctx = &ps};
+    mim_db_check_report_t r;
+    assert_int_equal(mim_db_check(db, &co, &r, &err), 0);
+    mim_db_close(&db);
+    if (r.problems != 5)
+        for (int i = 0; i < ps.n; i++) fprintf(stderr, "check: %s (%s)\n", ps.lines[i], ps.tables[i]);
+    assert_int_equal(r.registrations, 3);
+    assert_int_equal(r.source_entries, 4);
+    assert_int_equal(r.problems, 5);
+    assert_true(has_problem(&ps, store, "registration 1: checksum mismatch", "registrations", 1));
+    assert_true(has_problem(&ps, store, "registration 42: template 42 is not stored", "registrations", 42));
+    assert_true(has_problem(&ps, store, "registration 42: missing from the source index", "registrations", 42));
+    assert_true(has_problem(&ps, store, "source index: entry 000000000000dead names template 2, registered from source "
+                                        "00000000000000b2", "by_source", 2));
+    assert_true(has_problem(&ps, store, "source index: entry 000000000000beef names template 7, which has no "
+                                        "registration", "by_source", 7));
+
+    /* mimic list refuses in one line, and so does a put beside the damage */
+    char *out = NULL, *errs = NULL;
+    const char *list[] = {"list", "--store", store, "--json", NULL};
+    assert_int_equal(ts_run_mimic(&out, &errs, list), 2);
+    snprintf(want, sizeof want, "mimic list: store damaged: %s: registration 1: checksum mismatch\n", store);
+    assert_string_equal(errs, want);
+    free(out), free(errs);
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_registration_put(t, &r1, &err), MIM_ESTORE);
+    assert_non_null(strstr(err.msg, "registration 1: checksum mismatch"));
+    mim_db_abort(&t);
+    mim_db_close(&db);
+    free(store);
+}
+
+/* Bindings: a 3 MB blob round trips zero-copy and aligned, a put replaces,
+ * an unknown key is MIM_ENOTFOUND with err untouched, and a flipped byte
+ * underneath fails its checksum (get and store check). */
+static void test_bindings(void **s)
+{
+    (void)s;
+    char *store = ts_path(dir, "bindings");
+    make_store(store, 1, 0);
+    enum { BIG = 3 << 20 };
+    unsigned char *blob = malloc(BIG);
+    mim_rng_t rng;
+    mim_rng_seed(&rng, 3, 0);
+    for (size_t i = 0; i < BIG; i++) blob[i] = (unsigned char)mim_rng_u64(&rng);
+    const uint64_t k1 = 0x0123456789abcdefULL, k2 = 0xfedcba9876543210ULL, k3 = 5;
+    mim_db_t *db;
+    mim_db_txn_t *t;
+    mim_error_t err = {0};
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
+    assert_int_equal(mim_db_binding_put(t, k1, blob, BIG, &err), 0);
+    assert_int_equal(mim_db_binding_put(t, k2, blob, BIG, &err), 0);
+    assert_int_equal(mim_db_binding_put(t, k2, "small", 5, &err), 0); /* replaces */
+    assert_int_equal(mim_db_binding_put(t, k3, NULL, 0, &err), 0);    /* empty is a blob too */
+    assert_int_equal(mim_db_binding_put(t, 6, NULL, 10, &err), MIM_EINVAL);
+    assert_int_equal(mim_db_commit(&t, &err), 0);
+    mim_db_close(&db);
+
+    mim_db_options_t ro = {.read_only = 1};
+    assert_int_equal(mim_db_open(&db, store, &ro, &err), 0);
+    assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    const void *got = NULL, *again = NULL;
+    size_t len = 0, len2 = 0;
+    assert_int_equal(mim_db_binding_get(t, k1, &got, &len, &err), 0);
+    assert_int_equal(len, BIG);
+    assert_memory_equal(got, blob, BIG);
+    assert_int_equal((uintptr_t)got % 16, 0);
+    assert_int_equal(mim_db_binding_get(t, k1, &again, &len2, &err), 0);
+    assert_ptr_equal(again, got); /* zero-copy: the map's bytes */
+    assert_int_equal(mim_db_binding_get(t, k2, &got, &len, &err), 0);
+    assert_int_equal(len, 5);
+    assert_memory_equal(got, "small", 5);
+    assert_int_equal(mim_db_binding_get(t, k3, &got, &len, &err), 0);
+    assert_int_equal(len, 0);
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_binding_get(t, 77, &got, &len, &err), MIM_ENOTFOUND);
+    assert_int_equal(err.code, 0);
+    assert_null(got);
+    assert_int_equal(mim_db_binding_put(t, 77, "x", 1, &err), MIM_EINVAL); /* a read transaction */
+    mim_db_abort(&t);
+    mim_db_check_report_t r;
+    assert_int_equal(mim_db_check(db, NULL, &r, &err), 0);
+    assert_int_equal(r.problems, 0);
+    assert_int_equal(r.bindings, 3);
+    mim_db_close(&db);
+
+    /* one bit of the big blob flipped underneath */
+    MDB_env *env;
+    MDB_txn *txn = raw_begin(store, 0, &env);
+    MDB_dbi dbi;
+    assert_int_equal(mdb_dbi_open(txn, "bindings", MDB_INTEGERKEY, &dbi), 0);
+    size_t key = (size_t)k1;
+    MDB_val k = {sizeof key, &key}, v;
+    assert_int_equal(mdb_get(txn, dbi, &k, &v), 0);
+    unsigned char *copy = malloc(v.mv_size);
+    memcpy(copy, v.mv_data, v.mv_size);
+    copy[32 + BIG / 2] ^= 0x10;
+    MDB_val d = {v.mv_size, copy};
+    assert_int_equal(mdb_put(txn, dbi, &k, &d, 0), 0);
+    assert_int_equal(mdb_txn_commit(txn), 0);
+    mdb_env_close(env);
+    free(copy);
+
+    assert_int_equal(mim_db_open(&db, store, &ro, &err), 0);
+    assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_binding_get(t, k1, &got, &len, &err), MIM_ESTORE);
+    char want[512];
+    snprintf(want, sizeof want, "store damaged: %s: binding 0123456789abcdef: checksum mismatch", store);
+    assert_string_equal(err.msg, want);
+    assert_null(got);
+    assert_int_equal(mim_db_binding_get(t, k2, &got, &len, &err), 0); /* the others still read */
+    mim_db_abort(&t);
+    problems_t ps = {0};
+    mim_db_check_options_t co = {.problem = collect_problem, .problem_ctx = &ps};
+    assert_int_equal(mim_db_check(db, &co, &r, &err), 0);
+    assert_int_equal(r.problems, 1);
+    assert_true(has_problem(&ps, store, "binding 0123456789abcdef: checksum mismatch", "bindings", 0));
+    mim_db_close(&db);
+    free(blob), free(store);
+}
+
+static void on_log(void *ctx, int level, const char *msg)
+{
+    (void)level;
+    snprintf(ctx, 512, "%s", msg);
+}
+
+/* A version-2 store: schema version 3 only added the registrations,
+ * by_source and bindings tables (no record layout changed), so a store of
+ * this mimic with those tables dropped and schema_version set to 2 is
+ * exactly what mimic wrote at version 2. Read-only it reads as it is:
+ * registrations and bindings are not found, without an error, store check
+ * is clean, and nothing is created. The first read-write open migrates it
+ * (tables and version in one transaction), keeping every template and
+ * encoding. A version-2 store whose new table holds records is refused. */
+static void test_migrate_v2(void **s)
+{
+    (void)s;
+    char *store = ts_path(dir, "v2");
+    make_store(store, 5, 3);
+    static const char *const added[] = {"registrations", "by_source", "bindings"};
+    MDB_env *env;
+    MDB_txn *txn = raw_begin(store, 0, &env);
+    for (int i = 0; i < 3; i++) {
+        MDB_dbi dbi;
+        assert_int_equal(mdb_dbi_open(txn, added[i], 0, &dbi), 0);
+        assert_int_equal(mdb_drop(txn, dbi, 1), 0);
+    }
+    MDB_dbi meta;
+    assert_int_equal(mdb_dbi_open(txn, "meta", 0, &meta), 0);
+    uint64_t two = 2;
+    MDB_val k = {14, "schema_version"}, d = {8, &two};
+    assert_int_equal(mdb_put(txn, meta, &k, &d, 0), 0);
+    assert_int_equal(mdb_txn_commit(txn), 0);
+    mdb_env_close(env);
+    for (int i = 0; i < 3; i++) assert_false(has_table(store, added[i]));
+
+    /* read-only: as it is */
+    mim_db_t *db;
+    mim_db_txn_t *t;
+    mim_error_t err = {0};
+    mim_db_options_t ro = {.read_only = 1};
+    int rc = mim_db_open(&db, store, &ro, &err);
+    if (rc) fprintf(stderr, "%s\n", err.msg);
+    assert_int_equal(rc, 0);
+    assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    mim_db_meta_t m;
+    assert_int_equal(mim_db_meta_get(t, &m, &err), 0);
+    assert_int_equal(m.schema_version, 2);
+    assert_int_equal(m.templates, 5);
+    mim_db_registration_t reg;
+    const void *blob;
+    size_t len;
+    assert_int_equal(mim_db_registration_get(t, 1, &reg, &err), MIM_ENOTFOUND);
+    assert_int_equal(mim_db_registration_find(t, 0xA1, &reg, &err), MIM_ENOTFOUND);
+    assert_int_equal(mim_db_binding_get(t, 1, &blob, &len, &err), MIM_ENOTFOUND);
+    assert_int_equal(err.code, 0);
+    mim_template_view_t v;
+    assert_int_equal(mim_db_template_get(t, 5, &v, &err), 0);
+    mim_db_abort(&t);
+    mim_db_check_report_t r;
+    assert_int_equal(mim_db_check(db, NULL, &r, &err), 0);
+    assert_int_equal(r.problems, 0);
+    assert_int_equal(r.schema_version, 2);
+    assert_int_equal(r.templates, 5);
+    mim_db_close(&db);
+    char *out = NULL, *errs = NULL;
+    const char *list[] = {"list", "--store", store, "--json", NULL};
+    assert_int_equal(ts_run_mimic(&out, &errs, list), 0);
+    json_t *j = json_loads(out, 0, NULL);
+    assert_int_equal(json_array_size(j), 5);
+    assert_null(json_object_get(json_array_get(j, 0), "registration"));
+    json_decref(j);
+    free(out), free(errs);
+    for (int i = 0; i < 3; i++) assert_false(has_table(store, added[i])); /* nothing created */
+
+    /* a version-2 store holding records in a table it should not have is not migrated */
+    char *odd = ts_path(dir, "v2_odd");
+    mkdir(odd, 0755);
+    char *src = ts_path(store, "data.mdb"), *dst = ts_path(odd, "data.mdb");
+    size_t n = 0;
+    char *bytes = ts_read_file(src, &n);
+    assert_int_equal(ts_write_file(dst, bytes, n), 0);
+    free(bytes), free(src), free(dst);
+    txn = raw_begin(odd, 0, &env);
+    MDB_dbi bind;
+    assert_int_equal(mdb_dbi_open(txn, "bindings", MDB_CREATE | MDB_INTEGERKEY, &bind), 0);
+    size_t bk = 1;
+    MDB_val kk = {sizeof bk, &bk}, vv = {3, "abc"};
+    assert_int_equal(mdb_put(txn, bind, &kk, &vv, 0), 0);
+    assert_int_equal(mdb_txn_commit(txn), 0);
+    mdb_env_close(env);
+    err = (mim_error_t){0};
+    assert_int_equal(mim_db_open(&db, odd, NULL, &err), MIM_ESTORE);
+    assert_non_null(strstr(err.msg, "store damaged: "));
+    assert_non_null(strstr(err.msg, "with 1 records in its 'bindings' table (found while migrating"));
+    assert_null(db);
+    assert_false(has_table(odd, "registrations")); /* nothing changed */
+    free(odd);
+
+    /* the first read-write open migrates, in one transaction */
+    char logged[512] = "";
+    mim_db_options_t rw = {.log = on_log, .log_ctx = logged};
+    err = (mim_error_t){0};
+    rc = mim_db_open(&db, store, &rw, &err);
+    if (rc) fprintf(stderr, "%s\n", err.msg);
+    assert_int_equal(rc, 0);
+    mim_db_close(&db);
+    char want[512];
+    snprintf(want, sizeof want,
+             "%s: migrated from schema version 2 to 3: added the registrations, by_source and bindings tables (empty)",
+             store);
+    assert_string_equal(logged, want);
+    for (int i = 0; i < 3; i++) assert_true(has_table(store, added[i]));
+    assert_int_equal(mim_db_open(&db, store, &ro, &err), 0);
+    assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    assert_int_equal(mim_db_meta_get(t, &m, &err), 0);
+    assert_int_equal(m.schema_version, 3);
+    assert_int_equal(m.templates, 5);
+    assert_int_equal(m.next_id, 6);
+    for (uint64_t id = 1; id <= 5; id++) {
+        float p[12];
+        fill(p, 4, (float)(id - 1));
+        assert_int_equal(mim_db_template_get(t, id, &v, &err), 0);
+        assert_memory_equal(v.positions, p, sizeof p);
+        mim_db_encoding_t e;
+        assert_int_equal(mim_db_encoding_get(t, id, &e, NULL), id <= 3 ? 0 : MIM_ENOTFOUND);
+    }
+    assert_int_equal(mim_db_registration_get(t, 1, &reg, &err), MIM_ENOTFOUND);
+    mim_db_abort(&t);
+    assert_int_equal(mim_db_check(db, NULL, &r, &err), 0);
+    assert_int_equal(r.problems, 0);
+    assert_int_equal(r.schema_version, 3);
+    assert_int_equal(r.templates, 5);
+    assert_int_equal(r.encodings, 3);
+    mim_db_close(&db);
+    /* and takes registrations; a second open has nothing to do */
+    logged[0] = 0;
+    assert_int_equal(mim_db_open(&db, store, &rw, &err), 0);
+    assert_string_equal(logged, "");
+    assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
+    mim_db_registration_t r1 = {1, 0xA1, 6890, 24, 0.41, 1.12, 3.5, 2.25};
+    assert_int_equal(mim_db_registration_put(t, &r1, &err), 0);
+    assert_int_equal(mim_db_binding_put(t, 1, "abc", 3, &err), 0);
+    assert_int_equal(mim_db_commit(&t, &err), 0);
+    assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    assert_int_equal(mim_db_registration_find(t, 0xA1, &reg, &err), 0);
+    assert_same_registration(&reg, &r1);
+    mim_db_abort(&t);
+    mim_db_close(&db);
+    free(store);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -670,6 +1228,10 @@ int main(void)
         cmocka_unit_test(test_map_size_option),
         cmocka_unit_test(test_fresh_environment),
         cmocka_unit_test(test_full_map),
+        cmocka_unit_test(test_registrations),
+        cmocka_unit_test(test_registration_damaged),
+        cmocka_unit_test(test_bindings),
+        cmocka_unit_test(test_migrate_v2),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

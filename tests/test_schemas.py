@@ -296,6 +296,26 @@ def main():
         else:
             failed += 1
             print("FAIL landmark-frames schema accepted a 2-component point")
+        # list: a template registered from another connectivity carries its
+        # figures (none of synth's is registered: the key is absent)
+        listed = json.loads(run("list", "--store", store, "--json"))
+        registered = json.loads(json.dumps(listed))
+        registered[0]["registration"] = {"mean_mm": 0.41, "p95_mm": 1.12, "max_mm": 3.5, "iterations": 24,
+                                         "source_vertices": 6890}
+        if not any("registration" in t for t in listed) and \
+                not list(validator("/mimic/schemas/list.schema.json").iter_errors(registered)):
+            passed += 1
+            print("ok   list schema: no registration for synth's templates, one with its figures accepted")
+        else:
+            failed += 1
+            print("FAIL list schema: a registration where none was made, or a valid one rejected")
+        del registered[0]["registration"]["p95_mm"]
+        if list(validator("/mimic/schemas/list.schema.json").iter_errors(registered)):
+            passed += 1
+            print("ok   list schema rejects a registration without p95_mm")
+        else:
+            failed += 1
+            print("FAIL list schema accepted a registration without p95_mm")
     print(f"{passed} passed, {failed} failed")
     return 1 if failed else 0
 

@@ -91,6 +91,13 @@ static void drop_templates(MDB_txn *txn)
     assert_int_equal(mdb_dbi_open(txn, "templates", MDB_INTEGERKEY, &dbi), 0);
     assert_int_equal(mdb_drop(txn, dbi, 1), 0);
 }
+/* a table of schema version 3 missing from a version-3 store */
+static void drop_bindings(MDB_txn *txn)
+{
+    MDB_dbi dbi;
+    assert_int_equal(mdb_dbi_open(txn, "bindings", MDB_INTEGERKEY, &dbi), 0);
+    assert_int_equal(mdb_drop(txn, dbi, 1), 0);
+}
 static void templates_wrong_kind(MDB_txn *txn)
 {
     drop_templates(txn);
@@ -116,6 +123,7 @@ static void test_not_mimic(void **s)
     } cases[] = {
         {"foreign", "table 'users'", add_foreign, 1},
         {"no_templates", "lacks its 'templates' table", drop_templates, 1},
+        {"no_bindings", "lacks its 'bindings' table", drop_bindings, 1},
         {"wrong_kind", "'templates' table is not of the kind", templates_wrong_kind, 1},
         {"other_program", "not a mimic store", only_foreign, 0},
     };
@@ -249,8 +257,46 @@ static void test_flipped_byte(void **s)
     st_assert_check_finds(store, "landmark map: checksum mismatch", 0, "landmarks");
     free(store);
 
-    /* and the intact store is clean */
+    /* a registration and a binding (schema version 3), added to a copy */
+    store = st_copy_store("flip_registration", (size_t)-1);
+    mim_db_registration_t reg = {2, 0x5eed5eed5eed5eedULL, 6890, 24, 0.41, 1.12, 3.5, 2.25};
+    enum { BLOB = 64 << 10 };
+    unsigned char *blob = malloc(BLOB);
+    for (size_t i = 0; i < BLOB; i++) blob[i] = (unsigned char)(i * 131 + 7);
+    mim_db_options_t rw = {0};
+    assert_int_equal(mim_db_open(&db, store, &rw, &err), 0);
+    assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
+    assert_int_equal(mim_db_registration_put(t, &reg, &err), 0);
+    assert_int_equal(mim_db_binding_put(t, 0xb1d, blob, BLOB, &err), 0);
+    assert_int_equal(mim_db_commit(&t, &err), 0);
+    mim_db_close(&db);
+    char *bound = st_copy_store("flip_binding", (size_t)-1);
+    char *src = ts_path(store, "data.mdb"), *dst = ts_path(bound, "data.mdb");
+    size_t n = 0;
+    char *bytes = ts_read_file(src, &n);
+    assert_int_equal(ts_write_file(dst, bytes, n), 0);
+    free(bytes), free(src), free(dst);
+    /* the registration's fields from its template id on (schemas/store.md) */
+    unsigned char fields[56];
+    memcpy(fields, &reg.template_id, 8), memcpy(fields + 8, &reg.source_hash, 8);
+    memcpy(fields + 16, &reg.source_vertices, 4), memcpy(fields + 20, &reg.iterations, 4);
+    memcpy(fields + 24, &reg.mean_mm, 8), memcpy(fields + 32, &reg.p95_mm, 8), memcpy(fields + 40, &reg.max_mm, 8);
+    memcpy(fields + 48, &reg.landmark_mean_mm, 8);
+    st_flip_byte(store, st_find_bytes(store, fields, sizeof fields) + 30);
+    st_assert_check_finds(store, "registration 2: checksum mismatch", 2, "registrations");
     char *out = NULL, *errs = NULL;
+    const char *list[] = {"list", "--store", store, "--json", NULL};
+    assert_int_equal(st_exit_code(st_run(&out, &errs, list), "list"), 2);
+    char want[512];
+    snprintf(want, sizeof want, "mimic list: store damaged: %s: registration 2: checksum mismatch\n", store);
+    assert_string_equal(errs, want);
+    free(out), free(errs);
+    free(store);
+    st_flip_byte(bound, st_find_bytes(bound, blob, BLOB) + BLOB / 3);
+    st_assert_check_finds(bound, "binding 0000000000000b1d: checksum mismatch", 0, "bindings");
+    free(bound), free(blob);
+
+    /* and the intact store is clean */
     const char *check[] = {"store", "check", st_good, NULL};
     assert_int_equal(st_exit_code(st_run(&out, &errs, check), "store check"), 0);
     assert_non_null(strstr(out, "no problems"));

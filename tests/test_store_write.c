@@ -1,5 +1,5 @@
-/* The store's writes: a version-1 store is read as it is and migrated,
- * every record intact; a full map or file says so and keeps every committed
+/* The store's writes: a version-1 store is read as it is and migrated
+ * (1 -> 2 -> 3 in one transaction), every record intact; a full map or file says so and keeps every committed
  * batch (issue 12, defect 9a); two first ingests racing on one empty store
  * end clearly (9b). Shared helpers and the fixture: support/store_support.c. */
 #include "mim_db.h"
@@ -250,8 +250,9 @@ static void on_log(void *ctx, int level, const char *msg)
 }
 
 /* A version-1 store: read as it is read-only (info says version 1, query
- * answers), migrated by the first read-write open with every record the
- * same, then checked clean and queried. */
+ * answers), migrated by the first read-write open to version 3 with every
+ * record the same and the tables of version 3 (registrations, bindings)
+ * there and working, then checked clean and queried. */
 static void test_migrate_v1(void **s)
 {
     (void)s;
@@ -285,26 +286,42 @@ static void test_migrate_v1(void **s)
     if (rc) fprintf(stderr, "%s\n", e.msg);
     assert_int_equal(rc, 0);
     mim_db_close(&db);
-    assert_non_null(strstr(logged, "migrated from schema version 1 to 2: 6 templates and 6 encodings"));
-    assert_same_stores(st_good, v1, 2, 1);
+    assert_non_null(strstr(logged, "migrated from schema version 1 to 3: 6 templates and 6 encodings now carry "
+                                   "checksums; added the registrations, by_source and bindings tables (empty)"));
+    assert_same_stores(st_good, v1, 3, 1);
     mim_db_check_report_t r;
     mim_db_options_t ro = {.read_only = 1};
     assert_int_equal(mim_db_open(&db, v1, &ro, &e), 0);
     assert_int_equal(mim_db_check(db, NULL, &r, &e), 0);
     mim_db_close(&db);
     assert_int_equal(r.problems, 0);
-    assert_int_equal(r.schema_version, 2);
+    assert_int_equal(r.schema_version, 3);
     assert_int_equal(r.templates, 6);
+    assert_int_equal(r.registrations + r.source_entries + r.bindings, 0);
     assert_int_equal(r.encodings, 6);
     assert_true(r.index && r.landmarks && r.topology);
     got = query(v1, frame);
     assert_string_equal(got, want);
     free(got);
-    /* a second open has nothing to do */
+    /* a second open has nothing to do; the tables of version 3 take records */
     logged[0] = 0;
     assert_int_equal(mim_db_open(&db, v1, &rw, &e), 0);
-    mim_db_close(&db);
     assert_string_equal(logged, "");
+    mim_db_txn_t *wt;
+    mim_db_registration_t reg = {4, 0x5eed, 6890, 10, 0.5, 1.0, 2.0, 3.0}, back;
+    const void *blob;
+    size_t blob_len;
+    assert_int_equal(mim_db_begin(db, 1, &wt, &e), 0);
+    assert_int_equal(mim_db_registration_put(wt, &reg, &e), 0);
+    assert_int_equal(mim_db_binding_put(wt, 99, "binding", 7, &e), 0);
+    assert_int_equal(mim_db_commit(&wt, &e), 0);
+    assert_int_equal(mim_db_begin(db, 0, &wt, &e), 0);
+    assert_int_equal(mim_db_registration_find(wt, 0x5eed, &back, &e), 0);
+    assert_int_equal(back.template_id, 4);
+    assert_int_equal(mim_db_binding_get(wt, 99, &blob, &blob_len, &e), 0);
+    assert_int_equal(blob_len, 7);
+    mim_db_abort(&wt);
+    mim_db_close(&db);
 
     /* mimic store migrate, on a version-1 store filled before encodings */
     char *v1b = ts_path(st_dir, "v1_no_encodings");
@@ -312,10 +329,10 @@ static void test_migrate_v1(void **s)
     assert_same_stores(st_good, v1b, 1, 0); /* read-only without the table */
     const char *migrate[] = {"store", "migrate", "--store", v1b, NULL};
     assert_int_equal(st_exit_code(st_run(&out, &err, migrate), "store migrate"), 0);
-    assert_non_null(strstr(out, "now at schema version 2"));
+    assert_non_null(strstr(out, "now at schema version 3"));
     free(out), free(err);
     assert_int_equal(st_exit_code(st_run(&out, &err, migrate), "store migrate"), 0);
-    assert_non_null(strstr(out, "already at schema version 2"));
+    assert_non_null(strstr(out, "already at schema version 3"));
     free(out), free(err);
     const char *check_b[] = {"store", "check", v1b, NULL};
     assert_int_equal(st_exit_code(st_run(&out, &err, check_b), "store check"), 0);
@@ -325,7 +342,7 @@ static void test_migrate_v1(void **s)
     const char *ingest[] = {"ingest", "--store", v1b, st_data, NULL};
     assert_int_equal(st_exit_code(st_run(&out, &err, ingest), "ingest"), 0);
     free(out), free(err);
-    assert_same_stores(st_good, v1b, 2, 1);
+    assert_same_stores(st_good, v1b, 3, 1);
 
     /* a damaged version-1 store: check finds it; migration refuses and
      * leaves it as it was */

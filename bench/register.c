@@ -1,0 +1,190 @@
+/* Registration accuracy and time (issue 13; register/: landmark-guided
+ * non-rigid ICP after Amberg et al. 2007). Prints figures; never passes or
+ * fails.
+ *
+ * Ground truth by re-triangulation: the target is a body of the data set
+ * decimated with OpenMesh's quadric decimater (tests/support/
+ * retriangulate.h) and put in a random vertex order, so that it shares no
+ * connectivity with the store, while the true place of every store vertex
+ * is the original body's vertex. The target's subject is left out of the
+ * index (strict leave-one-subject-out); its 16 landmarks are the original
+ * body's landmark vertices. The nearest template comes from the
+ * recognition index (mim_index_query), as in mimic ingest --register.
+ *
+ * Rows: mimic's registration (similarity fit, transfer, non-rigid ICP),
+ * and the baseline of the same code without ICP (landmark-guided Laplacian
+ * editing of the nearest template). Correspondence error: per-vertex
+ * distance to the truth, pooled over all vertices of all targets. Surface
+ * distance: of every result vertex to the target's surface. Seconds: per
+ * mesh, one core, median.
+ *
+ * usage: bench_register [--vertices N] [--mh DIR | --no-mh] [--target-vertices N]
+ *                       [--subjects K] [--poses P]
+ * The default target keeps 30 % of the vertices (mh-bodies: 13,380 -> 4,014). */
+#include "bench_data.h"
+#include "mim_core.h"
+#include "mim_index.h"
+#include "mim_register.h"
+#include "mim_transfer.h"
+#include "retriangulate.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct args {
+    uint32_t target_vertices, subjects, poses;
+} args_t;
+
+typedef struct row {
+    double *corr, *surf, *secs;
+    size_t n_corr, n_surf, n_secs;
+} row_t;
+
+static void row_push(double **v, size_t *n, double x)
+{
+    *v = realloc(*v, (*n + 1) * sizeof **v);
+    (*v)[(*n)++] = x;
+}
+
+static int cmp_d(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+static double mean(const double *v, size_t n)
+{
+    double s = 0;
+    for (size_t i = 0; i < n; i++) s += v[i];
+    return n ? s / n : NAN;
+}
+
+static double p95(double *v, size_t n)
+{
+    qsort(v, n, sizeof *v, cmp_d);
+    return n ? v[(size_t)floor(0.95 * (n - 1))] : NAN;
+}
+
+static int run_set(const bench_dataset_t *d, void *user)
+{
+    const args_t *a = user;
+    uint32_t S = a->subjects && a->subjects < d->subjects ? a->subjects : d->subjects;
+    uint32_t P = a->poses && a->poses < d->poses ? a->poses : d->poses;
+    uint32_t n = d->n, L = d->map.count;
+    uint32_t tv = a->target_vertices ? a->target_vertices : (uint32_t)(0.3 * n);
+    mim_error_t err = {0};
+    mim_xfer_topology_t *topo = NULL;
+    if (mim_xfer_topology_open(&topo, n, d->faces, d->n_faces, &err)) {
+        fprintf(stderr, "%s: %s\n", d->name, mim_error_text(&err));
+        return 1;
+    }
+    mim_reg_t *reg[2] = {NULL, NULL};
+    mim_reg_options_t ro[2] = {{0}, {.no_icp = 1}};
+    for (int m = 0; m < 2; m++)
+        if (mim_reg_open(&reg[m], topo, &d->map, &ro[m], &err)) {
+            fprintf(stderr, "%s: %s\n", d->name, mim_error_text(&err));
+            return 1;
+        }
+    row_t rows[2] = {{0}};
+    double target_v = 0, iters = 0, picked_same_pose = 0;
+    uint32_t runs = 0;
+    float *out = malloc(sizeof(float) * 3 * n), *lm = malloc(sizeof(float) * 3 * L);
+    float *tlm = malloc(sizeof(float) * 3 * L * d->subjects * d->poses);
+    uint64_t *ids = malloc(sizeof(uint64_t) * d->subjects * d->poses);
+    const char **sp = malloc(sizeof(char *) * d->subjects * d->poses), **pp = malloc(sizeof(char *) * d->subjects * d->poses);
+    char (*lab)[2][16] = malloc(sizeof *lab * d->subjects * d->poses);
+    double *dist = malloc(sizeof(double) * n);
+    for (uint32_t s = 0; s < S; s++) {
+        uint32_t nt = 0;
+        for (uint32_t t = 0; t < d->subjects * d->poses; t++) {
+            if (t / d->poses == s) continue;
+            for (uint32_t l = 0; l < L; l++) memcpy(tlm + 3 * (L * nt + l), d->pos[t] + 3 * d->map.vertex[l], 12);
+            snprintf(lab[nt][0], 16, "s%u", t / d->poses), snprintf(lab[nt][1], 16, "p%u", t % d->poses);
+            sp[nt] = lab[nt][0], pp[nt] = lab[nt][1], ids[nt] = t + 1, nt++;
+        }
+        mim_index_input_t in = {nt, L, tlm, ids, sp, pp, d->map.mirror};
+        mim_index_t *ix = NULL;
+        if (mim_index_build(&ix, &in, NULL, NULL, &err)) {
+            fprintf(stderr, "%s: index: %s\n", d->name, mim_error_text(&err));
+            return 1;
+        }
+        for (uint32_t p = 0; p < P; p++) {
+            const float *truth = d->pos[s * d->poses + p];
+            mim_mesh_t body = {n, d->n_faces, (float *)truth, d->faces}, dec = {0}, target = {0};
+            if (rt_decimate(&body, tv, &dec) || rt_shuffle(&dec, 1000 + s * 100 + p, &target, NULL)) {
+                fprintf(stderr, "%s: re-triangulation failed\n", d->name);
+                return 1;
+            }
+            mim_mesh_free(&dec);
+            target_v += target.n_vertices;
+            for (uint32_t l = 0; l < L; l++) memcpy(lm + 3 * l, truth + 3 * d->map.vertex[l], 12);
+            mim_index_answer_t ans;
+            mim_index_hit_t hit;
+            if (mim_index_query(ix, lm, NULL, NULL, &ans, &hit, &err) || !ans.n_hits) {
+                fprintf(stderr, "%s: query: %s\n", d->name, mim_error_text(&err));
+                return 1;
+            }
+            picked_same_pose += (hit.id - 1) % d->poses == p;
+            const float *tmpl = d->pos[hit.id - 1];
+            for (int m = 0; m < 2; m++) {
+                mim_reg_report_t rep;
+                if (mim_reg_run(reg[m], tmpl, &target, lm, "target", out, &rep, &err)) {
+                    fprintf(stderr, "%s: s%u p%u: %s\n", d->name, s, p, mim_error_text(&err));
+                    return 1;
+                }
+                for (uint32_t i = 0; i < n; i++) {
+                    double dx = out[3 * i] - truth[3 * i], dy = out[3 * i + 1] - truth[3 * i + 1],
+                           dz = out[3 * i + 2] - truth[3 * i + 2];
+                    row_push(&rows[m].corr, &rows[m].n_corr, 1000 * sqrt(dx * dx + dy * dy + dz * dz));
+                }
+                if (mim_reg_surface_distance(&target, out, n, dist, &err)) return 1;
+                for (uint32_t i = 0; i < n; i++) row_push(&rows[m].surf, &rows[m].n_surf, 1000 * dist[i]);
+                row_push(&rows[m].secs, &rows[m].n_secs, rep.seconds);
+                if (m == 0) iters += rep.iterations;
+            }
+            runs++;
+            mim_mesh_free(&target);
+            fprintf(stderr, "\r%s: %u/%u targets", d->name, runs, S * P);
+        }
+        mim_index_close(&ix);
+    }
+    fprintf(stderr, "\n");
+    printf("\n### %s: %u targets (%u subjects left out x %u poses), targets of %.0f vertices on average, store "
+           "connectivity %u vertices; nearest template of the same pose for %.0f %%; %.1f ICP steps on average\n\n",
+           d->name, runs, S, P, target_v / runs, n, 100.0 * picked_same_pose / runs, iters / runs);
+    printf("| method | correspondence mean (mm) | correspondence p95 (mm) | surface distance mean (mm) | surface "
+           "distance p95 (mm) | seconds per mesh (median) |\n|---|---|---|---|---|---|\n");
+    const char *names[2] = {"mimic register (similarity, transfer, non-rigid ICP)",
+                            "baseline: landmark-guided Laplacian editing of the nearest template, no ICP"};
+    for (int m = 0; m < 2; m++) {
+        double cm = mean(rows[m].corr, rows[m].n_corr), sm = mean(rows[m].surf, rows[m].n_surf);
+        printf("| %s | %.1f | %.1f | %.2f | %.2f | %.3f |\n", names[m], cm, p95(rows[m].corr, rows[m].n_corr), sm,
+               p95(rows[m].surf, rows[m].n_surf), bench_median(rows[m].secs, (int)rows[m].n_secs));
+        free(rows[m].corr), free(rows[m].surf), free(rows[m].secs);
+    }
+    for (int m = 0; m < 2; m++) mim_reg_close(&reg[m]);
+    mim_xfer_topology_close(&topo);
+    free(out), free(lm), free(tlm), free(ids), free(sp), free(pp), free(lab), free(dist);
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    bench_sets_t sets;
+    bench_sets_init(&sets);
+    args_t a = {0};
+    for (int i = 1; i < argc; i++) {
+        if (bench_sets_arg(&sets, argc, argv, &i)) continue;
+        if (!strcmp(argv[i], "--target-vertices") && i + 1 < argc) a.target_vertices = (uint32_t)strtoul(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--subjects") && i + 1 < argc) a.subjects = (uint32_t)strtoul(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--poses") && i + 1 < argc) a.poses = (uint32_t)strtoul(argv[++i], NULL, 10);
+        else {
+            fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--target-vertices N] [--subjects K] "
+                            "[--poses P]\n", argv[0]);
+            return 2;
+        }
+    }
+    return bench_sets_run(&sets, 4, 12, run_set, &a);
+}

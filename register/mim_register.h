@@ -1,0 +1,180 @@
+/* mimic register: non-rigid registration of the store's connectivity onto
+ * another surface, and the binding of a foreign avatar to its registered
+ * proxy.
+ *
+ * Computation over caller-owned arrays, like transfer/: nothing here opens
+ * the store, reads a file or prints. It uses transfer/ (the uniform
+ * Laplacian, frames, encoding and the constrained solver) for the initial
+ * shape, CHOLMOD for the non-rigid ICP, FLANN for closest points and
+ * LAPACKE for the similarity fit.
+ *
+ * The method (register.c, nicp.c), landmark-guided:
+ *   1. similarity fit (Umeyama 1991) of the template's landmarks onto the
+ *      target's;
+ *   2. initial shape: the caller's nearest template, moved by that fit and
+ *      transferred into the target's landmark positions with transfer/'s
+ *      solver (seed 000, eq. 3, mode (b): the template is its own avatar);
+ *   3. non-rigid ICP with decreasing stiffness (Amberg et al. 2007,
+ *      "Optimal step nonrigid ICP"): closest points on the target's
+ *      surface (and, early on, the target's vertices' nearest vertices),
+ *      rejected across a boundary, by normal or by distance; a stiffness
+ *      term on the initial shape's Laplacian offsets in the current local
+ *      frames; the landmarks as soft constraints. See nicp.c;
+ *   4. steps 2-3 once more, the transfer now from the frames of step 3's
+ *      result (a start closer to the target's pose).
+ * The landmarks and the initial shape carry the correspondence (vertex i
+ * lands where vertex i of a body belongs); ICP only closes the distance.
+ *
+ * Binding (bind.c): each vertex of a foreign avatar is bound to its closest
+ * triangle of the registered proxy, with barycentric coordinates and an
+ * offset in the local frame there, so that posing the proxy poses the
+ * avatar in its own connectivity and vertex order. */
+#ifndef MIM_REGISTER_H
+#define MIM_REGISTER_H
+
+#include "mim_core.h"
+#include "mim_transfer.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- similarity fit (fit.c) ---- */
+typedef struct mim_reg_similarity {
+    double scale;
+    double R[9]; /* rotation, column-major like mim_quat_to_matrix */
+    double t[3];
+} mim_reg_similarity_t;
+/* The similarity x -> scale * R x + t that best maps src onto dst in least
+ * squares (Umeyama 1991; a reflection is never returned). n >= 3 points,
+ * 3 * n floats each. MIM_EINVAL for fewer than 3 points or points that span
+ * no plane (a degenerate fit), MIM_EUNSUPPORTED when the SVD fails. */
+int mim_reg_similarity_fit(const float *src, const float *dst, uint32_t n, mim_reg_similarity_t *out,
+                           mim_error_t *err);
+void mim_reg_similarity_apply(const mim_reg_similarity_t *s, const float *in, uint32_t n, float *out);
+
+/* ---- the target surface (surface.c) ---- */
+/* Checks that a mesh can be registered onto: finite, a body
+ * (mim_body_check), every edge shared by at most two triangles (no
+ * non-manifold edge), one connected piece, every vertex on a triangle.
+ * One line naming origin and what is wrong: "scan.ply: non-manifold: edge
+ * 12-40 is shared by 3 triangles", "scan.ply: disconnected: 3 pieces (the
+ * largest has 4000 of 4200 vertices)". MIM_ETOPOLOGY, MIM_ENONFINITE or
+ * the body check's. */
+int mim_reg_target_check(const mim_mesh_t *target, const char *origin, mim_error_t *err);
+
+/* ---- registration (register.c) ---- */
+#define MIM_REG_DEFAULT_ROUNDS 2u             /* initial shape + ICP; the second round from the first's frames */
+#define MIM_REG_DEFAULT_STAGES 5u             /* stiffness stages per round */
+#define MIM_REG_DEFAULT_ITERATIONS 3u         /* ICP steps per stage, at most */
+#define MIM_REG_DEFAULT_STIFFNESS_FIRST 2.0   /* alpha of the first stage */
+#define MIM_REG_DEFAULT_STIFFNESS_LAST 0.005  /* alpha of the last stage (geometric in between) */
+#define MIM_REG_DEFAULT_LANDMARK_WEIGHT 1.0   /* beta of the first stage (it shrinks like alpha) */
+#define MIM_REG_DEFAULT_MAX_ANGLE_DEG 60.0    /* normal rejection at the last stage (90 at the first) */
+#define MIM_REG_DEFAULT_MAX_DISTANCE 0.05     /* metres: distance rejection at the last stage (4x at the first) */
+
+typedef struct mim_reg_options {
+    uint32_t rounds;          /* 0: MIM_REG_DEFAULT_ROUNDS */
+    uint32_t stages;          /* 0: MIM_REG_DEFAULT_STAGES */
+    uint32_t iterations;      /* per stage; 0: MIM_REG_DEFAULT_ITERATIONS */
+    double stiffness_first;   /* 0: default */
+    double stiffness_last;    /* 0: default */
+    double landmark_weight;   /* 0: default */
+    double max_angle_deg;     /* 0: default */
+    double max_distance;      /* 0: default */
+    int no_icp;               /* 1: the initial shape only (the baseline the bench compares against) */
+} mim_reg_options_t;
+
+typedef struct mim_reg_report {
+    uint32_t iterations;       /* ICP steps done over all stages */
+    double scale;              /* of the similarity fit, template onto target */
+    /* Surface distance from each result vertex to the target's surface (mm). */
+    double mean_mm, p95_mm, max_mm;
+    /* Distance of each result landmark vertex to the target's landmark (mm). */
+    uint32_t n_landmarks;
+    double landmark_mm[MIM_LANDMARKS_MAX];
+    double landmark_mean_mm, landmark_max_mm;
+    double rejected;           /* fraction of vertices without a closest point at the last step */
+    double seconds_initial, seconds_icp, seconds;
+} mim_reg_report_t;
+
+typedef struct mim_reg mim_reg_t;
+/* One registration context for a connectivity and its landmark map (16 or
+ * any >= 4 landmarks, vertices < n): the transfer solver of the initial
+ * shape and the symbolic analysis of the ICP system, done once and reused
+ * by every mim_reg_run. topo and map must outlive it. One run at a time per
+ * context (workspaces are shared); open one per thread. Errors: MIM_EINVAL,
+ * MIM_ENOMEM, the solver's (MIM_ETOPOLOGY: a piece of the mesh without a
+ * landmark). opt may be NULL. */
+int mim_reg_open(mim_reg_t **out, const mim_xfer_topology_t *topo, const mim_landmark_map_t *map,
+                 const mim_reg_options_t *opt, mim_error_t *err);
+void mim_reg_close(mim_reg_t **r); /* accepts NULL, nulls */
+
+/* Registers the connectivity onto target. tmpl: the starting template (3 *
+ * n floats, the connectivity's), normally the store's nearest pose to the
+ * target's landmarks; target_landmarks: 3 * map count floats, in map
+ * order, on the target. Writes 3 * n floats to out (the connectivity's
+ * vertices on the target) and fills report (may be NULL). origin names the
+ * target in messages. Errors: the target check's (mim_reg_target_check),
+ * MIM_ENONFINITE for NaN landmarks, MIM_EINVAL, MIM_ENOMEM,
+ * MIM_EUNSUPPORTED (a solve failed). */
+int mim_reg_run(mim_reg_t *r, const float *tmpl, const mim_mesh_t *target, const float *target_landmarks,
+                const char *origin, float *out, mim_reg_report_t *report, mim_error_t *err);
+
+/* Surface distance (metres) from each of n points to the target's surface,
+ * into dist (n doubles): what the report's figures are made of, public so
+ * that a caller can measure any mesh against a surface. Same errors as the
+ * target check. */
+int mim_reg_surface_distance(const mim_mesh_t *target, const float *points, uint32_t n, double *dist,
+                             mim_error_t *err);
+
+/* ---- binding a foreign avatar to its registered proxy (bind.c) ---- */
+typedef struct mim_reg_binding {
+    uint32_t n_vertices;       /* the avatar's */
+    uint32_t n_proxy_vertices; /* the proxy's (the store's connectivity) */
+    uint32_t n_proxy_faces;
+    float *proxy_rest;         /* 3 * n_proxy_vertices: the proxy registered onto the avatar at rest */
+    uint32_t *face;            /* n_vertices: the proxy triangle each avatar vertex is bound to */
+    float *bary;               /* 2 * n_vertices: barycentric (u, v) on it; w = 1 - u - v */
+    float *offset;             /* 3 * n_vertices: offset in the local frame there (tangent, bitangent, normal) */
+} mim_reg_binding_t;
+
+/* Binds each avatar vertex to its closest point on the proxy (proxy: the
+ * store's faces with the registered rest positions, which the binding
+ * copies). Errors: MIM_EINVAL, MIM_ENOMEM, MIM_ENONFINITE. On error *out
+ * is empty. */
+int mim_reg_bind(const mim_mesh_t *proxy, const mim_mesh_t *avatar, mim_reg_binding_t *out, mim_error_t *err);
+void mim_reg_binding_free(mim_reg_binding_t *b); /* accepts an empty one; empties it */
+
+/* The avatar's positions (3 * n_vertices floats) for the proxy posed at
+ * proxy_positions (3 * n_proxy_vertices floats; faces: the proxy's).
+ * work: 3 * n_proxy_vertices floats of scratch (the proxy's normals).
+ * Allocates nothing: the per-frame path. */
+void mim_reg_binding_apply(const mim_reg_binding_t *b, const uint32_t *proxy_faces, const float *proxy_positions,
+                           float *work, float *out);
+
+/* A binding as bytes, to cache (malloc'd; the caller frees), and back.
+ * decode checks every field against n_proxy_vertices and n_proxy_faces
+ * (a damaged cache entry is MIM_EFORMAT, never trusted). */
+int mim_reg_binding_encode(const mim_reg_binding_t *b, void **blob, size_t *len, mim_error_t *err);
+int mim_reg_binding_decode(const void *blob, size_t len, uint32_t n_proxy_vertices, uint32_t n_proxy_faces,
+                           mim_reg_binding_t *out, mim_error_t *err);
+
+/* ---- landmark maps of known connectivities, built in (known_maps.c) ---- */
+/* The built-in landmark map of the connectivity of these faces, found by
+ * the SHA-256 of the faces (little-endian uint32, three per triangle, in
+ * order) against the fingerprints shipped with mimic (SMPL's 6890-vertex
+ * body: FAUST and every SMPL-family mesh). Returns 1 and fills map (and
+ * name, the map's file name, if not NULL) when known, 0 when not. */
+int mim_reg_known_map(const uint32_t *faces, uint32_t n_faces, uint32_t n_vertices, mim_landmark_map_t *map,
+                      const char **name);
+/* The SHA-256 of the faces as above, as 64 lowercase hex digits and a NUL. */
+void mim_reg_faces_sha256(const uint32_t *faces, uint32_t n_faces, char hex[65]);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,184 @@
+/* Landmark-guided registration of the store's connectivity onto another
+ * surface (mim_register.h): similarity fit, initial shape by transfer,
+ * then non-rigid ICP (nicp.c). */
+#include "internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct mim_reg {
+    const mim_xfer_topology_t *topo;
+    const mim_landmark_map_t *map;
+    mim_reg_options_t opt;
+    uint32_t n;
+    mim_xfer_solver_t *solver; /* on the landmark vertices: the initial shape's transfer */
+    mim__reg_nicp_t *nicp;
+    float *moved, *x0f, *tmpl_lm;
+    double *frames, *W, *x0, *x, *dist;
+};
+
+mim_reg_options_t mim__reg_options(const mim_reg_options_t *in)
+{
+    mim_reg_options_t o = in ? *in : (mim_reg_options_t){0};
+    if (!o.rounds) o.rounds = MIM_REG_DEFAULT_ROUNDS;
+    if (!o.stages) o.stages = MIM_REG_DEFAULT_STAGES;
+    if (!o.iterations) o.iterations = MIM_REG_DEFAULT_ITERATIONS;
+    if (!(o.stiffness_first > 0)) o.stiffness_first = MIM_REG_DEFAULT_STIFFNESS_FIRST;
+    if (!(o.stiffness_last > 0)) o.stiffness_last = MIM_REG_DEFAULT_STIFFNESS_LAST;
+    if (!(o.landmark_weight > 0)) o.landmark_weight = MIM_REG_DEFAULT_LANDMARK_WEIGHT;
+    if (!(o.max_angle_deg > 0)) o.max_angle_deg = MIM_REG_DEFAULT_MAX_ANGLE_DEG;
+    if (!(o.max_distance > 0)) o.max_distance = MIM_REG_DEFAULT_MAX_DISTANCE;
+    return o;
+}
+
+void mim_reg_close(mim_reg_t **rp)
+{
+    if (!rp || !*rp) return;
+    mim_reg_t *r = *rp;
+    mim_xfer_solver_close(&r->solver);
+    mim__reg_nicp_close(&r->nicp);
+    free(r->moved), free(r->x0f), free(r->tmpl_lm), free(r->frames), free(r->W), free(r->x0), free(r->x), free(r->dist);
+    free(r);
+    *rp = NULL;
+}
+
+int mim_reg_open(mim_reg_t **out, const mim_xfer_topology_t *topo, const mim_landmark_map_t *map,
+                 const mim_reg_options_t *opt, mim_error_t *err)
+{
+    if (!out) return mim_error_set(err, MIM_EINVAL, "registration: no output");
+    *out = NULL;
+    if (!topo || !map) return mim_error_set(err, MIM_EINVAL, "registration: no connectivity or landmark map");
+    uint32_t n = mim_xfer_topology_n_vertices(topo);
+    int rc = mim_landmarks_validate(map, n, "registration: landmark map", err);
+    if (rc) return rc;
+    mim_reg_t *r = calloc(1, sizeof *r);
+    if (!r) return mim_error_set(err, MIM_ENOMEM, "registration: out of memory");
+    r->topo = topo, r->map = map, r->n = n, r->opt = mim__reg_options(opt);
+    size_t n3 = (size_t)3 * n;
+    r->moved = malloc(n3 * sizeof *r->moved);
+    r->x0f = malloc(n3 * sizeof *r->x0f);
+    r->tmpl_lm = malloc((size_t)3 * map->count * sizeof *r->tmpl_lm);
+    r->frames = malloc(3 * n3 * sizeof *r->frames);
+    r->W = malloc(n3 * sizeof *r->W);
+    r->x0 = malloc(n3 * sizeof *r->x0);
+    r->x = malloc(n3 * sizeof *r->x);
+    r->dist = malloc((size_t)n * sizeof *r->dist);
+    if (!r->moved || !r->x0f || !r->tmpl_lm || !r->frames || !r->W || !r->x0 || !r->x || !r->dist) {
+        mim_reg_close(&r);
+        return mim_error_set(err, MIM_ENOMEM, "registration: out of memory");
+    }
+    mim_xfer_solver_options_t so = {0};
+    if ((rc = mim_xfer_solver_open(&r->solver, topo, map->vertex, map->count, &so, err)) ||
+        (rc = mim__reg_nicp_open(&r->nicp, topo, err))) {
+        mim_reg_close(&r);
+        return rc;
+    }
+    *out = r;
+    return 0;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+int mim_reg_run(mim_reg_t *r, const float *tmpl, const mim_mesh_t *target, const float *target_landmarks,
+                const char *origin, float *out, mim_reg_report_t *report, mim_error_t *err)
+{
+    double t0 = mim_now();
+    if (!origin) origin = "target";
+    if (!r || !tmpl || !target || !target_landmarks || !out)
+        return mim_error_set(err, MIM_EINVAL, "%s: registration needs a template, a target and its landmarks", origin);
+    mim_reg_report_t rep = {0};
+    const mim_landmark_map_t *map = r->map;
+    uint32_t n = r->n, count = map->count;
+    int rc = mim_landmarks_check(target_landmarks, NULL, count, origin, -1, err);
+    if (rc) return rc;
+    mim__reg_surface_t surface;
+    if ((rc = mim__reg_surface_open(&surface, target, 1, origin, err))) return rc;
+
+    /* 1. The template's landmarks onto the target's: place, orientation, size. */
+    for (uint32_t l = 0; l < count; l++)
+        memcpy(r->tmpl_lm + 3 * l, tmpl + 3 * (size_t)map->vertex[l], 3 * sizeof(float));
+    mim_reg_similarity_t sim;
+    mim_error_t sub = {0};
+    if ((rc = mim_reg_similarity_fit(r->tmpl_lm, target_landmarks, count, &sim, &sub))) {
+        rc = mim_error_set(err, rc, "%s: landmarks: %s", origin, mim_error_text(&sub));
+        goto done;
+    }
+    rep.scale = sim.scale;
+    mim_reg_similarity_apply(&sim, tmpl, n, r->moved);
+
+    /* 2. Initial shape: the moved template as its own avatar, transferred
+     * into the target's landmark positions (seed 000, eq. 3); then ICP;
+     * rounds times. */
+    mim_xfer_frames(r->topo, r->moved, r->frames);
+    mim_xfer_encode(r->topo, r->moved, r->frames, r->W);
+    mim_xfer_options_t xo = {0};
+    double t1 = t0;
+    for (uint32_t round = 0; round < r->opt.rounds; round++) {
+        /* From the second round on, the frames come from the last result,
+         * which is in the target's pose: a template far from that pose
+         * (a sitting one for a high kick) gets a second, closer start. */
+        if (round > 0) mim_xfer_frames_d(r->topo, r->x, r->frames);
+        if ((rc = mim_xfer_transfer(r->solver, r->W, n, r->frames, target_landmarks, count, &xo, r->x0f, NULL,
+                                    &sub))) {
+            rc = mim_error_set(err, rc, "%s: initial shape: %s", origin, mim_error_text(&sub));
+            goto done;
+        }
+        for (size_t i = 0; i < (size_t)3 * n; i++)
+            r->x0[i] = r->x0f[i];
+        if (round == 0) t1 = mim_now(), rep.seconds_initial = t1 - t0;
+
+        /* 3. Non-rigid ICP onto the surface. */
+        uint32_t steps = 0;
+        if (r->opt.no_icp) {
+            memcpy(r->x, r->x0, (size_t)3 * n * sizeof *r->x);
+            break;
+        }
+        if ((rc = mim__reg_nicp_run(r->nicp, &r->opt, &surface, map->vertex, target_landmarks, count, r->x0, r->x,
+                                    &steps, &rep.rejected, &sub))) {
+            rc = mim_error_set(err, rc, "%s: %s", origin, mim_error_text(&sub));
+            goto done;
+        }
+        rep.iterations += steps;
+    }
+    for (size_t i = 0; i < (size_t)3 * n; i++)
+        out[i] = (float)r->x[i];
+    rep.seconds_icp = mim_now() - t1;
+    if ((rc = mim_body_check(out, n, origin, err))) goto done;
+
+    /* Figures: surface distance of every vertex, landmark residuals. */
+    mim__reg_hit_t *hits = malloc((size_t)n * sizeof *hits);
+    if (!hits) {
+        rc = mim_error_set(err, MIM_ENOMEM, "%s: out of memory", origin);
+        goto done;
+    }
+    if ((rc = mim__reg_surface_closest(&surface, out, n, hits, err))) {
+        free(hits);
+        goto done;
+    }
+    double sum = 0.0;
+    for (uint32_t i = 0; i < n; i++)
+        r->dist[i] = sqrt(hits[i].d2) * 1000.0, sum += r->dist[i];
+    free(hits);
+    rep.mean_mm = sum / n;
+    qsort(r->dist, n, sizeof *r->dist, cmp_double);
+    rep.p95_mm = r->dist[(size_t)floor(0.95 * (n - 1))];
+    rep.max_mm = r->dist[n - 1];
+    rep.n_landmarks = count;
+    for (uint32_t l = 0; l < count; l++) {
+        const float *a = out + 3 * (size_t)map->vertex[l], *b = target_landmarks + 3 * l;
+        double d = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+        rep.landmark_mm[l] = d * 1000.0;
+        rep.landmark_mean_mm += rep.landmark_mm[l] / count;
+        if (rep.landmark_mm[l] > rep.landmark_max_mm) rep.landmark_max_mm = rep.landmark_mm[l];
+    }
+    rep.seconds = mim_now() - t0;
+done:
+    mim__reg_surface_close(&surface);
+    if (!rc && report) *report = rep;
+    return rc;
+}
