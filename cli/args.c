@@ -1,6 +1,7 @@
 /* Argument helpers shared by the subcommands. */
 #include "args.h"
 
+#include "mim_session.h"
 #include "mim_vest_kinematics.h"
 #include "output.h"
 
@@ -111,4 +112,10 @@ mim_db_options_t mim_cli_db_options(int read_only)
     /* a read-write open of an older store migrates it: the user sees it */
     return (mim_db_options_t){.map_size = map, .read_only = read_only, .progress = mim_cli_progress,
                               .log = mim_cli_log};
+}
+
+void mim_cli_session_options(mim_session_options_t *so, const char *avatar_landmarks)
+{
+    *so = (mim_session_options_t){.map_size = mim_cli_db_options(1).map_size, .avatar_landmarks = avatar_landmarks,
+                                  .log = mim_cli_log};
 }

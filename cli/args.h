@@ -39,6 +39,12 @@ mim_db_options_t mim_cli_db_options(int read_only);
  * too), as MIM_VEST_POSE_*. Prints one line and returns -1 otherwise. */
 int mim_cli_pose(const char *cmd, const char *name, const char *text, int *pose);
 
+/* Session options for every command that opens one: the map size
+ * (mim_cli_db_options), the log on the terminal, and --avatar-landmarks
+ * (NULL when not given) for an avatar of another connectivity. */
+struct mim_session_options;
+void mim_cli_session_options(struct mim_session_options *so, const char *avatar_landmarks);
+
 /* For --register and mimic register: the store's index (a query) and a
  * registrar over the store's connectivity that finds starting templates
  * through it (mim_ingest_registrar_open with mim_query_nearest). Prints

@@ -302,7 +302,8 @@ int mim_cmd_demo(int argc, char **argv)
                                  .log = mim_cli_log};
         /* frames that arrive before the recorder is sized below are skipped:
          * its n_vertices is 0 until then */
-        mim_session_options_t so = {.map_size = mim_cli_db_options(1).map_size};
+        mim_session_options_t so;
+        mim_cli_session_options(&so, NULL);
         rc = mim_session_open(&session, store, &so, &err);
         if (!rc)
             rc = mim_session_load_avatar(session, "1", &err);

@@ -21,7 +21,10 @@ static void help(FILE *out)
             "Transfers the avatar into the pose of each key template, fills N poses between\n"
             "consecutive keys, and writes the sequence as a GLB animation (morph targets).\n\n"
             "  --store DIR          the template store\n"
-            "  --avatar MESH|ID     a mesh file with the store's connectivity, or a template id\n"
+            "  --avatar MESH|ID     a mesh file, or a template id; a mesh of another connectivity\n"
+            "                       is registered onto the store's once and bound (kept in the store)\n"
+            "  --avatar-landmarks FILE  that mesh's landmarks (default: NAME.landmarks.json beside it,\n"
+            "                       or a built-in map of its connectivity)\n"
             "  --keys K1,K2,...     template ids of the key poses, in order (2..%d)\n"
             "  --frames-between N   in-between poses per pair of keys (0..1000)\n"
             "  --method M           frames (default: per-vertex frames slerped, landmarks lerped,\n"
@@ -58,13 +61,13 @@ static int parse_keys(const char *text, uint64_t *keys, uint32_t *count)
 int mim_cmd_morph(int argc, char **argv)
 {
     static const struct option longopts[] = {
-        {"store", required_argument, 0, 's'},  {"avatar", required_argument, 0, 'a'},
+        {"store", required_argument, 0, 's'},  {"avatar", required_argument, 0, 'a'}, {"avatar-landmarks", required_argument, 0, 'A'},
         {"keys", required_argument, 0, 'k'},   {"frames-between", required_argument, 0, 'n'},
         {"method", required_argument, 0, 'm'}, {"landmarks", required_argument, 0, 'l'},
         {"fps", required_argument, 0, 'r'},    {"output", required_argument, 0, 'o'},
         {"json", no_argument, 0, 'j'},         {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0}};
-    const char *store = NULL, *avatar = NULL, *keys_arg = NULL, *lm_path = NULL, *outp = NULL;
+    const char *store = NULL, *avatar = NULL, *avatar_lm = NULL, *keys_arg = NULL, *lm_path = NULL, *outp = NULL;
     uint64_t between = 0, fps = 30, keys[KEYS_MAX];
     uint32_t n_keys = 0;
     int have_between = 0, as_json = 0, c;
@@ -74,6 +77,7 @@ int mim_cmd_morph(int argc, char **argv)
     while ((c = getopt_long(argc, argv, "s:a:k:n:m:l:r:o:jh", longopts, NULL)) != -1) {
         if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
+        else if (c == 'A') avatar_lm = optarg;
         else if (c == 'k') keys_arg = optarg;
         else if (c == 'l') lm_path = optarg;
         else if (c == 'o') outp = optarg;
@@ -115,7 +119,8 @@ int mim_cmd_morph(int argc, char **argv)
 
     mim_error_t err = {0};
     mim_session_t *s = NULL;
-    mim_session_options_t so = {.map_size = mim_cli_db_options(1).map_size};
+    mim_session_options_t so;
+    mim_cli_session_options(&so, avatar_lm);
     int rc = mim_session_open(&s, store, &so, &err);
     if (rc) { /* the command cannot run (README: exit status) */
         fprintf(stderr, "mimic morph: %s\n", mim_error_text(&err));
@@ -174,9 +179,16 @@ int mim_cmd_morph(int argc, char **argv)
     }
     if (!rc) memcpy(seq + (n_frames - 1) * 3 * n, kpos + (size_t)(n_keys - 1) * 3 * n, 3 * (size_t)n * sizeof *seq);
     double t_compute = mim_now() - t0;
-    if (!rc) {
-        mim_io_sequence_t sq = {.mesh = mim_session_mesh(s), .n_frames = (uint32_t)n_frames, .positions = seq, .fps = (double)fps};
-        rc = mim_io_write_sequence_glb(outp, &sq, &err);
+    if (!rc) { /* in the avatar's own connectivity */
+        const mim_mesh_t *om = mim_session_output_mesh(s);
+        float *own = seq;
+        if (mim_session_maps_output(s) && !(own = malloc(n_frames * 3 * (size_t)om->n_vertices * sizeof *own)))
+            rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for %zu frames of %u vertices", n_frames, om->n_vertices);
+        for (size_t f = 0; !rc && own != seq && f < n_frames; f++)
+            mim_session_output(s, seq + f * 3 * n, own + f * 3 * (size_t)om->n_vertices);
+        mim_io_sequence_t sq = {.mesh = om, .n_frames = (uint32_t)n_frames, .positions = own, .fps = (double)fps};
+        if (!rc) rc = mim_io_write_sequence_glb(outp, &sq, &err);
+        if (own != seq) free(own);
     }
     if (rc) {
         fprintf(stderr, "mimic morph: %s\n", mim_error_text(&err));

@@ -62,7 +62,8 @@ int mim_cmd_query(int argc, char **argv)
     }
     mim_error_t err = {0};
     mim_session_t *s = NULL;
-    mim_session_options_t so = {.map_size = mim_cli_db_options(1).map_size};
+    mim_session_options_t so;
+    mim_cli_session_options(&so, NULL);
     int rc = mim_session_open(&s, store, &so, &err);
     const mim_query_t *q = rc ? NULL : mim_session_query(s);
     if (!rc && !q)

@@ -25,7 +25,10 @@ static void help(FILE *out)
             "frame on the stream: a key frame (nearest template, then transfer with the\n"
             "cached factor) as often as the measured compute time allows, morphs between.\n\n"
             "  --store DIR          the template store (its index, if built, answers /api/query)\n"
-            "  --avatar MESH|ID     a mesh file with the store's connectivity, or a template id\n"
+            "  --avatar MESH|ID     a mesh file, or a template id; a mesh of another connectivity\n"
+            "                       is registered onto the store's once and bound (kept in the store)\n"
+            "  --avatar-landmarks FILE  that mesh's landmarks (default: NAME.landmarks.json beside it,\n"
+            "                       or a built-in map of its connectivity)\n"
             "  --vest SPEC          a recording (played in real time), serial:PATH, hid:VID:PID or\n"
             "                       udp:HOST:PORT (as mimic vest replay takes)\n"
             "  --vest-pose P        the wearer's pose at the tare: rest (as the avatar), t or a\n"
@@ -53,7 +56,7 @@ static void help(FILE *out)
 int mim_cmd_serve(int argc, char **argv)
 {
     static const struct option longopts[] = {{"store", required_argument, 0, 's'},
-                                              {"avatar", required_argument, 0, 'a'},
+                                              {"avatar", required_argument, 0, 'a'}, {"avatar-landmarks", required_argument, 0, 'A'},
                                               {"listen", required_argument, 0, 'l'},
                                               {"max-body", required_argument, 0, 'b'},
                                               {"vest", required_argument, 0, 'v'},
@@ -63,7 +66,7 @@ int mim_cmd_serve(int argc, char **argv)
                                               {"warm-start", required_argument, 0, 'w'},
                                               {"help", no_argument, 0, 'h'},
                                               {0, 0, 0, 0}};
-    const char *store = NULL, *avatar = NULL;
+    const char *store = NULL, *avatar = NULL, *avatar_lm = NULL;
     mim_serve_options_t o = {.log = mim_cli_log};
     int c;
     optind = 0;
@@ -72,6 +75,7 @@ int mim_cmd_serve(int argc, char **argv)
         uint64_t v;
         if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
+        else if (c == 'A') avatar_lm = optarg;
         else if (c == 'l') o.listen = optarg;
         else if (c == 'v') o.vest = optarg;
         else if (c == 'p') {
@@ -135,7 +139,8 @@ int mim_cmd_serve(int argc, char **argv)
 
     mim_error_t err = {0};
     mim_session_t *session = NULL;
-    mim_session_options_t so = {.map_size = mim_cli_db_options(1).map_size};
+    mim_session_options_t so;
+    mim_cli_session_options(&so, avatar_lm);
     int rc = mim_session_open(&session, store, &so, &err);
     if (rc) { /* the command cannot run (README: exit status) */
         fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));

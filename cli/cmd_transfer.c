@@ -21,7 +21,10 @@ static void help(FILE *out)
             "Deforms the avatar into a pose, keeping its own shape: the template gives the pose\n"
             "through its local frames, the landmarks (if given) fix 16 points exactly.\n\n"
             "  --store DIR          the template store\n"
-            "  --avatar MESH|ID     a mesh file with the store's connectivity, or a template id (mimic list)\n"
+            "  --avatar MESH|ID     a mesh file, or a template id (mimic list); a mesh of another connectivity\n"
+            "                       is registered onto the store's once and bound (kept in the store)\n"
+            "  --avatar-landmarks FILE  that mesh's landmarks (default: NAME.landmarks.json beside it,\n"
+            "                       or a built-in map of its connectivity)\n"
             "  --template ID        the template whose pose to take; with no --landmarks, mimic\n"
             "                       retargets its landmarks onto the avatar's proportions\n"
             "  --landmarks FILE     one landmark frame, {\"landmarks\": [[x,y,z], ...]} in the order of\n"
@@ -40,13 +43,13 @@ static void help(FILE *out)
 int mim_cmd_transfer(int argc, char **argv)
 {
     static const struct option longopts[] = {
-        {"store", required_argument, 0, 's'},      {"avatar", required_argument, 0, 'a'},
+        {"store", required_argument, 0, 's'},      {"avatar", required_argument, 0, 'a'}, {"avatar-landmarks", required_argument, 0, 'A'},
         {"template", required_argument, 0, 't'},   {"landmarks", required_argument, 0, 'l'},
         {"iterations", required_argument, 0, 'i'}, {"tol", required_argument, 0, 'T'},
         {"formulation", required_argument, 0, 'f'}, {"output", required_argument, 0, 'o'},
         {"json", no_argument, 0, 'j'},             {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0}};
-    const char *store = NULL, *avatar = NULL, *tmpl_arg = NULL, *lm_path = NULL, *outp = NULL;
+    const char *store = NULL, *avatar = NULL, *avatar_lm = NULL, *tmpl_arg = NULL, *lm_path = NULL, *outp = NULL;
     uint64_t iterations = 0, tmpl_id = 0;
     double tol = 0.0;
     int as_json = 0, c;
@@ -56,6 +59,7 @@ int mim_cmd_transfer(int argc, char **argv)
     while ((c = getopt_long(argc, argv, "s:a:t:l:i:T:f:o:jh", longopts, NULL)) != -1) {
         if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
+        else if (c == 'A') avatar_lm = optarg;
         else if (c == 't') tmpl_arg = optarg;
         else if (c == 'l') lm_path = optarg;
         else if (c == 'o') outp = optarg;
@@ -93,7 +97,9 @@ int mim_cmd_transfer(int argc, char **argv)
     mim_error_t err = {0};
     mim_session_t *s = NULL;
     double t0 = mim_now();
-    mim_session_options_t so = {.formulation = form, .map_size = mim_cli_db_options(1).map_size};
+    mim_session_options_t so;
+    mim_cli_session_options(&so, avatar_lm);
+    so.formulation = form;
     int rc = mim_session_open(&s, store, &so, &err);
     if (!rc && !tmpl_arg && !mim_session_query(s))
         rc = mim_error_set(&err, MIM_ENOTFOUND, "%s: store has no index (run mimic index)", store);
@@ -119,9 +125,16 @@ int mim_cmd_transfer(int argc, char **argv)
                                      .xfer = {.max_iterations = (uint32_t)iterations, .tol = tol}};
         rc = mim_session_transfer(s, &req, out, &rep, &err);
     }
-    if (!rc) {
-        mim_mesh_t m = {n, mim_session_mesh(s)->n_faces, out, mim_session_mesh(s)->faces};
-        rc = mim_io_write_mesh(outp, &m, &err);
+    if (!rc) { /* in the avatar's own connectivity */
+        const mim_mesh_t *om = mim_session_output_mesh(s);
+        float *own = mim_session_maps_output(s) ? malloc(3 * (size_t)om->n_vertices * sizeof *own) : out;
+        if (!own) rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for %u vertices", om->n_vertices);
+        if (!rc) {
+            mim_session_output(s, out, own);
+            mim_mesh_t m = {om->n_vertices, om->n_faces, own, om->faces};
+            rc = mim_io_write_mesh(outp, &m, &err);
+        }
+        if (own != out) free(own);
     }
     /* load: the store, the avatar and the template; factor: the avatar's Cholesky factor */
     const double t_load = t_open - t_factor + rep.seconds_query + rep.seconds_template, t_solve = rep.seconds_solve;

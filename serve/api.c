@@ -29,7 +29,7 @@ int mim__api_status(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
                               (json_int_t)(qs->has_index ? qs->built.templates : 0));
     json_t *j = json_pack("{s:s, s:s, s:I, s:i, s:i, s:i, s:o, s:f, s:I, s:I, s:I, s:I, s:o, s:o}", "store",
                           sv->store, "avatar", mim_session_avatar(sv->s), "templates", (json_int_t)qs->templates,
-                          "vertices", (int)sv->mesh->n_vertices, "faces", (int)sv->mesh->n_faces, "landmarks",
+                          "vertices", (int)sv->out_mesh->n_vertices, "faces", (int)sv->out_mesh->n_faces, "landmarks",
                           (int)sv->map->count, "index", index, "uptime_s", mim_now() - sv->t_start, "vest_frames",
                           (json_int_t)mim__metrics_get(&sv->m, MIM__C_VEST_FRAMES), "frames",
                           (json_int_t)mim__metrics_get(&sv->m, MIM__C_FRAMES), "key_frames",
@@ -42,7 +42,7 @@ int mim__api_status(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 int mim__api_avatar(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 {
     (void)rq;
-    const mim_mesh_t *m = sv->mesh;
+    const mim_mesh_t *m = sv->out_mesh;
     json_t *pos = json_array(), *faces = json_array();
     for (size_t i = 0; pos && i < 3 * (size_t)m->n_vertices; i++)
         json_array_append_new(pos, json_real(m->positions[i]));
@@ -153,9 +153,10 @@ int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *r
     size_t len = rq->len;
     mim_error_t err = {0};
     xfer_req_t *r = calloc(1, sizeof *r);
-    const uint32_t n = sv->mesh->n_vertices;
+    const uint32_t n = sv->mesh->n_vertices, n_own = sv->out_mesh->n_vertices;
     float *out = malloc(3 * (size_t)n * sizeof *out);
-    int rc = r && out ? 0 : mim_error_set(&err, MIM_ENOMEM, "out of memory for %u vertices", n);
+    float *own = mim_session_maps_output(sv->s) ? malloc(3 * (size_t)n_own * sizeof *own) : out;
+    int rc = r && out && own ? 0 : mim_error_set(&err, MIM_ENOMEM, "out of memory for %u vertices", n);
     if (!rc)
         rc = parse_transfer(sv, body, len, r, &err);
     mim_session_report_t rep = {0};
@@ -176,7 +177,8 @@ int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *r
     if (!rc) {
         mim__metrics_observe(&sv->m, MIM__H_TRANSFER, rep.seconds_solve);
         mim__metrics_add(&sv->m, MIM__C_TRANSFERS, 1);
-        mim_mesh_t m = {n, sv->mesh->n_faces, out, sv->mesh->faces};
+        mim_session_output(sv->s, out, own); /* in the avatar's own connectivity */
+        mim_mesh_t m = {n_own, sv->out_mesh->n_faces, own, sv->out_mesh->faces};
         rc = mim_io_encode_glb(&m, "transfer", &glb, &glen, &err);
         if (rc && status_of(rc) == 400)
             rc = MIM_EIO; /* an encoder failure is ours, not the client's */
@@ -194,6 +196,7 @@ int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *r
                      "X-Mimic-Template: %llu\r\nX-Mimic-Template-Label: %s\r\nX-Mimic-Iterations: %u\r\n",
                      (unsigned long long)rep.template_id, rep.label, rep.xfer.iterations);
     }
+    if (own != out) free(own);
     free(glb), free(r), free(out);
     return status;
 }

@@ -213,7 +213,8 @@ typedef struct mim__conn {
 struct mim_serve {
     mim_session_t *s;           /* store, index, avatar, factor: the transfer pipeline (borrowed) */
     /* what the session holds, read-only, for the handlers */
-    const mim_mesh_t *mesh;     /* the avatar at rest, the store's faces */
+    const mim_mesh_t *mesh;     /* the avatar at rest, the store's faces (a foreign avatar's proxy) */
+    const mim_mesh_t *out_mesh; /* the avatar as given, what clients see (mim_session_output_mesh) */
     const mim_landmark_map_t *map;
     const mim_query_t *q;       /* NULL when the store has no index */
     const char *store;          /* the store's path */

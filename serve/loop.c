@@ -72,6 +72,7 @@ struct mim__loop {
     atomic_int stop;
     char spec[1024];
     float *out;        /* a morphed frame (3 * n) */
+    float *own;        /* a foreign avatar's frame on its own vertices (mim_session_output), or NULL */
     mim_session_report_t report; /* the latest key frame's */
     double *F;         /* 9 * n: scratch for a key's frames */
     key_pose_t keys[2];
@@ -318,6 +319,11 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
         pos = l->out;
     }
     l->since_key++;
+    const int shows_key = pos == b->pos;
+    if (l->own) { /* a foreign avatar: the pose on its own vertices */
+        mim_session_output(sv->s, pos, l->own);
+        pos = l->own;
+    }
     double now = mim_now();
     mim_serve_frame_t f = {.number = ++l->number,
                            .t_vest_us = t_vest,
@@ -325,8 +331,8 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
                            .template_id = b->template_id,
                            .compute_us = (uint32_t)((now - l->arrival) * 1e6),
                            .key_interval = l->k,
-                           .key = pos == b->pos,
-                           .n_vertices = sv->mesh->n_vertices,
+                           .key = shows_key,
+                           .n_vertices = sv->out_mesh->n_vertices,
                            .n_landmarks = L,
                            .positions = pos,
                            .landmarks = shown};
@@ -512,6 +518,8 @@ int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t
     int rc = 0, ok = l && sk;
     if (l) {
         l->out = malloc(3 * n * sizeof *l->out);
+        if (mim_session_maps_output(sv->s))
+            ok = ok && (l->own = malloc(3 * (size_t)sv->out_mesh->n_vertices * sizeof *l->own));
         l->F = malloc(9 * n * sizeof *l->F);
         ok = ok && l->out && l->F;
         for (int i = 0; i < 2; i++) {
@@ -577,7 +585,7 @@ void mim__loop_close(mim__loop_t **pl)
     mim_vest_transport_close(&l->t);
     if (l->sv)
         pthread_mutex_destroy(&l->lock);
-    free(l->out), free(l->F);
+    free(l->out), free(l->F), free(l->own);
     for (int i = 0; i < 2; i++)
         free(l->keys[i].pos), free(l->keys[i].quats), free(l->keys[i].W);
     free(l);

@@ -95,7 +95,8 @@ int mim_serve_port(const mim_serve_t *s);
 /* The vest loop's state, a static string: "streaming", "reconnecting",
  * "ended", "failed", "stopped", or "none" without a vest. */
 const char *mim_serve_vest_state(mim_serve_t *s);
-/* The avatar mesh (the store's faces, the avatar's rest positions), valid
+/* The avatar mesh as clients see it (mim_session_output_mesh: its own
+ * faces and rest positions; the frames are in its vertex order), valid
  * until close, and the number of frames published so far. */
 const mim_mesh_t *mim_serve_avatar_mesh(const mim_serve_t *s);
 uint64_t mim_serve_frames(mim_serve_t *s);

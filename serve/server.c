@@ -206,6 +206,7 @@ int mim_serve_open(mim_serve_t **out, mim_session_t *s, const mim_serve_options_
     sv->s = s;
     sv->store = mim_session_store(s);
     sv->mesh = mim_session_mesh(s);
+    sv->out_mesh = mim_session_output_mesh(s);
     sv->map = mim_session_map(s);
     sv->q = mim_session_query(s);
     int rc = mim_session_has_avatar(s) ? 0 : mim_error_set(err, MIM_EINVAL, "%s: serve: the session has no avatar",
@@ -284,7 +285,7 @@ const char *mim_serve_vest_state(mim_serve_t *s)
 
 const mim_mesh_t *mim_serve_avatar_mesh(const mim_serve_t *s)
 {
-    return s ? s->mesh : NULL;
+    return s ? s->out_mesh : NULL;
 }
 
 uint64_t mim_serve_frames(mim_serve_t *s)

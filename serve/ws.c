@@ -390,7 +390,7 @@ static int on_established(mim__ws_t *ws, struct lws *wsi, mim__conn_t *conn)
     for (uint32_t i = 0; i < sv->map->count; i++)
         json_array_append_new(names, json_string(sv->map->names[i]));
     json_t *j = json_pack("{s:s, s:i, s:i, s:i, s:i, s:o, s:s}", "type", "hello", "version", 1, "vertices",
-                          (int)sv->mesh->n_vertices, "faces", (int)sv->mesh->n_faces, "landmarks", (int)sv->map->count,
+                          (int)sv->out_mesh->n_vertices, "faces", (int)sv->out_mesh->n_faces, "landmarks", (int)sv->map->count,
                           "landmark_names", names, "format", fmt_names[fmt < 0 ? 0 : fmt]);
     msg_t *hello = msg_json(j);
     if (!c || fmt < 0 || !hello) {

@@ -28,6 +28,12 @@ typedef struct mim_session mim_session_t;
 typedef struct mim_session_options {
     mim_xfer_formulation_t formulation; /* 0: least squares (mim_xfer_solver_options_t) */
     uint64_t map_size;                  /* the store's LMDB map size (mim_db_options_t); 0: default */
+    /* An avatar of another connectivity: its landmarks (a file of either
+     * form, mim_ingest_foreign_landmarks' (c)); NULL: NAME.landmarks.json
+     * beside it, else a built-in map of its connectivity. */
+    const char *avatar_landmarks;
+    mim_log_fn log;                     /* registering and binding a foreign avatar; NULL: quiet */
+    void *log_ctx;
 } mim_session_options_t;
 
 /* Opens store read-only with its connectivity, landmark map and index (if
@@ -36,12 +42,19 @@ typedef struct mim_session_options {
  * MIM_ENOMEM. opt may be NULL. On error *out is NULL. */
 int mim_session_open(mim_session_t **out, const char *store, const mim_session_options_t *opt, mim_error_t *err);
 /* Loads the avatar, which transfers and morphs need: an all-digit argument
- * is a template id, anything else a mesh file with the store's
- * connectivity; then factorises the avatar's system for the store's
- * landmark vertices (seed 000, eq. 3). Errors, one line naming the file or
- * the id: the mesh reader's, MIM_ETOPOLOGY for another connectivity,
- * MIM_ENOTFOUND for an unknown template id. A session has one avatar: a
- * second call is MIM_EINVAL. */
+ * is a template id, anything else a mesh file; then factorises the
+ * avatar's system for the store's landmark vertices (seed 000, eq. 3).
+ * A mesh of another connectivity (issue 13) is registered once onto the
+ * store's (its landmarks from opt->avatar_landmarks, a sidecar or a
+ * built-in map; the nearest template through the index), its vertices
+ * are bound to that proxy (mim_reg_bind), and the binding is kept in the
+ * store, so a later session finds it; every transfer then runs on the
+ * proxy, and mim_session_output maps a result onto the avatar's own
+ * vertices. Errors, one line naming the file or the id: the mesh
+ * reader's, MIM_ENOTFOUND for an unknown template id or (foreign avatar)
+ * a store without index, the landmarks' and the registration's (a
+ * surface distance p95 over MIM_INGEST_DEFAULT_MAX_DISTANCE_MM is
+ * MIM_ETOPOLOGY). A session has one avatar: a second call is MIM_EINVAL. */
 int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err);
 void mim_session_close(mim_session_t **s); /* accepts NULL; nulls the pointer */
 
@@ -49,8 +62,17 @@ void mim_session_close(mim_session_t **s); /* accepts NULL; nulls the pointer */
  * after mim_session_load_avatar) ---- */
 const char *mim_session_store(const mim_session_t *s);  /* the store's path */
 const char *mim_session_avatar(const mim_session_t *s); /* the path, or "template N" */
-/* The store's faces with the avatar's rest positions. */
+/* The store's faces with the avatar's rest positions (a foreign avatar's
+ * proxy's): what transfers and morphs compute, 3 * n_vertices floats. */
 const mim_mesh_t *mim_session_mesh(const mim_session_t *s);
+/* The avatar as it is given (its own faces and rest positions): what every
+ * output is in. The same as mim_session_mesh unless the avatar is foreign. */
+const mim_mesh_t *mim_session_output_mesh(const mim_session_t *s);
+int mim_session_maps_output(const mim_session_t *s); /* 1: a foreign avatar, outputs go through its binding */
+/* A computed pose (3 * mim_session_mesh n floats) as the avatar's own
+ * (3 * mim_session_output_mesh n floats): through the binding, or a copy.
+ * Thread-safe; allocates nothing. */
+void mim_session_output(mim_session_t *s, const float *positions, float *out);
 const mim_landmark_map_t *mim_session_map(const mim_session_t *s);
 const mim_xfer_topology_t *mim_session_topology(const mim_session_t *s);
 const double *mim_session_encoding(const mim_session_t *s); /* the avatar's W, 3 * n */

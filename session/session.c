@@ -4,7 +4,9 @@
  * landmarks to a transferred mesh (Sections 3.3-3.4). */
 #include "mim_session.h"
 
+#include "mim_ingest.h"
 #include "mim_io.h"
+#include "mim_register.h"
 
 #include <pthread.h>
 #include <stdio.h>
@@ -18,7 +20,15 @@ struct mim_session {
     mim_session_options_t opt;
     mim_xfer_topology_t *topo;
     mim_landmark_map_t map;
-    mim_mesh_t mesh;            /* the store's faces with the avatar's rest positions */
+    mim_mesh_t mesh;            /* the store's faces with the avatar's rest positions (its proxy's, for a
+                                   foreign avatar) */
+    /* a foreign avatar (another connectivity): its own mesh, its binding to
+     * the proxy, and the scratch of mapping a pose onto it (out_lock) */
+    mim_mesh_t own;
+    mim_reg_binding_t binding;
+    int foreign;
+    pthread_mutex_t out_lock;
+    float *out_work;            /* 3 * n: the proxy's normals */
     double *W;                  /* the avatar's encoding, 3 * n */
     double t_factor;
     char store[4096];
@@ -66,6 +76,106 @@ static int load_store(mim_session_t *s, const char *store, uint64_t map_size, mi
     return rc;
 }
 
+/* The binding cache's key: the avatar mesh, the store's connectivity and
+ * landmark map (a binding made for another store is another entry). */
+static uint64_t binding_key(const mim_session_t *s, const mim_mesh_t *m)
+{
+    uint64_t h = mim_ingest_mesh_hash(m);
+    h = mim_hash64(s->mesh.faces, 3 * (size_t)s->mesh.n_faces * sizeof *s->mesh.faces, h);
+    return mim_hash64(s->map.vertex, s->map.count * sizeof *s->map.vertex, h);
+}
+
+/* Keeps a new binding in the store for the next start. The session's
+ * store is open read-only: it is closed, opened for writing just for this,
+ * and opened read-only again (no transaction is open meanwhile). A store
+ * that cannot be written keeps nothing, with a warning. */
+static int cache_binding(mim_session_t *s, uint64_t key, mim_error_t *err)
+{
+    void *blob = NULL;
+    size_t len = 0;
+    mim_error_t e = {0};
+    int rc = mim_reg_binding_encode(&s->binding, &blob, &len, &e);
+    mim_query_close(&s->query);
+    mim_db_close(&s->db);
+    mim_db_t *w = NULL;
+    mim_db_txn_t *t = NULL;
+    mim_db_options_t wo = {.map_size = s->opt.map_size};
+    if (!rc && !(rc = mim_db_open(&w, s->store, &wo, &e)) && !(rc = mim_db_begin(w, 1, &t, &e)) &&
+        !(rc = mim_db_binding_put(t, key, blob, len, &e)))
+        rc = mim_db_commit(&t, &e);
+    mim_db_abort(&t);
+    mim_db_close(&w);
+    free(blob);
+    if (rc)
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN, "%s: the avatar's binding is not kept in the store: %s",
+                     s->avatar, mim_error_text(&e));
+    mim_db_options_t ro = {.read_only = 1, .map_size = s->opt.map_size};
+    rc = mim_db_open(&s->db, s->store, &ro, err);
+    if (!rc && s->index.has_index) rc = mim_query_open(&s->query, s->db, err);
+    return rc;
+}
+
+/* A foreign avatar m: its binding from the store's cache, or registered
+ * now (issue 13: landmarks as for any foreign mesh, the nearest template
+ * through the index, then bound and cached). Fills s->binding and the
+ * proxy's rest positions into s->mesh. */
+static int load_foreign_avatar(mim_session_t *s, const char *path, const mim_mesh_t *m, mim_error_t *err)
+{
+    uint64_t key = binding_key(s, m);
+    mim_db_txn_t *t = NULL;
+    const void *blob;
+    size_t len;
+    int rc = mim_db_begin(s->db, 0, &t, err), cached = 0;
+    if (!rc && mim_db_binding_get(t, key, &blob, &len, NULL) == 0) {
+        mim_error_t e = {0};
+        cached = mim_reg_binding_decode(blob, len, s->mesh.n_vertices, s->mesh.n_faces, &s->binding, &e) == 0 &&
+                 s->binding.n_vertices == m->n_vertices;
+        if (!cached) {
+            mim_reg_binding_free(&s->binding);
+            mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN, "%s: cached binding not usable (%s): binding again",
+                         path, e.code ? mim_error_text(&e) : "another vertex count");
+        }
+    }
+    mim_db_abort(&t);
+    if (rc) return rc;
+    if (!cached) {
+        if (!s->query)
+            return mim_error_set(err, MIM_ENOTFOUND,
+                                 "%s: an avatar of another connectivity (%u vertices, the store's %u) is registered "
+                                 "from the nearest template, and %s has no index (run mimic index)",
+                                 path, m->n_vertices, s->mesh.n_vertices, s->store);
+        mim_ingest_registrar_t *r = NULL;
+        mim_ingest_landmark_sources_t src = {.landmarks_path = s->opt.avatar_landmarks};
+        float lm[3 * MIM_LANDMARKS_MAX];
+        char how[4200];
+        mim_reg_report_t rep;
+        if ((rc = mim_ingest_registrar_open(&r, s->db, mim_query_nearest, s->query, NULL, err)) ||
+            (rc = mim_ingest_foreign_landmarks(path, m, &src, &s->map, lm, how, sizeof how, err)) ||
+            (rc = mim_ingest_register_mesh(r, m, lm, path, s->mesh.positions, &rep, NULL, err))) {
+            mim_ingest_registrar_close(&r);
+            return rc;
+        }
+        mim_ingest_registrar_close(&r);
+        if (!(rep.p95_mm <= MIM_INGEST_DEFAULT_MAX_DISTANCE_MM))
+            return mim_error_set(err, MIM_ETOPOLOGY,
+                                 "%s: registration too far from the avatar's surface: distance p95 %.1f mm over the "
+                                 "%.1f mm limit (mean %.1f mm)",
+                                 path, rep.p95_mm, MIM_INGEST_DEFAULT_MAX_DISTANCE_MM, rep.mean_mm);
+        if ((rc = mim_reg_bind(&s->mesh, m, &s->binding, err))) return rc;
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_INFO,
+                     "%s: registered onto the store's connectivity (landmarks from %s; surface distance mean %.2f mm, "
+                     "p95 %.2f mm) and bound, %.2f s",
+                     path, how, rep.mean_mm, rep.p95_mm, rep.seconds);
+        if ((rc = cache_binding(s, key, err))) return rc;
+    } else {
+        memcpy(s->mesh.positions, s->binding.proxy_rest, 3 * (size_t)s->mesh.n_vertices * sizeof(float));
+    }
+    s->out_work = malloc(3 * (size_t)s->mesh.n_vertices * sizeof *s->out_work);
+    if (!s->out_work) return mim_error_set(err, MIM_ENOMEM, "out of memory");
+    s->foreign = 1;
+    return 0;
+}
+
 /* The avatar's rest positions (a template id or a mesh file) and its W. */
 static int load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err)
 {
@@ -84,15 +194,22 @@ static int load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err)
         snprintf(s->avatar, sizeof s->avatar, "%s", avatar);
         mim_mesh_t m = {0};
         rc = mim_io_read_mesh(avatar, &m, err);
-        if (!rc)
-            rc = mim_xfer_check_mesh(s->topo, &m, avatar, err);
         if (!rc) /* an avatar must be a body (a 10 m box, not a point) before it is factored */
             rc = mim_body_check(m.positions, m.n_vertices, avatar, err);
-        if (!rc) {
+        mim_error_t topo_err = {0};
+        if (!rc && mim_xfer_check_mesh(s->topo, &m, avatar, &topo_err) == 0) {
             memcpy(s->mesh.positions, m.positions, 3 * (size_t)n * sizeof(float));
-            mim_xfer_frames(s->topo, s->mesh.positions, F);
+            mim_mesh_free(&m);
+        } else if (!rc && topo_err.code == MIM_ETOPOLOGY) {
+            /* another connectivity: drive it through a registered proxy */
+            rc = load_foreign_avatar(s, avatar, &m, err);
+            s->own = m;
+        } else {
+            if (!rc) rc = mim_error_set(err, topo_err.code, "%s", mim_error_text(&topo_err));
+            mim_mesh_free(&m);
         }
-        mim_mesh_free(&m);
+        if (!rc)
+            mim_xfer_frames(s->topo, s->mesh.positions, F);
     }
     if (!rc)
         mim_xfer_encode(s->topo, s->mesh.positions, F, s->W);
@@ -108,6 +225,7 @@ int mim_session_open(mim_session_t **out, const char *store, const mim_session_o
         return mim_error_set(err, MIM_ENOMEM, "out of memory");
     s->opt = opt ? *opt : (mim_session_options_t){0};
     pthread_mutex_init(&s->lock, NULL);
+    pthread_mutex_init(&s->out_lock, NULL);
     snprintf(s->store, sizeof s->store, "%s", store);
     int rc = load_store(s, store, s->opt.map_size, err);
     if (!rc)
@@ -153,9 +271,13 @@ void mim_session_close(mim_session_t **ps)
     mim_query_close(&s->query);
     mim_xfer_topology_close(&s->topo);
     mim_mesh_free(&s->mesh);
+    mim_mesh_free(&s->own);
+    mim_reg_binding_free(&s->binding);
+    free(s->out_work);
     free(s->W), free(s->tpos), free(s->tF);
     mim_db_close(&s->db);
     pthread_mutex_destroy(&s->lock);
+    pthread_mutex_destroy(&s->out_lock);
     free(s);
     *ps = NULL;
 }
@@ -163,6 +285,19 @@ void mim_session_close(mim_session_t **ps)
 const char *mim_session_store(const mim_session_t *s) { return s->store; }
 const char *mim_session_avatar(const mim_session_t *s) { return s->avatar; }
 const mim_mesh_t *mim_session_mesh(const mim_session_t *s) { return &s->mesh; }
+const mim_mesh_t *mim_session_output_mesh(const mim_session_t *s) { return s->foreign ? &s->own : &s->mesh; }
+int mim_session_maps_output(const mim_session_t *s) { return s->foreign; }
+
+void mim_session_output(mim_session_t *s, const float *positions, float *out)
+{
+    if (!s->foreign) {
+        if (out != positions) memcpy(out, positions, 3 * (size_t)s->mesh.n_vertices * sizeof *out);
+        return;
+    }
+    pthread_mutex_lock(&s->out_lock);
+    mim_reg_binding_apply(&s->binding, s->mesh.faces, positions, s->out_work, out);
+    pthread_mutex_unlock(&s->out_lock);
+}
 const mim_landmark_map_t *mim_session_map(const mim_session_t *s) { return &s->map; }
 const mim_xfer_topology_t *mim_session_topology(const mim_session_t *s) { return s->topo; }
 const double *mim_session_encoding(const mim_session_t *s) { return s->W; }
