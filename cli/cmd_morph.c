@@ -198,7 +198,8 @@ int mim_cmd_morph(int argc, char **argv)
                               "frames_between", (int)between, "frames", (int)n_frames, "key_iterations",
                               (int)iterations, "seconds", t_compute);
         char *txt = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
-        printf("%s\n", txt ? txt : "{}");
+        if (txt) printf("%s\n", txt);
+        else rc = MIM_EINVAL, fprintf(stderr, "mimic morph: cannot make the JSON report (is every path valid UTF-8?)\n");
         free(txt);
         json_decref(j);
     } else {
@@ -208,5 +209,5 @@ int mim_cmd_morph(int argc, char **argv)
     mim_landmark_frames_free(&lmf);
     free(kpos), free(klm), free(kq), free(kW), free(F), free(seq);
     mim_session_close(&s);
-    return rc ? 1 : 0;
+    return rc == MIM_ENOINDEX ? 2 : rc ? 1 : 0; /* no index: the command could not run */
 }

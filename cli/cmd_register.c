@@ -64,7 +64,7 @@ int mim_cmd_register(int argc, char **argv)
     const char *store = NULL, *outp = NULL;
     mim_ingest_landmark_sources_t src = {0};
     double max_mm = MIM_INGEST_DEFAULT_MAX_DISTANCE_MM;
-    int as_json = 0, c;
+    int as_json = 0, json_failed = 0, c;
     optind = 0;
     opterr = 0;
     while ((c = getopt_long(argc, argv, "s:l:o:D:jh", longopts, NULL)) != -1) {
@@ -133,7 +133,7 @@ int mim_cmd_register(int argc, char **argv)
     if ((rc = mim_ingest_register_mesh(r, &target, lm, mesh_path, out.positions, &rep, &tid, &err))) goto fail;
     if (!(rep.p95_mm <= max_mm)) {
         rc = mim_error_set(&err, MIM_ETOPOLOGY,
-                           "%s: registration too far from the surface: distance p95 %.1f mm over the %.1f mm limit "
+                           "%s: registration too far from the surface: distance p95 %.1f mm over the %g mm limit "
                            "(mean %.1f mm, landmarks %.1f mm off): nothing written",
                            mesh_path, rep.p95_mm, max_mm, rep.mean_mm, rep.landmark_mean_mm);
         goto fail;
@@ -146,6 +146,7 @@ int mim_cmd_register(int argc, char **argv)
         json_t *j = report_json(mesh_path, outp, &target, n, how, tid, have_tv ? &tv : NULL, &rep, map);
         char *txt = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
         if (txt) printf("%s\n", txt);
+        else json_failed = 1, fprintf(stderr, "mimic register: cannot make the JSON report (is every path valid UTF-8?)\n");
         free(txt);
         json_decref(j);
     } else {
@@ -156,9 +157,9 @@ int mim_cmd_register(int argc, char **argv)
                rep.landmark_mean_mm, outp);
     }
     mim_db_abort(&t);
-    status = 0;
+    status = json_failed;
 fail:
-    if (status) fprintf(stderr, "mimic register: %s\n", mim_error_text(&err));
+    if (status && err.code) fprintf(stderr, "mimic register: %s\n", mim_error_text(&err));
     mim_mesh_free(&target);
     mim_mesh_free(&out);
     mim_ingest_registrar_close(&r);

@@ -146,10 +146,10 @@ int mim_cmd_serve(int argc, char **argv)
         fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
         return 2;
     }
-    if ((rc = mim_session_load_avatar(session, avatar, &err))) { /* bad input */
+    if ((rc = mim_session_load_avatar(session, avatar, &err))) { /* bad input, or no index for a foreign avatar */
         fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
         mim_session_close(&session);
-        return 1;
+        return rc == MIM_ENOINDEX ? 2 : 1;
     }
     mim_serve_t *sv = NULL;
     if (mim_serve_open(&sv, session, &o, &err)) { /* the vest or the address */

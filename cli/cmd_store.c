@@ -1,7 +1,7 @@
 /* mimic store: the store's own upkeep. `check` verifies every record
  * (mim_db_check; JSON: schemas/store-check.schema.json); `migrate` brings a
- * version-1 store to the current schema version (what the first
- * read-write open does anyway), with progress. */
+ * version-1 or version-2 store to the current schema version (what the
+ * first read-write open does anyway), with progress. */
 #include "args.h"
 #include "commands.h"
 #include "mim_db.h"
@@ -24,10 +24,11 @@ static void help(FILE *out)
                  "         landmark map and connectivity are valid). One line per problem, then a\n"
                  "         summary. Exit status 0: no problem; 1: damage found; 2: the store cannot be\n"
                  "         opened at all (the reason is the one line on stderr).\n"
-                 "migrate  rewrites a store of schema version 1 as the current version (records gain\n"
-                 "         checksums), in one transaction: all or nothing. Opening a store for writing\n"
-                 "         (mimic ingest, mimic index) does the same; read-only commands read a\n"
-                 "         version-1 store as it is.\n\n"
+                 "migrate  rewrites a store of schema version 1 or 2 as the current version, 3 (version-1\n"
+                 "         records gain checksums; the registrations, by_source and bindings tables are\n"
+                 "         added), in one transaction: all or nothing. Opening a store for writing\n"
+                 "         (mimic ingest, mimic index) does the same; read-only commands read an older\n"
+                 "         store as it is.\n\n"
                  "  --store DIR  the template store (or DIR as the argument after the subcommand)\n"
                  "  --json       check: one JSON object on stdout (schemas/store-check.schema.json)\n"
                  "  -h, --help   this help\n");

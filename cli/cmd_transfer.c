@@ -149,7 +149,8 @@ int mim_cmd_transfer(int argc, char **argv)
                               "converged", rep.xfer.converged, "early_stopped", rep.xfer.early_stopped, "seconds",
                               "load", t_load, "factor", t_factor, "transfer", t_solve);
         char *txt = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
-        printf("%s\n", txt ? txt : "{}");
+        if (txt) printf("%s\n", txt);
+        else rc = MIM_EINVAL, fprintf(stderr, "mimic transfer: cannot make the JSON report (is every path valid UTF-8?)\n");
         free(txt);
         json_decref(j);
     } else {
@@ -163,5 +164,5 @@ int mim_cmd_transfer(int argc, char **argv)
     mim_landmark_frames_free(&frames);
     free(out);
     mim_session_close(&s);
-    return rc ? 1 : 0;
+    return rc == MIM_ENOINDEX ? 2 : rc ? 1 : 0; /* no index: the command could not run */
 }

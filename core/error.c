@@ -22,6 +22,7 @@ const char *mim_strerror(int err)
     case MIM_ENOTFOUND: return "not found";
     case MIM_EUNSUPPORTED: return "unsupported";
     case MIM_ENOLANDMARKS: return "no landmark map";
+    case MIM_ENOINDEX: return "the store has no index";
     default:
         if (err < 0 && err > -4096) return strerror(-err);
         return "unknown error";

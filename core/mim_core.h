@@ -36,6 +36,7 @@ enum {
     MIM_ENOTFOUND,       /* no such record or file */
     MIM_EUNSUPPORTED,    /* format or feature not supported */
     MIM_ENOLANDMARKS,    /* no landmark map where one is needed */
+    MIM_ENOINDEX,        /* the store has no recognition index where one is needed */
     MIM_ELAST_
 };
 

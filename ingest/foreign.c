@@ -77,9 +77,9 @@ int mim_ingest_foreign_landmarks(const char *mesh_path, const mim_mesh_t *mesh,
     char side_name[4096];
     if (mim_io_landmarks_sidecar(mesh_path, side_name, sizeof side_name) < 0) snprintf(side_name, sizeof side_name, "NAME.landmarks.json");
     return mim_error_set(err, MIM_ENOLANDMARKS,
-                         "%s: no landmarks for a mesh of another connectivity (%u vertices): give --landmarks FILE, "
+                         "%s: no landmarks for a mesh of another connectivity (%u vertices): give %s FILE, "
                          "put %s beside it, or a landmark map of its connectivity",
-                         mesh_path, mesh->n_vertices, side_name);
+                         mesh_path, mesh->n_vertices, src->option ? src->option : "--landmarks", side_name);
 }
 
 /* ---- the registrar ---- */

@@ -113,7 +113,7 @@ static int register_foreign(work_t *w, slot_t *s, const char *path)
     if (!(rep.p95_mm <= w->max_distance_mm)) {
         mim_mesh_free(&out);
         return mim_error_set(&s->err, MIM_ETOPOLOGY,
-                             "%s: registration too far from the surface: distance p95 %.1f mm over the %.1f mm limit "
+                             "%s: registration too far from the surface: distance p95 %.1f mm over the %g mm limit "
                              "(mean %.1f mm, landmarks %.1f mm off; from template %llu): not stored",
                              path, rep.p95_mm, w->max_distance_mm, rep.mean_mm, rep.landmark_mean_mm,
                              (unsigned long long)from);

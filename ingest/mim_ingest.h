@@ -68,6 +68,7 @@ typedef struct mim_ingest_landmark_sources {
      * vertex count is its topology_vertices. NULL: none. */
     const mim_landmark_map_t *dataset_map;
     const char *dataset_map_path; /* names it in messages */
+    const char *option;           /* the command's option for (c), named when none exists; NULL: "--landmarks" */
 } mim_ingest_landmark_sources_t;
 /* The landmarks of a foreign mesh (3 * store_map->count floats, in the
  * store map's order), from the first that exists of: (c) the file given;

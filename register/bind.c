@@ -29,8 +29,8 @@ static void vertex_normals(const uint32_t *faces, uint32_t nf, const float *pos,
                 nrm[3 * v[k] + c3] += cr[c3];
     }
     for (uint32_t i = 0; i < n; i++) {
-        float *q = nrm + 3 * i, l = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
-        if (l > 0) q[0] /= l, q[1] /= l, q[2] /= l;
+        float *q = nrm + 3 * i, l2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2], inv = l2 > 0 ? 1.0f / sqrtf(l2) : 0.0f;
+        q[0] *= inv, q[1] *= inv, q[2] *= inv;
     }
 }
 
@@ -47,20 +47,21 @@ static inline void local_frame(const uint32_t *faces, const float *pos, const fl
         n[k] = w * na[k] + u * nb[k] + v * nc[k];
         t[k] = b[k] - a[k];
     }
-    float l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    if (l > 0) n[0] /= l, n[1] /= l, n[2] /= l;
+    /* one division per normalisation: this runs per avatar vertex per frame */
+    float l2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2], inv = l2 > 0 ? 1.0f / sqrtf(l2) : 0.0f;
+    n[0] *= inv, n[1] *= inv, n[2] *= inv;
     float d = t[0] * n[0] + t[1] * n[1] + t[2] * n[2];
     for (int k = 0; k < 3; k++)
         t[k] -= d * n[k];
-    l = sqrtf(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
-    if (l > 0) t[0] /= l, t[1] /= l, t[2] /= l;
+    l2 = t[0] * t[0] + t[1] * t[1] + t[2] * t[2], inv = l2 > 0 ? 1.0f / sqrtf(l2) : 0.0f;
+    t[0] *= inv, t[1] *= inv, t[2] *= inv;
     bt[0] = n[1] * t[2] - n[2] * t[1], bt[1] = n[2] * t[0] - n[0] * t[2], bt[2] = n[0] * t[1] - n[1] * t[0];
 }
 
 void mim_reg_binding_free(mim_reg_binding_t *b)
 {
     if (!b) return;
-    free(b->proxy_rest), free(b->face), free(b->bary), free(b->offset);
+    free(b->proxy_rest), free(b->vertex), free(b->face), free(b->bary), free(b->offset);
     memset(b, 0, sizeof *b);
 }
 
@@ -69,10 +70,11 @@ static int binding_alloc(mim_reg_binding_t *b, uint32_t n, uint32_t np, uint32_t
     memset(b, 0, sizeof *b);
     b->n_vertices = n, b->n_proxy_vertices = np, b->n_proxy_faces = nf;
     b->proxy_rest = malloc((size_t)3 * np * sizeof *b->proxy_rest);
+    b->vertex = malloc((size_t)n * sizeof *b->vertex);
     b->face = malloc((size_t)n * sizeof *b->face);
     b->bary = malloc((size_t)2 * n * sizeof *b->bary);
     b->offset = malloc((size_t)3 * n * sizeof *b->offset);
-    if (b->proxy_rest && b->face && b->bary && b->offset) return 0;
+    if (b->proxy_rest && b->vertex && b->face && b->bary && b->offset) return 0;
     mim_reg_binding_free(b);
     return MIM_ENOMEM;
 }
@@ -91,6 +93,7 @@ int mim_reg_bind(const mim_mesh_t *proxy, const mim_mesh_t *avatar, mim_reg_bind
     if (rc) return rc;
     mim__reg_hit_t *hits = malloc((size_t)avatar->n_vertices * sizeof *hits);
     float *nrm = malloc((size_t)3 * proxy->n_vertices * sizeof *nrm);
+    uint32_t *start = NULL;
     if (!hits || !nrm || binding_alloc(out, avatar->n_vertices, proxy->n_vertices, proxy->n_faces)) {
         rc = mim_error_set(err, MIM_ENOMEM, "binding: out of memory");
         goto done;
@@ -98,21 +101,34 @@ int mim_reg_bind(const mim_mesh_t *proxy, const mim_mesh_t *avatar, mim_reg_bind
     if ((rc = mim__reg_surface_closest(&s, avatar->positions, avatar->n_vertices, hits, err))) goto done;
     memcpy(out->proxy_rest, proxy->positions, (size_t)3 * proxy->n_vertices * sizeof *out->proxy_rest);
     vertex_normals(proxy->faces, proxy->n_faces, proxy->positions, proxy->n_vertices, nrm);
-    for (uint32_t i = 0; i < avatar->n_vertices; i++) {
+    /* entries in triangle order (a counting sort, stable in vertex order) */
+    start = calloc((size_t)proxy->n_faces + 1, sizeof *start);
+    if (!start) {
+        rc = mim_error_set(err, MIM_ENOMEM, "binding: out of memory");
+        goto done;
+    }
+    for (uint32_t i = 0; i < avatar->n_vertices; i++)
+        start[hits[i].face + 1]++;
+    for (uint32_t f = 0; f < proxy->n_faces; f++)
+        start[f + 1] += start[f];
+    for (uint32_t i = 0; i < avatar->n_vertices; i++)
+        out->vertex[start[hits[i].face]++] = i;
+    for (uint32_t k = 0; k < avatar->n_vertices; k++) {
+        const uint32_t i = out->vertex[k];
         const mim__reg_hit_t *h = hits + i;
         float q[3], t[3], bt[3], n[3];
         local_frame(proxy->faces, proxy->positions, nrm, h->face, h->u, h->v, q, t, bt, n);
         const float *p = avatar->positions + 3 * (size_t)i;
         float d[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
-        out->face[i] = h->face;
-        out->bary[2 * i] = h->u, out->bary[2 * i + 1] = h->v;
-        out->offset[3 * i] = d[0] * t[0] + d[1] * t[1] + d[2] * t[2];
-        out->offset[3 * i + 1] = d[0] * bt[0] + d[1] * bt[1] + d[2] * bt[2];
-        out->offset[3 * i + 2] = d[0] * n[0] + d[1] * n[1] + d[2] * n[2];
+        out->face[k] = h->face;
+        out->bary[2 * k] = h->u, out->bary[2 * k + 1] = h->v;
+        out->offset[3 * k] = d[0] * t[0] + d[1] * t[1] + d[2] * t[2];
+        out->offset[3 * k + 1] = d[0] * bt[0] + d[1] * bt[1] + d[2] * bt[2];
+        out->offset[3 * k + 2] = d[0] * n[0] + d[1] * n[1] + d[2] * n[2];
     }
 done:
     if (rc) mim_reg_binding_free(out);
-    free(hits), free(nrm);
+    free(hits), free(nrm), free(start);
     mim__reg_surface_close(&s);
     return rc;
 }
@@ -121,26 +137,27 @@ void mim_reg_binding_apply(const mim_reg_binding_t *b, const uint32_t *proxy_fac
                            float *work, float *out)
 {
     vertex_normals(proxy_faces, b->n_proxy_faces, proxy_positions, b->n_proxy_vertices, work);
-    for (uint32_t i = 0; i < b->n_vertices; i++) {
+    for (uint32_t e = 0; e < b->n_vertices; e++) {
         float q[3], t[3], bt[3], n[3];
-        local_frame(proxy_faces, proxy_positions, work, b->face[i], b->bary[2 * i], b->bary[2 * i + 1], q, t, bt, n);
-        const float *o = b->offset + 3 * (size_t)i;
+        local_frame(proxy_faces, proxy_positions, work, b->face[e], b->bary[2 * e], b->bary[2 * e + 1], q, t, bt, n);
+        const float *o = b->offset + 3 * (size_t)e;
+        float *x = out + 3 * (size_t)b->vertex[e];
         for (int k = 0; k < 3; k++)
-            out[3 * (size_t)i + k] = q[k] + o[0] * t[k] + o[1] * bt[k] + o[2] * n[k];
+            x[k] = q[k] + o[0] * t[k] + o[1] * bt[k] + o[2] * n[k];
     }
 }
 
-/* ---- the cached form: "MRB1", u32 n, n_proxy_vertices, n_proxy_faces,
- * then proxy_rest (3 np floats), face (n u32), bary (2 n floats), offset
- * (3 n floats), all little-endian as the host writes them (the store is
- * one machine's) ---- */
-static const char MAGIC[4] = {'M', 'R', 'B', '1'};
+/* ---- the cached form: "MRB2", u32 n, n_proxy_vertices, n_proxy_faces,
+ * then proxy_rest (3 np floats), vertex (n u32), face (n u32), bary (2 n
+ * floats), offset (3 n floats), in the host's byte order (the store is one
+ * machine's) ---- */
+static const char MAGIC[4] = {'M', 'R', 'B', '2'};
 #define HEADER 16u
 
 int mim_reg_binding_encode(const mim_reg_binding_t *b, void **blob, size_t *len, mim_error_t *err)
 {
     size_t n = b->n_vertices, np = b->n_proxy_vertices;
-    size_t size = HEADER + 4 * (3 * np + n + 2 * n + 3 * n);
+    size_t size = HEADER + 4 * (3 * np + 7 * n);
     unsigned char *p = malloc(size);
     if (!p) return mim_error_set(err, MIM_ENOMEM, "binding: out of memory");
     memcpy(p, MAGIC, 4);
@@ -148,6 +165,7 @@ int mim_reg_binding_encode(const mim_reg_binding_t *b, void **blob, size_t *len,
     memcpy(p + 4, h, sizeof h);
     size_t o = HEADER;
     memcpy(p + o, b->proxy_rest, 12 * np), o += 12 * np;
+    memcpy(p + o, b->vertex, 4 * n), o += 4 * n;
     memcpy(p + o, b->face, 4 * n), o += 4 * n;
     memcpy(p + o, b->bary, 8 * n), o += 8 * n;
     memcpy(p + o, b->offset, 12 * n);
@@ -168,18 +186,33 @@ int mim_reg_binding_decode(const void *blob, size_t len, uint32_t n_proxy_vertic
         return mim_error_set(err, MIM_EFORMAT, "binding: made for a proxy of %u vertices and %u faces, not %u and %u",
                              h[1], h[2], n_proxy_vertices, n_proxy_faces);
     size_t n = h[0], np = h[1];
-    if (!n || len != HEADER + 4 * (3 * np + 6 * n))
+    if (!n || len != HEADER + 4 * (3 * np + 7 * n))
         return mim_error_set(err, MIM_EFORMAT, "binding: %zu bytes do not hold %zu avatar vertices", len, n);
     if (binding_alloc(out, h[0], h[1], h[2])) return mim_error_set(err, MIM_ENOMEM, "binding: out of memory");
     size_t o = HEADER;
     memcpy(out->proxy_rest, p + o, 12 * np), o += 12 * np;
+    memcpy(out->vertex, p + o, 4 * n), o += 4 * n;
     memcpy(out->face, p + o, 4 * n), o += 4 * n;
     memcpy(out->bary, p + o, 8 * n), o += 8 * n;
     memcpy(out->offset, p + o, 12 * n);
     for (size_t i = 0; i < 3 * np; i++)
         if (!isfinite(out->proxy_rest[i])) goto bad;
+    uint8_t *seen = calloc(n, 1);
+    if (!seen) {
+        mim_reg_binding_free(out);
+        return mim_error_set(err, MIM_ENOMEM, "binding: out of memory");
+    }
     for (size_t i = 0; i < n; i++) {
-        if (out->face[i] >= n_proxy_faces) goto bad;
+        uint32_t v = out->vertex[i];
+        int dup = v >= n || seen[v];
+        if (!dup) seen[v] = 1;
+        if (dup || out->face[i] >= n_proxy_faces || (i && out->face[i] < out->face[i - 1])) {
+            free(seen);
+            goto bad;
+        }
+    }
+    free(seen);
+    for (size_t i = 0; i < n; i++) {
         for (int k = 0; k < 2; k++)
             if (!isfinite(out->bary[2 * i + k])) goto bad;
         for (int k = 0; k < 3; k++)

@@ -132,12 +132,16 @@ int mim_reg_surface_distance(const mim_mesh_t *target, const float *points, uint
                              mim_error_t *err);
 
 /* ---- binding a foreign avatar to its registered proxy (bind.c) ---- */
+/* One entry per avatar vertex, in the order of the proxy triangles they
+ * are bound to (so that posing reads the proxy in order, whatever the
+ * avatar's vertex order). */
 typedef struct mim_reg_binding {
     uint32_t n_vertices;       /* the avatar's */
     uint32_t n_proxy_vertices; /* the proxy's (the store's connectivity) */
     uint32_t n_proxy_faces;
     float *proxy_rest;         /* 3 * n_proxy_vertices: the proxy registered onto the avatar at rest */
-    uint32_t *face;            /* n_vertices: the proxy triangle each avatar vertex is bound to */
+    uint32_t *vertex;          /* n_vertices: the avatar vertex of each entry (a permutation) */
+    uint32_t *face;            /* n_vertices: the proxy triangle of each entry, non-decreasing */
     float *bary;               /* 2 * n_vertices: barycentric (u, v) on it; w = 1 - u - v */
     float *offset;             /* 3 * n_vertices: offset in the local frame there (tangent, bitangent, normal) */
 } mim_reg_binding_t;
@@ -158,7 +162,8 @@ void mim_reg_binding_apply(const mim_reg_binding_t *b, const uint32_t *proxy_fac
 
 /* A binding as bytes, to cache (malloc'd; the caller frees), and back.
  * decode checks every field against n_proxy_vertices and n_proxy_faces
- * (a damaged cache entry is MIM_EFORMAT, never trusted). */
+ * (a damaged cache entry is MIM_EFORMAT, never trusted: faces in range
+ * and in order, vertex a permutation, every number finite). */
 int mim_reg_binding_encode(const mim_reg_binding_t *b, void **blob, size_t *len, mim_error_t *err);
 int mim_reg_binding_decode(const void *blob, size_t len, uint32_t n_proxy_vertices, uint32_t n_proxy_faces,
                            mim_reg_binding_t *out, mim_error_t *err);

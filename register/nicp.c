@@ -16,9 +16,10 @@
  *
  *   E(X) = sum_i |x_i - c_i|^2 + alpha |L X - F W0|^2 + beta sum_l |x_l - u_l|^2
  *
- * c_i: the closest point on the target's surface to x_i, averaged with the
- * target vertices whose nearest shape vertex is i (the other direction,
- * in the stiffer half of the stages); a vertex whose matches are all
+ * c_i: the closest point on the target's surface to x_i, moved along the
+ * surface's normal towards the target vertices whose nearest shape vertex
+ * is i (the other direction, in the stiffer half of the stages), or their
+ * mean when the closest point is rejected; a vertex whose matches are all
  * rejected (on the target's boundary, normals too far apart, too far
  * away) gets its own position (held, where Amberg sets its weight to 0:
  * so the matrix below is the same at every step of a stage). L: the
@@ -259,15 +260,23 @@ int mim__reg_nicp_run(mim__reg_nicp_t *p, const mim_reg_options_t *opt, const mi
                 int ok = h->d2 < INFINITY && !h->boundary && h->d2 <= d2_max &&
                          nv[0] * fnrm[0] + nv[1] * fnrm[1] + nv[2] * fnrm[2] >= cos_max;
                 kept += ok;
-                /* The data target: the closest point, averaged with the
-                 * target vertices that have this vertex as theirs. A
-                 * vertex with neither is held where it is (its target is
-                 * itself) instead of being let go (weight 0, as in
-                 * Amberg): then the matrix is the same at every step of a
-                 * stage and is factorised once per stage, not per step. */
+                /* The data target: the closest point, moved halfway along
+                 * the surface's normal towards the target vertices that
+                 * have this vertex as theirs (across the surface only:
+                 * their mean lies beside the vertex on a denser target,
+                 * and a sideways pull would slide it); their mean itself
+                 * when the closest point is rejected (a part turned away,
+                 * bent back by its stiffness, bench/register.c). A vertex
+                 * with neither is held where it is (its target is itself)
+                 * instead of being let go (weight 0, as in Amberg): then
+                 * the matrix is the same at every step of a stage and is
+                 * factorised once per stage, not per step. */
+                double dn = 0.0;
+                if (ok && back_n[i])
+                    for (int c = 0; c < 3; c++) dn += (back_sum[3 * i + c] / back_n[i] - h->point[c]) * fnrm[c];
                 for (int c = 0; c < 3; c++) {
-                    double t = ok ? h->point[c] : x[3 * i + c];
-                    if (back_n[i]) t = ok ? 0.5 * (t + back_sum[3 * i + c] / back_n[i]) : back_sum[3 * i + c] / back_n[i];
+                    double t = ok ? h->point[c] + 0.5 * dn * fnrm[c] : x[3 * i + c];
+                    if (back_n[i] && !ok) t = back_sum[3 * i + c] / back_n[i];
                     b[i + (size_t)c * n] = t + alpha * p->ltd[3 * i + c];
                 }
             }

@@ -51,8 +51,8 @@ int mim_session_open(mim_session_t **out, const char *store, const mim_session_o
  * store, so a later session finds it; every transfer then runs on the
  * proxy, and mim_session_output maps a result onto the avatar's own
  * vertices. Errors, one line naming the file or the id: the mesh
- * reader's, MIM_ENOTFOUND for an unknown template id or (foreign avatar)
- * a store without index, the landmarks' and the registration's (a
+ * reader's, MIM_ENOTFOUND for an unknown template id, MIM_ENOINDEX for a
+ * foreign avatar when the store has no index, the landmarks' and the registration's (a
  * surface distance p95 over MIM_INGEST_DEFAULT_MAX_DISTANCE_MM is
  * MIM_ETOPOLOGY). A session has one avatar: a second call is MIM_EINVAL. */
 int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err);

@@ -8,6 +8,7 @@
 #include "mim_io.h"
 #include "mim_register.h"
 
+#include <math.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -115,6 +116,37 @@ static int cache_binding(mim_session_t *s, uint64_t key, mim_error_t *err)
     return rc;
 }
 
+/* A cached binding is used only when it gives the avatar back at rest
+ * (within BINDING_REST_TOL metres): a record that decodes, fields in
+ * range and checksum right, can still be another proxy's or hold other
+ * offsets, and would pose the avatar wrongly. One application of the
+ * binding, about what one frame costs. 0, or MIM_EFORMAT with why in e. */
+#define BINDING_REST_TOL 1e-4
+static int binding_fits(const mim_session_t *s, const mim_mesh_t *m, mim_error_t *e)
+{
+    if (s->binding.n_vertices != m->n_vertices)
+        return mim_error_set(e, MIM_EFORMAT, "binding: made for %u avatar vertices, not %u", s->binding.n_vertices,
+                             m->n_vertices);
+    float *work = malloc(3 * (size_t)s->mesh.n_vertices * sizeof *work);
+    float *back = malloc(3 * (size_t)m->n_vertices * sizeof *back);
+    int rc = work && back ? 0 : mim_error_set(e, MIM_ENOMEM, "binding: out of memory");
+    if (!rc) {
+        mim_reg_binding_apply(&s->binding, s->mesh.faces, s->binding.proxy_rest, work, back);
+        double worst = 0.0;
+        uint32_t at = 0;
+        for (size_t i = 0; i < 3 * (size_t)m->n_vertices; i++) {
+            double d = fabs((double)back[i] - m->positions[i]);
+            if (!(d <= worst)) /* a NaN too */
+                worst = d, at = (uint32_t)(i / 3);
+        }
+        if (!(worst <= BINDING_REST_TOL))
+            rc = mim_error_set(e, MIM_EFORMAT, "binding: not this avatar's: at rest it puts vertex %u %.2f mm off", at,
+                               1e3 * worst);
+    }
+    free(work), free(back);
+    return rc;
+}
+
 /* A foreign avatar m: its binding from the store's cache, or registered
  * now (issue 13: landmarks as for any foreign mesh, the nearest template
  * through the index, then bound and cached). Fills s->binding and the
@@ -125,27 +157,30 @@ static int load_foreign_avatar(mim_session_t *s, const char *path, const mim_mes
     mim_db_txn_t *t = NULL;
     const void *blob;
     size_t len;
-    int rc = mim_db_begin(s->db, 0, &t, err), cached = 0;
-    if (!rc && mim_db_binding_get(t, key, &blob, &len, NULL) == 0) {
-        mim_error_t e = {0};
+    int rc = mim_db_begin(s->db, 0, &t, err), cached = 0, got = MIM_ENOTFOUND;
+    mim_error_t e = {0};
+    if (!rc)
+        got = mim_db_binding_get(t, key, &blob, &len, &e);
+    if (!rc && got == 0) {
         cached = mim_reg_binding_decode(blob, len, s->mesh.n_vertices, s->mesh.n_faces, &s->binding, &e) == 0 &&
-                 s->binding.n_vertices == m->n_vertices;
-        if (!cached) {
+                 binding_fits(s, m, &e) == 0;
+        if (!cached)
             mim_reg_binding_free(&s->binding);
-            mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN, "%s: cached binding not usable (%s): binding again",
-                         path, e.code ? mim_error_text(&e) : "another vertex count");
-        }
     }
+    if (!rc && !cached && got != MIM_ENOTFOUND) /* a damaged record (the store's checks) or one not this avatar's */
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN, "%s: cached binding not usable (%s): binding again",
+                     path, mim_error_text(&e));
     mim_db_abort(&t);
     if (rc) return rc;
     if (!cached) {
         if (!s->query)
-            return mim_error_set(err, MIM_ENOTFOUND,
+            return mim_error_set(err, MIM_ENOINDEX,
                                  "%s: an avatar of another connectivity (%u vertices, the store's %u) is registered "
                                  "from the nearest template, and %s has no index (run mimic index)",
                                  path, m->n_vertices, s->mesh.n_vertices, s->store);
         mim_ingest_registrar_t *r = NULL;
-        mim_ingest_landmark_sources_t src = {.landmarks_path = s->opt.avatar_landmarks};
+        mim_ingest_landmark_sources_t src = {.landmarks_path = s->opt.avatar_landmarks,
+                                             .option = "--avatar-landmarks"};
         float lm[3 * MIM_LANDMARKS_MAX];
         char how[4200];
         mim_reg_report_t rep;
@@ -159,7 +194,7 @@ static int load_foreign_avatar(mim_session_t *s, const char *path, const mim_mes
         if (!(rep.p95_mm <= MIM_INGEST_DEFAULT_MAX_DISTANCE_MM))
             return mim_error_set(err, MIM_ETOPOLOGY,
                                  "%s: registration too far from the avatar's surface: distance p95 %.1f mm over the "
-                                 "%.1f mm limit (mean %.1f mm)",
+                                 "%g mm limit (mean %.1f mm)",
                                  path, rep.p95_mm, MIM_INGEST_DEFAULT_MAX_DISTANCE_MM, rep.mean_mm);
         if ((rc = mim_reg_bind(&s->mesh, m, &s->binding, err))) return rc;
         mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_INFO,

@@ -23,7 +23,8 @@
 # (transfer, index, register, vest, sample's algorithms) use core;
 # register/ builds on transfer/'s Laplacian, frames and solver; ingest,
 # query and session compose them with db/ and io/ (no arrow sideways between
-# those three, except session -> query, the one pipeline); serve/ uses
+# ingest and query; session sits above both: the one pipeline uses query,
+# a foreign avatar is registered through ingest's registrar); serve/ uses
 # everything below it; cli/ everything. synth/ (the procedural bodies) uses
 # core only. `*` means any module.
 TABLE='
@@ -37,8 +38,8 @@ synth:     core
 sample:    core
 register:  core transfer
 query:     core db index
-ingest:    core db io transfer register index
-session:   core db io transfer register index query
+ingest:    core db io transfer register
+session:   core db io transfer register index query ingest
 serve:     core db io transfer register index query ingest sample vest synth session
 cli:       *
 '

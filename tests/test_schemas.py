@@ -25,7 +25,7 @@ SCHEMAS = {s["$id"]: s for s in map(load, ["info.schema.json", "list.schema.json
                                             "vest-udp.schema.json", "vest-replay.schema.json",
                                             "serve-status.schema.json", "serve-avatar.schema.json",
                                             "serve-transfer-request.schema.json", "serve-error.schema.json",
-                                            "store-check.schema.json"])}
+                                            "store-check.schema.json", "register.schema.json"])}
 
 
 def validator(schema_id):
@@ -163,6 +163,114 @@ def store_check_cases(d, store, data):
             ("/mimic/schemas/store-check.schema.json", found, "store check (a flipped byte)")]
 
 
+def read_ply(path):
+    """Positions and faces of a binary little-endian triangle PLY as mimic synth writes it."""
+    import struct
+    with open(path, "rb") as f:
+        data = f.read()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    head = data[:end].decode().splitlines()
+    nv = next(int(l.split()[2]) for l in head if l.startswith("element vertex"))
+    nf = next(int(l.split()[2]) for l in head if l.startswith("element face"))
+    v = struct.unpack_from("<%df" % (3 * nv), data, end)
+    pos = [list(v[3 * i:3 * i + 3]) for i in range(nv)]
+    faces, at = [], end + 12 * nv
+    for _ in range(nf):
+        if data[at] != 3:
+            raise RuntimeError(f"{path}: a face that is not a triangle")
+        faces.append(list(struct.unpack_from("<3i", data, at + 1)))
+        at += 13
+    return pos, faces
+
+
+def write_ply(path, pos, faces):
+    import struct
+    with open(path, "wb") as f:
+        f.write(("ply\nformat binary_little_endian 1.0\nelement vertex %d\nproperty float x\nproperty float y\n"
+                 "property float z\nelement face %d\nproperty list uchar int vertex_indices\nend_header\n"
+                 % (len(pos), len(faces))).encode())
+        for p in pos:
+            f.write(struct.pack("<3f", *p))
+        for t in faces:
+            f.write(struct.pack("<B3i", 3, *t))
+
+
+def subdivide(pos, faces):
+    """1->4 midpoint subdivision: the original vertices keep their index, one new vertex per edge."""
+    pos, mid, out = [list(p) for p in pos], {}, []
+
+    def m(a, b):
+        key = (min(a, b), max(a, b))
+        if key not in mid:
+            mid[key] = len(pos)
+            pos.append([(pos[a][k] + pos[b][k]) / 2 for k in range(3)])
+        return mid[key]
+    for a, b, c in faces:
+        ab, bc, ca = m(a, b), m(b, c), m(c, a)
+        out += [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
+    return pos, out
+
+
+def register_cases(d, store, data, landmarks):
+    """mimic register --json onto two meshes of other connectivities: a
+    body of a subject the store does not hold, made by mimic synth at
+    another vertex count (its landmark map as the sidecar), and a store
+    body subdivided 1->4 here (its landmark positions given with
+    --landmarks). Both must really be another connectivity. Then ingest
+    --register into a copy of the store (list --json with the figures) and
+    store check on a copy whose registration record is damaged."""
+    import shutil
+    store_pos, store_faces = read_ply(os.path.join(data, "synth_s00_p00.ply"))
+    other = os.path.join(d, "other")
+    run("synth", "--out", other, "--subjects", "3", "--poses", "2", "--vertices", "900")
+    foreign = os.path.join(d, "foreign.ply")
+    shutil.copy(os.path.join(other, "synth_s02_p01.ply"), foreign)
+    shutil.copy(os.path.join(other, "landmarks.json"), os.path.join(d, "foreign.landmarks.json"))
+    fpos, ffaces = read_ply(foreign)
+    pos, faces = subdivide(*read_ply(os.path.join(data, "synth_s01_p01.ply")))
+    sub = os.path.join(d, "subdivided.ply")
+    write_ply(sub, pos, faces)
+    sub_lm = os.path.join(d, "subdivided-landmarks.json")
+    with open(sub_lm, "w") as f:
+        json.dump({"landmarks": [pos[m["vertex"]] for m in landmarks["landmarks"]]}, f)
+    for n, fc, what in ((len(fpos), ffaces, "synth --vertices 900"), (len(pos), faces, "subdivided")):
+        if n == len(store_pos) or fc == store_faces:
+            raise RuntimeError(f"{what}: the same connectivity as the store's ({n} vertices)")
+    a = json.loads(run("register", "--store", store, foreign, "-o", os.path.join(d, "reg-a.ply"), "--json"))
+    b = json.loads(run("register", "--store", store, "--landmarks", sub_lm, sub, "-o", os.path.join(d, "reg-b.obj"),
+                       "--json"))
+    for doc, n, src in ((a, len(fpos), "foreign.landmarks.json"), (b, len(pos), sub_lm)):
+        if doc["vertices"] != n or doc["store_vertices"] != len(store_pos) or not doc["landmarks_from"].endswith(src):
+            raise RuntimeError(f"mimic register --json: vertices {doc['vertices']} (want {n}), store_vertices "
+                               f"{doc['store_vertices']} (want {len(store_pos)}), landmarks_from {doc['landmarks_from']}")
+    # ingest --register into a copy of the store: list shows the figures;
+    # then the registration record damaged: store check names its table
+    reg_store, damaged = os.path.join(d, "reg-store"), os.path.join(d, "reg-damaged")
+    for x in (reg_store, damaged):
+        os.makedirs(x)
+    shutil.copy(os.path.join(store, "data.mdb"), os.path.join(reg_store, "data.mdb"))
+    run("ingest", "--store", reg_store, "--register", foreign)
+    listed = json.loads(run("list", "--store", reg_store, "--json"))
+    if [t["registration"]["source_vertices"] for t in listed if "registration" in t] != [len(fpos)]:
+        raise RuntimeError("mimic list --json after ingest --register: no registration of the foreign mesh listed")
+    shutil.copy(os.path.join(reg_store, "data.mdb"), os.path.join(damaged, "data.mdb"))
+    with open(os.path.join(damaged, "data.mdb"), "r+b") as f:
+        db = bytearray(f.read())
+        at = db.index(b"MRG3") + 40  # the registration's mean_mm (db/registration.c)
+        db[at] ^= 0x10
+        f.seek(0)
+        f.write(db)
+    p = subprocess.run([MIMIC, "store", "check", "--store", damaged, "--json"], capture_output=True, text=True)
+    found = json.loads(p.stdout) if p.returncode == 1 else None
+    if not found or not any(x["table"] == "registrations" for x in found["problems"]):
+        raise RuntimeError(f"mimic store check on a damaged registration exited {p.returncode}, "
+                           f"found no problem in 'registrations': {p.stdout.strip()} {p.stderr.strip()}")
+    return [("/mimic/schemas/register.schema.json", a, "register (another synth connectivity, a map sidecar)"),
+            ("/mimic/schemas/register.schema.json", b, "register (subdivided 1->4, positions with --landmarks)"),
+            ("/mimic/schemas/list.schema.json", listed, "list (a template registered by ingest --register)"),
+            ("/mimic/schemas/store-check.schema.json", found, "store check (a damaged registration)")]
+
+
 def serve_cases(store, one, vest_rec):
     """mimic serve's JSON answers (and a transfer request), fetched over HTTP;
     then its status with a vest recording played to the end."""
@@ -255,6 +363,8 @@ def main():
         ]
         check_cases = store_check_cases(d, store, data)
         cases += check_cases
+        reg_cases = register_cases(d, store, data, landmarks)
+        cases += reg_cases
         for schema_id, doc, what in cases + vest_cases(d) + serve_cases(store, one, os.path.join(d, "vest.rec")):
             errors = list(validator(schema_id).iter_errors(doc))
             if errors:
@@ -296,6 +406,17 @@ def main():
         else:
             failed += 1
             print("FAIL landmark-frames schema accepted a 2-component point")
+        bad = json.loads(json.dumps(reg_cases[0][1]))
+        bad["surface_distance_mm"].pop("p95")
+        bad2 = json.loads(json.dumps(reg_cases[0][1]))
+        bad2["landmark_residuals_mm"]["per_landmark"]["head"] = -1.0
+        v = validator("/mimic/schemas/register.schema.json")
+        if list(v.iter_errors(bad)) and list(v.iter_errors(bad2)):
+            passed += 1
+            print("ok   register schema rejects a surface distance without p95 and a negative landmark residual")
+        else:
+            failed += 1
+            print("FAIL register schema accepted a surface distance without p95 or a negative landmark residual")
         # list: a template registered from another connectivity carries its
         # figures (none of synth's is registered: the key is absent)
         listed = json.loads(run("list", "--store", store, "--json"))

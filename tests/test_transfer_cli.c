@@ -335,7 +335,8 @@ static void test_bad_inputs(void **s)
          "mf.json:2:"},
         {{"transfer", "--store", store, "--avatar", "1", "--template", "4242", "-o", outp}, 1, "no template 4242"},
         {{"transfer", "--store", store, "--avatar", "77", "--template", "2", "-o", outp}, 1, "no template 77"},
-        {{"transfer", "--store", store, "--avatar", other_mesh, "--template", "2", "-o", outp}, 1, "vertices"},
+        /* another connectivity is registered onto the store's, from the index, which this store lacks */
+        {{"transfer", "--store", store, "--avatar", other_mesh, "--template", "2", "-o", outp}, 2, "has no index (run mimic index)"},
         {{"transfer", "--store", store, "--avatar", "1", "--template", "x2", "-o", outp}, 2, "not a template id"},
         {{"transfer", "--store", store, "--avatar", "1", "-o", outp}, 2, "--template and/or --landmarks"},
         {{"transfer", "--store", store, "--avatar", "1", "--template", "2", "-o", "x.stl"}, 1, "x.stl"},

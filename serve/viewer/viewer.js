@@ -23,6 +23,8 @@ const state = {
   keyInterval: 0,      // vest frames per key frame
   landmarkCount: 0,    // landmarks in the latest frame
   landmarksTracked: 0, // of which the vest tracks (the others are NaN)
+  vertices: 0,        // of the avatar drawn (GET /api/avatar; every frame must have as many)
+  faces: 0,           // its triangles
   errors: [],         // one line each: bad frames, server error messages
 };
 window.mimicViewer = state;
@@ -101,11 +103,13 @@ const landmarkMaterial = new THREE.MeshBasicMaterial({ color: 0xff8a3d, depthTes
 function buildAvatar(a) {
   vertexCount = a.vertices;
   positions = new Float32Array(a.positions);
+  state.vertices = positions.length / 3;
   const geometry = new THREE.BufferGeometry();
   const attr = new THREE.BufferAttribute(positions, 3);
   attr.setUsage(THREE.DynamicDrawUsage); // rewritten every frame
   geometry.setAttribute('position', attr);
   geometry.setIndex(new THREE.BufferAttribute(vertexCount > 65535 ? new Uint32Array(a.indices) : new Uint16Array(a.indices), 1));
+  state.faces = geometry.index.count / 3;
   geometry.computeVertexNormals();
   geometry.computeBoundingSphere();
   const material = new THREE.MeshStandardMaterial({ color: 0xc9b4a2, roughness: 0.65, metalness: 0.0 });
