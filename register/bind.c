@@ -34,13 +34,11 @@ static void vertex_normals(const uint32_t *faces, uint32_t nf, const float *pos,
     }
 }
 
-/* The point at (u, v) on triangle f and the local frame there: t, b, n. */
-static inline void local_frame(const uint32_t *faces, const float *pos, const float *nrm, uint32_t f, float u, float v,
-                               float q[3], float t[3], float bt[3], float n[3])
+/* The point at (u, v) on the triangle of corners a, b, c (vertex normals
+ * na, nb, nc) and the local frame there: t, bt, n. */
+static inline void local_frame(const float *a, const float *b, const float *c, const float *na, const float *nb,
+                               const float *nc, float u, float v, float q[3], float t[3], float bt[3], float n[3])
 {
-    const uint32_t *fv = faces + 3 * f;
-    const float *a = pos + 3 * fv[0], *b = pos + 3 * fv[1], *c = pos + 3 * fv[2];
-    const float *na = nrm + 3 * fv[0], *nb = nrm + 3 * fv[1], *nc = nrm + 3 * fv[2];
     float w = 1.0f - u - v;
     for (int k = 0; k < 3; k++) {
         q[k] = w * a[k] + u * b[k] + v * c[k];
@@ -117,7 +115,10 @@ int mim_reg_bind(const mim_mesh_t *proxy, const mim_mesh_t *avatar, mim_reg_bind
         const uint32_t i = out->vertex[k];
         const mim__reg_hit_t *h = hits + i;
         float q[3], t[3], bt[3], n[3];
-        local_frame(proxy->faces, proxy->positions, nrm, h->face, h->u, h->v, q, t, bt, n);
+        const uint32_t *fv = proxy->faces + 3 * (size_t)h->face;
+        local_frame(proxy->positions + 3 * (size_t)fv[0], proxy->positions + 3 * (size_t)fv[1],
+                    proxy->positions + 3 * (size_t)fv[2], nrm + 3 * (size_t)fv[0], nrm + 3 * (size_t)fv[1],
+                    nrm + 3 * (size_t)fv[2], h->u, h->v, q, t, bt, n);
         const float *p = avatar->positions + 3 * (size_t)i;
         float d[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
         out->face[k] = h->face;
@@ -137,13 +138,20 @@ void mim_reg_binding_apply(const mim_reg_binding_t *b, const uint32_t *proxy_fac
                            float *work, float *out)
 {
     vertex_normals(proxy_faces, b->n_proxy_faces, proxy_positions, b->n_proxy_vertices, work);
-    for (uint32_t e = 0; e < b->n_vertices; e++) {
-        float q[3], t[3], bt[3], n[3];
-        local_frame(proxy_faces, proxy_positions, work, b->face[e], b->bary[2 * e], b->bary[2 * e + 1], q, t, bt, n);
-        const float *o = b->offset + 3 * (size_t)e;
-        float *x = out + 3 * (size_t)b->vertex[e];
-        for (int k = 0; k < 3; k++)
-            x[k] = q[k] + o[0] * t[k] + o[1] * bt[k] + o[2] * n[k];
+    /* entries come in triangle order: each triangle's corners are read once */
+    for (uint32_t e = 0; e < b->n_vertices;) {
+        const uint32_t f = b->face[e], *fv = proxy_faces + 3 * (size_t)f;
+        const float *pa = proxy_positions + 3 * (size_t)fv[0], *pb = proxy_positions + 3 * (size_t)fv[1],
+                    *pc = proxy_positions + 3 * (size_t)fv[2];
+        const float *na = work + 3 * (size_t)fv[0], *nb = work + 3 * (size_t)fv[1], *nc = work + 3 * (size_t)fv[2];
+        for (; e < b->n_vertices && b->face[e] == f; e++) {
+            float q[3], t[3], bt[3], n[3];
+            local_frame(pa, pb, pc, na, nb, nc, b->bary[2 * e], b->bary[2 * e + 1], q, t, bt, n);
+            const float *o = b->offset + 3 * (size_t)e;
+            float *x = out + 3 * (size_t)b->vertex[e];
+            for (int k = 0; k < 3; k++)
+                x[k] = q[k] + o[0] * t[k] + o[1] * bt[k] + o[2] * n[k];
+        }
     }
 }
 
