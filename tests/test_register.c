@@ -23,7 +23,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h> /* memmem: _GNU_SOURCE comes from CMakeLists.txt */
+#include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 /* The library cases: one synth dataset in memory. */
@@ -1175,6 +1178,100 @@ static void test_cli_ingest_register(void **s)
     free(m1), free(m2), free(m3), free(folder), free(st);
 }
 
+/* kill -9 during ingest --register: a registered template and its
+ * registration go in one transaction, so the store holds both or neither
+ * of each, intact; a re-run registers the rest and nothing twice. */
+static uint64_t templates_in(const char *dir_path)
+{
+    mim_db_t *db = NULL;
+    mim_db_txn_t *t = NULL;
+    mim_db_meta_t meta = {0};
+    mim_db_options_t ro = {.read_only = 1};
+    if (mim_db_open(&db, dir_path, &ro, NULL) == 0 && mim_db_begin(db, 0, &t, NULL) == 0)
+        mim_db_meta_get(t, &meta, NULL);
+    mim_db_abort(&t);
+    mim_db_close(&db);
+    return meta.templates;
+}
+
+typedef struct {
+    mim_db_txn_t *t;
+    uint64_t foreign, registered, bad;
+} kill_census_t;
+
+static int census(const mim_template_view_t *v, void *user)
+{
+    kill_census_t *c = user;
+    mim_db_registration_t r;
+    int is_foreign = strstr(v->source, "/killed/") != NULL;
+    int rc = mim_db_registration_get(c->t, v->id, &r, NULL);
+    c->foreign += is_foreign;
+    c->registered += rc == 0;
+    if (is_foreign != (rc == 0) || (rc == 0 && (r.template_id != v->id || !(r.p95_mm <= 15.0)))) c->bad++;
+    return 0;
+}
+
+static void test_kill_during_ingest_register(void **s)
+{
+    (void)s;
+    enum { MESHES = 2 * C_POSES };
+    char *st = ts_path(dir, "kill-store"), *from = ts_path(store, "data.mdb"), *to = ts_path(st, "data.mdb");
+    assert_int_equal(mkdir(st, 0755), 0);
+    copy_file(from, to);
+    free(from), free(to);
+    uint64_t before = templates_in(st);
+    char *folder = ts_path(dir, "killed");
+    assert_int_equal(mkdir(folder, 0755), 0);
+    for (int p = 0; p < C_POSES; p++)
+        for (int how = 0; how < 2; how++) {
+            char name[64];
+            snprintf(name, sizeof name, "k_p%02d_%d", p, how);
+            free(make_foreign(folder, name, p, how, 1, NULL));
+        }
+    pid_t pid = fork();
+    if (pid == 0) {
+        int null = open("/dev/null", O_WRONLY);
+        dup2(null, 1), dup2(null, 2);
+        execl(ts_mimic_bin(), ts_mimic_bin(), "ingest", "--store", st, "--register", "--batch", "1", "--threads", "1",
+              folder, (char *)NULL);
+        _exit(127);
+    }
+    double t0 = mim_now();
+    while (mim_now() - t0 < 120 && templates_in(st) < before + 2) usleep(500);
+    kill(pid, SIGKILL);
+    int status;
+    waitpid(pid, &status, 0);
+    assert_true(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL);
+
+    mim_db_t *db = NULL;
+    mim_error_t err = {0};
+    mim_db_options_t ro = {.read_only = 1};
+    assert_int_equal(mim_db_open(&db, st, &ro, &err), 0);
+    kill_census_t c = {0};
+    assert_int_equal(mim_db_begin(db, 0, &c.t, &err), 0);
+    assert_int_equal(mim_db_template_each(c.t, census, &c, &err), 0);
+    mim_db_abort(&c.t);
+    mim_db_check_report_t cr;
+    assert_int_equal(mim_db_check(db, NULL, &cr, &err), 0);
+    mim_db_close(&db);
+    print_message("killed after %llu of %d registered templates\n", (unsigned long long)c.registered, MESHES);
+    assert_int_equal(cr.problems, 0);
+    assert_int_equal(c.bad, 0);
+    assert_int_equal(c.foreign, c.registered);
+    assert_true(c.registered >= 2 && c.registered < MESHES); /* cut part-way */
+
+    /* the re-run registers the rest and recognises what is stored */
+    char *o = NULL, *e = NULL, want[96];
+    const char *args[] = {"ingest", "--store", st, "--register", folder, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, args), 0);
+    snprintf(want, sizeof want, "%llu added (%llu registered), %llu already stored",
+             (unsigned long long)(MESHES - c.registered), (unsigned long long)(MESHES - c.registered),
+             (unsigned long long)c.registered);
+    if (!strstr(o, want)) fail_msg("re-run: wanted '%s' in: %s%s", want, o, e);
+    assert_int_equal(templates_in(st), before + MESHES);
+    free(o), free(e), free(st), free(folder);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1182,6 +1279,7 @@ int main(void)
         cmocka_unit_test(test_round_trip),   cmocka_unit_test(test_run_bad_input),
         cmocka_unit_test(test_binding),      cmocka_unit_test(test_cli_register),
         cmocka_unit_test(test_cli_ingest_register),
+        cmocka_unit_test(test_kill_during_ingest_register),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
