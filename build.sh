@@ -16,7 +16,7 @@ PACKAGES=(
   liblmdb-dev libjansson-dev libcmocka-dev
   libsuitesparse-dev libopenblas-dev libflann-dev libsvm-dev
   libhidapi-dev libwebsockets-dev libxxhash-dev
-  liblapacke-dev libssl-dev
+  liblapacke-dev libssl-dev libqhull-dev libode-dev
   python3-jsonschema
 )
 

@@ -1,0 +1,111 @@
+/* mimic sample: seed 002 (Yin et al. 2019, "A sampling approach to
+ * generating closely interacting 3D pose-pairs from 2D annotations").
+ * This part: pose-pairs, interaction coordinates (Section 4.3), the three
+ * dissimilarities of Section 6 (D_I, D_C, D_S) and the coverage measure
+ * (eq. 13). The MCMC sampler, annotations and completion come on top.
+ *
+ * Computation over caller arrays, like transfer/ and index/: nothing here
+ * opens a file or prints.
+ *
+ * A pose-pair is 2 x 17 joints, person A's then person B's, each in
+ * mim_sample_joint_names order (the 16 landmarks of DESIGN.md, then neck),
+ * positions x y z (3D) or x y (2D) per joint, in metres for 3D pairs.
+ *
+ * Choices where the paper is silent (and why):
+ * - Delaunay through qhull ("d Qt Qbb Qz"): Qt triangulates non-simplicial
+ *   facets so that every edge of a cospherical set is used; Qz adds a point
+ *   at infinity for cospherical input. Joints at one place (a CMU hip joint
+ *   and its parent share a point) are merged before triangulating and
+ *   joined by an edge after, so qhull never sees duplicates (its joggle
+ *   option is not used: the result would depend on its generator).
+ * - Comparing two pose-pairs in 3D (D_I, D_C, D_S): the second is first
+ *   brought onto the first by the least-squares rigid motion over the 34
+ *   joints (Kabsch, as the paper does in 2D with M of eq. 9): samples live
+ *   in a local frame, ground truth in the world.
+ * - D_C: the root mean square of the 34 joint distances after that motion.
+ * - D_S: 3D shape contexts (Belongie et al. 2002, the paper's [45]): for
+ *   each joint, a log-polar histogram of where the other 33 joints lie (5
+ *   radial bins, log-spaced from 1/8 to 2 of the pair's mean joint
+ *   distance; 8 azimuth and 4 elevation bins about the world's up axis);
+ *   the cost of a joint is the chi-squared distance between its two
+ *   histograms, and D_S the mean over the joints (correspondence is known:
+ *   joint i is joint i).
+ * - d_I (eq. 8) with beta = 0.05 (the paper's default; metres in 3D). */
+#ifndef MIM_SAMPLE_H
+#define MIM_SAMPLE_H
+
+#include "mim_core.h"
+
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define MIM_PAIR_PERSON_JOINTS 17
+#define MIM_PAIR_JOINTS (2 * MIM_PAIR_PERSON_JOINTS)
+/* head, chest, pelvis, l_shoulder, r_shoulder, l_elbow, r_elbow, l_wrist,
+ * r_wrist, l_hip, r_hip, l_knee, r_knee, l_ankle, r_ankle, spine, neck */
+extern const char *const mim_sample_joint_names[MIM_PAIR_PERSON_JOINTS];
+
+/* ---- interaction coordinates (ic.c; Section 4.3) ---- */
+/* At most every pair of the 34 joints. */
+#define MIM_IC_MAX_EDGES (MIM_PAIR_JOINTS * (MIM_PAIR_JOINTS - 1) / 2)
+typedef struct mim_ic {
+    int dim;          /* 2 or 3 */
+    uint32_t n_edges; /* edges (i, j), i < j, sorted */
+    uint8_t edge[MIM_IC_MAX_EDGES][2];
+} mim_ic_t;
+
+/* The Delaunay triangulation (dim 2) or tetrahedralisation (dim 3) of a
+ * pose-pair's 34 joints (dim doubles each): its edges. Errors, one line:
+ * MIM_EINVAL (dim), MIM_ENONFINITE (a NaN joint, naming it), MIM_EFORMAT
+ * (the joints span no triangle / tetrahedron: qhull's reason), MIM_ENOMEM. */
+int mim_ic_build(const double *joints, int dim, mim_ic_t *out, mim_error_t *err);
+
+/* ---- dissimilarities (distance.c; eq. 8 and Section 6) ---- */
+#define MIM_IC_DEFAULT_BETA 0.05
+/* d_I of eq. 8 between pose-pairs a and b (34 joints, dim each) with their
+ * own triangulations ta and tb (mim_ic_build of each): for each
+ * triangulation, the sum over its edges of |u_ij(a) - u_ij(b)| weighted by
+ * 1 / max(beta, |u_ij|) of that triangulation's pair, divided by the sum
+ * of the weights; the two halves added. Symmetric, 0 for a == b. beta <= 0
+ * means MIM_IC_DEFAULT_BETA. As in eq. 8, no alignment: see
+ * mim_sample_distance for pairs in different frames. */
+double mim_ic_distance(const double *a, const mim_ic_t *ta, const double *b, const mim_ic_t *tb, double beta);
+
+/* The least-squares rigid motion (rotation, no reflection, and translation)
+ * that brings b onto a over the 34 joints (dim 2 or 3), applied: b_aligned. */
+void mim_sample_align(const double *a, const double *b, int dim, double *b_aligned);
+
+typedef enum mim_sample_metric { MIM_METRIC_IC = 0, MIM_METRIC_CARTESIAN = 1, MIM_METRIC_SHAPE = 2 } mim_sample_metric_t;
+
+/* A pose-pair prepared for comparisons: its joints, its triangulation (for
+ * D_I) and its shape contexts (for D_S), computed once. */
+#define MIM_SC_BINS (5 * 8 * 4)
+typedef struct mim_pair_prep {
+    int dim;
+    double joints[3 * MIM_PAIR_JOINTS];
+    mim_ic_t ic;
+    float sc[MIM_PAIR_JOINTS][MIM_SC_BINS];
+} mim_pair_prep_t;
+/* Prepares a 3D pose-pair (34 x 3 doubles). Errors as mim_ic_build. */
+int mim_pair_prepare(const double *joints, mim_pair_prep_t *out, mim_error_t *err);
+
+/* D_I, D_C or D_S (Section 6) between prepared 3D pose-pairs a and b, after
+ * bringing b onto a (mim_sample_align). D_I: eq. 8 on a's and b's own
+ * triangulations (b's vectors turned by the alignment). Symmetric up to the
+ * alignment's direction; 0 for a pair against itself, moved rigidly. */
+double mim_sample_distance(const mim_pair_prep_t *a, const mim_pair_prep_t *b, mim_sample_metric_t metric);
+
+/* ---- coverage (coverage.c; eq. 13) ---- */
+/* C(G, S) = 1/m sum_i min_j D(g_i, s_j) over the m truth pairs g and the k
+ * samples s, in the metric given. MIM_EINVAL for m or k of 0. Optional
+ * progress over the truth pairs (label "coverage"). */
+int mim_sample_coverage(const mim_pair_prep_t *truth, uint32_t m, const mim_pair_prep_t *samples, uint32_t k,
+                        mim_sample_metric_t metric, mim_progress_t *progress, double *out, mim_error_t *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

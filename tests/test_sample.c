@@ -1,0 +1,242 @@
+/* sample/ (seed 002): interaction coordinates through qhull, d_I (eq. 8),
+ * the rigid alignment, D_I / D_C / D_S and coverage (eq. 13). */
+#include "mim_sample.h"
+
+#include "test_support.h"
+
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+static void random_pair(mim_rng_t *r, int dim, double *p)
+{
+    for (int i = 0; i < MIM_PAIR_JOINTS * dim; i++) p[i] = mim_rng_unit(r) * 1.8 - 0.9;
+}
+
+static void rotate(const double *in, double ax, double ay, double az, double ang, const double t[3], double *out)
+{
+    mim_quat q = mim_quat_axis_angle(mim_v3_normalize(mim_v3(ax, ay, az)), ang);
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++) {
+        mim_vec3 v = mim_quat_rotate(q, mim_v3(in[3 * i], in[3 * i + 1], in[3 * i + 2]));
+        out[3 * i] = v.x + t[0], out[3 * i + 1] = v.y + t[1], out[3 * i + 2] = v.z + t[2];
+    }
+}
+
+static int has_edge(const mim_ic_t *t, int a, int b)
+{
+    for (uint32_t k = 0; k < t->n_edges; k++)
+        if (t->edge[k][0] == a && t->edge[k][1] == b) return 1;
+    return 0;
+}
+
+/* A ladder of 2 x 17 points: every rung and rail, one diagonal per square
+ * (Qt triangulates the cocircular squares), nothing else: 65 edges. */
+static void test_delaunay_ladder(void **s)
+{
+    (void)s;
+    double p[2 * MIM_PAIR_JOINTS];
+    for (int i = 0; i < MIM_PAIR_PERSON_JOINTS; i++) {
+        p[2 * i] = 0.1 * i, p[2 * i + 1] = 0.0;                                     /* person A: lower rail */
+        p[2 * (i + MIM_PAIR_PERSON_JOINTS)] = 0.1 * i, p[2 * (i + MIM_PAIR_PERSON_JOINTS) + 1] = 0.1; /* B: upper */
+    }
+    mim_ic_t t;
+    mim_error_t err = {0};
+    assert_int_equal(mim_ic_build(p, 2, &t, &err), 0);
+    assert_int_equal(t.n_edges, 65);
+    for (int i = 0; i < MIM_PAIR_PERSON_JOINTS; i++) {
+        assert_true(has_edge(&t, i, i + MIM_PAIR_PERSON_JOINTS)); /* rungs */
+        if (i + 1 < MIM_PAIR_PERSON_JOINTS) {
+            assert_true(has_edge(&t, i, i + 1));                                           /* rails */
+            assert_true(has_edge(&t, i + MIM_PAIR_PERSON_JOINTS, i + 1 + MIM_PAIR_PERSON_JOINTS));
+            assert_true(has_edge(&t, i, i + 1 + MIM_PAIR_PERSON_JOINTS) ^
+                        has_edge(&t, i + 1, i + MIM_PAIR_PERSON_JOINTS)); /* one diagonal */
+        }
+    }
+    /* sorted, i < j, unique */
+    for (uint32_t k = 0; k < t.n_edges; k++) {
+        assert_true(t.edge[k][0] < t.edge[k][1]);
+        if (k) assert_true(t.edge[k - 1][0] < t.edge[k][0] || (t.edge[k - 1][0] == t.edge[k][0] && t.edge[k - 1][1] < t.edge[k][1]));
+    }
+}
+
+/* 3D: a random cloud's tetrahedralisation joins each point to its nearest
+ * neighbour (every Delaunay graph contains the nearest-neighbour graph),
+ * has at least 3n - 6 edges, and a duplicated joint takes its twin's
+ * edges and one to it. */
+static void test_delaunay_3d(void **s)
+{
+    (void)s;
+    mim_rng_t r;
+    mim_rng_seed(&r, 7, 1);
+    double p[3 * MIM_PAIR_JOINTS];
+    random_pair(&r, 3, p);
+    mim_ic_t t;
+    mim_error_t err = {0};
+    assert_int_equal(mim_ic_build(p, 3, &t, &err), 0);
+    assert_true(t.n_edges >= 3 * MIM_PAIR_JOINTS - 6 && t.n_edges <= MIM_IC_MAX_EDGES);
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++) {
+        int nn = -1;
+        double best = INFINITY;
+        for (int j = 0; j < MIM_PAIR_JOINTS; j++) {
+            if (j == i) continue;
+            double d = 0;
+            for (int c = 0; c < 3; c++) d += (p[3 * i + c] - p[3 * j + c]) * (p[3 * i + c] - p[3 * j + c]);
+            if (d < best) best = d, nn = j;
+        }
+        assert_true(has_edge(&t, i < nn ? i : nn, i < nn ? nn : i));
+    }
+    /* joint 20 moved onto joint 3: an edge 3-20, and 20 shares 3's others */
+    memcpy(p + 3 * 20, p + 3 * 3, 3 * sizeof(double));
+    assert_int_equal(mim_ic_build(p, 3, &t, &err), 0);
+    assert_true(has_edge(&t, 3, 20));
+    for (int j = 0; j < MIM_PAIR_JOINTS; j++)
+        if (j != 3 && j != 20) assert_int_equal(has_edge(&t, j < 3 ? j : 3, j < 3 ? 3 : j), has_edge(&t, j < 20 ? j : 20, j < 20 ? 20 : j));
+}
+
+static void test_ic_bad_input(void **s)
+{
+    (void)s;
+    double p[3 * MIM_PAIR_JOINTS];
+    mim_rng_t r;
+    mim_rng_seed(&r, 3, 0);
+    random_pair(&r, 3, p);
+    mim_ic_t t;
+    mim_error_t err = {0};
+    p[3 * 18 + 1] = NAN;
+    assert_int_equal(mim_ic_build(p, 3, &t, &err), MIM_ENONFINITE);
+    assert_non_null(strstr(err.msg, "joint 18 (chest of person B)"));
+    /* every joint on one line: no triangle; qhull's reason in the message, nothing on stderr */
+    double line[2 * MIM_PAIR_JOINTS];
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++) line[2 * i] = 0.01 * i, line[2 * i + 1] = 0.02 * i;
+    fflush(stderr);
+    int saved = dup(2), devnull_pipe[2];
+    assert_int_equal(pipe(devnull_pipe), 0);
+    dup2(devnull_pipe[1], 2);
+    mim_error_clear(&err);
+    int rc = mim_ic_build(line, 2, &t, &err);
+    fflush(stderr);
+    dup2(saved, 2), close(saved), close(devnull_pipe[1]);
+    fcntl(devnull_pipe[0], F_SETFL, O_NONBLOCK);
+    char buf[64];
+    ssize_t got = read(devnull_pipe[0], buf, sizeof buf);
+    close(devnull_pipe[0]);
+    assert_int_equal(rc, MIM_EFORMAT);
+    assert_non_null(strstr(err.msg, "span no triangle (qhull:"));
+    assert_true(got <= 0); /* qhull wrote nothing to stderr */
+    assert_int_equal(mim_ic_build(line, 4, &t, &err), MIM_EINVAL);
+}
+
+/* eq. 8: zero for a pair against itself, symmetric, and each edge weighed
+ * by 1 / max(beta, |u|) over the sum of the weights: with every edge
+ * shorter than beta (the cap) the weights are equal, and each half is the
+ * plain mean of |du| over its triangulation's edges. */
+static void test_dI(void **s)
+{
+    (void)s;
+    mim_rng_t r;
+    mim_rng_seed(&r, 11, 0);
+    double a[3 * MIM_PAIR_JOINTS], b[3 * MIM_PAIR_JOINTS];
+    random_pair(&r, 3, a);
+    random_pair(&r, 3, b);
+    mim_ic_t ta, tb;
+    mim_error_t err = {0};
+    assert_int_equal(mim_ic_build(a, 3, &ta, &err), 0);
+    assert_int_equal(mim_ic_build(b, 3, &tb, &err), 0);
+    assert_true(mim_ic_distance(a, &ta, a, &ta, 0) == 0.0);
+    double ab = mim_ic_distance(a, &ta, b, &tb, 0), ba = mim_ic_distance(b, &tb, a, &ta, 0);
+    assert_true(ab > 0);
+    assert_true(fabs(ab - ba) < 1e-12);
+    /* shrink both so that every edge is under beta: d_I = mean |du| over ta + over tb */
+    double sa[3 * MIM_PAIR_JOINTS], sb[3 * MIM_PAIR_JOINTS];
+    for (int i = 0; i < 3 * MIM_PAIR_JOINTS; i++) sa[i] = a[i] * 0.001, sb[i] = b[i] * 0.001;
+    double want = 0;
+    const mim_ic_t *ts[2] = {&ta, &tb};
+    for (int h = 0; h < 2; h++) {
+        double sum = 0;
+        for (uint32_t k = 0; k < ts[h]->n_edges; k++) {
+            int i = ts[h]->edge[k][0], j = ts[h]->edge[k][1];
+            double d2 = 0;
+            for (int c = 0; c < 3; c++) {
+                double du = (sa[3 * j + c] - sa[3 * i + c]) - (sb[3 * j + c] - sb[3 * i + c]);
+                d2 += du * du;
+            }
+            sum += sqrt(d2);
+        }
+        want += sum / ts[h]->n_edges;
+    }
+    assert_true(fabs(mim_ic_distance(sa, &ta, sb, &tb, 0.05) - want) < 1e-12);
+    /* and a longer beta changes nothing there; a beta below the edges does */
+    assert_true(fabs(mim_ic_distance(sa, &ta, sb, &tb, 0.5) - want) < 1e-12);
+    assert_true(fabs(mim_ic_distance(sa, &ta, sb, &tb, 1e-6) - want) > 1e-9);
+}
+
+/* D_I, D_C, D_S: 0 for a pair against itself turned and moved; > 0
+ * otherwise; the alignment is a rotation (no mirror image). */
+static void test_rigid_invariance(void **s)
+{
+    (void)s;
+    mim_rng_t r;
+    mim_rng_seed(&r, 5, 0);
+    double a[3 * MIM_PAIR_JOINTS], b[3 * MIM_PAIR_JOINTS], moved[3 * MIM_PAIR_JOINTS], mirror[3 * MIM_PAIR_JOINTS];
+    random_pair(&r, 3, a);
+    random_pair(&r, 3, b);
+    const double t[3] = {3.0, -1.0, 0.5};
+    rotate(a, 0.3, 1.0, -0.2, 2.1, t, moved);
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++)
+        mirror[3 * i] = -a[3 * i], mirror[3 * i + 1] = a[3 * i + 1], mirror[3 * i + 2] = a[3 * i + 2];
+    mim_pair_prep_t *pa = malloc(sizeof *pa), *pm = malloc(sizeof *pm), *pb = malloc(sizeof *pb), *px = malloc(sizeof *px);
+    mim_error_t err = {0};
+    assert_int_equal(mim_pair_prepare(a, pa, &err), 0);
+    assert_int_equal(mim_pair_prepare(moved, pm, &err), 0);
+    assert_int_equal(mim_pair_prepare(b, pb, &err), 0);
+    assert_int_equal(mim_pair_prepare(mirror, px, &err), 0);
+    for (int m = 0; m < 3; m++) {
+        assert_true(mim_sample_distance(pa, pm, (mim_sample_metric_t)m) < 1e-9);
+        assert_true(mim_sample_distance(pm, pa, (mim_sample_metric_t)m) < 1e-9);
+        assert_true(mim_sample_distance(pa, pb, (mim_sample_metric_t)m) > 1e-3);
+        assert_true(mim_sample_distance(pa, px, (mim_sample_metric_t)m) > 1e-3); /* a mirror image is another pair */
+    }
+    double back[3 * MIM_PAIR_JOINTS];
+    mim_sample_align(a, moved, 3, back);
+    for (int i = 0; i < 3 * MIM_PAIR_JOINTS; i++) assert_true(fabs(back[i] - a[i]) < 1e-9);
+    free(pa), free(pm), free(pb), free(px);
+}
+
+/* eq. 13: C(G, G) = 0; adding samples never raises C; errors. */
+static void test_coverage(void **s)
+{
+    (void)s;
+    enum { M = 12, K = 20 };
+    mim_rng_t r;
+    mim_rng_seed(&r, 9, 0);
+    mim_pair_prep_t *g = malloc(M * sizeof *g), *smp = malloc(K * sizeof *smp);
+    mim_error_t err = {0};
+    double p[3 * MIM_PAIR_JOINTS];
+    for (int i = 0; i < M; i++) random_pair(&r, 3, p), assert_int_equal(mim_pair_prepare(p, &g[i], &err), 0);
+    for (int i = 0; i < K; i++) random_pair(&r, 3, p), assert_int_equal(mim_pair_prepare(p, &smp[i], &err), 0);
+    for (int m = 0; m < 3; m++) {
+        double c, prev = INFINITY;
+        assert_int_equal(mim_sample_coverage(g, M, g, M, (mim_sample_metric_t)m, NULL, &c, &err), 0);
+        assert_true(c < 1e-9);
+        for (uint32_t k = 1; k <= K; k++) {
+            assert_int_equal(mim_sample_coverage(g, M, smp, k, (mim_sample_metric_t)m, NULL, &c, &err), 0);
+            assert_true(c > 0 && c <= prev + 1e-15);
+            prev = c;
+        }
+    }
+    double c;
+    assert_int_equal(mim_sample_coverage(g, M, smp, 0, MIM_METRIC_IC, NULL, &c, &err), MIM_EINVAL);
+    free(g), free(smp);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_delaunay_ladder), cmocka_unit_test(test_delaunay_3d), cmocka_unit_test(test_ic_bad_input),
+        cmocka_unit_test(test_dI),              cmocka_unit_test(test_rigid_invariance), cmocka_unit_test(test_coverage),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
