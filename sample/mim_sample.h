@@ -48,6 +48,28 @@ extern "C" {
  * r_wrist, l_hip, r_hip, l_knee, r_knee, l_ankle, r_ankle, spine, neck */
 extern const char *const mim_sample_joint_names[MIM_PAIR_PERSON_JOINTS];
 
+/* ---- a person's joints in a motion file (joints.c) ---- */
+/* out[k]: the index among the motion's n joint names of joint k
+ * (mim_sample_joint_names order). custom_json (NULL: none) is a user's map,
+ * {"head": "Head", "chest": "Spine1", ...}, all 17 keys; otherwise the
+ * names are matched (case-insensitively) against the schemes mimic knows:
+ * CMU/Biovision (Hips, LeftUpLeg, Spine1, Neck ...), MakeHuman (root,
+ * upperleg01.L, spine01, neck01 ...), ASF (lfemur, thorax, lowerneck ...)
+ * and the short lower-case one (root, lhip, lknee, lowerneck ...). scheme
+ * (may be NULL) gets the scheme's name. Errors, one line naming origin:
+ * MIM_ENOTFOUND (a joint missing: the nearest scheme and the joint, or a
+ * map's name the motion lacks), MIM_EFORMAT (a malformed map, with line
+ * and column). */
+int mim_pair_joint_map(const char (*names)[64], uint32_t n, const char *custom_json, const char *origin,
+                       int32_t out[MIM_PAIR_PERSON_JOINTS], const char **scheme, mim_error_t *err);
+
+/* The metres per unit of a motion file whose person spans `span` units
+ * from head to the middle of the ankles: metres (0.8..2.5), CMU's ASF
+ * unit of 0.0254/0.45 m (14..45), inches (45..100), centimetres
+ * (100..250), millimetres (800..2500). MIM_ENOTFOUND outside them (the
+ * caller asks for the unit). name (may be NULL) gets the unit's name. */
+int mim_pair_unit_guess(double span, double *metres_per_unit, const char **name);
+
 /* ---- interaction coordinates (ic.c; Section 4.3) ---- */
 /* At most every pair of the 34 joints. */
 #define MIM_IC_MAX_EDGES (MIM_PAIR_JOINTS * (MIM_PAIR_JOINTS - 1) / 2)

@@ -232,11 +232,113 @@ static void test_coverage(void **s)
     free(g), free(smp);
 }
 
+/* Joint names of known schemes (as the files spell them) and a user's map. */
+static int load_names(const char *list, char (*names)[64])
+{
+    int n = 0;
+    char buf[2048];
+    snprintf(buf, sizeof buf, "%s", list);
+    for (char *save = NULL, *t = strtok_r(buf, " ", &save); t; t = strtok_r(NULL, " ", &save))
+        snprintf(names[n++], 64, "%s", t);
+    return n;
+}
+
+static void test_joint_map(void **s)
+{
+    (void)s;
+    char names[64][64];
+    int32_t idx[MIM_PAIR_PERSON_JOINTS];
+    const char *scheme = NULL;
+    mim_error_t err = {0};
+    /* CMU's BVH conversion (cmu-pairs) */
+    int n = load_names("Hips LHipJoint LeftUpLeg LeftLeg LeftFoot LeftToeBase RHipJoint RightUpLeg RightLeg RightFoot "
+                       "RightToeBase LowerBack Spine Spine1 Neck Neck1 Head LeftShoulder LeftArm LeftForeArm LeftHand "
+                       "RightShoulder RightArm RightForeArm RightHand",
+                       names);
+    assert_int_equal(mim_pair_joint_map((const char(*)[64])names, (uint32_t)n, NULL, "a.bvh", idx, &scheme, &err), 0);
+    assert_string_equal(scheme, "CMU/Biovision");
+    assert_string_equal(names[idx[0]], "Head");
+    assert_string_equal(names[idx[3]], "LeftArm");     /* l_shoulder: where the upper arm starts */
+    assert_string_equal(names[idx[14]], "RightFoot");  /* r_ankle */
+    assert_string_equal(names[idx[16]], "Neck");       /* neck */
+    /* ASF (CMU's skeletons) */
+    n = load_names("root lhipjoint lfemur ltibia lfoot ltoes rhipjoint rfemur rtibia rfoot rtoes lowerback upperback "
+                   "thorax lowerneck upperneck head lclavicle lhumerus lradius lwrist lhand rclavicle rhumerus rradius "
+                   "rwrist rhand",
+                   names);
+    assert_int_equal(mim_pair_joint_map((const char(*)[64])names, (uint32_t)n, NULL, "a.asf", idx, &scheme, &err), 0);
+    assert_string_equal(scheme, "ASF");
+    assert_string_equal(names[idx[9]], "lfemur");
+    /* MakeHuman, in another case */
+    n = load_names("ROOT spine05 spine04 spine03 spine02 spine01 neck01 head upperleg01.L lowerleg01.L foot.L "
+                   "upperleg01.R lowerleg01.R foot.R upperarm01.L lowerarm01.L wrist.L upperarm01.R lowerarm01.R wrist.R",
+                   names);
+    assert_int_equal(mim_pair_joint_map((const char(*)[64])names, (uint32_t)n, NULL, "m.bvh", idx, &scheme, &err), 0);
+    assert_string_equal(scheme, "MakeHuman");
+    assert_string_equal(names[idx[2]], "ROOT");
+    /* the short lower-case scheme */
+    n = load_names("root lhip lknee lankle rhip rknee rankle spine chest lowerneck head lshoulder lelbow lwrist "
+                   "rshoulder relbow rwrist",
+                   names);
+    assert_int_equal(mim_pair_joint_map((const char(*)[64])names, (uint32_t)n, NULL, "s.bvh", idx, &scheme, &err), 0);
+    assert_string_equal(scheme, "short lower-case");
+    /* one missing: the nearest scheme and the joint, in one line */
+    n = load_names("Hips LeftUpLeg LeftLeg LeftFoot RightUpLeg RightLeg RightFoot Spine Spine1 Neck Head LeftArm "
+                   "LeftForeArm RightArm RightForeArm RightHand",
+                   names);
+    assert_int_equal(mim_pair_joint_map((const char(*)[64])names, (uint32_t)n, NULL, "b.bvh", idx, &scheme, &err),
+                     MIM_ENOTFOUND);
+    assert_non_null(strstr(err.msg, "b.bvh: joints not recognised: closest to the CMU/Biovision scheme, but no LeftHand joint (l_wrist)"));
+    assert_non_null(strstr(err.msg, "--joint-map"));
+    /* a user's map for any naming */
+    n = load_names("J0 J1 J2 J3 J4 J5 J6 J7 J8 J9 J10 J11 J12 J13 J14 J15 J16 J17", names);
+    char map[1024] = "{";
+    for (int k = 0; k < MIM_PAIR_PERSON_JOINTS; k++)
+        snprintf(map + strlen(map), sizeof map - strlen(map), "%s\"%s\": \"j%d\"", k ? ", " : "", mim_sample_joint_names[k],
+                 16 - k);
+    strcat(map, "}");
+    mim_error_clear(&err);
+    assert_int_equal(mim_pair_joint_map((const char(*)[64])names, (uint32_t)n, map, "c.bvh", idx, &scheme, &err), 0);
+    assert_string_equal(scheme, "joint map");
+    for (int k = 0; k < MIM_PAIR_PERSON_JOINTS; k++) assert_int_equal(idx[k], 16 - k);
+    mim_error_clear(&err);
+    assert_int_equal(mim_pair_joint_map((const char(*)[64])names, (uint32_t)n, "{\"head\": \"J0\",\n  oops}", "c.bvh", idx,
+                                        &scheme, &err),
+                     MIM_EFORMAT);
+    assert_non_null(strstr(err.msg, "joint map:2:"));
+    mim_error_clear(&err);
+    assert_int_equal(mim_pair_joint_map((const char(*)[64])names, (uint32_t)n, "{\"head\": \"J0\"}", "c.bvh", idx,
+                                        &scheme, &err),
+                     MIM_EFORMAT);
+    assert_non_null(strstr(err.msg, "no \"chest\""));
+}
+
+static void test_unit_guess(void **s)
+{
+    (void)s;
+    double m;
+    const char *name;
+    assert_int_equal(mim_pair_unit_guess(1.45, &m, &name), 0);
+    assert_true(m == 1.0);
+    assert_int_equal(mim_pair_unit_guess(25.7, &m, &name), 0); /* a CMU subject in its BVH */
+    assert_true(fabs(m - 0.0254 / 0.45) < 1e-12);
+    assert_non_null(strstr(name, "CMU"));
+    assert_int_equal(mim_pair_unit_guess(145.0, &m, &name), 0);
+    assert_true(m == 0.01);
+    assert_int_equal(mim_pair_unit_guess(1450.0, &m, &name), 0);
+    assert_true(m == 0.001);
+    assert_int_equal(mim_pair_unit_guess(57.0, &m, &name), 0);
+    assert_true(m == 0.0254);
+    assert_int_equal(mim_pair_unit_guess(5.0, &m, &name), MIM_ENOTFOUND);
+    assert_int_equal(mim_pair_unit_guess(NAN, &m, &name), MIM_ENOTFOUND);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_delaunay_ladder), cmocka_unit_test(test_delaunay_3d), cmocka_unit_test(test_ic_bad_input),
         cmocka_unit_test(test_dI),              cmocka_unit_test(test_rigid_invariance), cmocka_unit_test(test_coverage),
+        cmocka_unit_test(test_joint_map), cmocka_unit_test(test_unit_guess),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
