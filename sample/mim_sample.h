@@ -120,6 +120,29 @@ int mim_pair_prepare(const double *joints, mim_pair_prep_t *out, mim_error_t *er
  * alignment's direction; 0 for a pair against itself, moved rigidly. */
 double mim_sample_distance(const mim_pair_prep_t *a, const mim_pair_prep_t *b, mim_sample_metric_t metric);
 
+/* ---- samples as JSON lines (samples_file.c; schemas/pair-samples.md) ---- */
+/* The header line and a sample line (malloc'd, no newline; NULL when out
+ * of memory). A NaN log density is written as null. */
+char *mim_pairs_jsonl_header(void);
+char *mim_pairs_jsonl_line(const double *joints, double log_density);
+
+#define MIM_PAIRS_SAMPLES_MAX 10000000u
+typedef struct mim_pairs_samples {
+    uint32_t n;
+    double *joints;      /* n * 34 * 3, metres */
+    double *log_density; /* n; NaN when the file gives null or none */
+} mim_pairs_samples_t;
+/* Parses a samples file: its header (the format and the 34 joint names, in
+ * order) and every line after it (blank lines skipped). Errors, one line
+ * with origin:line(:column): MIM_EFORMAT (malformed JSON, another format,
+ * a wrong joint count or name, a joint that is not [x, y, z]),
+ * MIM_ENONFINITE (a coordinate that is not finite or beyond 1 km),
+ * MIM_EEMPTY (no header or no samples), MIM_EUNSUPPORTED (over
+ * MIM_PAIRS_SAMPLES_MAX), MIM_ENOMEM. On error *out is empty. */
+int mim_pairs_samples_parse(const char *text, size_t len, const char *origin, mim_pairs_samples_t *out,
+                            mim_error_t *err);
+void mim_pairs_samples_free(mim_pairs_samples_t *s); /* accepts NULL and an empty set */
+
 /* ---- coverage (coverage.c; eq. 13) ---- */
 /* C(G, S) = 1/m sum_i min_j D(g_i, s_j) over the m truth pairs g and the k
  * samples s, in the metric given. MIM_EINVAL for m or k of 0. Optional

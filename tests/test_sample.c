@@ -333,12 +333,69 @@ static void test_unit_guess(void **s)
     assert_int_equal(mim_pair_unit_guess(NAN, &m, &name), MIM_ENOTFOUND);
 }
 
+/* Samples as JSON lines: a round trip, and each malformed file refused in
+ * one line naming the line. */
+static void test_samples_file(void **s)
+{
+    (void)s;
+    mim_rng_t r;
+    mim_rng_seed(&r, 4, 0);
+    double p[2][3 * MIM_PAIR_JOINTS];
+    random_pair(&r, 3, p[0]);
+    random_pair(&r, 3, p[1]);
+    char *h = mim_pairs_jsonl_header(), *l0 = mim_pairs_jsonl_line(p[0], -12.5), *l1 = mim_pairs_jsonl_line(p[1], NAN);
+    assert_non_null(h), assert_non_null(l0), assert_non_null(l1);
+    assert_null(strchr(l0, '\n'));
+    size_t cap = strlen(h) + strlen(l0) + strlen(l1) + 16;
+    char *text = malloc(cap);
+    snprintf(text, cap, "%s\r\n%s\n\n%s\n", h, l0, l1);
+    mim_pairs_samples_t smp;
+    mim_error_t err = {0};
+    assert_int_equal(mim_pairs_samples_parse(text, strlen(text), "s.jsonl", &smp, &err), 0);
+    assert_int_equal(smp.n, 2);
+    for (int i = 0; i < 3 * MIM_PAIR_JOINTS; i++) {
+        assert_true(fabs(smp.joints[i] - p[0][i]) < 1e-8);
+        assert_true(fabs(smp.joints[3 * MIM_PAIR_JOINTS + i] - p[1][i]) < 1e-8);
+    }
+    assert_true(smp.log_density[0] == -12.5);
+    assert_true(isnan(smp.log_density[1]));
+    mim_pairs_samples_free(&smp);
+    struct { const char *text; int code; const char *phrase; } bad[] = {
+        {"", MIM_EEMPTY, "s.jsonl: empty"},
+        {"{\"format\": \"something else\"}\n", MIM_EFORMAT, "s.jsonl:1: not a mimic pair-samples file"},
+        {"not json\n", MIM_EFORMAT, "s.jsonl:1:"},
+        {NULL, MIM_EEMPTY, "no samples after the header"},                 /* header alone */
+        {"L{\"joints\": [[0, 0, 0]]}", MIM_EFORMAT, "s.jsonl:2: \"joints\" must hold 34"},
+        {"L{\"joints\": [[0, 0, NaN]]}", MIM_EFORMAT, "s.jsonl:2:"},
+        {"X1e999", MIM_EFORMAT, "s.jsonl:2:"},
+        {"X5000", MIM_ENONFINITE, "s.jsonl:2: joint 0: coordinate 5000 is not within 1000 m"},
+        {"X\"a\"", MIM_EFORMAT, "joint 0: a coordinate is not a number"},
+    };
+    for (size_t k = 0; k < sizeof bad / sizeof *bad; k++) {
+        char buf[8192];
+        if (!bad[k].text) snprintf(buf, sizeof buf, "%s\n", h);
+        else if (bad[k].text[0] == 'L') snprintf(buf, sizeof buf, "%s\n%s\n", h, bad[k].text + 1);
+        else if (bad[k].text[0] == 'X') { /* a full line with the first coordinate replaced */
+            const char *rest = strchr(l0 + 12, ',');
+            snprintf(buf, sizeof buf, "%s\n{\"joints\":[[%s%s\n", h, bad[k].text + 1, rest);
+        } else snprintf(buf, sizeof buf, "%s", bad[k].text);
+        mim_error_clear(&err);
+        int rc = mim_pairs_samples_parse(buf, strlen(buf), "s.jsonl", &smp, &err);
+        if (rc != bad[k].code || !strstr(err.msg, bad[k].phrase))
+            fail_msg("case %zu: %d '%s' (wanted %d '%s')", k, rc, err.msg, bad[k].code, bad[k].phrase);
+        assert_int_equal(smp.n, 0);
+        assert_null(strchr(err.msg, '\n'));
+    }
+    free(h), free(l0), free(l1), free(text);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_delaunay_ladder), cmocka_unit_test(test_delaunay_3d), cmocka_unit_test(test_ic_bad_input),
         cmocka_unit_test(test_dI),              cmocka_unit_test(test_rigid_invariance), cmocka_unit_test(test_coverage),
         cmocka_unit_test(test_joint_map), cmocka_unit_test(test_unit_guess),
+        cmocka_unit_test(test_samples_file),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
