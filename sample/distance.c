@@ -80,6 +80,30 @@ void mim_sample_align(const double *a, const double *b, int dim, double *out)
 #define SC_AZ 8
 #define SC_EL 4
 
+/* Soft binning (each count shared linearly between the two nearest bins
+ * along log r, azimuth (circular) and elevation, and the azimuth's share
+ * fading out towards the poles, where it is undefined): plain binning
+ * jumps when a joint sits on a bin's edge or straight above another, which
+ * skeletons do, so a pair and its own rigid copy would differ. */
+static void spread(float *h, double fr, double fa, double fe, double cos_el, float w)
+{
+    int r0 = (int)floor(fr), a0 = (int)floor(fa), e0 = (int)floor(fe);
+    double tr = fr - r0, ta = fa - a0, te = fe - e0;
+    for (int dr = 0; dr < 2; dr++)
+        for (int da = 0; da < 2; da++)
+            for (int de = 0; de < 2; de++) {
+                int r = r0 + dr, a = ((a0 + da) % SC_AZ + SC_AZ) % SC_AZ, e = e0 + de;
+                r = r < 0 ? 0 : r >= SC_R ? SC_R - 1 : r;
+                e = e < 0 ? 0 : e >= SC_EL ? SC_EL - 1 : e;
+                /* towards the poles the azimuth means less and less: its
+                 * share (cos el) goes to its bin, the rest to all alike */
+                double k = (dr ? tr : 1 - tr) * (de ? te : 1 - te);
+                h[(r * SC_AZ + a) * SC_EL + e] += (float)(w * k * cos_el * (da ? ta : 1 - ta));
+                if (da) continue;
+                for (int u = 0; u < SC_AZ; u++) h[(r * SC_AZ + u) * SC_EL + e] += (float)(w * k * (1 - cos_el) / SC_AZ);
+            }
+}
+
 static void shape_contexts(const double *p, float sc[MIM_PAIR_JOINTS][MIM_SC_BINS])
 {
     const int n = MIM_PAIR_JOINTS;
@@ -99,14 +123,12 @@ static void shape_contexts(const double *p, float sc[MIM_PAIR_JOINTS][MIM_SC_BIN
             if (j == i) continue;
             double v[3] = {p[3 * j] - p[3 * i], p[3 * j + 1] - p[3 * i + 1], p[3 * j + 2] - p[3 * i + 2]};
             double r = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-            int rb = r > 0 ? (int)floor((log(r) - r0) / (r1 - r0) * SC_R) : 0;
-            rb = rb < 0 ? 0 : rb >= SC_R ? SC_R - 1 : rb;
-            /* up is y (the data's convention: mimic's bodies and BVH) */
+            /* bin coordinates, bin centres at integers: log r, and up is y
+             * (the data's convention: mimic's bodies and BVH) */
+            double fr = r > 0 ? (log(r) - r0) / (r1 - r0) * SC_R - 0.5 : 0.0;
             double az = atan2(v[2], v[0]), el = r > 0 ? asin(v[1] / r) : 0.0;
-            int ab = (int)floor((az + M_PI) / (2 * M_PI) * SC_AZ), eb = (int)floor((el + M_PI / 2) / M_PI * SC_EL);
-            ab = ab < 0 ? 0 : ab >= SC_AZ ? SC_AZ - 1 : ab;
-            eb = eb < 0 ? 0 : eb >= SC_EL ? SC_EL - 1 : eb;
-            sc[i][(rb * SC_AZ + ab) * SC_EL + eb] += 1.0f / (n - 1);
+            double fa = (az + M_PI) / (2 * M_PI) * SC_AZ - 0.5, fe = (el + M_PI / 2) / M_PI * SC_EL - 0.5;
+            spread(sc[i], fr, fa, fe, cos(el), 1.0f / (n - 1));
         }
 }
 

@@ -61,12 +61,25 @@ int mim_ic_build(const double *joints, int dim, mim_ic_t *out, mim_error_t *err)
     size_t msg_len = 0;
     FILE *errf = open_memstream(&msg, &msg_len);
     if (!errf) return mim_error_set(err, MIM_ENOMEM, "interaction coordinates: out of memory");
+    uint8_t have[MIM_PAIR_JOINTS][MIM_PAIR_JOINTS];
+    memset(have, 0, sizeof have);
     qhT qh_qh, *qh = &qh_qh;
     qh_zero(qh, errf);
     char flags[] = "qhull d Qt Qbb Qz";
     int exit_code = qh_new_qhull(qh, dim, (int)n_uniq, pts, False, flags, NULL, errf);
-    uint8_t have[MIM_PAIR_JOINTS][MIM_PAIR_JOINTS];
-    memset(have, 0, sizeof have);
+    if (exit_code && dim == 3) {
+        /* Flat input (two people in one plane, a T-pose seen from the
+         * front): joggle it (QJ). qhull's generator is its own (qh_rand,
+         * state in qh), so this stays deterministic and global state
+         * untouched; the edges found join joints that are neighbours in
+         * the plane. */
+        qh_freeqhull(qh, !qh_ALL);
+        int cl, tl;
+        qh_memfreeshort(qh, &cl, &tl);
+        qh_zero(qh, errf);
+        char joggle[] = "qhull d Qbb QJ";
+        exit_code = qh_new_qhull(qh, dim, (int)n_uniq, pts, False, joggle, NULL, errf);
+    }
     if (!exit_code) {
         facetT *facet;
         vertexT *vertex, **vertexp;

@@ -16,8 +16,10 @@
  *   facets so that every edge of a cospherical set is used; Qz adds a point
  *   at infinity for cospherical input. Joints at one place (a CMU hip joint
  *   and its parent share a point) are merged before triangulating and
- *   joined by an edge after, so qhull never sees duplicates (its joggle
- *   option is not used: the result would depend on its generator).
+ *   joined by an edge after, so qhull never sees duplicates. 3D input that
+ *   is flat (both people in one plane) is joggled (QJ) as a fallback: qhull's
+ *   generator keeps its state in its own context, so the result is the
+ *   same on every run and no process-wide state is touched.
  * - Comparing two pose-pairs in 3D (D_I, D_C, D_S): the second is first
  *   brought onto the first by the least-squares rigid motion over the 34
  *   joints (Kabsch, as the paper does in 2D with M of eq. 9): samples live
@@ -26,7 +28,9 @@
  * - D_S: 3D shape contexts (Belongie et al. 2002, the paper's [45]): for
  *   each joint, a log-polar histogram of where the other 33 joints lie (5
  *   radial bins, log-spaced from 1/8 to 2 of the pair's mean joint
- *   distance; 8 azimuth and 4 elevation bins about the world's up axis);
+ *   distance; 8 azimuth and 4 elevation bins about the world's up axis;
+ *   each count shared linearly between neighbouring bins, so that the
+ *   measure does not jump when a joint sits on a bin's edge);
  *   the cost of a joint is the chi-squared distance between its two
  *   histograms, and D_S the mean over the joints (correspondence is known:
  *   joint i is joint i).

@@ -1,5 +1,6 @@
 /* mimic vest, motion data: BVH and ASF/AMC motion files turned into the
- * tared orientations a vest would report, and the built-in demo motion.
+ * tared orientations a vest would report, or into world joint positions
+ * (mim_vest_joint_motion_t), and the built-in demo motion.
  * Implemented by motion.c (the shared builder, sampling), motion_bvh.c,
  * motion_amc.c and motion_demo.c.
  *
@@ -51,6 +52,52 @@ int mim_vest_motion_parse_bvh(mim_vest_motion_t *m, const char *text, size_t len
                               mim_error_t *err);
 /* Frees m->q and zeroes *m. Accepts NULL and a zeroed motion. */
 void mim_vest_motion_free(mim_vest_motion_t *m);
+/* Joint positions (issue 14, two-person pose-pairs): every joint's world
+ * position in every frame, with the root's translation kept, in the file's
+ * own units and axes (no change to the avatar frame, no taring). The two
+ * files of a two-person take that share one world frame give positions in
+ * that one frame. End Sites are not joints and are left out.
+ *
+ * A loaded joint motion is plain data in three malloc'd arrays: read-only
+ * use from many threads is safe. */
+typedef struct mim_vest_joint_motion {
+    uint32_t n_joints, n_frames;
+    double frame_time;  /* seconds */
+    char (*name)[64];   /* n_joints joint names, as in the file (cut to 63 bytes) */
+    int32_t *parent;    /* n_joints; -1 for the root; parents come first */
+    float *positions;   /* n_frames * n_joints * 3: world positions, the file's units and axes;
+                         * joint j of frame f at positions[3 * (f * n_joints + j)] */
+} mim_vest_joint_motion_t;
+
+/* Reads every joint's world position in every frame of a BVH: the root at
+ * its OFFSET plus its position channels (kept, unlike
+ * mim_vest_motion_read_bvh), each child at its parent's position plus the
+ * parent's world rotation applied to its OFFSET. Position channels on a
+ * non-root joint (BVH allows them) are added to that joint's OFFSET in that
+ * frame. A channel Xposition gives x wherever it is listed.
+ * The file's text is parsed by the same code as mim_vest_motion_read_bvh,
+ * with the same limits and errors (naming the file and line), except that
+ * no particular joints are needed (no head, hips or arms). On success *m
+ * owns its arrays: free them with mim_vest_joint_motion_free. On error *m is
+ * zeroed (when m is not NULL) and nothing is left to free. Returns 0, or as
+ * mim_vest_motion_read_bvh / _parse_bvh (MIM_EINVAL for a NULL m or path,
+ * or text NULL with len > 0). */
+int mim_vest_joint_motion_read_bvh(mim_vest_joint_motion_t *m, const char *path, mim_error_t *err);
+int mim_vest_joint_motion_parse_bvh(mim_vest_joint_motion_t *m, const char *text, size_t len, const char *origin,
+                                    mim_error_t *err);
+/* ASF skeleton + AMC motion the same way: the root at the ASF's root
+ * `position` plus the AMC root's TX TY TZ (tx/ty/tz dofs on other bones are
+ * added to their offset likewise); a bone starts where its parent ends
+ * (parent direction x length, rotated by the parent's world rotation).
+ * Joint 0 is the root ("root"); bones outside the :hierarchy are left out.
+ * Frame time as mim_vest_motion_read_amc (1/120 s). Errors as
+ * mim_vest_motion_read_amc, and MIM_EFORMAT for an unreadable root position
+ * (which the orientation reader does not use). */
+int mim_vest_joint_motion_read_amc(mim_vest_joint_motion_t *m, const char *asf_path, const char *amc_path,
+                                   mim_error_t *err);
+/* Frees the arrays and zeroes *m. Accepts NULL and a zeroed joint motion. */
+void mim_vest_joint_motion_free(mim_vest_joint_motion_t *m);
+
 /* The built-in demo motion (motion_demo.c): eight poses a synth store also
  * holds (rest, T, arms up, wave, reach, squat, walk, bow), 1.5 s each at
  * 30 fps (12 s), T-pose rest. Free with mim_vest_motion_free. Returns 0 or

@@ -2,7 +2,9 @@
  * the world rotation of its motion joint relative to the rest pose (all
  * channels zero): what a sensor tared in that pose reports. The motion's
  * up and left axes are read off its rest pose (head above pelvis, left hip
- * beside right hip) and mapped to mimic's +Y and +X. */
+ * beside right hip) and mapped to mimic's +Y and +X.
+ * The joint-position builder (mim__joint_motion_build) works on the same
+ * reader output and keeps the motion's translation, units and axes. */
 #include "motion_internal.h"
 
 #include <math.h>
@@ -144,6 +146,64 @@ int mim__motion_build(mim_vest_motion_t *m, const mim__motion_src_t *src, const 
     }
     free(W);
     return 0;
+}
+
+/* Forward kinematics with translation: P_root = offset + t, P_j = P_parent +
+ * W_parent (offset_j + t_j), W_j = W_parent L_j; in the motion's own units
+ * and axes (no change of axes, unlike mim__motion_build). */
+int mim__joint_motion_build(mim_vest_joint_motion_t *m, const mim__motion_src_t *src, const char *origin,
+                            mim_error_t *err)
+{
+    memset(m, 0, sizeof *m);
+    if (!src->n_joints || !src->n_frames)
+        return mim_error_set(err, MIM_EEMPTY, "%s: no joints or no frames", origin);
+    uint32_t n = src->n_joints;
+    m->name = malloc(sizeof *m->name * n);
+    m->parent = malloc(sizeof *m->parent * n);
+    m->positions = malloc(sizeof *m->positions * 3 * n * (size_t)src->n_frames);
+    mim_quat *W = malloc(sizeof *W * n);
+    mim_vec3 *P = malloc(sizeof *P * n);
+    if (!m->name || !m->parent || !m->positions || !W || !P) {
+        free(W), free(P), mim_vest_joint_motion_free(m);
+        return mim_error_set(err, MIM_ENOMEM, "%s: out of memory for %u frames", origin, src->n_frames);
+    }
+    m->n_joints = n, m->n_frames = src->n_frames;
+    m->frame_time = src->frame_time > 0 ? src->frame_time : 1.0 / 30;
+    for (uint32_t j = 0; j < n; j++) {
+        snprintf(m->name[j], sizeof m->name[j], "%s", src->joint[j].name);
+        m->parent[j] = src->joint[j].parent;
+    }
+    for (uint32_t f = 0; f < src->n_frames; f++) {
+        const mim_quat *L = src->local + (size_t)f * n;
+        const mim_vec3 *T = src->trans ? src->trans + (size_t)f * n : NULL;
+        float *out = m->positions + (size_t)f * n * 3;
+        for (uint32_t j = 0; j < n; j++) {
+            int p = src->joint[j].parent;
+            mim_vec3 d = T ? mim_v3_add(src->joint[j].offset, T[j]) : src->joint[j].offset;
+            if (p < 0) {
+                W[j] = L[j], P[j] = d;
+            } else {
+                W[j] = mim_quat_mul(W[p], L[j]);
+                P[j] = mim_v3_add(P[p], mim_quat_rotate(W[p], d));
+            }
+            out[3 * j] = (float)P[j].x, out[3 * j + 1] = (float)P[j].y, out[3 * j + 2] = (float)P[j].z;
+        }
+    }
+    free(W), free(P);
+    return 0;
+}
+
+void mim__motion_src_free(mim__motion_src_t *src)
+{
+    free(src->joint), free(src->local), free(src->trans);
+    memset(src, 0, sizeof *src);
+}
+
+void mim_vest_joint_motion_free(mim_vest_joint_motion_t *m)
+{
+    if (!m) return;
+    free(m->name), free(m->parent), free(m->positions);
+    memset(m, 0, sizeof *m);
 }
 
 void mim_vest_motion_free(mim_vest_motion_t *m)

@@ -4,7 +4,10 @@
  * them. An AMC frame gives each bone's dof values. A bone's rotation relative
  * to its parent, in the rest frame, is C M C^-1 with C from `axis` and M
  * from the dofs, both composed so the first listed axis turns first
- * (order XYZ -> Rz Ry Rx), as in the CMU reference viewer. */
+ * (order XYZ -> Rz Ry Rx), as in the CMU reference viewer. tx/ty/tz dofs
+ * (the root's place in the world) are a translation added to the bone's
+ * offset; the orientation reader ignores them, the joint-position reader
+ * keeps them. Both go through mim__amc_read. */
 #include "motion_internal.h"
 
 #include <ctype.h>
@@ -28,6 +31,8 @@ typedef struct {
     bone_t *b;
     uint32_t n;
     double angle_scale; /* to degrees */
+    mim_vec3 root_pos;  /* :root position */
+    int bad_pos_line;   /* line of an unreadable :root position (only joint positions need it), 0 if none */
 } asf_t;
 
 static int axis_of(char c) { return c == 'X' || c == 'x' ? 0 : c == 'Y' || c == 'y' ? 1 : c == 'Z' || c == 'z' ? 2 : -1; }
@@ -123,6 +128,11 @@ static int parse_asf(asf_t *s, char *text, const char *path, mim_error_t *err)
                     return mim_error_set(err, MIM_EFORMAT, "%s:%d: bad root orientation", path, ln);
                 cur->C = euler(a, xyz);
             }
+            if (!strcmp(tok[0], "position") && n >= 4) {
+                double a[3];
+                if (num(tok[1], &a[0]) || num(tok[2], &a[1]) || num(tok[3], &a[2])) s->bad_pos_line = ln;
+                else s->root_pos = mim_v3(a[0], a[1], a[2]);
+            }
         } else if (!strcmp(section, ":bonedata")) {
             if (!strcmp(tok[0], "begin")) {
                 if (s->n >= MIM__MOTION_MAX_JOINTS)
@@ -170,9 +180,10 @@ static int parse_asf(asf_t *s, char *text, const char *path, mim_error_t *err)
     return 0;
 }
 
-int mim_vest_motion_read_amc(mim_vest_motion_t *m, const char *asf_path, const char *amc_path, mim_error_t *err)
+int mim__amc_read(mim__motion_src_t *src_out, const char *asf_path, const char *amc_path, int translations,
+                  mim_error_t *err)
 {
-    memset(m, 0, sizeof *m);
+    memset(src_out, 0, sizeof *src_out);
     char *asf_text = NULL, *amc_text = NULL;
     size_t len;
     asf_t s = {0};
@@ -180,6 +191,8 @@ int mim_vest_motion_read_amc(mim_vest_motion_t *m, const char *asf_path, const c
     uint32_t *order = NULL;
     int rc = mim__read_text(asf_path, &asf_text, &len, err);
     if (!rc) rc = parse_asf(&s, asf_text, asf_path, err);
+    if (!rc && translations && s.bad_pos_line)
+        rc = mim_error_set(err, MIM_EFORMAT, "%s:%d: bad root position", asf_path, s.bad_pos_line);
     if (!rc) rc = mim__read_text(amc_path, &amc_text, &len, err);
     if (rc) goto done;
     /* order bones parents-first; bones outside the hierarchy are left out */
@@ -206,14 +219,16 @@ int mim_vest_motion_read_amc(mim_vest_motion_t *m, const char *asf_path, const c
         snprintf(src.joint[j].name, sizeof src.joint[j].name, "%s", b->name);
         src.joint[j].parent = b->parent >= 0 ? pos[b->parent] : -1;
         /* a bone starts where its parent ends */
-        src.joint[j].rest = b->parent >= 0 ? mim_v3_add(src.joint[src.joint[j].parent].rest,
-                                                        mim_v3_scale(s.b[b->parent].dir, s.b[b->parent].length))
-                                           : mim_v3(0, 0, 0);
+        src.joint[j].offset =
+            b->parent >= 0 ? mim_v3_scale(s.b[b->parent].dir, s.b[b->parent].length) : s.root_pos;
+        src.joint[j].rest = b->parent >= 0 ? mim_v3_add(src.joint[src.joint[j].parent].rest, src.joint[j].offset)
+                                           : src.joint[j].offset;
     }
     /* frames: a line with one integer starts a frame */
     uint32_t cap = 256, nf = 0;
     src.local = malloc(sizeof *src.local * cap * k);
-    if (!src.local) {
+    if (translations) src.trans = malloc(sizeof *src.trans * cap * k);
+    if (!src.local || (translations && !src.trans)) {
         free(pos);
         rc = mim_error_set(err, MIM_ENOMEM, "%s: out of memory", amc_path);
         goto done;
@@ -238,8 +253,18 @@ int mim_vest_motion_read_amc(mim_vest_motion_t *m, const char *asf_path, const c
                     break;
                 }
                 src.local = nq;
+                if (translations) {
+                    mim_vec3 *nt = realloc(src.trans, sizeof *nt * (size_t)cap * k);
+                    if (!nt) {
+                        rc = mim_error_set(err, MIM_ENOMEM, "%s: out of memory", amc_path);
+                        break;
+                    }
+                    src.trans = nt;
+                }
             }
             for (uint32_t j = 0; j < k; j++) src.local[(size_t)nf * k + j] = mim_quat_identity();
+            if (src.trans)
+                for (uint32_t j = 0; j < k; j++) src.trans[(size_t)nf * k + j] = mim_v3(0, 0, 0);
             nf++;
             continue;
         }
@@ -255,7 +280,7 @@ int mim_vest_motion_read_amc(mim_vest_motion_t *m, const char *asf_path, const c
                                tok[0], n - 1, b->ndof);
             break;
         }
-        double a[3] = {0, 0, 0};
+        double a[3] = {0, 0, 0}, t[3] = {0, 0, 0};
         int ax[3], na = 0;
         for (int i = 0; i < b->ndof; i++) {
             double v;
@@ -264,18 +289,43 @@ int mim_vest_motion_read_amc(mim_vest_motion_t *m, const char *asf_path, const c
                 break;
             }
             if (b->dof[i] < 3 && na < 3) a[na] = v * s.angle_scale, ax[na++] = b->dof[i];
+            else if (b->dof[i] >= 3 && b->dof[i] < 6) t[b->dof[i] - 3] = v; /* tx gives x, wherever listed */
         }
         if (rc) break;
         for (int i = na; i < 3; i++) a[i] = 0, ax[i] = 0;
         mim_quat M = euler(a, ax), Ci = {-b->C.x, -b->C.y, -b->C.z, b->C.w};
         src.local[(size_t)(nf - 1) * k + (uint32_t)pos[bi]] = mim_quat_mul(mim_quat_mul(b->C, M), Ci);
+        if (src.trans) src.trans[(size_t)(nf - 1) * k + (uint32_t)pos[bi]] = mim_v3(t[0], t[1], t[2]);
     }
     free(pos);
     if (rc) goto done;
     src.n_frames = nf;
     src.frame_time = 1.0 / 120; /* CMU captures at 120 Hz; AMC does not say */
-    rc = mim__motion_build(m, &src, amc_path, err);
+    *src_out = src, src = (mim__motion_src_t){0};
 done:
-    free(order), free(src.joint), free(src.local), free(s.b), free(asf_text), free(amc_text);
+    mim__motion_src_free(&src);
+    free(order), free(s.b), free(asf_text), free(amc_text);
+    return rc;
+}
+
+int mim_vest_motion_read_amc(mim_vest_motion_t *m, const char *asf_path, const char *amc_path, mim_error_t *err)
+{
+    memset(m, 0, sizeof *m);
+    mim__motion_src_t src;
+    int rc = mim__amc_read(&src, asf_path, amc_path, 0, err);
+    if (!rc) rc = mim__motion_build(m, &src, amc_path, err);
+    mim__motion_src_free(&src);
+    return rc;
+}
+
+int mim_vest_joint_motion_read_amc(mim_vest_joint_motion_t *m, const char *asf_path, const char *amc_path,
+                                   mim_error_t *err)
+{
+    if (m) memset(m, 0, sizeof *m);
+    if (!m || !asf_path || !amc_path) return mim_error_set(err, MIM_EINVAL, "amc: bad arguments");
+    mim__motion_src_t src;
+    int rc = mim__amc_read(&src, asf_path, amc_path, 1, err);
+    if (!rc) rc = mim__joint_motion_build(m, &src, amc_path, err);
+    mim__motion_src_free(&src);
     return rc;
 }

@@ -1,8 +1,13 @@
 /* BVH motion (Biovision hierarchy): HIERARCHY of ROOT/JOINT blocks with
  * OFFSET and CHANNELS, then MOTION with "Frames:", "Frame Time:" and one
  * line of channel values per frame. A joint's rotation is the product of its
- * rotation channels in the order listed (R = R_1 R_2 R_3), in degrees;
- * position channels are read past (a vest gives no translation). */
+ * rotation channels in the order listed (R = R_1 R_2 R_3), in degrees.
+ * Position channels (Xposition gives x, whatever their order) are a
+ * translation added to the joint's OFFSET in that frame: the root's is its
+ * place in the world; BVH allows them on any joint and they are applied the
+ * same way there. The orientation reader (mim_vest_motion_*) ignores them (a
+ * vest gives no translation); the joint-position reader
+ * (mim_vest_joint_motion_*) keeps them. Both go through mim__bvh_parse. */
 #include "motion_internal.h"
 
 #include <ctype.h>
@@ -93,7 +98,8 @@ static int joint_block(lex_t *lx, hier_t *h, int parent, mim_vec3 base, int dept
     double o[3];
     for (int k = 0; k < 3; k++)
         if ((rc = number(lx, &o[k]))) return rc;
-    J->rest = mim_v3_add(base, mim_v3(o[0], o[1], o[2]));
+    J->offset = mim_v3(o[0], o[1], o[2]);
+    J->rest = mim_v3_add(base, J->offset);
     if ((rc = expect(lx, "CHANNELS"))) return rc;
     double nc;
     if ((rc = number(lx, &nc))) return rc;
@@ -125,15 +131,15 @@ static int joint_block(lex_t *lx, hier_t *h, int parent, mim_vec3 base, int dept
     }
 }
 
-int mim_vest_motion_parse_bvh(mim_vest_motion_t *m, const char *text, size_t len, const char *origin,
-                              mim_error_t *err)
+int mim__bvh_parse(mim__motion_src_t *src, const char *text, size_t len, const char *origin, int translations,
+                   mim_error_t *err)
 {
-    if (!m || (!text && len)) return mim_error_set(err, MIM_EINVAL, "bvh: bad arguments");
-    memset(m, 0, sizeof *m);
-    lex_t lx = {text, text + len, origin ? origin : "bvh", 1, {0}, err};
+    memset(src, 0, sizeof *src);
+    /* text may be NULL with len 0: no arithmetic on a null pointer */
+    lex_t lx = {text, text ? text + len : text, origin ? origin : "bvh", 1, {0}, err};
     hier_t *h = calloc(1, sizeof *h);
     if (h) h->j = calloc(MIM__MOTION_MAX_JOINTS, sizeof *h->j);
-    mim__motion_src_t src = {0};
+    double *vals = NULL;
     int rc = 0;
     if (!h || !h->j) {
         rc = mim_error_set(err, MIM_ENOMEM, "%s: out of memory", lx.origin);
@@ -149,29 +155,49 @@ int mim_vest_motion_parse_bvh(mim_vest_motion_t *m, const char *text, size_t len
         rc = mim_error_set(err, MIM_EFORMAT, "%s:%d: %g frames of %g s", lx.origin, lx.line, nf, ft);
         goto done;
     }
-    src.n_joints = h->n, src.n_frames = (uint32_t)nf, src.frame_time = ft, src.joint = h->j;
-    src.local = malloc(sizeof *src.local * (size_t)src.n_frames * h->n);
-    double *vals = malloc(sizeof *vals * (h->channels ? h->channels : 1));
-    if (!src.local || !vals) {
-        free(vals);
-        rc = mim_error_set(err, MIM_ENOMEM, "%s: out of memory for %u frames", lx.origin, src.n_frames);
+    src->n_joints = h->n, src->n_frames = (uint32_t)nf, src->frame_time = ft;
+    src->joint = h->j, h->j = NULL;
+    size_t nv = (size_t)src->n_frames * h->n;
+    src->local = malloc(sizeof *src->local * nv);
+    if (translations) src->trans = malloc(sizeof *src->trans * nv);
+    vals = malloc(sizeof *vals * (h->channels ? h->channels : 1));
+    if (!src->local || (translations && !src->trans) || !vals) {
+        rc = mim_error_set(err, MIM_ENOMEM, "%s: out of memory for %u frames", lx.origin, src->n_frames);
         goto done;
     }
-    for (uint32_t f = 0; f < src.n_frames && !rc; f++) {
+    for (uint32_t f = 0; f < src->n_frames && !rc; f++) {
         for (uint32_t c = 0; c < h->channels && !rc; c++) rc = number(&lx, &vals[c]);
         for (uint32_t j = 0; j < h->n && !rc; j++) {
             mim_quat q = mim_quat_identity();
-            for (int c = 0; c < h->nch[j]; c++)
-                if (h->ch[j][c] >= 3) q = mim_quat_mul(q, mim__axis_rot(h->ch[j][c] - 3, vals[h->first[j] + c]));
-            src.local[(size_t)f * h->n + j] = q;
+            double t[3] = {0, 0, 0};
+            for (int c = 0; c < h->nch[j]; c++) {
+                int k = h->ch[j][c];
+                double v = vals[h->first[j] + c];
+                if (k >= 3) q = mim_quat_mul(q, mim__axis_rot(k - 3, v));
+                else t[k] = v; /* Xposition gives x, wherever it is listed */
+            }
+            src->local[(size_t)f * h->n + j] = q;
+            if (src->trans) src->trans[(size_t)f * h->n + j] = mim_v3(t[0], t[1], t[2]);
         }
     }
-    free(vals);
-    if (!rc) rc = mim__motion_build(m, &src, lx.origin, err);
 done:
-    free(src.local);
+    free(vals);
+    if (rc) mim__motion_src_free(src);
     if (h) free(h->j);
     free(h);
+    return rc;
+}
+
+int mim_vest_motion_parse_bvh(mim_vest_motion_t *m, const char *text, size_t len, const char *origin,
+                              mim_error_t *err)
+{
+    if (!m || (!text && len)) return mim_error_set(err, MIM_EINVAL, "bvh: bad arguments");
+    memset(m, 0, sizeof *m);
+    if (!origin) origin = "bvh";
+    mim__motion_src_t src;
+    int rc = mim__bvh_parse(&src, text, len, origin, 0, err);
+    if (!rc) rc = mim__motion_build(m, &src, origin, err);
+    mim__motion_src_free(&src);
     return rc;
 }
 
@@ -182,6 +208,32 @@ int mim_vest_motion_read_bvh(mim_vest_motion_t *m, const char *path, mim_error_t
     int rc = mim__read_text(path, &text, &len, err);
     if (rc) return rc;
     rc = mim_vest_motion_parse_bvh(m, text, len, path, err);
+    free(text);
+    return rc;
+}
+
+int mim_vest_joint_motion_parse_bvh(mim_vest_joint_motion_t *m, const char *text, size_t len, const char *origin,
+                                    mim_error_t *err)
+{
+    if (m) memset(m, 0, sizeof *m);
+    if (!m || (!text && len)) return mim_error_set(err, MIM_EINVAL, "bvh: bad arguments");
+    if (!origin) origin = "bvh";
+    mim__motion_src_t src;
+    int rc = mim__bvh_parse(&src, text, len, origin, 1, err);
+    if (!rc) rc = mim__joint_motion_build(m, &src, origin, err);
+    mim__motion_src_free(&src);
+    return rc;
+}
+
+int mim_vest_joint_motion_read_bvh(mim_vest_joint_motion_t *m, const char *path, mim_error_t *err)
+{
+    if (m) memset(m, 0, sizeof *m);
+    if (!m || !path) return mim_error_set(err, MIM_EINVAL, "bvh: bad arguments");
+    char *text;
+    size_t len;
+    int rc = mim__read_text(path, &text, &len, err);
+    if (rc) return rc;
+    rc = mim_vest_joint_motion_parse_bvh(m, text, len, path, err);
     free(text);
     return rc;
 }

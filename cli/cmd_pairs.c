@@ -1,0 +1,186 @@
+/* mimic pairs: seed 002's pose-pairs (issue 14). Today: coverage (eq. 13)
+ * of true pose-pairs by samples. */
+#include "args.h"
+#include "commands.h"
+#include "mim_sample.h"
+#include "output.h"
+#include "pairs_input.h"
+
+#include <getopt.h>
+#include <jansson.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define MAX_PAIRS 64
+
+static void help(FILE *out)
+{
+    fprintf(out,
+            "usage: mimic pairs coverage --truth A.bvh,B.bvh [--truth ...] [--every N] [--offset K]\n"
+            "                            --samples SAMPLES.jsonl [--joint-map FILE.json] [--unit M] [--json]\n\n"
+            "Two-person pose-pairs (seed 002, Yin et al.). A pose-pair is two people's 17 joints each\n"
+            "(the 16 landmarks and the neck) in one world frame, read from the two motion files of one\n"
+            "take with the root translation kept; joints are found by their names (CMU/Biovision,\n"
+            "MakeHuman, ASF, short lower-case) or by --joint-map, a JSON object from mimic's joint names\n"
+            "(head, chest, pelvis, l_shoulder, ..., neck) to the file's.\n\n"
+            "  coverage   C(G, S) of eq. 13: the mean over the true pose-pairs G (frames offset,\n"
+            "             offset + every, ... of each --truth take) of the distance to the nearest\n"
+            "             sample of S (schemas/pair-samples.md), in D_I (interaction coordinates, eq. 8,\n"
+            "             3D), D_C (joint RMS) and D_S (3D shape contexts), each after a rigid alignment\n"
+            "             (metres for D_I and D_C).\n\n"
+            "  --every N          every N-th frame (default 1)\n"
+            "  --offset K         from frame K (default 0)\n"
+            "  --unit M           metres per file unit (default: guessed from the people's size)\n"
+            "  --json             {\"truth\": m, \"samples\": n, \"D_I\": ..., \"D_C\": ..., \"D_S\": ...}\n"
+            "  -h, --help         this help\n\n"
+            "Exit status: 0 done, 1 an input failed (a motion file, joints, samples), 2 bad usage.\n");
+}
+
+static int coverage(int argc, char **argv)
+{
+    static const struct option longopts[] = {
+        {"truth", required_argument, 0, 't'},     {"every", required_argument, 0, 'e'},
+        {"offset", required_argument, 0, 'k'},    {"samples", required_argument, 0, 's'},
+        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
+        {"json", no_argument, 0, 'j'},            {"help", no_argument, 0, 'h'},
+        {0, 0, 0, 0},
+    };
+    const char *truth[MAX_PAIRS], *samples_path = NULL, *map_path = NULL;
+    int n_truth = 0, as_json = 0, c;
+    uint64_t every = 1, offset = 0;
+    double unit = 0;
+    optind = 0;
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, "t:e:k:s:m:u:jh", longopts, NULL)) != -1) {
+        switch (c) {
+        case 't':
+            if (n_truth == MAX_PAIRS) {
+                fprintf(stderr, "mimic pairs coverage: at most %d --truth takes\n", MAX_PAIRS);
+                return 2;
+            }
+            truth[n_truth++] = optarg;
+            break;
+        case 'e':
+            if (mim_cli_number("pairs coverage", "every", optarg, 1, 1000000, &every)) return 2;
+            break;
+        case 'k':
+            if (mim_cli_number("pairs coverage", "offset", optarg, 0, 100000000, &offset)) return 2;
+            break;
+        case 's': samples_path = optarg; break;
+        case 'm': map_path = optarg; break;
+        case 'u':
+            if (mim_cli_real("pairs coverage", "unit", optarg, 0.0, 1000.0, 1, "is not a number of metres per unit", &unit))
+                return 2;
+            break;
+        case 'j': as_json = 1; break;
+        case 'h': help(stdout); return 0;
+        default:
+            fprintf(stderr, "mimic pairs coverage: unknown or incomplete option '%s' (see mimic pairs --help)\n",
+                    argv[optind - 1]);
+            return 2;
+        }
+    }
+    if (!n_truth || !samples_path) {
+        fprintf(stderr, "mimic pairs coverage: --truth A,B and --samples FILE are required (see mimic pairs --help)\n");
+        return 2;
+    }
+    if (optind < argc) {
+        fprintf(stderr, "mimic pairs coverage: unexpected argument '%s'\n", argv[optind]);
+        return 2;
+    }
+    mim_error_t err = {0};
+    char msg[1024], *map_text = NULL;
+    size_t len;
+    if (map_path && mim_file_read(map_path, 1 << 20, &map_text, &len, &err)) {
+        fprintf(stderr, "mimic pairs coverage: %s\n", mim_error_text(&err));
+        return 1;
+    }
+    /* the true pose-pairs, prepared (triangulation, shape contexts) */
+    mim_pair_prep_t *g = NULL, *sp = NULL;
+    uint32_t m = 0;
+    int status = 1;
+    char *text = NULL;
+    mim_pairs_samples_t smp = {0};
+    for (int t = 0; t < n_truth; t++) {
+        double *fr = NULL;
+        uint32_t nf = 0;
+        if (mim_cli_pairs_read(truth[t], map_text, unit, (uint32_t)every, (uint32_t)offset, &fr, &nf, NULL, msg,
+                               sizeof msg)) {
+            fprintf(stderr, "mimic pairs coverage: %s\n", msg);
+            goto done;
+        }
+        mim_pair_prep_t *grown = realloc(g, (size_t)(m + nf) * sizeof *g);
+        if (!grown) {
+            free(fr);
+            fprintf(stderr, "mimic pairs coverage: out of memory\n");
+            goto done;
+        }
+        g = grown;
+        for (uint32_t i = 0; i < nf; i++)
+            if (mim_pair_prepare(fr + (size_t)i * 3 * MIM_PAIR_JOINTS, &g[m + i], &err)) {
+                fprintf(stderr, "mimic pairs coverage: %s: frame %u: %s\n", truth[t], (unsigned)(offset + i * every),
+                        mim_error_text(&err));
+                free(fr);
+                goto done;
+            }
+        m += nf;
+        free(fr);
+    }
+    if (mim_file_read(samples_path, 0, &text, &len, &err) ||
+        mim_pairs_samples_parse(text, len, samples_path, &smp, &err)) {
+        fprintf(stderr, "mimic pairs coverage: %s\n", mim_error_text(&err));
+        goto done;
+    }
+    sp = malloc((size_t)smp.n * sizeof *sp);
+    if (!sp) {
+        fprintf(stderr, "mimic pairs coverage: out of memory for %u samples\n", smp.n);
+        goto done;
+    }
+    for (uint32_t i = 0; i < smp.n; i++)
+        if (mim_pair_prepare(smp.joints + (size_t)i * 3 * MIM_PAIR_JOINTS, &sp[i], &err)) {
+            fprintf(stderr, "mimic pairs coverage: %s: sample %u: %s\n", samples_path, i + 1, mim_error_text(&err));
+            goto done;
+        }
+    double cov[3];
+    static const char *const label[3] = {"D_I", "D_C", "D_S"};
+    for (int k = 0; k < 3; k++) {
+        mim_progress_t pr = {.fn = mim_cli_progress};
+        if (mim_sample_coverage(g, m, sp, smp.n, (mim_sample_metric_t)k, &pr, &cov[k], &err)) {
+            fprintf(stderr, "mimic pairs coverage: %s\n", mim_error_text(&err));
+            goto done;
+        }
+    }
+    if (as_json) {
+        json_t *j = json_pack("{s:I, s:I, s:f, s:f, s:f}", "truth", (json_int_t)m, "samples", (json_int_t)smp.n,
+                              label[0], cov[0], label[1], cov[1], label[2], cov[2]);
+        char *out = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
+        if (!out) {
+            fprintf(stderr, "mimic pairs coverage: cannot make the JSON report\n");
+            json_decref(j);
+            goto done;
+        }
+        printf("%s\n", out);
+        free(out);
+        json_decref(j);
+    } else {
+        printf("coverage of %u true pose-pairs by %u samples: D_I %.4f m, D_C %.4f m, D_S %.4f\n", m, smp.n, cov[0],
+               cov[1], cov[2]);
+    }
+    status = 0;
+done:
+    free(g), free(sp), free(text), free(map_text);
+    mim_pairs_samples_free(&smp);
+    return status;
+}
+
+int mim_cmd_pairs(int argc, char **argv)
+{
+    if (argc < 2 || !strcmp(argv[1], "-h") || !strcmp(argv[1], "--help")) {
+        help(argc < 2 ? stderr : stdout);
+        return argc < 2 ? 2 : 0;
+    }
+    if (!strcmp(argv[1], "coverage")) return coverage(argc - 1, argv + 1);
+    fprintf(stderr, "mimic pairs: unknown subcommand '%s' (see mimic pairs --help)\n", argv[1]);
+    return 2;
+}
