@@ -1,5 +1,6 @@
 /* mimic pairs: seed 002's pose-pairs (issue 14). Today: coverage (eq. 13)
- * of true pose-pairs by samples. */
+ * of true pose-pairs by samples, and the export of a take's pose-pairs in
+ * the samples format. */
 #include "args.h"
 #include "commands.h"
 #include "mim_sample.h"
@@ -7,6 +8,7 @@
 #include "pairs_input.h"
 
 #include <getopt.h>
+#include <math.h>
 #include <jansson.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -18,7 +20,9 @@ static void help(FILE *out)
 {
     fprintf(out,
             "usage: mimic pairs coverage --truth A.bvh,B.bvh [--truth ...] [--every N] [--offset K]\n"
-            "                            --samples SAMPLES.jsonl [--joint-map FILE.json] [--unit M] [--json]\n\n"
+            "                            --samples SAMPLES.jsonl [--joint-map FILE.json] [--unit M] [--json]\n"
+            "       mimic pairs export --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K]\n"
+            "                          [--joint-map FILE.json] [--unit M] -o FRAMES.jsonl\n\n"
             "Two-person pose-pairs (seed 002, Yin et al.). A pose-pair is two people's 17 joints each\n"
             "(the 16 landmarks and the neck) in one world frame, read from the two motion files of one\n"
             "take with the root translation kept; joints are found by their names (CMU/Biovision,\n"
@@ -29,6 +33,9 @@ static void help(FILE *out)
             "             sample of S (schemas/pair-samples.md), in D_I (interaction coordinates, eq. 8,\n"
             "             3D), D_C (joint RMS) and D_S (3D shape contexts), each after a rigid alignment\n"
             "             (metres for D_I and D_C).\n\n"
+            "  export     the pose-pairs of takes (frames offset, offset + every, ...) in the samples\n"
+            "             format, log density null: motion capture to compare samples with, or to\n"
+            "             measure what the capture itself covers.\n\n"
             "  --every N          every N-th frame (default 1)\n"
             "  --offset K         from frame K (default 0)\n"
             "  --unit M           metres per file unit (default: guessed from the people's size)\n"
@@ -174,6 +181,101 @@ done:
     return status;
 }
 
+static int export_pairs(int argc, char **argv)
+{
+    static const struct option longopts[] = {
+        {"pair", required_argument, 0, 'p'},      {"every", required_argument, 0, 'e'},
+        {"offset", required_argument, 0, 'k'},    {"output", required_argument, 0, 'o'},
+        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
+        {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
+    };
+    const char *pairs[MAX_PAIRS], *outp = NULL, *map_path = NULL;
+    int n_pairs = 0, c;
+    uint64_t every = 1, offset = 0;
+    double unit = 0;
+    optind = 0;
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, "p:e:k:o:m:u:h", longopts, NULL)) != -1) {
+        switch (c) {
+        case 'p':
+            if (n_pairs == MAX_PAIRS) {
+                fprintf(stderr, "mimic pairs export: at most %d --pair takes\n", MAX_PAIRS);
+                return 2;
+            }
+            pairs[n_pairs++] = optarg;
+            break;
+        case 'e':
+            if (mim_cli_number("pairs export", "every", optarg, 1, 1000000, &every)) return 2;
+            break;
+        case 'k':
+            if (mim_cli_number("pairs export", "offset", optarg, 0, 100000000, &offset)) return 2;
+            break;
+        case 'o': outp = optarg; break;
+        case 'm': map_path = optarg; break;
+        case 'u':
+            if (mim_cli_real("pairs export", "unit", optarg, 0.0, 1000.0, 1, "is not a number of metres per unit", &unit))
+                return 2;
+            break;
+        case 'h': help(stdout); return 0;
+        default:
+            fprintf(stderr, "mimic pairs export: unknown or incomplete option '%s' (see mimic pairs --help)\n",
+                    argv[optind - 1]);
+            return 2;
+        }
+    }
+    if (!n_pairs || !outp || optind < argc) {
+        fprintf(stderr, "mimic pairs export: --pair A,B and -o FILE are required, and nothing else (see mimic pairs --help)\n");
+        return 2;
+    }
+    mim_error_t err = {0};
+    char msg[1024], *map_text = NULL;
+    size_t len;
+    if (map_path && mim_file_read(map_path, 1 << 20, &map_text, &len, &err)) {
+        fprintf(stderr, "mimic pairs export: %s\n", mim_error_text(&err));
+        return 1;
+    }
+    /* the whole file in memory, then written atomically: nothing half-written */
+    char *buf = NULL, *h = mim_pairs_jsonl_header();
+    size_t blen = 0;
+    FILE *mem = open_memstream(&buf, &blen);
+    int status = 1;
+    uint32_t total = 0;
+    if (!mem || !h) {
+        fprintf(stderr, "mimic pairs export: out of memory\n");
+        goto done;
+    }
+    fprintf(mem, "%s\n", h);
+    for (int t = 0; t < n_pairs; t++) {
+        double *fr = NULL;
+        uint32_t nf = 0;
+        if (mim_cli_pairs_read(pairs[t], map_text, unit, (uint32_t)every, (uint32_t)offset, &fr, &nf, NULL, msg,
+                               sizeof msg)) {
+            fprintf(stderr, "mimic pairs export: %s\n", msg);
+            goto done;
+        }
+        for (uint32_t i = 0; i < nf; i++) {
+            char *line = mim_pairs_jsonl_line(fr + (size_t)i * 3 * MIM_PAIR_JOINTS, NAN);
+            if (line) fprintf(mem, "%s\n", line);
+            free(line);
+        }
+        total += nf;
+        free(fr);
+    }
+    fclose(mem);
+    mem = NULL;
+    mim_file_part_t part = {buf, blen};
+    if (mim_file_write_atomic(outp, &part, 1, &err)) {
+        fprintf(stderr, "mimic pairs export: %s\n", mim_error_text(&err));
+        goto done;
+    }
+    fprintf(stderr, "mimic pairs export: %u pose-pairs to %s\n", total, outp);
+    status = 0;
+done:
+    if (mem) fclose(mem);
+    free(buf), free(h), free(map_text);
+    return status;
+}
+
 int mim_cmd_pairs(int argc, char **argv)
 {
     if (argc < 2 || !strcmp(argv[1], "-h") || !strcmp(argv[1], "--help")) {
@@ -181,6 +283,7 @@ int mim_cmd_pairs(int argc, char **argv)
         return argc < 2 ? 2 : 0;
     }
     if (!strcmp(argv[1], "coverage")) return coverage(argc - 1, argv + 1);
+    if (!strcmp(argv[1], "export")) return export_pairs(argc - 1, argv + 1);
     fprintf(stderr, "mimic pairs: unknown subcommand '%s' (see mimic pairs --help)\n", argv[1]);
     return 2;
 }

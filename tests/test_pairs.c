@@ -159,6 +159,50 @@ static void test_coverage_cli(void **s)
     free(o), free(e), free(a), free(b), free(all), free(half), free(one);
 }
 
+/* export writes the take's pose-pairs in the samples format, exactly the
+ * true positions in metres, and coverage of the take by them is 0. */
+static void test_export(void **s)
+{
+    (void)s;
+    char *a = write_bvh("ea.bvh", 0, FRAMES, 1.0 / 120), *b = write_bvh("eb.bvh", 1, FRAMES, 1.0 / 120);
+    char spec[8192], *outp = ts_path(dir, "export.jsonl");
+    snprintf(spec, sizeof spec, "%s,%s", a, b);
+    const char *args[] = {"pairs", "export", "--pair", spec, "--every", "3", "--offset", "1", "-o", outp, NULL};
+    char *o = NULL, *e = NULL;
+    assert_int_equal(ts_run_mimic(&o, &e, args), 0);
+    assert_non_null(strstr(e, "3 pose-pairs to"));
+    free(o), free(e);
+    size_t len;
+    char *text = ts_read_file(outp, &len);
+    mim_pairs_samples_t smp;
+    mim_error_t err = {0};
+    assert_int_equal(mim_pairs_samples_parse(text, len, outp, &smp, &err), 0);
+    assert_int_equal(smp.n, 3); /* frames 1, 4, 7 */
+    for (uint32_t k = 0; k < smp.n; k++) {
+        double want[3 * MIM_PAIR_JOINTS];
+        truth(1 + 3 * (int)k, want);
+        for (int i = 0; i < 3 * MIM_PAIR_JOINTS; i++) assert_true(fabs(smp.joints[(size_t)k * 3 * MIM_PAIR_JOINTS + i] - want[i]) < 1e-6);
+        assert_true(isnan(smp.log_density[k]));
+    }
+    mim_pairs_samples_free(&smp);
+    free(text);
+    const char *cov[] = {"pairs", "coverage", "--truth", spec, "--every", "3", "--offset", "1", "--samples", outp, "--json", NULL};
+    json_t *j = coverage_json(cov);
+    assert_true(num(j, "D_I") < 1e-6 && num(j, "D_C") < 1e-6 && num(j, "D_S") < 1e-6);
+    json_decref(j);
+    /* a failed export leaves an existing file as it was */
+    char bad_spec[8192];
+    snprintf(bad_spec, sizeof bad_spec, "%s,%s", a, "/nonexistent/b.bvh");
+    const char *bad[] = {"pairs", "export", "--pair", bad_spec, "-o", outp, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, bad), 1);
+    assert_non_null(strstr(e, "/nonexistent/b.bvh"));
+    free(o), free(e);
+    char *after = ts_read_file(outp, NULL);
+    assert_non_null(after);
+    assert_int_equal(strlen(after), len);
+    free(after), free(a), free(b), free(outp);
+}
+
 static void expect_fail(const char *const *args, int code, const char *phrase)
 {
     char *o = NULL, *e = NULL;
@@ -233,6 +277,7 @@ static int setup(void **s)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_coverage_cli), cmocka_unit_test(test_bad_input)};
+    const struct CMUnitTest tests[] = {cmocka_unit_test(test_coverage_cli), cmocka_unit_test(test_export),
+                                       cmocka_unit_test(test_bad_input)};
     return cmocka_run_group_tests(tests, setup, NULL);
 }
