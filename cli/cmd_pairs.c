@@ -22,7 +22,10 @@ static void help(FILE *out)
             "usage: mimic pairs coverage --truth A.bvh,B.bvh [--truth ...] [--every N] [--offset K]\n"
             "                            --samples SAMPLES.jsonl [--joint-map FILE.json] [--unit M] [--json]\n"
             "       mimic pairs export --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K]\n"
-            "                          [--joint-map FILE.json] [--unit M] -o FRAMES.jsonl\n\n"
+            "                          [--joint-map FILE.json] [--unit M] -o FRAMES.jsonl\n"
+            "       mimic pairs annotate --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K] [--views V]\n"
+            "                            [--noise-px P] [--seed S] [--joint-map FILE.json] [--unit M]\n"
+            "                            -o ANN.json [--cameras CAMS.json]\n\n"
             "Two-person pose-pairs (seed 002, Yin et al.). A pose-pair is two people's 17 joints each\n"
             "(the 16 landmarks and the neck) in one world frame, read from the two motion files of one\n"
             "take with the root translation kept; joints are found by their names (CMU/Biovision,\n"
@@ -36,7 +39,14 @@ static void help(FILE *out)
             "  export     the pose-pairs of takes (frames offset, offset + every, ...) in the samples\n"
             "             format, log density null: motion capture to compare samples with, or to\n"
             "             measure what the capture itself covers.\n\n"
-            "  --every N          every N-th frame (default 1)\n"
+            "  annotate   2D annotations the way a person clicks them on photos: every N-th frame\n"
+            "             (default 10) from K on, seen by V random perspective cameras each (default 1;\n"
+            "             3 to 8 m away, any side, -10 to 35 degrees up, 1920 x 1080 pixels, focal\n"
+            "             length 1000 to 1800 pixels, the whole pair in view), with Gaussian pixel\n"
+            "             noise of P pixels (default 2) on every joint\n"
+            "             (schemas/pair-annotations.schema.json); the true cameras go to --cameras\n"
+            "             (schemas/pair-cameras.schema.json). The same --seed gives the same bytes.\n\n"
+            "  --every N          every N-th frame (default 1; annotate: 10)\n"
             "  --offset K         from frame K (default 0)\n"
             "  --unit M           metres per file unit (default: guessed from the people's size)\n"
             "  --json             {\"truth\": m, \"samples\": n, \"D_I\": ..., \"D_C\": ..., \"D_S\": ...}\n"
@@ -276,6 +286,148 @@ done:
     return status;
 }
 
+static int write_text(const char *cmd, const char *path, const char *text)
+{
+    mim_error_t err = {0};
+    mim_file_part_t part = {text, strlen(text)};
+    if (!mim_file_write_atomic(path, &part, 1, &err)) return 0;
+    fprintf(stderr, "mimic pairs %s: %s\n", cmd, mim_error_text(&err));
+    return -1;
+}
+
+static int annotate(int argc, char **argv)
+{
+    static const struct option longopts[] = {
+        {"pair", required_argument, 0, 'p'},      {"every", required_argument, 0, 'e'},
+        {"offset", required_argument, 0, 'k'},    {"views", required_argument, 0, 'v'},
+        {"noise-px", required_argument, 0, 'n'},  {"seed", required_argument, 0, 'S'},
+        {"output", required_argument, 0, 'o'},    {"cameras", required_argument, 0, 'c'},
+        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
+        {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
+    };
+    const char *pairs[MAX_PAIRS], *outp = NULL, *cams_path = NULL, *map_path = NULL;
+    int n_pairs = 0, c;
+    uint64_t every = 10, offset = 0, views = 1, seed = 1;
+    double noise = 2.0, unit = 0;
+    optind = 0;
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, "p:e:k:v:n:S:o:c:m:u:h", longopts, NULL)) != -1) {
+        switch (c) {
+        case 'p':
+            if (n_pairs == MAX_PAIRS) {
+                fprintf(stderr, "mimic pairs annotate: at most %d --pair takes\n", MAX_PAIRS);
+                return 2;
+            }
+            pairs[n_pairs++] = optarg;
+            break;
+        case 'e':
+            if (mim_cli_number("pairs annotate", "every", optarg, 1, 1000000, &every)) return 2;
+            break;
+        case 'k':
+            if (mim_cli_number("pairs annotate", "offset", optarg, 0, 100000000, &offset)) return 2;
+            break;
+        case 'v':
+            if (mim_cli_number("pairs annotate", "views", optarg, 1, 1000, &views)) return 2;
+            break;
+        case 'n':
+            if (mim_cli_real("pairs annotate", "noise-px", optarg, 0.0, 1000.0, 0, "is not a number of pixels in 0..1000", &noise))
+                return 2;
+            break;
+        case 'S':
+            if (mim_cli_number("pairs annotate", "seed", optarg, 0, UINT64_MAX, &seed)) return 2;
+            break;
+        case 'o': outp = optarg; break;
+        case 'c': cams_path = optarg; break;
+        case 'm': map_path = optarg; break;
+        case 'u':
+            if (mim_cli_real("pairs annotate", "unit", optarg, 0.0, 1000.0, 1, "is not a number of metres per unit", &unit))
+                return 2;
+            break;
+        case 'h': help(stdout); return 0;
+        default:
+            fprintf(stderr, "mimic pairs annotate: unknown or incomplete option '%s' (see mimic pairs --help)\n",
+                    argv[optind - 1]);
+            return 2;
+        }
+    }
+    if (!n_pairs || !outp || optind < argc) {
+        fprintf(stderr, "mimic pairs annotate: --pair A,B and -o FILE are required, and nothing else (see mimic pairs --help)\n");
+        return 2;
+    }
+    mim_error_t err = {0};
+    char msg[1024], *map_text = NULL, *ann_text = NULL, *cam_text = NULL;
+    size_t len;
+    if (map_path && mim_file_read(map_path, 1 << 20, &map_text, &len, &err)) {
+        fprintf(stderr, "mimic pairs annotate: %s\n", mim_error_text(&err));
+        return 1;
+    }
+    mim_pairs_annotations_t a = {0};
+    mim_pairs_camera_t *cams = NULL;
+    uint32_t cap = 0;
+    int status = 1;
+    a.width = 1920, a.height = 1080;
+    for (int t = 0; t < n_pairs; t++) {
+        double *fr = NULL;
+        uint32_t nf = 0;
+        if (mim_cli_pairs_read(pairs[t], map_text, unit, (uint32_t)every, (uint32_t)offset, &fr, &nf, NULL, msg,
+                               sizeof msg)) {
+            fprintf(stderr, "mimic pairs annotate: %s\n", msg);
+            goto done;
+        }
+        for (uint32_t i = 0; i < nf; i++)
+            for (uint32_t v = 0; v < views; v++) {
+                if (a.n == cap) {
+                    cap = cap ? 2 * cap : 256;
+                    uint32_t *t1 = realloc(a.take, cap * sizeof *t1), *t2 = t1 ? realloc(a.frame, cap * sizeof *t2) : NULL,
+                             *t3 = t2 ? realloc(a.view, cap * sizeof *t3) : NULL;
+                    if (t1) a.take = t1;
+                    if (t2) a.frame = t2;
+                    if (t3) a.view = t3;
+                    double *pp = t3 ? realloc(a.points, (size_t)cap * 2 * MIM_PAIR_JOINTS * sizeof *pp) : NULL;
+                    if (pp) a.points = pp;
+                    mim_pairs_camera_t *cc = pp ? realloc(cams, cap * sizeof *cc) : NULL;
+                    if (cc) cams = cc;
+                    if (!cc) {
+                        free(fr);
+                        fprintf(stderr, "mimic pairs annotate: out of memory at %u annotations\n", a.n);
+                        goto done;
+                    }
+                }
+                uint32_t frame = (uint32_t)(offset + i * every);
+                /* one generator stream per (take, frame, view): the same seed, the same bytes */
+                mim_rng_t rng;
+                mim_rng_seed(&rng, seed, ((uint64_t)t << 48) ^ ((uint64_t)frame << 16) ^ v);
+                const double *joints = fr + (size_t)i * 3 * MIM_PAIR_JOINTS;
+                if (mim_pairs_camera_random(&rng, joints, &cams[a.n])) {
+                    fprintf(stderr, "mimic pairs annotate: %s: frame %u: no camera sees both people whole\n", pairs[t], frame);
+                    free(fr);
+                    goto done;
+                }
+                double *uv = a.points + (size_t)a.n * 2 * MIM_PAIR_JOINTS;
+                mim_pairs_project(&cams[a.n], joints, uv);
+                for (int k = 0; k < 2 * MIM_PAIR_JOINTS; k++) uv[k] += noise * mim_rng_gauss(&rng);
+                a.take[a.n] = (uint32_t)t, a.frame[a.n] = frame, a.view[a.n] = v;
+                a.n++;
+            }
+        free(fr);
+    }
+    ann_text = mim_pairs_annotations_json(&a, pairs, (uint32_t)n_pairs);
+    cam_text = cams_path ? mim_pairs_cameras_json(&a, cams) : NULL;
+    if (!ann_text || (cams_path && !cam_text)) {
+        fprintf(stderr, "mimic pairs annotate: cannot make the JSON (out of memory, or a path that is not UTF-8)\n");
+        goto done;
+    }
+    /* the cameras first: a failure then leaves the annotations as they were */
+    if ((cams_path && write_text("annotate", cams_path, cam_text)) || write_text("annotate", outp, ann_text)) goto done;
+    fprintf(stderr, "mimic pairs annotate: %u annotations (%llu views of %u frames) to %s\n", a.n,
+            (unsigned long long)views, (unsigned)(a.n / views), outp);
+    status = 0;
+done:
+    mim_pairs_annotations_free(&a);
+    free(cams), free(ann_text), free(cam_text), free(map_text);
+    return status;
+}
+
 int mim_cmd_pairs(int argc, char **argv)
 {
     if (argc < 2 || !strcmp(argv[1], "-h") || !strcmp(argv[1], "--help")) {
@@ -284,6 +436,7 @@ int mim_cmd_pairs(int argc, char **argv)
     }
     if (!strcmp(argv[1], "coverage")) return coverage(argc - 1, argv + 1);
     if (!strcmp(argv[1], "export")) return export_pairs(argc - 1, argv + 1);
+    if (!strcmp(argv[1], "annotate")) return annotate(argc - 1, argv + 1);
     fprintf(stderr, "mimic pairs: unknown subcommand '%s' (see mimic pairs --help)\n", argv[1]);
     return 2;
 }

@@ -124,6 +124,48 @@ int mim_pair_prepare(const double *joints, mim_pair_prep_t *out, mim_error_t *er
  * alignment's direction; 0 for a pair against itself, moved rigidly. */
 double mim_sample_distance(const mim_pair_prep_t *a, const mim_pair_prep_t *b, mim_sample_metric_t metric);
 
+/* ---- 2D annotations (annotate.c) ---- */
+/* A perspective camera: world point p goes to camera coordinates
+ * q = R (p - position) (rows of R: x right, y down, z forward) and to
+ * pixels (focal_px q.x / q.z + cx, focal_px q.y / q.z + cy). */
+typedef struct mim_pairs_camera {
+    double position[3];
+    double R[9]; /* row-major */
+    double focal_px, cx, cy;
+    uint32_t width, height;
+} mim_pairs_camera_t;
+/* The 34 joints' pixels (2 per joint) through cam: 1 when every joint is
+ * in front of the camera and inside the image, else 0 (NaN for a joint
+ * behind it). */
+int mim_pairs_project(const mim_pairs_camera_t *cam, const double *joints, double *uv);
+/* A random camera that sees the whole pose-pair (choices: annotate.c),
+ * drawn from rng. MIM_ENOTFOUND when 1000 draws all leave a joint out
+ * (a pair spread over tens of metres). */
+int mim_pairs_camera_random(mim_rng_t *rng, const double *joints, mim_pairs_camera_t *cam);
+
+/* A set of annotations: n 2D pose-pairs (34 [u, v] pixels each) in images
+ * of width x height, each from a take, a frame and a view. */
+#define MIM_PAIRS_ANNOTATIONS_MAX 1000000u
+typedef struct mim_pairs_annotations {
+    uint32_t n, width, height;
+    uint32_t *take, *frame, *view;
+    double *points; /* n * 34 * 2 */
+} mim_pairs_annotations_t;
+/* The annotations file (schemas/pair-annotations.schema.json) for a, with
+ * the takes' names; the cameras file (schemas/pair-cameras.schema.json),
+ * one camera per annotation. malloc'd text; NULL when out of memory. */
+char *mim_pairs_annotations_json(const mim_pairs_annotations_t *a, const char *const *takes, uint32_t n_takes);
+char *mim_pairs_cameras_json(const mim_pairs_annotations_t *a, const mim_pairs_camera_t *cams);
+/* Reads an annotations file. Errors, one line naming origin (and the
+ * annotation and joint): MIM_EFORMAT (malformed JSON with line:column,
+ * another format, joint names, image size, a point that is not [u, v]),
+ * MIM_ENONFINITE (a coordinate that is no pixel), MIM_EEMPTY (no
+ * annotations), MIM_EUNSUPPORTED (over MIM_PAIRS_ANNOTATIONS_MAX),
+ * MIM_ENOMEM. On error *out is empty. */
+int mim_pairs_annotations_parse(const char *text, size_t len, const char *origin, mim_pairs_annotations_t *out,
+                                mim_error_t *err);
+void mim_pairs_annotations_free(mim_pairs_annotations_t *a); /* accepts NULL and an empty set */
+
 /* ---- samples as JSON lines (samples_file.c; schemas/pair-samples.md) ---- */
 /* The header line and a sample line (malloc'd, no newline; NULL when out
  * of memory). A NaN log density is written as null. */

@@ -203,6 +203,129 @@ static void test_export(void **s)
     free(after), free(a), free(b), free(outp);
 }
 
+/* annotate: every N-th frame through V cameras; with no noise each point
+ * is its joint through the camera written to --cameras; with noise the
+ * deviations have the spread asked for; one seed, one output. */
+static void test_annotate(void **s)
+{
+    (void)s;
+    char *a = write_bvh("na.bvh", 0, FRAMES, 1.0 / 120), *b = write_bvh("nb.bvh", 1, FRAMES, 1.0 / 120);
+    char spec[8192], *ann = ts_path(dir, "ann.json"), *cams = ts_path(dir, "cams.json"), *ann2 = ts_path(dir, "ann2.json");
+    snprintf(spec, sizeof spec, "%s,%s", a, b);
+    const char *a0[] = {"pairs", "annotate", "--pair", spec, "--every", "3", "--offset", "1", "--views", "3",
+                        "--noise-px", "0", "-o", ann, "--cameras", cams, NULL};
+    char *o = NULL, *e = NULL;
+    assert_int_equal(ts_run_mimic(&o, &e, a0), 0);
+    assert_non_null(strstr(e, "9 annotations (3 views of 3 frames)"));
+    free(o), free(e);
+    size_t len;
+    char *text = ts_read_file(ann, &len);
+    mim_pairs_annotations_t an;
+    mim_error_t err = {0};
+    assert_int_equal(mim_pairs_annotations_parse(text, len, ann, &an, &err), 0);
+    free(text);
+    assert_int_equal(an.n, 9);
+    assert_int_equal(an.width, 1920);
+    json_error_t je;
+    json_t *cj = json_load_file(cams, 0, &je), *cl = json_object_get(cj, "cameras");
+    assert_int_equal(json_array_size(cl), 9);
+    for (uint32_t i = 0; i < an.n; i++) {
+        assert_int_equal(an.frame[i], 1 + 3 * (i / 3));
+        assert_int_equal(an.view[i], i % 3);
+        json_t *c = json_array_get(cl, i);
+        mim_pairs_camera_t cam = {.width = 1920, .height = 1080};
+        for (int k = 0; k < 3; k++) cam.position[k] = json_real_value(json_array_get(json_object_get(c, "position"), (size_t)k));
+        for (int k = 0; k < 9; k++) cam.R[k] = json_real_value(json_array_get(json_object_get(c, "rotation"), (size_t)k));
+        cam.focal_px = json_real_value(json_object_get(c, "focal_px"));
+        cam.cx = json_real_value(json_array_get(json_object_get(c, "center"), 0));
+        cam.cy = json_real_value(json_array_get(json_object_get(c, "center"), 1));
+        double joints[3 * MIM_PAIR_JOINTS], uv[2 * MIM_PAIR_JOINTS];
+        truth((int)an.frame[i], joints);
+        assert_int_equal(mim_pairs_project(&cam, joints, uv), 1); /* whole pair in view */
+        for (int k = 0; k < 2 * MIM_PAIR_JOINTS; k++)
+            if (fabs(uv[k] - an.points[(size_t)i * 2 * MIM_PAIR_JOINTS + k]) > 1e-3)
+                fail_msg("annotation %u, coordinate %d: %g, the camera gives %g", i, k,
+                         an.points[(size_t)i * 2 * MIM_PAIR_JOINTS + k], uv[k]);
+        /* the views of one frame are different cameras */
+        if (i % 3) assert_true(fabs(an.points[(size_t)i * 2 * MIM_PAIR_JOINTS] - an.points[(size_t)(i - 1) * 2 * MIM_PAIR_JOINTS]) > 1.0);
+    }
+    json_decref(cj);
+    /* noise of 3 px: the spread of the deviations from the noiseless points */
+    const char *a1[] = {"pairs", "annotate", "--pair", spec, "--every", "3", "--offset", "1", "--views", "3",
+                        "--noise-px", "3", "-o", ann2, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, a1), 0);
+    free(o), free(e);
+    text = ts_read_file(ann2, &len);
+    mim_pairs_annotations_t noisy;
+    assert_int_equal(mim_pairs_annotations_parse(text, len, ann2, &noisy, &err), 0);
+    free(text);
+    double ss = 0;
+    size_t cnt = (size_t)an.n * 2 * MIM_PAIR_JOINTS;
+    for (size_t k = 0; k < cnt; k++) ss += (noisy.points[k] - an.points[k]) * (noisy.points[k] - an.points[k]);
+    double sd = sqrt(ss / cnt);
+    print_message("noise: %.2f px measured for 3 px asked (%zu coordinates)\n", sd, cnt);
+    assert_true(sd > 2.6 && sd < 3.4);
+    mim_pairs_annotations_free(&noisy);
+    mim_pairs_annotations_free(&an);
+    /* the same seed, the same bytes; another seed, other cameras */
+    char *ann3 = ts_path(dir, "ann3.json"), *ann4 = ts_path(dir, "ann4.json");
+    const char *a2[] = {"pairs", "annotate", "--pair", spec, "--seed", "9", "-o", ann3, NULL};
+    const char *a3[] = {"pairs", "annotate", "--pair", spec, "--seed", "9", "-o", ann4, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, a2), 0), free(o), free(e);
+    assert_int_equal(ts_run_mimic(&o, &e, a3), 0), free(o), free(e);
+    char *t3 = ts_read_file(ann3, NULL), *t4 = ts_read_file(ann4, NULL);
+    assert_string_equal(t3, t4);
+    const char *a4[] = {"pairs", "annotate", "--pair", spec, "--seed", "10", "-o", ann4, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, a4), 0), free(o), free(e);
+    free(t4);
+    t4 = ts_read_file(ann4, NULL);
+    assert_string_not_equal(t3, t4);
+    free(t3), free(t4), free(ann3), free(ann4), free(a), free(b), free(ann), free(cams), free(ann2);
+}
+
+/* The annotations reader refuses what is not annotations, in one line. */
+static void test_annotations_reader(void **s)
+{
+    (void)s;
+    mim_pairs_annotations_t a = {0};
+    mim_error_t err = {0};
+    uint32_t take = 0, frame = 4, view = 1;
+    double pts[2 * MIM_PAIR_JOINTS];
+    for (int k = 0; k < 2 * MIM_PAIR_JOINTS; k++) pts[k] = 100 + k;
+    mim_pairs_annotations_t one = {1, 640, 480, &take, &frame, &view, pts};
+    const char *takes[] = {"a.bvh,b.bvh"};
+    char *good = mim_pairs_annotations_json(&one, takes, 1);
+    assert_non_null(good);
+    assert_int_equal(mim_pairs_annotations_parse(good, strlen(good), "ann.json", &a, &err), 0);
+    assert_int_equal(a.n, 1), assert_int_equal(a.width, 640), assert_int_equal(a.frame[0], 4);
+    for (int k = 0; k < 2 * MIM_PAIR_JOINTS; k++) assert_true(fabs(a.points[k] - pts[k]) < 1e-4);
+    mim_pairs_annotations_free(&a);
+    struct { const char *from, *to; int code; const char *phrase; } bad[] = {
+        {"mimic pair annotations 1", "something", MIM_EFORMAT, "not mimic pair annotations"},
+        {"\"A.head\"", "\"A.nose\"", MIM_EFORMAT, "must name the 34 joints"},
+        {"[640,480]", "[640]", MIM_EFORMAT, "\"image\" must be [width, height]"},
+        {"\"frame\":4", "\"frame\":-4", MIM_EFORMAT, "annotation 0: \"take\", \"frame\" and \"view\""},
+        {"[100.0,101.0]", "[100.0]", MIM_EFORMAT, "annotation 0: joint 0 is not [u, v]"},
+        {"[100.0,101.0]", "[1e300,101.0]", MIM_ENONFINITE, "joint 0: 1e+300 is not a pixel coordinate"},
+        {"\"annotations\":[", "\"annotations\":[],\"x\":[", MIM_EEMPTY, "ann.json: no annotations"},
+    };
+    for (size_t k = 0; k < sizeof bad / sizeof *bad; k++) {
+        char *p = strstr(good, bad[k].from);
+        if (!p) fail_msg("case %zu: '%s' not in %s", k, bad[k].from, good);
+        char buf[16384];
+        snprintf(buf, sizeof buf, "%.*s%s%s", (int)(p - good), good, bad[k].to, p + strlen(bad[k].from));
+        mim_error_clear(&err);
+        int rc = mim_pairs_annotations_parse(buf, strlen(buf), "ann.json", &a, &err);
+        if (rc != bad[k].code || !strstr(err.msg, bad[k].phrase))
+            fail_msg("case %zu: %d '%s' (wanted %d '%s')", k, rc, err.msg, bad[k].code, bad[k].phrase);
+        assert_int_equal(a.n, 0);
+    }
+    mim_error_clear(&err);
+    assert_int_equal(mim_pairs_annotations_parse("{\"format\": ", 12, "ann.json", &a, &err), MIM_EFORMAT);
+    assert_non_null(strstr(err.msg, "ann.json:1:"));
+    free(good);
+}
+
 static void expect_fail(const char *const *args, int code, const char *phrase)
 {
     char *o = NULL, *e = NULL;
@@ -278,6 +401,7 @@ static int setup(void **s)
 int main(void)
 {
     const struct CMUnitTest tests[] = {cmocka_unit_test(test_coverage_cli), cmocka_unit_test(test_export),
+                                       cmocka_unit_test(test_annotate), cmocka_unit_test(test_annotations_reader),
                                        cmocka_unit_test(test_bad_input)};
     return cmocka_run_group_tests(tests, setup, NULL);
 }

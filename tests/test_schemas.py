@@ -25,7 +25,8 @@ SCHEMAS = {s["$id"]: s for s in map(load, ["info.schema.json", "list.schema.json
                                             "vest-udp.schema.json", "vest-replay.schema.json",
                                             "serve-status.schema.json", "serve-avatar.schema.json",
                                             "serve-transfer-request.schema.json", "serve-error.schema.json",
-                                            "store-check.schema.json", "register.schema.json"])}
+                                            "store-check.schema.json", "pair-annotations.schema.json", "pair-cameras.schema.json",
+                                            "pairs-coverage.schema.json", "register.schema.json"])}
 
 
 def validator(schema_id):
@@ -314,6 +315,55 @@ def serve_cases(store, one, vest_rec):
     return cases
 
 
+# Two people of one take, CMU joint names, every rotation zero (pairs cases).
+PAIR_SKELETON = [("Hips", -1, (0, 0, 0)), ("LeftUpLeg", 0, (1.5, -1, 0)), ("LeftLeg", 1, (0, -7.5, 0)),
+                 ("LeftFoot", 2, (0, -7.5, 0)), ("RightUpLeg", 0, (-1.5, -1, 0)), ("RightLeg", 4, (0, -7.5, 0)),
+                 ("RightFoot", 5, (0, -7.5, 0)), ("Spine", 0, (0, 2, 0)), ("Spine1", 7, (0, 3, 0)),
+                 ("Neck", 8, (0, 3, 0)), ("Head", 9, (0, 1.5, 0)), ("LeftArm", 8, (3, 2.5, 0)),
+                 ("LeftForeArm", 11, (5, 0, 0)), ("LeftHand", 12, (4.5, 0, 0)), ("RightArm", 8, (-3, 2.5, 0)),
+                 ("RightForeArm", 14, (-5, 0, 0)), ("RightHand", 15, (-4.5, 0, 0))]
+
+
+def pair_bvh(person, frames=12):
+    lines = ["HIERARCHY"]
+
+    def block(j):
+        name, _, off = PAIR_SKELETON[j]
+        lines.append(("JOINT " if j else "ROOT ") + name)
+        lines.append("{")
+        lines.append("OFFSET %g %g %g" % off)
+        lines.append("CHANNELS 3 Zrotation Yrotation Xrotation" if j else
+                     "CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation")
+        kids = [k for k, (_, p, _) in enumerate(PAIR_SKELETON) if p == j]
+        for k in kids:
+            block(k)
+        if not kids:
+            lines.extend(["End Site", "{", "OFFSET 0 0 1", "}"])
+        lines.append("}")
+    block(0)
+    lines += ["MOTION", "Frames: %d" % frames, "Frame Time: 0.0083333"]
+    for f in range(frames):
+        x = 12 - 0.2 * f if person else 0.3 * f
+        lines.append(" ".join(["%g" % x, "16", "3" if person else "0"] + ["0"] * (3 + 3 * (len(PAIR_SKELETON) - 1))))
+    return "\n".join(lines) + "\n"
+
+
+def pairs_cases(d):
+    a, b = os.path.join(d, "pa.bvh"), os.path.join(d, "pb.bvh")
+    for path, person in ((a, 0), (b, 1)):
+        with open(path, "w") as f:
+            f.write(pair_bvh(person))
+    ann, cams, frames = os.path.join(d, "ann.json"), os.path.join(d, "cams.json"), os.path.join(d, "frames.jsonl")
+    run("pairs", "annotate", "--pair", a + "," + b, "--every", "3", "--views", "2", "-o", ann, "--cameras", cams)
+    run("pairs", "export", "--pair", a + "," + b, "--every", "2", "-o", frames)
+    cov = json.loads(run("pairs", "coverage", "--truth", a + "," + b, "--every", "3", "--offset", "1",
+                         "--samples", frames, "--json"))
+    with open(ann) as f1, open(cams) as f2:
+        return [("/mimic/schemas/pair-annotations.schema.json", json.load(f1), "pairs annotate"),
+                ("/mimic/schemas/pair-cameras.schema.json", json.load(f2), "pairs annotate --cameras"),
+                ("/mimic/schemas/pairs-coverage.schema.json", cov, "pairs coverage --json")]
+
+
 def main():
     passed = failed = 0
     with tempfile.TemporaryDirectory(prefix="mimic-schemas-") as d:
@@ -365,6 +415,7 @@ def main():
         cases += check_cases
         reg_cases = register_cases(d, store, data, landmarks)
         cases += reg_cases
+        cases += pairs_cases(d)
         for schema_id, doc, what in cases + vest_cases(d) + serve_cases(store, one, os.path.join(d, "vest.rec")):
             errors = list(validator(schema_id).iter_errors(doc))
             if errors:

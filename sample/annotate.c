@@ -1,0 +1,65 @@
+/* 2D annotations of pose-pairs as a person would click them on photos
+ * (issue 14, the input of seed 002's lifting): random perspective cameras
+ * around a pose-pair, the projection of its joints, Gaussian pixel noise.
+ * Choices (the paper annotates real video): a camera looks at the pair's
+ * centre from 3 to 8 m away, from any side (azimuth uniform), from 10
+ * degrees below to 35 above the horizon, upright (no roll), with a
+ * 1920 x 1080 image and a focal length of 1000 to 1800 pixels (a 47 to 88
+ * degree horizontal field of view, phone to wide lens); a camera that
+ * leaves a joint behind it or outside the image is drawn again. */
+#include "mim_sample.h"
+
+#include <math.h>
+#include <string.h>
+
+static mim_vec3 centre(const double *joints)
+{
+    mim_vec3 c = {0, 0, 0};
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++) c = mim_v3_add(c, mim_v3(joints[3 * i], joints[3 * i + 1], joints[3 * i + 2]));
+    return mim_v3_scale(c, 1.0 / MIM_PAIR_JOINTS);
+}
+
+int mim_pairs_project(const mim_pairs_camera_t *cam, const double *joints, double *uv)
+{
+    int inside = 1;
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++) {
+        double p[3], q[3] = {0, 0, 0};
+        for (int c = 0; c < 3; c++) p[c] = joints[3 * i + c] - cam->position[c];
+        /* camera axes are the rows of R: x right, y down, z forward */
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 3; c++) q[r] += cam->R[3 * r + c] * p[c];
+        if (!(q[2] > 1e-3)) {
+            inside = 0;
+            uv[2 * i] = uv[2 * i + 1] = NAN;
+            continue;
+        }
+        uv[2 * i] = cam->focal_px * q[0] / q[2] + cam->cx;
+        uv[2 * i + 1] = cam->focal_px * q[1] / q[2] + cam->cy;
+        if (uv[2 * i] < 0 || uv[2 * i] > cam->width || uv[2 * i + 1] < 0 || uv[2 * i + 1] > cam->height) inside = 0;
+    }
+    return inside;
+}
+
+int mim_pairs_camera_random(mim_rng_t *rng, const double *joints, mim_pairs_camera_t *cam)
+{
+    mim_vec3 c = centre(joints);
+    double uv[2 * MIM_PAIR_JOINTS];
+    for (int attempt = 0; attempt < 1000; attempt++) {
+        double dist = 3.0 + 5.0 * mim_rng_unit(rng), az = 2 * M_PI * mim_rng_unit(rng);
+        double el = (-10.0 + 45.0 * mim_rng_unit(rng)) * M_PI / 180.0;
+        memset(cam, 0, sizeof *cam);
+        cam->width = 1920, cam->height = 1080, cam->cx = 960, cam->cy = 540;
+        cam->focal_px = 1000.0 + 800.0 * mim_rng_unit(rng);
+        /* up is y: the camera sits at the centre plus dist along (az, el) */
+        mim_vec3 dir = mim_v3(cos(el) * sin(az), sin(el), cos(el) * cos(az));
+        mim_vec3 pos = mim_v3_add(c, mim_v3_scale(dir, dist));
+        mim_vec3 fwd = mim_v3_normalize(mim_v3_sub(c, pos));
+        mim_vec3 right = mim_v3_normalize(mim_v3_cross(fwd, mim_v3(0, 1, 0)));
+        mim_vec3 down = mim_v3_cross(fwd, right);
+        cam->position[0] = pos.x, cam->position[1] = pos.y, cam->position[2] = pos.z;
+        double rows[3][3] = {{right.x, right.y, right.z}, {down.x, down.y, down.z}, {fwd.x, fwd.y, fwd.z}};
+        memcpy(cam->R, rows, sizeof rows);
+        if (mim_pairs_project(cam, joints, uv)) return 0;
+    }
+    return MIM_ENOTFOUND;
+}
