@@ -166,6 +166,21 @@ int mim_pairs_annotations_parse(const char *text, size_t len, const char *origin
                                 mim_error_t *err);
 void mim_pairs_annotations_free(mim_pairs_annotations_t *a); /* accepts NULL and an empty set */
 
+/* ---- penetration between bones (penetration.c; eq. 2's eta, through ODE) ---- */
+/* One context per thread. The program must have initialised ODE once
+ * (dInitODE2) before: ODE's state is process-wide, which a library does
+ * not own. Errors: MIM_EUNSUPPORTED (ODE not initialised), MIM_ENOMEM. */
+typedef struct mim_penetration mim_penetration_t;
+int mim_penetration_open(mim_penetration_t **out, mim_error_t *err);
+void mim_penetration_close(mim_penetration_t **p); /* accepts NULL; nulls */
+/* The penetration depth (metres, 0 when apart) of two capsules: segments
+ * a0-a1 and b0-b1 with radii ra and rb. */
+double mim_penetration_capsules(mim_penetration_t *p, const double a0[3], const double a1[3], double ra,
+                                const double b0[3], const double b1[3], double rb);
+/* eta of a 3D pose-pair (34 x 3 doubles, metres): the sum of the
+ * penetration depths over its bones' capsule pairs (penetration.c). */
+double mim_penetration_pair(mim_penetration_t *p, const double *joints);
+
 /* ---- samples as JSON lines (samples_file.c; schemas/pair-samples.md) ---- */
 /* The header line and a sample line (malloc'd, no newline; NULL when out
  * of memory). A NaN log density is written as null. */

@@ -4,6 +4,8 @@
 
 #include "test_support.h"
 
+#include <ode/ode.h>
+
 #include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
@@ -389,13 +391,57 @@ static void test_samples_file(void **s)
     free(h), free(l0), free(l1), free(text);
 }
 
+/* ODE's capsule depth: two crossing capsules overlap by the sum of their
+ * radii less the distance between their axes; a pose-pair standing apart
+ * has none; closer, more. */
+static void person_t_pose(double *p, double dx, double dz)
+{
+    static const double j[MIM_PAIR_PERSON_JOINTS][3] = {
+        {0, 1.7, 0},     {0, 1.4, 0},     {0, 1.0, 0},    {0.2, 1.45, 0},  {-0.2, 1.45, 0}, {0.5, 1.45, 0},
+        {-0.5, 1.45, 0}, {0.75, 1.45, 0}, {-0.75, 1.45, 0}, {0.1, 0.95, 0}, {-0.1, 0.95, 0}, {0.1, 0.5, 0},
+        {-0.1, 0.5, 0},  {0.1, 0.08, 0},  {-0.1, 0.08, 0}, {0, 1.2, 0},     {0, 1.55, 0}};
+    for (int k = 0; k < MIM_PAIR_PERSON_JOINTS; k++)
+        p[3 * k] = j[k][0] + dx, p[3 * k + 1] = j[k][1], p[3 * k + 2] = j[k][2] + dz;
+}
+
+static void test_penetration(void **s)
+{
+    (void)s;
+    assert_true(dInitODE2(0));
+    mim_penetration_t *p = NULL;
+    mim_error_t err = {0};
+    assert_int_equal(mim_penetration_open(&p, &err), 0);
+    const double a0[3] = {-1, 0, 0}, a1[3] = {1, 0, 0};
+    for (int k = 0; k < 5; k++) {
+        double d = 0.05 * k, b0[3] = {0, d, -1}, b1[3] = {0, d, 1};
+        double got = mim_penetration_capsules(p, a0, a1, 0.1, b0, b1, 0.08);
+        double want = 0.18 - d > 0 ? 0.18 - d : 0.0;
+        if (fabs(got - want) > 1e-6) fail_msg("axes %.2f apart: depth %g, want %g", d, got, want);
+    }
+    double pair[3 * MIM_PAIR_JOINTS];
+    person_t_pose(pair, 0, 0);
+    person_t_pose(pair + 3 * MIM_PAIR_PERSON_JOINTS, 2.5, 0);
+    assert_true(mim_penetration_pair(p, pair) < 1e-9); /* apart, and no bone of one person in another of his */
+    double prev = 0;
+    for (int k = 3; k >= 0; k--) { /* B steps in front of A: 0.3, 0.2, 0.1, 0 m */
+        person_t_pose(pair + 3 * MIM_PAIR_PERSON_JOINTS, 0, 0.1 * k);
+        double eta = mim_penetration_pair(p, pair);
+        if (k == 3) assert_true(eta < 1e-9); /* 0.3 m: the torsos (0.12 + 0.12) clear */
+        else assert_true(eta > prev);
+        prev = eta;
+    }
+    mim_penetration_close(&p);
+    assert_null(p);
+    dCloseODE();
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_delaunay_ladder), cmocka_unit_test(test_delaunay_3d), cmocka_unit_test(test_ic_bad_input),
         cmocka_unit_test(test_dI),              cmocka_unit_test(test_rigid_invariance), cmocka_unit_test(test_coverage),
         cmocka_unit_test(test_joint_map), cmocka_unit_test(test_unit_guess),
-        cmocka_unit_test(test_samples_file),
+        cmocka_unit_test(test_samples_file), cmocka_unit_test(test_penetration),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
