@@ -18,5 +18,6 @@ int mim_cmd_serve(int argc, char **argv);
 int mim_cmd_demo(int argc, char **argv);
 int mim_cmd_register(int argc, char **argv);
 int mim_cmd_pairs(int argc, char **argv);
+int mim_cmd_complete(int argc, char **argv);
 
 #endif

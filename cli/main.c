@@ -22,6 +22,7 @@ static const struct {
     {"morph", mim_cmd_morph, "key poses and the poses between them, as a GLB animation"},
     {"vest", mim_cmd_vest, "list, record, replay or simulate a tracking vest"},
     {"serve", mim_cmd_serve, "serve pose transfer: viewer, WebSocket avatar stream, JSON API"},
+    {"complete", mim_cmd_complete, "fill lost landmarks of frames from the store's templates"},
     {"pairs", mim_cmd_pairs, "two-person pose-pairs (seed 002): coverage of true pose-pairs by samples"},
     {"demo", mim_cmd_demo, "everything end to end on synthetic data: store, index, vest, serve"},
 };

@@ -128,6 +128,30 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
 int mim_session_morph(mim_session_t *s, mim_xfer_morph_method_t method, const mim_xfer_key_t *a,
                       const mim_xfer_key_t *b, double t, float *out, mim_error_t *err);
 
+/* ---- completion of lost landmarks (complete.c; seed 002, Section 6) ---- */
+#define MIM_COMPLETE_MIN_SEEN 4
+#define MIM_COMPLETE_DEFAULT_K 3
+#define MIM_COMPLETE_MAX_K 256
+#define MIM_COMPLETE_DEFAULT_SIGMA_M 0.3
+typedef struct mim_session_complete_options {
+    uint32_t k;                  /* templates retrieved; 0: MIM_COMPLETE_DEFAULT_K (at most MIM_COMPLETE_MAX_K) */
+    double sigma;                /* metres, the blend's Gaussian; 0: MIM_COMPLETE_DEFAULT_SIGMA_M */
+    int no_blend;                /* 1: the median alone (with k 1: the nearest template alone, a baseline) */
+    const char *exclude_subject; /* leave that subject's templates out; NULL: none */
+} mim_session_complete_options_t;
+/* Fills the landmarks that present marks 0 (positions: 3 * map count
+ * floats, NaN or anything where lost): the store's templates nearest to the
+ * seen landmarks (after each one's best similarity onto them), their
+ * per-coordinate median, and that median blended onto the seen landmarks
+ * with Gaussian weights (complete.c says how). out gets every landmark
+ * (the seen ones unchanged), completed[l] 1 for each filled one. A
+ * complete frame comes back as it is. opt may be NULL. The first call reads every template's
+ * landmarks from the store (kept until close). Errors: MIM_EINVAL (fewer
+ * than MIM_COMPLETE_MIN_SEEN seen), MIM_ENOTFOUND (no template to use), the
+ * store's. Thread-safe. */
+int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t *present,
+                         const mim_session_complete_options_t *opt, float *out, uint8_t *completed, mim_error_t *err);
+
 /* ---- query results as JSON (schemas/query.schema.json, one frame) ---- */
 /* {"class": ..., "probability": ..., "results": [{"id", "subject", "pose",
  * "distance"}, ...]} for an answer and its hits; NULL when out of memory.

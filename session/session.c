@@ -2,7 +2,7 @@
  * avatar and its encoding W = F^T L X (seed 000, Section 3.1), the factor
  * of the avatar's constrained system (eq. 3), and the one pipeline from
  * landmarks to a transferred mesh (Sections 3.3-3.4). */
-#include "mim_session.h"
+#include "internal.h"
 
 #include "mim_ingest.h"
 #include "mim_io.h"
@@ -30,6 +30,12 @@ struct mim_session {
     int foreign;
     pthread_mutex_t out_lock;
     float *out_work;            /* 3 * n: the proxy's normals */
+    /* every template's landmarks, for completion (guarded by table_lock) */
+    pthread_mutex_t table_lock;
+    int table_built;
+    uint32_t table_count, table_cap;
+    float *table_lm;
+    char **table_subject;
     double *W;                  /* the avatar's encoding, 3 * n */
     double t_factor;
     char store[4096];
@@ -261,6 +267,7 @@ int mim_session_open(mim_session_t **out, const char *store, const mim_session_o
     s->opt = opt ? *opt : (mim_session_options_t){0};
     pthread_mutex_init(&s->lock, NULL);
     pthread_mutex_init(&s->out_lock, NULL);
+    pthread_mutex_init(&s->table_lock, NULL);
     snprintf(s->store, sizeof s->store, "%s", store);
     int rc = load_store(s, store, s->opt.map_size, err);
     if (!rc)
@@ -313,6 +320,9 @@ void mim_session_close(mim_session_t **ps)
     mim_db_close(&s->db);
     pthread_mutex_destroy(&s->lock);
     pthread_mutex_destroy(&s->out_lock);
+    pthread_mutex_destroy(&s->table_lock);
+    for (uint32_t i = 0; i < s->table_count; i++) free(s->table_subject[i]);
+    free(s->table_subject), free(s->table_lm);
     free(s);
     *ps = NULL;
 }
@@ -458,4 +468,51 @@ json_t *mim_session_answer_json(const mim_query_t *q, const mim_index_answer_t *
     return res ? json_pack("{s:s, s:f, s:o}", "class", mim_index_class_name(mim_query_index(q), a->cls),
                            "probability", a->probability, "results", res)
                : NULL;
+}
+
+/* ---- the landmark table (completion) ---- */
+typedef struct {
+    mim_session_t *s;
+    mim_error_t *err;
+} table_fill_t;
+
+static int table_add(const mim_template_view_t *v, void *user)
+{
+    table_fill_t *f = user;
+    mim_session_t *s = f->s;
+    const uint32_t L = s->map.count;
+    if (v->n_vertices != s->mesh.n_vertices) return 0; /* not the store's connectivity: not a body to compare */
+    if (s->table_count == s->table_cap) {
+        uint32_t cap = s->table_cap ? 2 * s->table_cap : 256;
+        float *lm = realloc(s->table_lm, (size_t)cap * L * 3 * sizeof *lm);
+        if (lm) s->table_lm = lm;
+        char **sub = realloc(s->table_subject, cap * sizeof *sub);
+        if (sub) s->table_subject = sub;
+        if (!lm || !sub) return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
+        s->table_cap = cap;
+    }
+    for (uint32_t l = 0; l < L; l++)
+        memcpy(s->table_lm + ((size_t)s->table_count * L + l) * 3, v->positions + 3 * (size_t)s->map.vertex[l],
+               3 * sizeof(float));
+    if (!(s->table_subject[s->table_count] = strdup(v->subject)))
+        return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
+    s->table_count++;
+    return 0;
+}
+
+int mim__session_landmark_table(mim_session_t *s, const float **lm, char *const **subjects, uint32_t *count,
+                                mim_error_t *err)
+{
+    pthread_mutex_lock(&s->table_lock);
+    int rc = 0;
+    if (!s->table_built) {
+        mim_db_txn_t *t = NULL;
+        table_fill_t f = {s, err};
+        if (!(rc = mim_db_begin(s->db, 0, &t, err))) rc = mim_db_template_each(t, table_add, &f, err);
+        mim_db_abort(&t);
+        s->table_built = !rc;
+    }
+    *lm = s->table_lm, *subjects = s->table_subject, *count = s->table_count;
+    pthread_mutex_unlock(&s->table_lock);
+    return rc;
 }

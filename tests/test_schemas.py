@@ -26,7 +26,7 @@ SCHEMAS = {s["$id"]: s for s in map(load, ["info.schema.json", "list.schema.json
                                             "serve-status.schema.json", "serve-avatar.schema.json",
                                             "serve-transfer-request.schema.json", "serve-error.schema.json",
                                             "store-check.schema.json", "pair-annotations.schema.json", "pair-cameras.schema.json",
-                                            "pairs-coverage.schema.json", "register.schema.json"])}
+                                            "pairs-coverage.schema.json", "complete.schema.json", "register.schema.json"])}
 
 
 def validator(schema_id):
@@ -416,6 +416,15 @@ def main():
         reg_cases = register_cases(d, store, data, landmarks)
         cases += reg_cases
         cases += pairs_cases(d)
+        lost = {"frames": [{"landmarks": list(frames["frames"][0]["landmarks"])}, {"landmarks": list(one["landmarks"])}]}
+        for k in (7, 8, 13):
+            lost["frames"][0]["landmarks"][k] = None
+        lost_path = os.path.join(d, "lost.json")
+        with open(lost_path, "w") as f:
+            json.dump(lost, f)
+        cases.append(("/mimic/schemas/complete.schema.json",
+                      json.loads(run("complete", "--store", store, "--landmarks", lost_path, "--json")),
+                      "complete (3 lost, and a complete frame)"))
         for schema_id, doc, what in cases + vest_cases(d) + serve_cases(store, one, os.path.join(d, "vest.rec")):
             errors = list(validator(schema_id).iter_errors(doc))
             if errors:

@@ -391,6 +391,80 @@ static void test_bad_inputs(void **s)
     free(point_avatar), free(far_avatar), free(same_lm), free(far_lm);
 }
 
+/* mimic complete (seed 002's completion by retrieval): a body of a stored
+ * subject with 3 landmarks lost gets them back from the templates (the
+ * median of the 3 nearest, its own among them: within 2 cm, not exact by
+ * design); leaving its subject out still lands within 8 cm; a frame that lost nothing comes back as
+ * it is; too many nulls, and a store that cannot open, are refused. */
+static void test_complete(void **s)
+{
+    (void)s;
+    char *path = body_path(1, 2);
+    mim_mesh_t body = {0};
+    read_mesh(path, &body);
+    free(path);
+    float x[3 * MIM_LANDMARKS_MAX];
+    for (uint32_t l = 0; l < map.count; l++) memcpy(x + 3 * l, body.positions + 3 * (size_t)map.vertex[l], 12);
+    char *lost = write_landmarks("lost.json", body.positions, NULL);
+    /* null the wrists and the left ankle (7, 8, 13) by rewriting the file */
+    char *text = ts_read_file(lost, NULL);
+    json_error_t je;
+    json_t *root = json_loads(text, 0, &je), *arr = json_object_get(root, "landmarks");
+    free(text);
+    json_array_set_new(arr, 7, json_null()), json_array_set_new(arr, 8, json_null()), json_array_set_new(arr, 13, json_null());
+    assert_int_equal(json_dump_file(root, lost, 0), 0);
+    json_decref(root);
+    for (int excl = 0; excl < 2; excl++) {
+        const char *args[] = {"complete", "--store", store, "--landmarks", lost, "--json", excl ? "--exclude-subject" : NULL, "1", NULL};
+        char *o = NULL, *e = NULL;
+        assert_int_equal(ts_run_mimic(&o, &e, args), 0);
+        json_t *j = json_loads(o, 0, &je), *f0 = json_array_get(json_object_get(j, "frames"), 0);
+        assert_non_null(f0);
+        json_t *done = json_object_get(f0, "completed"), *lms = json_object_get(f0, "landmarks");
+        assert_int_equal(json_array_size(done), 3);
+        assert_int_equal(json_integer_value(json_array_get(done, 0)), 7);
+        assert_int_equal(json_integer_value(json_array_get(done, 2)), 13);
+        double worst = 0;
+        for (uint32_t l = 0; l < map.count; l++) {
+            json_t *p3 = json_array_get(lms, l);
+            double d2 = 0;
+            for (int c = 0; c < 3; c++) {
+                double dv = json_real_value(json_array_get(p3, (size_t)c)) - x[3 * l + c];
+                d2 += dv * dv;
+            }
+            if (l != 7 && l != 8 && l != 13) assert_true(sqrt(d2) < 1e-5); /* seen ones as given */
+            else if (sqrt(d2) > worst) worst = sqrt(d2);
+        }
+        print_message("complete%s: worst of 3 lost landmarks %.1f mm\n", excl ? " (subject left out)" : "", 1000 * worst);
+        assert_true(worst < (excl ? 0.08 : 0.02));
+        json_decref(j);
+        free(o), free(e);
+    }
+    /* a frame that lost nothing */
+    char *full = write_landmarks("full.json", body.positions, NULL), *o = NULL, *e = NULL;
+    const char *args2[] = {"complete", "--store", store, "--landmarks", full, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, args2), 0);
+    assert_non_null(strstr(o, "frame 0: nothing lost"));
+    free(o), free(e);
+    /* 13 nulls: fewer than 4 seen */
+    text = ts_read_file(full, NULL);
+    root = json_loads(text, 0, &je), arr = json_object_get(root, "landmarks");
+    free(text);
+    for (int l = 0; l < 13; l++) json_array_set_new(arr, (size_t)l, json_null());
+    char *many = ts_path(dir, "many.json");
+    assert_int_equal(json_dump_file(root, many, 0), 0);
+    json_decref(root);
+    const char *args3[] = {"complete", "--store", store, "--landmarks", many, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, args3), 1);
+    assert_non_null(strstr(e, "many.json"));
+    free(o), free(e);
+    const char *args4[] = {"complete", "--store", "/nonexistent/store", "--landmarks", full, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, args4), 2);
+    free(o), free(e);
+    mim_mesh_free(&body);
+    free(lost), free(full), free(many);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -399,6 +473,7 @@ int main(void)
         cmocka_unit_test(test_template_only_and_file_avatar),
         cmocka_unit_test(test_morph),
         cmocka_unit_test(test_bad_inputs),
+        cmocka_unit_test(test_complete),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

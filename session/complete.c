@@ -1,0 +1,110 @@
+/* Completion of lost landmarks by retrieval (seed 002, Section 6,
+ * "Occluded Joint Inference"): the templates nearest to the landmarks
+ * still seen, their robust centre, and that centre blended onto the seen
+ * landmarks. mimic's version works on one person's landmarks over the
+ * store's templates (the paper: pose-pairs over its samples, in D_I).
+ *
+ * Choices: templates are compared after the similarity that best maps
+ * their seen landmarks onto the frame's (so any place, heading and size
+ * match), by the RMS distance over the seen landmarks; the k nearest
+ * (K, the paper's subset of 100 scaled down to a store of
+ * bodies: the default measured with bench/complete.c) give, per landmark
+ * and coordinate, the median of their aligned positions; a lost landmark
+ * is that median plus the Gaussian-weighted mean of the seen landmarks'
+ * residuals (frame - median), weighted by the median pose's distance
+ * between the lost landmark and each seen one (sigma): the nearer a seen
+ * landmark, the more its offset carries over. */
+#include "internal.h"
+#include "mim_register.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int cmp_f(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return x < y ? -1 : x > y;
+}
+
+int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t *present,
+                         const mim_session_complete_options_t *opt, float *out, uint8_t *completed, mim_error_t *err)
+{
+    mim_session_complete_options_t o = opt ? *opt : (mim_session_complete_options_t){0};
+    const uint32_t K = o.k ? (o.k < MIM_COMPLETE_MAX_K ? o.k : MIM_COMPLETE_MAX_K) : MIM_COMPLETE_DEFAULT_K;
+    const double sigma = o.sigma > 0 ? o.sigma : MIM_COMPLETE_DEFAULT_SIGMA_M;
+    const char *exclude_subject = o.exclude_subject;
+    const mim_landmark_map_t *map = mim_session_map(s);
+    const uint32_t L = map->count;
+    uint32_t seen = 0;
+    for (uint32_t l = 0; l < L; l++) seen += present[l] != 0;
+    memcpy(out, positions, 3 * (size_t)L * sizeof *out);
+    memset(completed, 0, L);
+    if (seen == L) return 0;
+    if (seen < MIM_COMPLETE_MIN_SEEN)
+        return mim_error_set(err, MIM_EINVAL, "completion: %u landmarks seen, at least %d needed", seen,
+                             MIM_COMPLETE_MIN_SEEN);
+    const float *table;
+    char *const *subjects;
+    uint32_t n;
+    int rc = mim__session_landmark_table(s, &table, &subjects, &n, err);
+    if (rc) return rc;
+    /* the seen landmarks, packed */
+    float obs[3 * MIM_LANDMARKS_MAX], tl[3 * MIM_LANDMARKS_MAX], moved[3 * MIM_LANDMARKS_MAX];
+    uint32_t idx[MIM_LANDMARKS_MAX], m = 0;
+    for (uint32_t l = 0; l < L; l++)
+        if (present[l]) idx[m] = l, memcpy(obs + 3 * m, positions + 3 * l, 3 * sizeof *obs), m++;
+    /* the k nearest templates after their best similarity onto the seen landmarks */
+    uint32_t best[MIM_COMPLETE_MAX_K];
+    double best_d[MIM_COMPLETE_MAX_K];
+    uint32_t nb = 0;
+    for (uint32_t t = 0; t < n; t++) {
+        if (exclude_subject && subjects[t] && !strcmp(subjects[t], exclude_subject)) continue;
+        const float *T = table + (size_t)t * L * 3;
+        for (uint32_t k = 0; k < m; k++) memcpy(tl + 3 * k, T + 3 * idx[k], 3 * sizeof *tl);
+        mim_reg_similarity_t sim;
+        if (mim_reg_similarity_fit(tl, obs, m, &sim, NULL)) continue;
+        mim_reg_similarity_apply(&sim, tl, m, moved);
+        double d = 0;
+        for (uint32_t k = 0; k < 3 * m; k++) d += (moved[k] - obs[k]) * (moved[k] - obs[k]);
+        if (nb < K || d < best_d[nb - 1]) {
+            uint32_t at = nb < K ? nb++ : nb - 1;
+            while (at > 0 && best_d[at - 1] > d) best[at] = best[at - 1], best_d[at] = best_d[at - 1], at--;
+            best[at] = t, best_d[at] = d;
+        }
+    }
+    if (!nb) return mim_error_set(err, MIM_ENOTFOUND, "completion: no template to complete from%s%s",
+                                  exclude_subject ? " outside subject " : "", exclude_subject ? exclude_subject : "");
+    /* each neighbour whole, aligned by its seen landmarks; the per-coordinate median */
+    float *aligned = malloc((size_t)nb * L * 3 * sizeof *aligned), med[3 * MIM_LANDMARKS_MAX], col[MIM_COMPLETE_MAX_K];
+    if (!aligned) return mim_error_set(err, MIM_ENOMEM, "completion: out of memory");
+    for (uint32_t b = 0; b < nb; b++) {
+        const float *T = table + (size_t)best[b] * L * 3;
+        for (uint32_t k = 0; k < m; k++) memcpy(tl + 3 * k, T + 3 * idx[k], 3 * sizeof *tl);
+        mim_reg_similarity_t sim;
+        mim_reg_similarity_fit(tl, obs, m, &sim, NULL);
+        mim_reg_similarity_apply(&sim, T, L, aligned + (size_t)b * L * 3);
+    }
+    for (uint32_t k = 0; k < 3 * L; k++) {
+        for (uint32_t b = 0; b < nb; b++) col[b] = aligned[(size_t)b * L * 3 + k];
+        qsort(col, nb, sizeof *col, cmp_f);
+        med[k] = nb % 2 ? col[nb / 2] : 0.5f * (col[nb / 2 - 1] + col[nb / 2]);
+    }
+    free(aligned);
+    /* the lost ones: the median plus the nearby seen landmarks' residuals */
+    for (uint32_t l = 0; l < L; l++) {
+        if (present[l]) continue;
+        double wsum = 0, r[3] = {0, 0, 0};
+        for (uint32_t k = 0; k < m; k++) {
+            const float *mo = med + 3 * idx[k], *ml = med + 3 * l;
+            double d2 = (mo[0] - ml[0]) * (mo[0] - ml[0]) + (mo[1] - ml[1]) * (mo[1] - ml[1]) + (mo[2] - ml[2]) * (mo[2] - ml[2]);
+            double w = exp(-d2 / (2 * sigma * sigma));
+            for (int c = 0; c < 3; c++) r[c] += w * (obs[3 * k + c] - mo[c]);
+            wsum += w;
+        }
+        for (int c = 0; c < 3; c++)
+            out[3 * l + c] = (float)(med[3 * l + c] + (wsum > 0 && !o.no_blend ? r[c] / wsum : 0.0));
+        completed[l] = 1;
+    }
+    return 0;
+}
