@@ -26,7 +26,8 @@ typedef enum mim__counter {
     MIM__C_FRAMES,      /* frames published (the real-time loop) */
     MIM__C_KEY_FRAMES,  /* key frames made (query + transfer) */
     MIM__C_MORPH_FRAMES, /* frames morphed between two key frames */
-    MIM__C_INCOMPLETE,  /* vest frames with lost landmarks (held at their last position) */
+    MIM__C_INCOMPLETE,  /* vest frames with lost landmarks */
+    MIM__C_COMPLETED,   /* lost landmarks filled in by retrieval (mim_session_complete) */
     MIM__C_DROPS,       /* frames dropped for slow clients */
     MIM__C_VEST_ERRORS, /* vest read or decode errors */
     MIM__C_VEST_DISCONNECTS, /* times the vest went away */

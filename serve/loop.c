@@ -24,8 +24,10 @@
  * linear ones, which cost next to nothing; and when even that is not
  * enough, the loop skips to the newest vest frame instead of falling
  * behind (flush_frames). A fixed key rate (--key-rate) overrides the
- * choice of k. Lost landmarks are held at their last position, so a short
- * dropout does not stop the stream.
+ * choice of k. Lost landmarks are filled in from the store's templates
+ * (mim_session_complete: seed 002's completion by retrieval) while at least
+ * 4 are seen, else held at their last position, so a dropout does not stop
+ * the stream.
  *
  * A vest that goes away is waited for: a device unplugged (serial, HID),
  * or any vest silent for SILENCE_S (or 5 vest periods, if longer), e.g. a
@@ -100,6 +102,7 @@ struct mim__loop {
     char error[512];
     int outage;        /* error tells of the vest being away (cleared when it is back) */
     uint64_t last_template, warm_starts, iterations, key_frames;
+    uint64_t completed; /* lost landmarks filled in by retrieval */
     char last_label[MIM_SESSION_LABEL_MAX];
     double key_rate_hz, frame_rate_hz;
 };
@@ -290,8 +293,24 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
             shown[3 * i + c] = present[i] ? xyz[3 * i + c] : NAN;
         }
     }
-    if (lost)
+    if (lost) {
         mim__metrics_add(&sv->m, MIM__C_INCOMPLETE, 1);
+        /* Lost landmarks are completed from the store's templates (seed
+         * 002's completion by retrieval) when enough are seen; else held. */
+        float filled[3 * MIM_LANDMARKS_MAX];
+        uint8_t done[MIM_LANDMARKS_MAX];
+        mim_error_t cerr = {0};
+        if (mim_session_complete(sv->s, xyz, present, NULL, filled, done, &cerr) == 0) {
+            uint32_t n_done = 0;
+            for (uint32_t i = 0; i < L; i++)
+                if (done[i]) memcpy(u + 3 * i, filled + 3 * i, 3 * sizeof *u), n_done++;
+            complete = 1;
+            mim__metrics_add(&sv->m, MIM__C_COMPLETED, n_done);
+            pthread_mutex_lock(&l->lock);
+            l->completed += n_done;
+            pthread_mutex_unlock(&l->lock);
+        }
+    }
     if (!complete || !sv->q)
         return; /* the transfer holds every landmark: it needs them all, and an index */
 
@@ -608,7 +627,7 @@ json_t *mim__loop_status(mim__loop_t *l)
         return json_null();
     pthread_mutex_lock(&l->lock);
     json_t *j = json_pack(
-        "{s:s, s:s, s:o, s:o, s:o, s:I, s:s, s:i, s:s, s:f, s:f, s:f, s:f, s:s, s:I, s:f}", "spec", l->spec, "state", l->state,
+        "{s:s, s:s, s:o, s:o, s:o, s:I, s:s, s:i, s:s, s:f, s:f, s:f, s:f, s:s, s:I, s:f, s:I}", "spec", l->spec, "state", l->state,
         "error", l->error[0] ? json_string(l->error) : json_null(), "last_template",
         l->last_template ? json_integer((json_int_t)l->last_template) : json_null(), "last_label",
         l->last_label[0] ? json_string(l->last_label) : json_null(), "reconnects",
@@ -616,7 +635,8 @@ json_t *mim__loop_status(mim__loop_t *l)
         "key_interval", (int)l->k, "morph", l->linear ? "linear" : "frames", "key_rate_hz", l->key_rate_hz, "frame_rate_hz", l->frame_rate_hz, "key_ms",
         l->c_key * 1e3, "morph_ms", l->c_morph * 1e3, "warm_start",
         l->opt.warm_start ? (l->opt.warm_start > 0 ? "on" : "off") : "auto", "warm_starts", (json_int_t)l->warm_starts,
-        "iterations_per_key", l->key_frames ? (double)l->iterations / (double)l->key_frames : 0.0);
+        "iterations_per_key", l->key_frames ? (double)l->iterations / (double)l->key_frames : 0.0,
+        "completed_landmarks", (json_int_t)l->completed);
     pthread_mutex_unlock(&l->lock);
     return j;
 }

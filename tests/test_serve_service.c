@@ -5,6 +5,8 @@
  * deadline; every child is killed in teardown. */
 #include "serve_support.h"
 
+#include "mim_io.h"
+
 #include <arpa/inet.h>
 #include <errno.h>
 #include <float.h>
@@ -397,6 +399,68 @@ static void run_demo(const char *ddir, int check_live)
     free(out), free(err);
 }
 
+/* ---- 7c. lost vest landmarks completed from the store (issue 14) ----
+ * A UDP sender whose frames lose 3 landmarks from the very first one: with
+ * landmarks only held at their last position the loop would never have
+ * them all and publish nothing; completed by retrieval, frames flow, and
+ * status and metrics count the filled landmarks. */
+static void test_lost_landmarks_completed(void **state)
+{
+    (void)state;
+    int up = free_udp_port();
+    assert_true(up > 0);
+    char spec[64];
+    snprintf(spec, sizeof spec, "udp:127.0.0.1:%d", up);
+    ss_svc_t U = {0};
+    U.sout = ts_path(dir, "c.serve.out"), U.serr = ts_path(dir, "c.serve.err");
+    const char *sargs[] = {"serve", "--store", store, "--avatar", "1", "--vest", spec, "--listen", "127.0.0.1:0", NULL};
+    U.server = ss_spawn(sargs, U.sout, U.serr);
+    char *t = ss_wait_line(U.sout, "http://127.0.0.1:", U.server, 120);
+    assert_non_null(t);
+    U.port = atoi(strrchr(t, ':') + 1);
+    free(t);
+    /* the landmarks of a stored body, 3 of them lost */
+    char *bodies = ts_path(dir, "bodies"), *body = ts_path(bodies, "synth_s01_p02.ply"),
+         *map_path = ts_path(bodies, "landmarks.json");
+    mim_mesh_t m = {0};
+    mim_landmark_map_t map;
+    assert_int_equal(mim_io_read_mesh(body, &m, NULL), 0);
+    assert_int_equal(mim_landmarks_read(&map, map_path, NULL), 0);
+    char msg[4096];
+    int len = snprintf(msg, sizeof msg, "{\"t\": 0, \"landmarks\": [");
+    for (uint32_t l = 0; l < map.count; l++) {
+        const float *p = m.positions + 3 * (size_t)map.vertex[l];
+        if (l == 7 || l == 8 || l == 13) len += snprintf(msg + len, sizeof msg - len, "%snull", l ? ", " : "");
+        else len += snprintf(msg + len, sizeof msg - len, "%s[%.6f, %.6f, %.6f]", l ? ", " : "", p[0], p[1], p[2]);
+    }
+    len += snprintf(msg + len, sizeof msg - len, "]}");
+    mim_mesh_free(&m);
+    int sock = socket(AF_INET, SOCK_DGRAM, 0);
+    struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons((uint16_t)up)};
+    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    json_t *st = NULL;
+    double end = ss_now_s() + 30;
+    for (int k = 0;; k++) {
+        assert_true(sendto(sock, msg, (size_t)len, 0, (struct sockaddr *)&to, sizeof to) == len);
+        ss_sleep_ms(16);
+        if (k % 30 == 29) {
+            json_decref(st);
+            st = ss_get_status(U.port);
+            if (ss_status_int(st, NULL, "frames") > 20 && ss_status_int(st, "vest", "completed_landmarks") >= 60) break;
+            if (ss_now_s() > end) fail_msg("no frames from a vest that lost 3 landmarks: %s", json_dumps(st, 0));
+        }
+    }
+    close(sock);
+    print_message("lost landmarks: %lld frames, %lld landmarks completed\n", (long long)ss_status_int(st, NULL, "frames"),
+                  (long long)ss_status_int(st, "vest", "completed_landmarks"));
+    json_decref(st);
+    assert_true(ss_metric(U.port, "mimic_landmarks_completed_total") >= 60);
+    assert_true(ss_metric(U.port, "mimic_vest_incomplete_frames_total") >= 20);
+    ss_svc_term(&U);
+    ss_svc_free(&U);
+    free(bodies), free(body), free(map_path);
+}
+
 static void test_demo(void **state)
 {
     (void)state;
@@ -436,6 +500,7 @@ int main(void)
         cmocka_unit_test(test_sigterm_with_clients),
         cmocka_unit_test(test_vest_outage),
         cmocka_unit_test(test_udp_vest_stops),
+        cmocka_unit_test(test_lost_landmarks_completed),
         cmocka_unit_test(test_demo),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
