@@ -181,6 +181,24 @@ double mim_penetration_capsules(mim_penetration_t *p, const double a0[3], const 
  * penetration depths over its bones' capsule pairs (penetration.c). */
 double mim_penetration_pair(mim_penetration_t *p, const double *joints);
 
+/* ---- camera views relative to a pair (views.c; Section 4.2, eqs. 3-5) ---- */
+#define MIM_VIEW_DEFAULT_SIGMA 0.5 /* radians: eq. 5's bandwidth, the paper's default */
+/* The pair's local frame of eq. 3 as a rotation (columns i, j, k: local
+ * to world): i from A's pelvis to B's, j the mean of the two backbones
+ * (pelvis to chest) made orthogonal to i, k = i x j. MIM_EINVAL when the
+ * roots coincide or the backbones lie along the line between them. */
+int mim_pairs_local_frame(const double *joints, double R[9]);
+/* A direction (world) as eq. 4's angles in that frame: psi in (-pi, pi]
+ * about j from i towards k, phi in [0, pi] from j. */
+void mim_pairs_view_angles(const double R[9], const double dir[3], double *psi, double *phi);
+/* Back: the unit world direction of the view (psi, phi). */
+void mim_pairs_view_direction(const double R[9], double psi, double phi, double dir[3]);
+/* eq. 5: the kernel density of n views (psi, phi pairs) at (psi, phi),
+ * sigma the bandwidth (psi wraps around the circle); and one draw from it
+ * (a view at random, then its kernel; phi reflected into [0, pi]). */
+double mim_pairs_view_density(const double *views, uint32_t n, double sigma, double psi, double phi);
+void mim_pairs_view_draw(const double *views, uint32_t n, double sigma, mim_rng_t *rng, double *psi, double *phi);
+
 /* ---- samples as JSON lines (samples_file.c; schemas/pair-samples.md) ---- */
 /* The header line and a sample line (malloc'd, no newline; NULL when out
  * of memory). A NaN log density is written as null. */

@@ -435,6 +435,81 @@ static void test_penetration(void **s)
     dCloseODE();
 }
 
+/* eqs. 3-5: the local frame of two people side by side, views as angles
+ * and back, invariant under a rigid motion of pair and camera together,
+ * and draws from the view density that match it (chi-squared). */
+static void test_views(void **s)
+{
+    (void)s;
+    double pair[3 * MIM_PAIR_JOINTS], R[9];
+    person_t_pose(pair, 0, 0);
+    person_t_pose(pair + 3 * MIM_PAIR_PERSON_JOINTS, 2.0, 0);
+    assert_int_equal(mim_pairs_local_frame(pair, R), 0);
+    const double want[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}; /* i = +x (A to B), j = +y (backbones), k = +z */
+    for (int k = 0; k < 9; k++) assert_true(fabs(R[k] - want[k]) < 1e-12);
+    double psi, phi;
+    const double front[3] = {0, 0, 1}, side[3] = {1, 0, 0}, up[3] = {0, 1, 0};
+    mim_pairs_view_angles(R, front, &psi, &phi);
+    assert_true(fabs(psi - M_PI / 2) < 1e-12 && fabs(phi - M_PI / 2) < 1e-12);
+    mim_pairs_view_angles(R, side, &psi, &phi);
+    assert_true(fabs(psi) < 1e-12 && fabs(phi - M_PI / 2) < 1e-12);
+    mim_pairs_view_angles(R, up, &psi, &phi);
+    assert_true(fabs(phi) < 1e-12);
+    /* turn pair and camera together: the same view */
+    double moved[3 * MIM_PAIR_JOINTS], R2[9], dir[3], dir2[3];
+    const double t[3] = {1, 2, 3};
+    rotate(pair, 0.2, 1, 0.1, 1.1, t, moved);
+    assert_int_equal(mim_pairs_local_frame(moved, R2), 0);
+    mim_rng_t r;
+    mim_rng_seed(&r, 21, 0);
+    mim_quat q = mim_quat_axis_angle(mim_v3_normalize(mim_v3(0.2, 1, 0.1)), 1.1);
+    for (int n = 0; n < 100; n++) {
+        double p0 = (mim_rng_unit(&r) * 2 - 1) * M_PI * 0.999, f0 = 0.01 + mim_rng_unit(&r) * (M_PI - 0.02), p1, f1;
+        mim_pairs_view_direction(R, p0, f0, dir);
+        mim_pairs_view_angles(R, dir, &p1, &f1);
+        assert_true(fabs(p1 - p0) < 1e-9 && fabs(f1 - f0) < 1e-9); /* round trip */
+        mim_vec3 d2 = mim_quat_rotate(q, mim_v3(dir[0], dir[1], dir[2]));
+        dir2[0] = d2.x, dir2[1] = d2.y, dir2[2] = d2.z;
+        mim_pairs_view_angles(R2, dir2, &p1, &f1);
+        assert_true(fabs(p1 - p0) < 1e-9 && fabs(f1 - f0) < 1e-9); /* rigid invariance */
+    }
+    /* no frame when the roots coincide */
+    double same[3 * MIM_PAIR_JOINTS];
+    person_t_pose(same, 0, 0);
+    person_t_pose(same + 3 * MIM_PAIR_PERSON_JOINTS, 0, 0);
+    assert_int_equal(mim_pairs_local_frame(same, R), MIM_EINVAL);
+    /* draws against the density: 8 x 8 cells around two views, chi-squared */
+    const double views[4] = {0.4, 1.4, -0.6, 1.8};
+    const double sg = 0.25;
+    enum { N = 40000, C = 8 };
+    double counts[C][C] = {{0}};
+    double p0 = -1.6, p1 = 1.4, f0 = 0.6, f1 = 2.6; /* the cells cover most of the mass */
+    int inside = 0;
+    for (int n = 0; n < N; n++) {
+        mim_pairs_view_draw(views, 2, sg, &r, &psi, &phi);
+        int a = (int)floor((psi - p0) / (p1 - p0) * C), b = (int)floor((phi - f0) / (f1 - f0) * C);
+        if (a >= 0 && a < C && b >= 0 && b < C) counts[a][b]++, inside++;
+    }
+    double chi2 = 0;
+    int cells = 0;
+    for (int a = 0; a < C; a++)
+        for (int b = 0; b < C; b++) {
+            /* expected: the density integrated over the cell (midpoint rule on a 6 x 6 grid) */
+            double e = 0, ca = (p1 - p0) / C, cb = (f1 - f0) / C;
+            for (int u = 0; u < 6; u++)
+                for (int v = 0; v < 6; v++)
+                    e += mim_pairs_view_density(views, 2, sg, p0 + ca * (a + (u + 0.5) / 6), f0 + cb * (b + (v + 0.5) / 6)) *
+                         ca * cb / 36;
+            e *= N;
+            if (e < 20) continue;
+            chi2 += (counts[a][b] - e) * (counts[a][b] - e) / e;
+            cells++;
+        }
+    print_message("view KDE: chi-squared %.1f over %d cells (%d of %d draws inside)\n", chi2, cells, inside, N);
+    assert_true(cells > 20);
+    assert_true(chi2 < 2.0 * cells); /* a wrong bandwidth or mean is far above */
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -442,6 +517,7 @@ int main(void)
         cmocka_unit_test(test_dI),              cmocka_unit_test(test_rigid_invariance), cmocka_unit_test(test_coverage),
         cmocka_unit_test(test_joint_map), cmocka_unit_test(test_unit_guess),
         cmocka_unit_test(test_samples_file), cmocka_unit_test(test_penetration),
+        cmocka_unit_test(test_views),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
