@@ -265,8 +265,13 @@ static int export_pairs(int argc, char **argv)
         }
         for (uint32_t i = 0; i < nf; i++) {
             char *line = mim_pairs_jsonl_line(fr + (size_t)i * 3 * MIM_PAIR_JOINTS, NAN);
-            if (line) fprintf(mem, "%s\n", line);
+            int ok = line && fprintf(mem, "%s\n", line) > 0;
             free(line);
+            if (!ok) {
+                fprintf(stderr, "mimic pairs export: out of memory at pose-pair %u of %s\n", i, pairs[t]);
+                free(fr);
+                goto done;
+            }
         }
         total += nf;
         free(fr);

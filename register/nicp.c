@@ -242,7 +242,7 @@ int mim__reg_nicp_run(mim__reg_nicp_t *p, const mim_reg_options_t *opt, const mi
              * Section 3.1): the smoothness term turns with the surface. */
             mim_xfer_decode(n, p->frames, p->W0, p->delta);
             mim_xfer_laplacian_apply(p->topo, p->delta, p->ltd);
-            int rc = mim__reg_surface_closest(surface, p->xf, n, p->hits, err);
+            rc = mim__reg_surface_closest(surface, p->xf, n, p->hits, err);
             /* Target-to-shape matches only in the first, stiffer half of
              * the stages: they bring in parts that stick out, but they
              * also pull sideways, which the soft stages would turn into
@@ -312,7 +312,7 @@ int mim__reg_nicp_run(mim__reg_nicp_t *p, const mim_reg_options_t *opt, const mi
                     d2 += (v - x[3 * i + c]) * (v - x[3 * i + c]);
                     x[3 * i + c] = v;
                 }
-                if (d2 > move) move = d2;
+                if (!(d2 <= move)) move = d2; /* a NaN counts */
             }
             ++*iterations;
             if (!isfinite(move)) {

@@ -24,7 +24,11 @@ static json_t *joint_names(void)
 char *mim_pairs_annotations_json(const mim_pairs_annotations_t *a, const char *const *takes, uint32_t n_takes)
 {
     json_t *list = json_array(), *tk = json_array();
-    for (uint32_t t = 0; t < n_takes; t++) json_array_append_new(tk, json_string(takes[t]));
+    for (uint32_t t = 0; t < n_takes; t++)
+        if (json_array_append_new(tk, json_string(takes[t]))) { /* a name that is not UTF-8 */
+            json_decref(list), json_decref(tk);
+            return NULL;
+        }
     for (uint32_t i = 0; i < a->n; i++) {
         json_t *pts = json_array();
         const double *p = a->points + (size_t)i * 2 * MIM_PAIR_JOINTS;
@@ -71,13 +75,14 @@ int mim_pairs_annotations_parse(const char *text, size_t len, const char *origin
 {
     memset(out, 0, sizeof *out);
     if (!origin) origin = "annotations";
+    if (!text) return mim_error_set(err, MIM_EINVAL, "%s: no text", origin);
     json_error_t je;
-    json_t *root = text ? json_loadb(text, len, JSON_REJECT_DUPLICATES, &je) : NULL;
-    if (!root) return mim_error_set(err, MIM_EFORMAT, "%s:%d:%d: %s", origin, je.line, je.column, text ? je.text : "no text");
+    json_t *root = json_loadb(text, len, JSON_REJECT_DUPLICATES, &je);
+    if (!root) return mim_error_set(err, MIM_EFORMAT, "%s:%d:%d: %s", origin, je.line, je.column, je.text);
     int rc = 0;
     const char *fmt = json_string_value(json_object_get(root, "format"));
     json_t *names = json_object_get(root, "joints"), *img = json_object_get(root, "image"),
-           *list = json_object_get(root, "annotations");
+           *list = json_object_get(root, "annotations"), *takes = json_object_get(root, "takes");
     json_t *ref = joint_names();
     if (!fmt || strcmp(fmt, "mimic pair annotations 1"))
         rc = mim_error_set(err, MIM_EFORMAT, "%s: not mimic pair annotations (\"format\" is not \"mimic pair annotations 1\")", origin);
@@ -88,6 +93,8 @@ int mim_pairs_annotations_parse(const char *text, size_t len, const char *origin
              json_integer_value(json_array_get(img, 1)) < 1 || json_integer_value(json_array_get(img, 0)) > 100000 ||
              json_integer_value(json_array_get(img, 1)) > 100000)
         rc = mim_error_set(err, MIM_EFORMAT, "%s: \"image\" must be [width, height] in pixels (1..100000)", origin);
+    else if (!json_is_array(takes) || !json_array_size(takes))
+        rc = mim_error_set(err, MIM_EFORMAT, "%s: \"takes\" must list the takes annotated", origin);
     else if (!json_is_array(list) || !json_array_size(list))
         rc = mim_error_set(err, MIM_EEMPTY, "%s: no annotations", origin);
     else if (json_array_size(list) > MIM_PAIRS_ANNOTATIONS_MAX)
@@ -107,8 +114,9 @@ int mim_pairs_annotations_parse(const char *text, size_t len, const char *origin
             json_t *t = json_object_get(a, "take"), *f = json_object_get(a, "frame"), *v = json_object_get(a, "view");
             if (!json_is_integer(t) || !json_is_integer(f) || !json_is_integer(v) || json_integer_value(t) < 0 ||
                 json_integer_value(f) < 0 || json_integer_value(v) < 0 || json_integer_value(t) > 1000000000 ||
-                json_integer_value(f) > 1000000000 || json_integer_value(v) > 1000000000) {
-                rc = mim_error_set(err, MIM_EFORMAT, "%s: annotation %zu: \"take\", \"frame\" and \"view\" must be whole numbers",
+                json_integer_value(f) > 1000000000 || json_integer_value(v) > 1000000000 ||
+                (size_t)json_integer_value(t) >= json_array_size(takes)) {
+                rc = mim_error_set(err, MIM_EFORMAT, "%s: annotation %zu: \"take\" (an index into \"takes\"), \"frame\" and \"view\" must be whole numbers",
                                    origin, i);
                 break;
             }

@@ -167,9 +167,12 @@ int mim_pairs_annotations_parse(const char *text, size_t len, const char *origin
 void mim_pairs_annotations_free(mim_pairs_annotations_t *a); /* accepts NULL and an empty set */
 
 /* ---- penetration between bones (penetration.c; eq. 2's eta, through ODE) ---- */
-/* One context per thread. The program must have initialised ODE once
- * (dInitODE2) before: ODE's state is process-wide, which a library does
- * not own. Errors: MIM_EUNSUPPORTED (ODE not initialised), MIM_ENOMEM. */
+/* One context per thread, used on the thread that opened it (ODE keeps
+ * per-thread data, which open allocates; the program frees it with
+ * dCleanupODEAllDataForThread when the thread is done, or dCloseODE). The
+ * program must have initialised ODE once (dInitODE2) before: ODE's state
+ * is process-wide, which a library does not own. Errors: MIM_EUNSUPPORTED
+ * (ODE not initialised), MIM_ENOMEM. */
 typedef struct mim_penetration mim_penetration_t;
 int mim_penetration_open(mim_penetration_t **out, mim_error_t *err);
 void mim_penetration_close(mim_penetration_t **p); /* accepts NULL; nulls */

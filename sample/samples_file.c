@@ -44,19 +44,19 @@ void mim_pairs_samples_free(mim_pairs_samples_t *s)
     memset(s, 0, sizeof *s);
 }
 
-static int parse_header(const char *line, size_t len, const char *origin, mim_error_t *err)
+static int parse_header(const char *line, size_t len, const char *origin, long ln, mim_error_t *err)
 {
     json_error_t je;
     json_t *h = json_loadb(line, len, JSON_REJECT_DUPLICATES, &je);
     json_t *names = h ? json_object_get(h, "joints") : NULL;
     const char *fmt = h ? json_string_value(json_object_get(h, "format")) : NULL;
     int rc = 0;
-    if (!h) rc = mim_error_set(err, MIM_EFORMAT, "%s:1:%d: %s", origin, je.column, je.text);
+    if (!h) rc = mim_error_set(err, MIM_EFORMAT, "%s:%ld:%d: %s", origin, ln, je.column, je.text);
     else if (!fmt || strcmp(fmt, "mimic pair samples 1"))
-        rc = mim_error_set(err, MIM_EFORMAT, "%s:1: not a mimic pair-samples file (the header's \"format\" is not "
-                                             "\"mimic pair samples 1\")", origin);
+        rc = mim_error_set(err, MIM_EFORMAT, "%s:%ld: not a mimic pair-samples file (the header's \"format\" is not "
+                                             "\"mimic pair samples 1\")", origin, ln);
     else if (!json_is_array(names) || json_array_size(names) != MIM_PAIR_JOINTS)
-        rc = mim_error_set(err, MIM_EFORMAT, "%s:1: the header names %zu joints, not %d", origin,
+        rc = mim_error_set(err, MIM_EFORMAT, "%s:%ld: the header names %zu joints, not %d", origin, ln,
                            json_is_array(names) ? json_array_size(names) : (size_t)0, MIM_PAIR_JOINTS);
     else
         for (int i = 0; i < MIM_PAIR_JOINTS && !rc; i++) {
@@ -65,7 +65,8 @@ static int parse_header(const char *line, size_t len, const char *origin, mim_er
                      mim_sample_joint_names[i % MIM_PAIR_PERSON_JOINTS]);
             const char *got = json_string_value(json_array_get(names, (size_t)i));
             if (!got || strcmp(got, want))
-                rc = mim_error_set(err, MIM_EFORMAT, "%s:1: joint %d is \"%s\", not \"%s\"", origin, i, got ? got : "?", want);
+                rc = mim_error_set(err, MIM_EFORMAT, "%s:%ld: joint %d is \"%s\", not \"%s\"", origin, ln, i, got ? got : "?",
+                                   want);
         }
     json_decref(h);
     return rc;
@@ -91,7 +92,7 @@ int mim_pairs_samples_parse(const char *text, size_t len, const char *origin, mi
         while (k < n && (line[k] == ' ' || line[k] == '\t' || line[k] == '\r')) k++;
         if (k == n) continue; /* a blank line */
         if (!have_header) {
-            if ((rc = parse_header(line, n, origin, err))) break;
+            if ((rc = parse_header(line, n, origin, line_no, err))) break;
             have_header = 1;
             continue;
         }

@@ -54,7 +54,12 @@ int mim_session_open(mim_session_t **out, const char *store, const mim_session_o
  * reader's, MIM_ENOTFOUND for an unknown template id, MIM_ENOINDEX for a
  * foreign avatar when the store has no index, the landmarks' and the registration's (a
  * surface distance p95 over MIM_INGEST_DEFAULT_MAX_DISTANCE_MM is
- * MIM_ETOPOLOGY). A session has one avatar: a second call is MIM_EINVAL. */
+ * MIM_ETOPOLOGY). The binding is cached under the avatar, its landmarks and
+ * the store's connectivity; a store of an older schema version is not
+ * written to (no cache; a warning). Caching reopens the store, so what
+ * mim_session_query returned before this call is invalid after it. A
+ * session has one avatar, and one attempt at it: a second call is
+ * MIM_EINVAL. */
 int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err);
 void mim_session_close(mim_session_t **s); /* accepts NULL; nulls the pointer */
 

@@ -4,6 +4,8 @@
  * landmarks to a transferred mesh (Sections 3.3-3.4). */
 #include "internal.h"
 
+#include "mim_schema_version.h"
+
 #include "mim_ingest.h"
 #include "mim_io.h"
 #include "mim_register.h"
@@ -33,6 +35,7 @@ struct mim_session {
     /* every template's landmarks, for completion (guarded by table_lock) */
     pthread_mutex_t table_lock;
     int table_built;
+    mim_error_t table_failed;   /* the first failure to read it: kept, not read again */
     uint32_t table_count, table_cap;
     float *table_lm;
     char **table_subject;
@@ -83,11 +86,13 @@ static int load_store(mim_session_t *s, const char *store, uint64_t map_size, mi
     return rc;
 }
 
-/* The binding cache's key: the avatar mesh, the store's connectivity and
- * landmark map (a binding made for another store is another entry). */
-static uint64_t binding_key(const mim_session_t *s, const mim_mesh_t *m)
+/* The binding cache's key: the avatar mesh, the landmarks it was
+ * registered with (other landmarks, another registration), the store's
+ * connectivity and landmark map (another store, another entry). */
+static uint64_t binding_key(const mim_session_t *s, const mim_mesh_t *m, const float *lm)
 {
     uint64_t h = mim_ingest_mesh_hash(m);
+    h = mim_hash64(lm, 3 * (size_t)s->map.count * sizeof *lm, h);
     h = mim_hash64(s->mesh.faces, 3 * (size_t)s->mesh.n_faces * sizeof *s->mesh.faces, h);
     return mim_hash64(s->map.vertex, s->map.count * sizeof *s->map.vertex, h);
 }
@@ -98,6 +103,20 @@ static uint64_t binding_key(const mim_session_t *s, const mim_mesh_t *m)
  * that cannot be written keeps nothing, with a warning. */
 static int cache_binding(mim_session_t *s, uint64_t key, mim_error_t *err)
 {
+    /* Opening an older store for writing would migrate it (mim_db.h): a
+     * command that only reads the store must not, so its binding is not
+     * kept there. */
+    mim_db_txn_t *rt = NULL;
+    mim_db_meta_t meta = {0};
+    if (!mim_db_begin(s->db, 0, &rt, NULL)) mim_db_meta_get(rt, &meta, NULL);
+    mim_db_abort(&rt);
+    if (meta.schema_version != MIM_STORE_SCHEMA_VERSION) {
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN,
+                     "%s: the avatar's binding is not kept: %s is of schema version %u (mimic store migrate brings it "
+                     "to %d, and then it is)",
+                     s->avatar, s->store, meta.schema_version, MIM_STORE_SCHEMA_VERSION);
+        return 0;
+    }
     void *blob = NULL;
     size_t len = 0;
     mim_error_t e = {0};
@@ -159,11 +178,17 @@ static int binding_fits(const mim_session_t *s, const mim_mesh_t *m, mim_error_t
  * proxy's rest positions into s->mesh. */
 static int load_foreign_avatar(mim_session_t *s, const char *path, const mim_mesh_t *m, mim_error_t *err)
 {
-    uint64_t key = binding_key(s, m);
+    mim_ingest_landmark_sources_t src = {.landmarks_path = s->opt.avatar_landmarks, .option = "--avatar-landmarks"};
+    float lm[3 * MIM_LANDMARKS_MAX];
+    char how[4200];
+    int rc = mim_ingest_foreign_landmarks(path, m, &src, &s->map, lm, how, sizeof how, err);
+    if (rc) return rc;
+    uint64_t key = binding_key(s, m, lm);
     mim_db_txn_t *t = NULL;
     const void *blob;
     size_t len;
-    int rc = mim_db_begin(s->db, 0, &t, err), cached = 0, got = MIM_ENOTFOUND;
+    int cached = 0, got = MIM_ENOTFOUND;
+    rc = mim_db_begin(s->db, 0, &t, err);
     mim_error_t e = {0};
     if (!rc)
         got = mim_db_binding_get(t, key, &blob, &len, &e);
@@ -185,13 +210,8 @@ static int load_foreign_avatar(mim_session_t *s, const char *path, const mim_mes
                                  "from the nearest template, and %s has no index (run mimic index)",
                                  path, m->n_vertices, s->mesh.n_vertices, s->store);
         mim_ingest_registrar_t *r = NULL;
-        mim_ingest_landmark_sources_t src = {.landmarks_path = s->opt.avatar_landmarks,
-                                             .option = "--avatar-landmarks"};
-        float lm[3 * MIM_LANDMARKS_MAX];
-        char how[4200];
         mim_reg_report_t rep;
         if ((rc = mim_ingest_registrar_open(&r, s->db, mim_query_nearest, s->query, NULL, err)) ||
-            (rc = mim_ingest_foreign_landmarks(path, m, &src, &s->map, lm, how, sizeof how, err)) ||
             (rc = mim_ingest_register_mesh(r, m, lm, path, s->mesh.positions, &rep, NULL, err))) {
             mim_ingest_registrar_close(&r);
             return rc;
@@ -284,8 +304,11 @@ int mim_session_open(mim_session_t **out, const char *store, const mim_session_o
 
 int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err)
 {
-    if (s->solver)
-        return mim_error_set(err, MIM_EINVAL, "%s: the session already has an avatar (%s)", avatar, s->avatar);
+    /* one avatar a session, and one attempt: a failed load may leave part
+     * of a foreign avatar's state behind */
+    if (s->solver || s->avatar[0])
+        return mim_error_set(err, MIM_EINVAL, "%s: the session already has an avatar, or tried one (%s)", avatar,
+                             s->avatar);
     const uint32_t n = s->mesh.n_vertices;
     if (!s->W) {
         s->W = malloc(3 * (size_t)n * sizeof *s->W);
@@ -505,12 +528,22 @@ int mim__session_landmark_table(mim_session_t *s, const float **lm, char *const 
 {
     pthread_mutex_lock(&s->table_lock);
     int rc = 0;
-    if (!s->table_built) {
+    if (s->table_failed.code) {
+        /* a store that failed once is not read again on every frame */
+        rc = mim_error_set(err, s->table_failed.code, "%s", s->table_failed.msg);
+    } else if (!s->table_built) {
         mim_db_txn_t *t = NULL;
-        table_fill_t f = {s, err};
-        if (!(rc = mim_db_begin(s->db, 0, &t, err))) rc = mim_db_template_each(t, table_add, &f, err);
+        table_fill_t f = {s, &s->table_failed};
+        if (!(rc = mim_db_begin(s->db, 0, &t, &s->table_failed)))
+            rc = mim_db_template_each(t, table_add, &f, &s->table_failed);
         mim_db_abort(&t);
         s->table_built = !rc;
+        if (rc) {
+            if (!s->table_failed.code) mim_error_set(&s->table_failed, rc, "completion: %s", mim_strerror(rc));
+            rc = mim_error_set(err, rc, "%s", s->table_failed.msg);
+            for (uint32_t i = 0; i < s->table_count; i++) free(s->table_subject[i]);
+            s->table_count = 0;
+        }
     }
     *lm = s->table_lm, *subjects = s->table_subject, *count = s->table_count;
     pthread_mutex_unlock(&s->table_lock);

@@ -304,7 +304,9 @@ static void test_annotations_reader(void **s)
         {"mimic pair annotations 1", "something", MIM_EFORMAT, "not mimic pair annotations"},
         {"\"A.head\"", "\"A.nose\"", MIM_EFORMAT, "must name the 34 joints"},
         {"[640,480]", "[640]", MIM_EFORMAT, "\"image\" must be [width, height]"},
-        {"\"frame\":4", "\"frame\":-4", MIM_EFORMAT, "annotation 0: \"take\", \"frame\" and \"view\""},
+        {"\"frame\":4", "\"frame\":-4", MIM_EFORMAT, "annotation 0: \"take\" (an index into \"takes\")"},
+        {"\"take\":0", "\"take\":1", MIM_EFORMAT, "annotation 0: \"take\" (an index into \"takes\")"}, /* one take */
+        {"\"takes\":[\"a.bvh,b.bvh\"]", "\"takes\":[]", MIM_EFORMAT, "\"takes\" must list"},
         {"[100.0,101.0]", "[100.0]", MIM_EFORMAT, "annotation 0: joint 0 is not [u, v]"},
         {"[100.0,101.0]", "[1e300,101.0]", MIM_ENONFINITE, "joint 0: 1e+300 is not a pixel coordinate"},
         {"\"annotations\":[", "\"annotations\":[],\"x\":[", MIM_EEMPTY, "ann.json: no annotations"},
@@ -320,6 +322,9 @@ static void test_annotations_reader(void **s)
             fail_msg("case %zu: %d '%s' (wanted %d '%s')", k, rc, err.msg, bad[k].code, bad[k].phrase);
         assert_int_equal(a.n, 0);
     }
+    /* a take named by bytes that are not UTF-8: no file rather than a short "takes" */
+    const char *bad_takes[] = {"a\xff.bvh,b.bvh"};
+    assert_null(mim_pairs_annotations_json(&one, bad_takes, 1));
     mim_error_clear(&err);
     assert_int_equal(mim_pairs_annotations_parse("{\"format\": ", 12, "ann.json", &a, &err), MIM_EFORMAT);
     assert_non_null(strstr(err.msg, "ann.json:1:"));

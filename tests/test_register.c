@@ -1178,6 +1178,43 @@ static void test_cli_ingest_register(void **s)
     free(m1), free(m2), free(m3), free(folder), free(st);
 }
 
+/* A foreign avatar's binding is cached under its landmarks too: the same
+ * mesh with other landmarks (left and right swapped) is registered again,
+ * not served from the first binding; each is then found in the cache. */
+static void test_avatar_binding_key(void **s)
+{
+    (void)s;
+    char *folder = ts_path(dir, "avatars");
+    assert_int_equal(mkdir(folder, 0755), 0);
+    char *av = make_foreign(folder, "av_s03_p00", 0, 0, 1, NULL), side[4096];
+    assert_int_equal(mim_io_landmarks_sidecar(av, side, sizeof side), 1);
+    /* the swapped landmarks: each l_ and r_ pair exchanged (the store's mirror table) */
+    json_error_t je;
+    json_t *root = json_load_file(side, 0, &je), *arr = json_object_get(root, "landmarks"), *sw = json_array();
+    mim_landmark_map_t m;
+    char *lm_path = ts_path(bodies, "landmarks.json");
+    assert_int_equal(mim_landmarks_read(&m, lm_path, NULL), 0);
+    for (uint32_t l = 0; l < m.count; l++) json_array_append(sw, json_array_get(arr, m.mirror[l]));
+    json_t *sroot = json_pack("{s:o}", "landmarks", sw);
+    char *swapped = ts_path(dir, "swapped.json"), *outp = ts_path(dir, "av_out.ply");
+    assert_int_equal(json_dump_file(sroot, swapped, JSON_REAL_PRECISION(9)), 0);
+    json_decref(root), json_decref(sroot);
+    const char *plain[] = {"transfer", "--store", store, "--avatar", av, "--template", "2", "-o", outp, NULL};
+    const char *other[] = {"transfer", "--store", store, "--avatar", av, "--avatar-landmarks", swapped,
+                           "--template", "2", "-o", outp, NULL};
+    const char *const *runs[4] = {plain, plain, other, plain};
+    const int registers[4] = {1, 0, 1, 0};
+    for (int k = 0; k < 4; k++) {
+        char *o = NULL, *e = NULL;
+        int rc = ts_run_mimic(&o, &e, runs[k]);
+        if (rc) fail_msg("run %d: exit %d: %s", k, rc, e);
+        if ((strstr(e, "registered onto") != NULL) != registers[k])
+            fail_msg("run %d: %s registration, stderr: %s", k, registers[k] ? "wanted a" : "wanted no", e);
+        free(o), free(e);
+    }
+    free(folder), free(av), free(lm_path), free(swapped), free(outp);
+}
+
 /* kill -9 during ingest --register: a registered template and its
  * registration go in one transaction, so the store holds both or neither
  * of each, intact; a re-run registers the rest and nothing twice. */
@@ -1280,6 +1317,7 @@ int main(void)
         cmocka_unit_test(test_binding),      cmocka_unit_test(test_cli_register),
         cmocka_unit_test(test_cli_ingest_register),
         cmocka_unit_test(test_kill_during_ingest_register),
+        cmocka_unit_test(test_avatar_binding_key),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -5,6 +5,7 @@
  * the fixture: support/store_support.c. */
 #include "mim_db.h"
 #include "store_support.h"
+#include "mim_session.h"
 
 #include <lmdb.h>
 #include <stdio.h>
@@ -239,6 +240,23 @@ static void test_flipped_byte(void **s)
     mim_db_abort(&t);
     mim_db_close(&db);
     st_assert_check_finds(store, "template 2: checksum mismatch", 2, "templates");
+    /* completion, which reads every template's landmarks: the damage, each
+     * time, and the table is not rebuilt (nor grown) on every call */
+    {
+        mim_session_t *ses = NULL;
+        mim_error_t e1 = {0}, e2 = {0};
+        assert_int_equal(mim_session_open(&ses, store, NULL, &e1), 0);
+        const mim_landmark_map_t *lm = mim_session_map(ses);
+        float x[3 * MIM_LANDMARKS_MAX], out[3 * MIM_LANDMARKS_MAX];
+        uint8_t present[MIM_LANDMARKS_MAX], done[MIM_LANDMARKS_MAX];
+        for (uint32_t l = 0; l < lm->count; l++) memcpy(x + 3 * l, pos + 3 * (size_t)lm->vertex[l], 12), present[l] = 1;
+        present[7] = 0;
+        assert_int_equal(mim_session_complete(ses, x, present, NULL, out, done, &e1), MIM_ESTORE);
+        assert_int_equal(mim_session_complete(ses, x, present, NULL, out, done, &e2), MIM_ESTORE);
+        assert_non_null(strstr(e1.msg, "template 2: checksum mismatch"));
+        assert_string_equal(e1.msg, e2.msg);
+        mim_session_close(&ses);
+    }
     /* ingest does not write beside damage it meets (the same content again) */
     free(store);
 
