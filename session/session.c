@@ -172,6 +172,14 @@ static int binding_fits(const mim_session_t *s, const mim_mesh_t *m, mim_error_t
     return rc;
 }
 
+static int no_index(const mim_session_t *s, const char *path, const mim_mesh_t *m, mim_error_t *err)
+{
+    return mim_error_set(err, MIM_ENOINDEX,
+                         "%s: an avatar of another connectivity (%u vertices, the store's %u) is registered from the "
+                         "nearest template, and %s has no index (run mimic index)",
+                         path, m->n_vertices, s->mesh.n_vertices, s->store);
+}
+
 /* A foreign avatar m: its binding from the store's cache, or registered
  * now (issue 13: landmarks as for any foreign mesh, the nearest template
  * through the index, then bound and cached). Fills s->binding and the
@@ -181,8 +189,11 @@ static int load_foreign_avatar(mim_session_t *s, const char *path, const mim_mes
     mim_ingest_landmark_sources_t src = {.landmarks_path = s->opt.avatar_landmarks, .option = "--avatar-landmarks"};
     float lm[3 * MIM_LANDMARKS_MAX];
     char how[4200];
-    int rc = mim_ingest_foreign_landmarks(path, m, &src, &s->map, lm, how, sizeof how, err);
-    if (rc) return rc;
+    mim_error_t lm_err = {0};
+    int rc = mim_ingest_foreign_landmarks(path, m, &src, &s->map, lm, how, sizeof how, &lm_err);
+    if (rc && !s->query) /* the index is what it needs first: without landmarks no cached binding is found either */
+        return no_index(s, path, m, err);
+    if (rc) return mim_error_set(err, rc, "%s", mim_error_text(&lm_err));
     uint64_t key = binding_key(s, m, lm);
     mim_db_txn_t *t = NULL;
     const void *blob;
@@ -204,11 +215,7 @@ static int load_foreign_avatar(mim_session_t *s, const char *path, const mim_mes
     mim_db_abort(&t);
     if (rc) return rc;
     if (!cached) {
-        if (!s->query)
-            return mim_error_set(err, MIM_ENOINDEX,
-                                 "%s: an avatar of another connectivity (%u vertices, the store's %u) is registered "
-                                 "from the nearest template, and %s has no index (run mimic index)",
-                                 path, m->n_vertices, s->mesh.n_vertices, s->store);
+        if (!s->query) return no_index(s, path, m, err);
         mim_ingest_registrar_t *r = NULL;
         mim_reg_report_t rep;
         if ((rc = mim_ingest_registrar_open(&r, s->db, mim_query_nearest, s->query, NULL, err)) ||
