@@ -54,42 +54,92 @@ static void help(FILE *out)
             "Exit status: 0 done, 1 an input failed (a motion file, joints, samples), 2 bad usage.\n");
 }
 
+/* What every pairs command takes: the takes (--pair, or --truth for
+ * coverage), which of their frames (--every, --offset), and how to read
+ * them (--joint-map, --unit). Parsed and read here, once. */
+typedef struct takes {
+    const char *cmd; /* "pairs coverage" ... */
+    const char *spec[MAX_PAIRS];
+    int n;
+    uint64_t every, offset;
+    double unit;
+    const char *map_path;
+    char *map_text;
+} takes_t;
+
+/* Option c with its argument, when it is one of the above: 1 taken, -1
+ * after printing a usage error, 0 not one of them. */
+static int takes_option(takes_t *t, int c, const char *arg)
+{
+    switch (c) {
+    case 'p':
+        if (t->n == MAX_PAIRS) {
+            fprintf(stderr, "mimic %s: at most %d takes\n", t->cmd, MAX_PAIRS);
+            return -1;
+        }
+        t->spec[t->n++] = arg;
+        return 1;
+    case 'e': return mim_cli_number(t->cmd, "every", arg, 1, 1000000, &t->every) ? -1 : 1;
+    case 'k': return mim_cli_number(t->cmd, "offset", arg, 0, 100000000, &t->offset) ? -1 : 1;
+    case 'm': t->map_path = arg; return 1;
+    case 'u':
+        return mim_cli_real(t->cmd, "unit", arg, 0.0, 1000.0, 1, "is not a number of metres per unit", &t->unit) ? -1 : 1;
+    default: return 0;
+    }
+}
+
+/* Reads the joint map, if one was given: 0, or 1 after printing. */
+static int takes_begin(takes_t *t)
+{
+    mim_error_t err = {0};
+    size_t len;
+    if (!t->map_path || !mim_file_read(t->map_path, 1 << 20, &t->map_text, &len, &err)) return 0;
+    fprintf(stderr, "mimic %s: %s\n", t->cmd, mim_error_text(&err));
+    return 1;
+}
+
+/* The chosen frames of take i as pose-pairs (mim_cli_pairs_read): 0, or
+ * -1 after printing. */
+static int takes_read(const takes_t *t, int i, double **frames, uint32_t *n)
+{
+    char msg[1024];
+    if (!mim_cli_pairs_read(t->spec[i], t->map_text, t->unit, (uint32_t)t->every, (uint32_t)t->offset, frames, n, msg,
+                            sizeof msg))
+        return 0;
+    fprintf(stderr, "mimic %s: %s\n", t->cmd, msg);
+    return -1;
+}
+
+static int write_text(const char *cmd, const char *path, const void *text, size_t len)
+{
+    mim_error_t err = {0};
+    mim_file_part_t part = {text, len};
+    if (!mim_file_write_atomic(path, &part, 1, &err)) return 0;
+    fprintf(stderr, "mimic pairs %s: %s\n", cmd, mim_error_text(&err));
+    return -1;
+}
+
 static int coverage(int argc, char **argv)
 {
     static const struct option longopts[] = {
-        {"truth", required_argument, 0, 't'},     {"every", required_argument, 0, 'e'},
+        {"truth", required_argument, 0, 'p'},     {"every", required_argument, 0, 'e'},
         {"offset", required_argument, 0, 'k'},    {"samples", required_argument, 0, 's'},
         {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
         {"json", no_argument, 0, 'j'},            {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
     };
-    const char *truth[MAX_PAIRS], *samples_path = NULL, *map_path = NULL;
-    int n_truth = 0, as_json = 0, c;
-    uint64_t every = 1, offset = 0;
-    double unit = 0;
+    const char *samples_path = NULL;
+    takes_t tk = {.cmd = "pairs coverage", .every = 1};
+    int as_json = 0, c, taken;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "t:e:k:s:m:u:jh", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "p:e:k:s:m:u:jh", longopts, NULL)) != -1) {
+        if ((taken = takes_option(&tk, c, optarg))) {
+            if (taken < 0) return 2;
+            continue;
+        }
         switch (c) {
-        case 't':
-            if (n_truth == MAX_PAIRS) {
-                fprintf(stderr, "mimic pairs coverage: at most %d --truth takes\n", MAX_PAIRS);
-                return 2;
-            }
-            truth[n_truth++] = optarg;
-            break;
-        case 'e':
-            if (mim_cli_number("pairs coverage", "every", optarg, 1, 1000000, &every)) return 2;
-            break;
-        case 'k':
-            if (mim_cli_number("pairs coverage", "offset", optarg, 0, 100000000, &offset)) return 2;
-            break;
         case 's': samples_path = optarg; break;
-        case 'm': map_path = optarg; break;
-        case 'u':
-            if (mim_cli_real("pairs coverage", "unit", optarg, 0.0, 1000.0, 1, "is not a number of metres per unit", &unit))
-                return 2;
-            break;
         case 'j': as_json = 1; break;
         case 'h': help(stdout); return 0;
         default:
@@ -98,7 +148,7 @@ static int coverage(int argc, char **argv)
             return 2;
         }
     }
-    if (!n_truth || !samples_path) {
+    if (!tk.n || !samples_path) {
         fprintf(stderr, "mimic pairs coverage: --truth A,B and --samples FILE are required (see mimic pairs --help)\n");
         return 2;
     }
@@ -106,27 +156,19 @@ static int coverage(int argc, char **argv)
         fprintf(stderr, "mimic pairs coverage: unexpected argument '%s'\n", argv[optind]);
         return 2;
     }
+    if (takes_begin(&tk)) return 1;
     mim_error_t err = {0};
-    char msg[1024], *map_text = NULL;
     size_t len;
-    if (map_path && mim_file_read(map_path, 1 << 20, &map_text, &len, &err)) {
-        fprintf(stderr, "mimic pairs coverage: %s\n", mim_error_text(&err));
-        return 1;
-    }
     /* the true pose-pairs, prepared (triangulation, shape contexts) */
     mim_pair_prep_t *g = NULL, *sp = NULL;
     uint32_t m = 0;
     int status = 1;
     char *text = NULL;
     mim_pairs_samples_t smp = {0};
-    for (int t = 0; t < n_truth; t++) {
+    for (int t = 0; t < tk.n; t++) {
         double *fr = NULL;
         uint32_t nf = 0;
-        if (mim_cli_pairs_read(truth[t], map_text, unit, (uint32_t)every, (uint32_t)offset, &fr, &nf, NULL, msg,
-                               sizeof msg)) {
-            fprintf(stderr, "mimic pairs coverage: %s\n", msg);
-            goto done;
-        }
+        if (takes_read(&tk, t, &fr, &nf)) goto done;
         mim_pair_prep_t *grown = realloc(g, (size_t)(m + nf) * sizeof *g);
         if (!grown) {
             free(fr);
@@ -136,7 +178,7 @@ static int coverage(int argc, char **argv)
         g = grown;
         for (uint32_t i = 0; i < nf; i++)
             if (mim_pair_prepare(fr + (size_t)i * 3 * MIM_PAIR_JOINTS, &g[m + i], &err)) {
-                fprintf(stderr, "mimic pairs coverage: %s: frame %u: %s\n", truth[t], (unsigned)(offset + i * every),
+                fprintf(stderr, "mimic pairs coverage: %s: frame %u: %s\n", tk.spec[t], (unsigned)(tk.offset + i * tk.every),
                         mim_error_text(&err));
                 free(fr);
                 goto done;
@@ -186,7 +228,7 @@ static int coverage(int argc, char **argv)
     }
     status = 0;
 done:
-    free(g), free(sp), free(text), free(map_text);
+    free(g), free(sp), free(text), free(tk.map_text);
     mim_pairs_samples_free(&smp);
     return status;
 }
@@ -199,33 +241,18 @@ static int export_pairs(int argc, char **argv)
         {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
         {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
     };
-    const char *pairs[MAX_PAIRS], *outp = NULL, *map_path = NULL;
-    int n_pairs = 0, c;
-    uint64_t every = 1, offset = 0;
-    double unit = 0;
+    const char *outp = NULL;
+    takes_t tk = {.cmd = "pairs export", .every = 1};
+    int c, taken;
     optind = 0;
     opterr = 0;
     while ((c = getopt_long(argc, argv, "p:e:k:o:m:u:h", longopts, NULL)) != -1) {
+        if ((taken = takes_option(&tk, c, optarg))) {
+            if (taken < 0) return 2;
+            continue;
+        }
         switch (c) {
-        case 'p':
-            if (n_pairs == MAX_PAIRS) {
-                fprintf(stderr, "mimic pairs export: at most %d --pair takes\n", MAX_PAIRS);
-                return 2;
-            }
-            pairs[n_pairs++] = optarg;
-            break;
-        case 'e':
-            if (mim_cli_number("pairs export", "every", optarg, 1, 1000000, &every)) return 2;
-            break;
-        case 'k':
-            if (mim_cli_number("pairs export", "offset", optarg, 0, 100000000, &offset)) return 2;
-            break;
         case 'o': outp = optarg; break;
-        case 'm': map_path = optarg; break;
-        case 'u':
-            if (mim_cli_real("pairs export", "unit", optarg, 0.0, 1000.0, 1, "is not a number of metres per unit", &unit))
-                return 2;
-            break;
         case 'h': help(stdout); return 0;
         default:
             fprintf(stderr, "mimic pairs export: unknown or incomplete option '%s' (see mimic pairs --help)\n",
@@ -233,17 +260,11 @@ static int export_pairs(int argc, char **argv)
             return 2;
         }
     }
-    if (!n_pairs || !outp || optind < argc) {
+    if (!tk.n || !outp || optind < argc) {
         fprintf(stderr, "mimic pairs export: --pair A,B and -o FILE are required, and nothing else (see mimic pairs --help)\n");
         return 2;
     }
-    mim_error_t err = {0};
-    char msg[1024], *map_text = NULL;
-    size_t len;
-    if (map_path && mim_file_read(map_path, 1 << 20, &map_text, &len, &err)) {
-        fprintf(stderr, "mimic pairs export: %s\n", mim_error_text(&err));
-        return 1;
-    }
+    if (takes_begin(&tk)) return 1;
     /* the whole file in memory, then written atomically: nothing half-written */
     char *buf = NULL, *h = mim_pairs_jsonl_header();
     size_t blen = 0;
@@ -255,20 +276,16 @@ static int export_pairs(int argc, char **argv)
         goto done;
     }
     fprintf(mem, "%s\n", h);
-    for (int t = 0; t < n_pairs; t++) {
+    for (int t = 0; t < tk.n; t++) {
         double *fr = NULL;
         uint32_t nf = 0;
-        if (mim_cli_pairs_read(pairs[t], map_text, unit, (uint32_t)every, (uint32_t)offset, &fr, &nf, NULL, msg,
-                               sizeof msg)) {
-            fprintf(stderr, "mimic pairs export: %s\n", msg);
-            goto done;
-        }
+        if (takes_read(&tk, t, &fr, &nf)) goto done;
         for (uint32_t i = 0; i < nf; i++) {
             char *line = mim_pairs_jsonl_line(fr + (size_t)i * 3 * MIM_PAIR_JOINTS, NAN);
             int ok = line && fprintf(mem, "%s\n", line) > 0;
             free(line);
             if (!ok) {
-                fprintf(stderr, "mimic pairs export: out of memory at pose-pair %u of %s\n", i, pairs[t]);
+                fprintf(stderr, "mimic pairs export: out of memory at pose-pair %u of %s\n", i, tk.spec[t]);
                 free(fr);
                 goto done;
             }
@@ -278,26 +295,13 @@ static int export_pairs(int argc, char **argv)
     }
     fclose(mem);
     mem = NULL;
-    mim_file_part_t part = {buf, blen};
-    if (mim_file_write_atomic(outp, &part, 1, &err)) {
-        fprintf(stderr, "mimic pairs export: %s\n", mim_error_text(&err));
-        goto done;
-    }
+    if (write_text("export", outp, buf, blen)) goto done;
     fprintf(stderr, "mimic pairs export: %u pose-pairs to %s\n", total, outp);
     status = 0;
 done:
     if (mem) fclose(mem);
-    free(buf), free(h), free(map_text);
+    free(buf), free(h), free(tk.map_text);
     return status;
-}
-
-static int write_text(const char *cmd, const char *path, const char *text)
-{
-    mim_error_t err = {0};
-    mim_file_part_t part = {text, strlen(text)};
-    if (!mim_file_write_atomic(path, &part, 1, &err)) return 0;
-    fprintf(stderr, "mimic pairs %s: %s\n", cmd, mim_error_text(&err));
-    return -1;
 }
 
 static int annotate(int argc, char **argv)
@@ -310,27 +314,19 @@ static int annotate(int argc, char **argv)
         {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
         {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
     };
-    const char *pairs[MAX_PAIRS], *outp = NULL, *cams_path = NULL, *map_path = NULL;
-    int n_pairs = 0, c;
-    uint64_t every = 10, offset = 0, views = 1, seed = 1;
-    double noise = 2.0, unit = 0;
+    const char *outp = NULL, *cams_path = NULL;
+    takes_t tk = {.cmd = "pairs annotate", .every = 10};
+    int c, taken;
+    uint64_t views = 1, seed = 1;
+    double noise = 2.0;
     optind = 0;
     opterr = 0;
     while ((c = getopt_long(argc, argv, "p:e:k:v:n:S:o:c:m:u:h", longopts, NULL)) != -1) {
+        if ((taken = takes_option(&tk, c, optarg))) {
+            if (taken < 0) return 2;
+            continue;
+        }
         switch (c) {
-        case 'p':
-            if (n_pairs == MAX_PAIRS) {
-                fprintf(stderr, "mimic pairs annotate: at most %d --pair takes\n", MAX_PAIRS);
-                return 2;
-            }
-            pairs[n_pairs++] = optarg;
-            break;
-        case 'e':
-            if (mim_cli_number("pairs annotate", "every", optarg, 1, 1000000, &every)) return 2;
-            break;
-        case 'k':
-            if (mim_cli_number("pairs annotate", "offset", optarg, 0, 100000000, &offset)) return 2;
-            break;
         case 'v':
             if (mim_cli_number("pairs annotate", "views", optarg, 1, 1000, &views)) return 2;
             break;
@@ -343,11 +339,6 @@ static int annotate(int argc, char **argv)
             break;
         case 'o': outp = optarg; break;
         case 'c': cams_path = optarg; break;
-        case 'm': map_path = optarg; break;
-        case 'u':
-            if (mim_cli_real("pairs annotate", "unit", optarg, 0.0, 1000.0, 1, "is not a number of metres per unit", &unit))
-                return 2;
-            break;
         case 'h': help(stdout); return 0;
         default:
             fprintf(stderr, "mimic pairs annotate: unknown or incomplete option '%s' (see mimic pairs --help)\n",
@@ -355,30 +346,21 @@ static int annotate(int argc, char **argv)
             return 2;
         }
     }
-    if (!n_pairs || !outp || optind < argc) {
+    if (!tk.n || !outp || optind < argc) {
         fprintf(stderr, "mimic pairs annotate: --pair A,B and -o FILE are required, and nothing else (see mimic pairs --help)\n");
         return 2;
     }
-    mim_error_t err = {0};
-    char msg[1024], *map_text = NULL, *ann_text = NULL, *cam_text = NULL;
-    size_t len;
-    if (map_path && mim_file_read(map_path, 1 << 20, &map_text, &len, &err)) {
-        fprintf(stderr, "mimic pairs annotate: %s\n", mim_error_text(&err));
-        return 1;
-    }
+    if (takes_begin(&tk)) return 1;
+    char *ann_text = NULL, *cam_text = NULL;
     mim_pairs_annotations_t a = {0};
     mim_pairs_camera_t *cams = NULL;
     uint32_t cap = 0;
     int status = 1;
     a.width = 1920, a.height = 1080;
-    for (int t = 0; t < n_pairs; t++) {
+    for (int t = 0; t < tk.n; t++) {
         double *fr = NULL;
         uint32_t nf = 0;
-        if (mim_cli_pairs_read(pairs[t], map_text, unit, (uint32_t)every, (uint32_t)offset, &fr, &nf, NULL, msg,
-                               sizeof msg)) {
-            fprintf(stderr, "mimic pairs annotate: %s\n", msg);
-            goto done;
-        }
+        if (takes_read(&tk, t, &fr, &nf)) goto done;
         for (uint32_t i = 0; i < nf; i++)
             for (uint32_t v = 0; v < views; v++) {
                 if (a.n == cap) {
@@ -398,13 +380,14 @@ static int annotate(int argc, char **argv)
                         goto done;
                     }
                 }
-                uint32_t frame = (uint32_t)(offset + i * every);
+                uint32_t frame = (uint32_t)(tk.offset + i * tk.every);
                 /* one generator stream per (take, frame, view): the same seed, the same bytes */
                 mim_rng_t rng;
                 mim_rng_seed(&rng, seed, ((uint64_t)t << 48) ^ ((uint64_t)frame << 16) ^ v);
                 const double *joints = fr + (size_t)i * 3 * MIM_PAIR_JOINTS;
                 if (mim_pairs_camera_random(&rng, joints, &cams[a.n])) {
-                    fprintf(stderr, "mimic pairs annotate: %s: frame %u: no camera sees both people whole\n", pairs[t], frame);
+                    fprintf(stderr, "mimic pairs annotate: %s: frame %u: no camera sees both people whole\n", tk.spec[t],
+                            frame);
                     free(fr);
                     goto done;
                 }
@@ -416,20 +399,22 @@ static int annotate(int argc, char **argv)
             }
         free(fr);
     }
-    ann_text = mim_pairs_annotations_json(&a, pairs, (uint32_t)n_pairs);
+    ann_text = mim_pairs_annotations_json(&a, tk.spec, (uint32_t)tk.n);
     cam_text = cams_path ? mim_pairs_cameras_json(&a, cams) : NULL;
     if (!ann_text || (cams_path && !cam_text)) {
         fprintf(stderr, "mimic pairs annotate: cannot make the JSON (out of memory, or a path that is not UTF-8)\n");
         goto done;
     }
     /* the cameras first: a failure then leaves the annotations as they were */
-    if ((cams_path && write_text("annotate", cams_path, cam_text)) || write_text("annotate", outp, ann_text)) goto done;
+    if ((cams_path && write_text("annotate", cams_path, cam_text, strlen(cam_text))) ||
+        write_text("annotate", outp, ann_text, strlen(ann_text)))
+        goto done;
     fprintf(stderr, "mimic pairs annotate: %u annotations (%llu views of %u frames) to %s\n", a.n,
             (unsigned long long)views, (unsigned)(a.n / views), outp);
     status = 0;
 done:
     mim_pairs_annotations_free(&a);
-    free(cams), free(ann_text), free(cam_text), free(map_text);
+    free(cams), free(ann_text), free(cam_text), free(tk.map_text);
     return status;
 }
 

@@ -46,7 +46,7 @@ static int person(const char *path, const char *joint_map, double unit, mim_vest
 }
 
 int mim_cli_pairs_read(const char *spec, const char *joint_map, double unit, uint32_t every, uint32_t offset,
-                       double **frames, uint32_t *n_frames, uint32_t *n_take_frames, char *msg, size_t size)
+                       double **frames, uint32_t *n_frames, char *msg, size_t size)
 {
     char a[4096], *b;
     snprintf(a, sizeof a, "%s", spec);
@@ -95,7 +95,6 @@ int mim_cli_pairs_read(const char *spec, const char *joint_map, double unit, uin
         }
     }
     *frames = out, *n_frames = count;
-    if (n_take_frames) *n_take_frames = ma.n_frames;
     rc = 0;
 done:
     mim_vest_joint_motion_free(&ma);

@@ -10,6 +10,6 @@
  * joint_map: a --joint-map file's text or NULL; unit: metres per unit, or
  * 0 to guess it. On failure -1 with one line in msg (no "mimic" prefix). */
 int mim_cli_pairs_read(const char *spec, const char *joint_map, double unit, uint32_t every, uint32_t offset,
-                       double **frames, uint32_t *n_frames, uint32_t *n_take_frames, char *msg, size_t size);
+                       double **frames, uint32_t *n_frames, char *msg, size_t size);
 
 #endif

@@ -314,34 +314,67 @@ static void visit_registration(ctx_t *c, uint64_t id, const MDB_val *v, void *us
         reportf(c, "registrations", id, "registration %llu: missing from the source index", (unsigned long long)id);
 }
 
-static void check_by_source(ctx_t *c)
+/* A hash index (by_hash: content hash -> template; by_source: source hash
+ * -> registration): each entry well formed, naming a record that exists
+ * and carries that hash. lookup gives the record's hash and whether it
+ * decoded; 0 when there is none. */
+typedef struct {
+    int dbi;
+    const char *table, *label;  /* "by_hash", "hash index" */
+    const char *missing, *whose; /* "which is not stored", "whose hash is" */
+    int (*lookup)(ctx_t *c, uint64_t id, uint64_t *hash, int *bad);
+    uint64_t *count;
+} hash_index_t;
+
+static void check_hash_index(ctx_t *c, const hash_index_t *x)
 {
     MDB_cursor *cur;
     MDB_val k, v;
-    int rc = mdb_cursor_open(c->t->txn, c->t->db->dbi[DBI_BY_SOURCE], &cur);
+    int rc = mdb_cursor_open(c->t->txn, c->t->db->dbi[x->dbi], &cur);
     if (!rc) {
         for (rc = mdb_cursor_get(cur, &k, &v, MDB_FIRST); rc == 0; rc = mdb_cursor_get(cur, &k, &v, MDB_NEXT)) {
-            c->out->source_entries++;
+            (*x->count)++;
             step(c);
             size_t h, id;
             if (k.mv_size != sizeof h || v.mv_size != sizeof id) {
-                reportf(c, "by_source", 0, "source index: an entry of %zu + %zu bytes", k.mv_size, v.mv_size);
+                reportf(c, x->table, 0, "%s: an entry of %zu + %zu bytes", x->label, k.mv_size, v.mv_size);
                 continue;
             }
             memcpy(&h, k.mv_data, sizeof h);
             memcpy(&id, v.mv_data, sizeof id);
-            reg_t *r = find_reg(c, id);
-            if (!r)
-                reportf(c, "by_source", id, "source index: entry %016llx names template %llu, which has no registration",
-                        (unsigned long long)h, (unsigned long long)id);
-            else if (!r->bad && r->source_hash != h)
-                reportf(c, "by_source", id,
-                        "source index: entry %016llx names template %llu, registered from source %016llx",
-                        (unsigned long long)h, (unsigned long long)id, (unsigned long long)r->source_hash);
+            uint64_t have;
+            int bad;
+            if (!x->lookup(c, id, &have, &bad))
+                reportf(c, x->table, id, "%s: entry %016llx names template %llu, %s", x->label, (unsigned long long)h,
+                        (unsigned long long)id, x->missing);
+            else if (!bad && have != h)
+                reportf(c, x->table, id, "%s: entry %016llx names template %llu, %s %016llx", x->label,
+                        (unsigned long long)h, (unsigned long long)id, x->whose, (unsigned long long)have);
         }
         mdb_cursor_close(cur);
     }
-    if (rc != MDB_NOTFOUND) reportf(c, "by_source", 0, "source index: cannot be read (%s)", mdb_strerror(rc));
+    if (rc != MDB_NOTFOUND) reportf(c, x->table, 0, "%s: cannot be read (%s)", x->label, mdb_strerror(rc));
+}
+
+static int lookup_registration(ctx_t *c, uint64_t id, uint64_t *hash, int *bad)
+{
+    reg_t *r = find_reg(c, id);
+    if (r) *hash = r->source_hash, *bad = r->bad;
+    return r != NULL;
+}
+
+static int lookup_template(ctx_t *c, uint64_t id, uint64_t *hash, int *bad)
+{
+    tmpl_t *r = find_tmpl(c, id);
+    if (r) *hash = r->hash, *bad = r->bad;
+    return r != NULL;
+}
+
+static void check_by_source(ctx_t *c)
+{
+    hash_index_t x = {DBI_BY_SOURCE, "by_source", "source index", "which has no registration", "registered from source",
+                      lookup_registration, &c->out->source_entries};
+    check_hash_index(c, &x);
 }
 
 static void visit_binding(ctx_t *c, uint64_t key, const MDB_val *v, void *user)
@@ -356,31 +389,9 @@ static void visit_binding(ctx_t *c, uint64_t key, const MDB_val *v, void *user)
 
 static void check_by_hash(ctx_t *c)
 {
-    MDB_cursor *cur;
-    MDB_val k, v;
-    int rc = mdb_cursor_open(c->t->txn, c->t->db->dbi[DBI_BY_HASH], &cur);
-    if (!rc) {
-        for (rc = mdb_cursor_get(cur, &k, &v, MDB_FIRST); rc == 0; rc = mdb_cursor_get(cur, &k, &v, MDB_NEXT)) {
-            c->out->hash_entries++;
-            step(c);
-            size_t h, id;
-            if (k.mv_size != sizeof h || v.mv_size != sizeof id) {
-                reportf(c, "by_hash", 0, "hash index: an entry of %zu + %zu bytes", k.mv_size, v.mv_size);
-                continue;
-            }
-            memcpy(&h, k.mv_data, sizeof h);
-            memcpy(&id, v.mv_data, sizeof id);
-            tmpl_t *r = find_tmpl(c, id);
-            if (!r)
-                reportf(c, "by_hash", id, "hash index: entry %016llx names template %llu, which is not stored",
-                        (unsigned long long)h, (unsigned long long)id);
-            else if (!r->bad && r->hash != h)
-                reportf(c, "by_hash", id, "hash index: entry %016llx names template %llu, whose hash is %016llx",
-                        (unsigned long long)h, (unsigned long long)id, (unsigned long long)r->hash);
-        }
-        mdb_cursor_close(cur);
-    }
-    if (rc != MDB_NOTFOUND) reportf(c, "by_hash", 0, "hash index: cannot be read (%s)", mdb_strerror(rc));
+    hash_index_t x = {DBI_BY_HASH, "by_hash", "hash index", "which is not stored", "whose hash is", lookup_template,
+                      &c->out->hash_entries};
+    check_hash_index(c, &x);
 }
 
 static void check_index(ctx_t *c, const mim_db_meta_t *meta)

@@ -1,7 +1,7 @@
 /* 2D pose-pair annotations and their cameras as JSON
  * (schemas/pair-annotations.schema.json, schemas/pair-cameras.schema.json):
  * built and read here, once. */
-#include "mim_sample.h"
+#include "internal.h"
 
 #include <jansson.h>
 #include <math.h>
@@ -9,7 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-static json_t *joint_names(void)
+json_t *mim__pairs_joint_labels(void)
 {
     json_t *names = json_array();
     char name[48];
@@ -37,7 +37,7 @@ char *mim_pairs_annotations_json(const mim_pairs_annotations_t *a, const char *c
                                               (json_int_t)a->frame[i], "view", (json_int_t)a->view[i], "points", pts));
     }
     json_t *root = json_pack("{s:s, s:o, s:[I, I], s:o, s:o}", "format", "mimic pair annotations 1", "joints",
-                             joint_names(), "image", (json_int_t)a->width, (json_int_t)a->height, "takes", tk,
+                             mim__pairs_joint_labels(), "image", (json_int_t)a->width, (json_int_t)a->height, "takes", tk,
                              "annotations", list);
     char *txt = root ? json_dumps(root, JSON_COMPACT | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(7)) : NULL;
     json_decref(root);
@@ -83,7 +83,7 @@ int mim_pairs_annotations_parse(const char *text, size_t len, const char *origin
     const char *fmt = json_string_value(json_object_get(root, "format"));
     json_t *names = json_object_get(root, "joints"), *img = json_object_get(root, "image"),
            *list = json_object_get(root, "annotations"), *takes = json_object_get(root, "takes");
-    json_t *ref = joint_names();
+    json_t *ref = mim__pairs_joint_labels();
     if (!fmt || strcmp(fmt, "mimic pair annotations 1"))
         rc = mim_error_set(err, MIM_EFORMAT, "%s: not mimic pair annotations (\"format\" is not \"mimic pair annotations 1\")", origin);
     else if (!json_equal(names, ref))

@@ -1,7 +1,7 @@
 /* Pose-pair samples as JSON lines (schemas/pair-samples.md): a header line
  * naming the 34 joints, then one pose-pair per line, so that a long run
  * can be read (and appended to) line by line. Written and read here, once. */
-#include "mim_sample.h"
+#include "internal.h"
 
 #include <jansson.h>
 #include <math.h>
@@ -11,13 +11,7 @@
 
 char *mim_pairs_jsonl_header(void)
 {
-    json_t *names = json_array();
-    char name[48];
-    for (int p = 0; p < 2; p++)
-        for (int k = 0; k < MIM_PAIR_PERSON_JOINTS; k++) {
-            snprintf(name, sizeof name, "%c.%s", p ? 'B' : 'A', mim_sample_joint_names[k]);
-            json_array_append_new(names, json_string(name));
-        }
+    json_t *names = mim__pairs_joint_labels();
     json_t *h = json_pack("{s:s, s:o, s:s}", "format", "mimic pair samples 1", "joints", names, "units", "metres");
     char *txt = h ? json_dumps(h, JSON_COMPACT | JSON_PRESERVE_ORDER) : NULL;
     json_decref(h);
@@ -58,16 +52,17 @@ static int parse_header(const char *line, size_t len, const char *origin, long l
     else if (!json_is_array(names) || json_array_size(names) != MIM_PAIR_JOINTS)
         rc = mim_error_set(err, MIM_EFORMAT, "%s:%ld: the header names %zu joints, not %d", origin, ln,
                            json_is_array(names) ? json_array_size(names) : (size_t)0, MIM_PAIR_JOINTS);
-    else
+    else {
+        json_t *want = mim__pairs_joint_labels();
         for (int i = 0; i < MIM_PAIR_JOINTS && !rc; i++) {
-            char want[48];
-            snprintf(want, sizeof want, "%c.%s", i < MIM_PAIR_PERSON_JOINTS ? 'A' : 'B',
-                     mim_sample_joint_names[i % MIM_PAIR_PERSON_JOINTS]);
             const char *got = json_string_value(json_array_get(names, (size_t)i));
-            if (!got || strcmp(got, want))
-                rc = mim_error_set(err, MIM_EFORMAT, "%s:%ld: joint %d is \"%s\", not \"%s\"", origin, ln, i, got ? got : "?",
-                                   want);
+            const char *w = json_string_value(json_array_get(want, (size_t)i));
+            if (!got || !w || strcmp(got, w))
+                rc = mim_error_set(err, MIM_EFORMAT, "%s:%ld: joint %d is \"%s\", not \"%s\"", origin, ln, i,
+                                   got ? got : "?", w ? w : "?");
         }
+        json_decref(want);
+    }
     json_decref(h);
     return rc;
 }

@@ -12,6 +12,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #define FRAMES 10
 #define UNIT (0.0254 / 0.45) /* CMU's: a person ~30 units tall is taken for it */
@@ -40,12 +41,15 @@ static void rest(int j, double p[3])
 
 static double root_x(int person, int f) { return person ? 12.0 - 0.2 * f : 0.3 * f; }
 
+/* write_bvh_scaled's scale of the skeleton and shift of person B's root (units) */
+static double g_scale = 1.0, g_shift = 0.0;
+
 static void block(FILE *fp, int j, int depth)
 {
     for (int i = 0; i < depth; i++) fputc('\t', fp);
     fprintf(fp, "%s %s\n", j ? "JOINT" : "ROOT", skel[j].name);
     for (int i = 0; i < depth; i++) fputc('\t', fp);
-    fprintf(fp, "{\nOFFSET %g %g %g\n", skel[j].off[0], skel[j].off[1], skel[j].off[2]);
+    fprintf(fp, "{\nOFFSET %g %g %g\n", g_scale * skel[j].off[0], g_scale * skel[j].off[1], g_scale * skel[j].off[2]);
     fprintf(fp, j ? "CHANNELS 3 Zrotation Yrotation Xrotation\n"
                   : "CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation\n");
     int kids = 0;
@@ -65,7 +69,7 @@ static char *write_bvh(const char *name, int person, int frames, double ft)
     block(fp, 0, 0);
     fprintf(fp, "MOTION\nFrames: %d\nFrame Time: %g\n", frames, ft);
     for (int f = 0; f < frames; f++) {
-        fprintf(fp, "%g %g %g", root_x(person, f), 16.0, person ? 3.0 : 0.0);
+        fprintf(fp, "%g %g %g", root_x(person, f) + (person ? g_shift : 0.0), 16.0, person ? 3.0 : 0.0);
         for (int k = 0; k < 3 + 3 * (NJ - 1); k++) fprintf(fp, " 0");
         fprintf(fp, "\n");
     }
@@ -391,8 +395,33 @@ static void test_bad_input(void **s)
     expect_fail(c6, 2, "unknown subcommand 'frobnicate'");
     const char *c7[] = {"pairs", "coverage", "--truth", spec, "--samples", smp, "--unit", "-1", NULL};
     expect_fail(c7, 2, "--unit '-1'");
-    /* a unit that cannot be guessed: a person 300 units tall */
-    (void)c7;
+    /* a unit that cannot be guessed: people ten times CMU's size (about
+     * 300 units tall), unless --unit gives it */
+    g_scale = 10.0;
+    char *ta = write_bvh("tall_a.bvh", 0, FRAMES, 1.0 / 120), *tb = write_bvh("tall_b.bvh", 1, FRAMES, 1.0 / 120);
+    g_scale = 1.0;
+    char tall[8192];
+    snprintf(tall, sizeof tall, "%s,%s", ta, tb);
+    const char *c8[] = {"pairs", "coverage", "--truth", tall, "--samples", smp, NULL};
+    expect_fail(c8, 1, "tall_a.bvh: cannot tell the unit: the person spans 255 units from head to ankles; give --unit");
+    const char *c9[] = {"pairs", "coverage", "--truth", tall, "--samples", smp, "--unit", "0.005", NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, c9), 0);
+    free(o), free(e);
+    /* people 100 m apart: no camera of annotate sees both */
+    g_shift = 1800.0;
+    char *fb = write_bvh("far_b.bvh", 1, FRAMES, 1.0 / 120);
+    g_shift = 0.0;
+    char far[8192];
+    snprintf(far, sizeof far, "%s,%s", a, fb);
+    char *ann = ts_path(dir, "far.json");
+    const char *c10[] = {"pairs", "annotate", "--pair", far, "-o", ann, NULL};
+    char *want_far = NULL;
+    assert_true(asprintf(&want_far, "%s: frame 0: no camera sees both people whole", far) > 0);
+    char *o2 = NULL, *e2 = NULL;
+    assert_int_equal(ts_run_mimic(&o2, &e2, c10), 1);
+    if (!strstr(e2, want_far)) fail_msg("far apart: %s", e2);
+    assert_int_equal(access(ann, F_OK), -1); /* nothing written */
+    free(o2), free(e2), free(want_far), free(ann), free(fb), free(ta), free(tb);
     free(a), free(short_b), free(slow_b), free(b), free(smp), free(renamed), free(map), free(bad), free(h);
 }
 

@@ -268,6 +268,27 @@ static int free_udp_port(void)
     return port;
 }
 
+/* mimic serve with a UDP vest on a free port (its spec into spec), started
+ * and listening; files named after tag. Returns the UDP port. */
+static int serve_on_udp(ss_svc_t *U, const char *tag, char *spec, size_t size)
+{
+    int up = free_udp_port();
+    assert_true(up > 0);
+    snprintf(spec, size, "udp:127.0.0.1:%d", up);
+    char name[64];
+    snprintf(name, sizeof name, "%s.serve.out", tag), U->sout = ts_path(dir, name);
+    snprintf(name, sizeof name, "%s.serve.err", tag), U->serr = ts_path(dir, name);
+    snprintf(name, sizeof name, "%s.vest.out", tag), U->vout = ts_path(dir, name);
+    snprintf(name, sizeof name, "%s.vest.err", tag), U->verr = ts_path(dir, name);
+    const char *sargs[] = {"serve", "--store", store, "--avatar", "1", "--vest", spec, "--listen", "127.0.0.1:0", NULL};
+    U->server = ss_spawn(sargs, U->sout, U->serr);
+    char *t = ss_wait_line(U->sout, "http://127.0.0.1:", U->server, 120);
+    assert_non_null(t);
+    U->port = atoi(strrchr(t, ':') + 1);
+    free(t);
+    return up;
+}
+
 /* The seconds in "... no data for N s" (-1 if the error says no such thing). */
 static double silent_for(json_t *st)
 {
@@ -279,19 +300,9 @@ static double silent_for(json_t *st)
 static void test_udp_vest_stops(void **state)
 {
     (void)state;
-    int up = free_udp_port();
-    assert_true(up > 0);
-    char spec[64];
-    snprintf(spec, sizeof spec, "udp:127.0.0.1:%d", up);
     ss_svc_t U = {0};
-    U.sout = ts_path(dir, "u.serve.out"), U.serr = ts_path(dir, "u.serve.err");
-    U.vout = ts_path(dir, "u.vest.out"), U.verr = ts_path(dir, "u.vest.err");
-    const char *sargs[] = {"serve", "--store", store, "--avatar", "1", "--vest", spec, "--listen", "127.0.0.1:0", NULL};
-    U.server = ss_spawn(sargs, U.sout, U.serr);
-    char *t = ss_wait_line(U.sout, "http://127.0.0.1:", U.server, 120);
-    assert_non_null(t);
-    U.port = atoi(strrchr(t, ':') + 1);
-    free(t);
+    char spec[64];
+    serve_on_udp(&U, "u", spec, sizeof spec);
     char *bodies = ts_path(dir, "bodies"), *avatar = ts_path(bodies, "synth_s00_p00.ply"),
          *map = ts_path(bodies, "landmarks.json");
     const char *vargs[] = {"vest", "simulate", "--motion", "demo", "--loop", "--out", spec, "--avatar", avatar,
@@ -407,18 +418,9 @@ static void run_demo(const char *ddir, int check_live)
 static void test_lost_landmarks_completed(void **state)
 {
     (void)state;
-    int up = free_udp_port();
-    assert_true(up > 0);
-    char spec[64];
-    snprintf(spec, sizeof spec, "udp:127.0.0.1:%d", up);
     ss_svc_t U = {0};
-    U.sout = ts_path(dir, "c.serve.out"), U.serr = ts_path(dir, "c.serve.err");
-    const char *sargs[] = {"serve", "--store", store, "--avatar", "1", "--vest", spec, "--listen", "127.0.0.1:0", NULL};
-    U.server = ss_spawn(sargs, U.sout, U.serr);
-    char *t = ss_wait_line(U.sout, "http://127.0.0.1:", U.server, 120);
-    assert_non_null(t);
-    U.port = atoi(strrchr(t, ':') + 1);
-    free(t);
+    char spec[64];
+    int up = serve_on_udp(&U, "c", spec, sizeof spec);
     /* the landmarks of a stored body, 3 of them lost */
     char *bodies = ts_path(dir, "bodies"), *body = ts_path(bodies, "synth_s01_p02.ply"),
          *map_path = ts_path(bodies, "landmarks.json");

@@ -2,6 +2,8 @@
  * subdivision and random renumbering. Decimation is in decimate.cpp. */
 #include "retriangulate.h"
 
+#include <math.h>
+
 #include <stdlib.h>
 #include <string.h>
 
@@ -142,4 +144,44 @@ int rt_shuffle(const mim_mesh_t *in, uint64_t seed, mim_mesh_t *out, uint32_t *n
         memcpy(new_of_old, nofo, (size_t)nv * sizeof *nofo);
     free(old_of_new), free(nofo), free(face_order);
     return 0;
+}
+
+/* ---- measuring a registration against the truth ---- */
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+int rt_correspondence(const float *a, const float *b, uint32_t count, double *mean_mm, double *p95_mm)
+{
+    double *d = malloc((count ? count : 1) * sizeof *d), sum = 0;
+    if (!d) return MIM_ENOMEM;
+    for (uint32_t i = 0; i < count; i++) {
+        double s = 0;
+        for (int c = 0; c < 3; c++) s += ((double)a[3 * i + c] - b[3 * i + c]) * ((double)a[3 * i + c] - b[3 * i + c]);
+        d[i] = 1000.0 * sqrt(s), sum += d[i];
+    }
+    qsort(d, count, sizeof *d, cmp_double);
+    *mean_mm = count ? sum / count : 0, *p95_mm = count ? d[(size_t)floor(0.95 * (count - 1))] : 0;
+    free(d);
+    return 0;
+}
+
+int rt_target(const mim_mesh_t *truth, int how, uint64_t seed, mim_mesh_t *target)
+{
+    mim_mesh_t mid = {0};
+    memset(target, 0, sizeof *target);
+    int rc = how == 0 ? rt_subdivide(truth, &mid) : rt_decimate(truth, (uint32_t)(0.4 * truth->n_vertices), &mid);
+    if (!rc) rc = rt_shuffle(&mid, seed, target, NULL);
+    mim_mesh_free(&mid);
+    return rc;
+}
+
+void rt_tetrahedron(float *pos, uint32_t *faces, uint32_t base, float x0)
+{
+    const float p[12] = {0, 0, 0, 0.5f, 0, 0, 0, 1.6f, 0, 0, 0, 0.3f};
+    for (int i = 0; i < 12; i++) pos[i] = p[i] + (i % 3 == 0 ? x0 : 0);
+    const uint32_t t[12] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+    for (int i = 0; i < 12; i++) faces[i] = t[i] + base;
 }

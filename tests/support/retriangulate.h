@@ -47,6 +47,18 @@ int rt_decimate(const mim_mesh_t *in, uint32_t target_vertices, mim_mesh_t *out)
  * whose position it keeps exactly. On failure *orig_of_new is NULL. */
 int rt_decimate_map(const mim_mesh_t *in, uint32_t target_vertices, mim_mesh_t *out, uint32_t **orig_of_new);
 
+/* ---- measuring registrations (register/'s tests and benches) ---- */
+/* Per-vertex distance (mm) of a to b, count vertices: the mean and the p95
+ * (the registration report's quantile). 0 or MIM_ENOMEM. */
+int rt_correspondence(const float *a, const float *b, uint32_t count, double *mean_mm, double *p95_mm);
+/* A registration target made from a truth body: how 0 subdivided 1->4,
+ * 1 decimated to about 40 %; then in a random vertex order (seed). */
+int rt_target(const mim_mesh_t *truth, int how, uint64_t seed, mim_mesh_t *target);
+/* A closed tetrahedron, 1.6 m tall, at x0: 4 positions (12 floats) and 4
+ * triangles (12 indices, counted from base): a small body-sized mesh, and
+ * two of them a mesh in two pieces. */
+void rt_tetrahedron(float *pos, uint32_t *faces, uint32_t base, float x0);
+
 #ifdef __cplusplus
 }
 #endif
