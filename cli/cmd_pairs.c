@@ -427,6 +427,8 @@ int mim_cmd_pairs(int argc, char **argv)
     if (!strcmp(argv[1], "coverage")) return coverage(argc - 1, argv + 1);
     if (!strcmp(argv[1], "export")) return export_pairs(argc - 1, argv + 1);
     if (!strcmp(argv[1], "annotate")) return annotate(argc - 1, argv + 1);
+    if (!strcmp(argv[1], "sample")) return mim_cmd_pairs_sample(argc - 1, argv + 1);
+    if (!strcmp(argv[1], "templates")) return mim_cmd_pairs_templates(argc - 1, argv + 1);
     fprintf(stderr, "mimic pairs: unknown subcommand '%s' (see mimic pairs --help)\n", argv[1]);
     return 2;
 }

@@ -19,5 +19,7 @@ int mim_cmd_demo(int argc, char **argv);
 int mim_cmd_register(int argc, char **argv);
 int mim_cmd_pairs(int argc, char **argv);
 int mim_cmd_complete(int argc, char **argv);
+int mim_cmd_pairs_sample(int argc, char **argv);    /* mimic pairs sample */
+int mim_cmd_pairs_templates(int argc, char **argv); /* mimic pairs templates */
 
 #endif

@@ -1,0 +1,2 @@
+/* placeholder: being written */
+#include "mim_sampler.h"
