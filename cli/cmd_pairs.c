@@ -14,8 +14,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define MAX_PAIRS 64
-
 static void help(FILE *out)
 {
     fprintf(out,
@@ -24,7 +22,7 @@ static void help(FILE *out)
             "       mimic pairs export --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K]\n"
             "                          [--joint-map FILE.json] [--unit M] -o FRAMES.jsonl\n"
             "       mimic pairs annotate --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K] [--views V]\n"
-            "                            [--noise-px P] [--seed S] [--joint-map FILE.json] [--unit M]\n"
+            "                            [--video] [--noise-px P] [--seed S] [--joint-map FILE.json] [--unit M]\n"
             "                            -o ANN.json [--cameras CAMS.json]\n\n"
             "Two-person pose-pairs (seed 002, Yin et al.). A pose-pair is two people's 17 joints each\n"
             "(the 16 landmarks and the neck) in one world frame, read from the two motion files of one\n"
@@ -45,78 +43,17 @@ static void help(FILE *out)
             "             length 1000 to 1800 pixels, the whole pair in view), with Gaussian pixel\n"
             "             noise of P pixels (default 2) on every joint\n"
             "             (schemas/pair-annotations.schema.json); the true cameras go to --cameras\n"
-            "             (schemas/pair-cameras.schema.json). The same --seed gives the same bytes.\n\n"
+            "             (schemas/pair-cameras.schema.json). --video: each view is one camera's video\n"
+            "             of the take instead, which follows the pair at its distance and direction (a\n"
+            "             frame it cannot see whole starts a new shot with a new camera); the sampler\n"
+            "             takes its proposal's motion (eq. 12) from consecutive frames of a shot.\n"
+            "             The same --seed gives the same bytes.\n\n"
             "  --every N          every N-th frame (default 1; annotate: 10)\n"
             "  --offset K         from frame K (default 0)\n"
             "  --unit M           metres per file unit (default: guessed from the people's size)\n"
             "  --json             {\"truth\": m, \"samples\": n, \"D_I\": ..., \"D_C\": ..., \"D_S\": ...}\n"
             "  -h, --help         this help\n\n"
             "Exit status: 0 done, 1 an input failed (a motion file, joints, samples), 2 bad usage.\n");
-}
-
-/* What every pairs command takes: the takes (--pair, or --truth for
- * coverage), which of their frames (--every, --offset), and how to read
- * them (--joint-map, --unit). Parsed and read here, once. */
-typedef struct takes {
-    const char *cmd; /* "pairs coverage" ... */
-    const char *spec[MAX_PAIRS];
-    int n;
-    uint64_t every, offset;
-    double unit;
-    const char *map_path;
-    char *map_text;
-} takes_t;
-
-/* Option c with its argument, when it is one of the above: 1 taken, -1
- * after printing a usage error, 0 not one of them. */
-static int takes_option(takes_t *t, int c, const char *arg)
-{
-    switch (c) {
-    case 'p':
-        if (t->n == MAX_PAIRS) {
-            fprintf(stderr, "mimic %s: at most %d takes\n", t->cmd, MAX_PAIRS);
-            return -1;
-        }
-        t->spec[t->n++] = arg;
-        return 1;
-    case 'e': return mim_cli_number(t->cmd, "every", arg, 1, 1000000, &t->every) ? -1 : 1;
-    case 'k': return mim_cli_number(t->cmd, "offset", arg, 0, 100000000, &t->offset) ? -1 : 1;
-    case 'm': t->map_path = arg; return 1;
-    case 'u':
-        return mim_cli_real(t->cmd, "unit", arg, 0.0, 1000.0, 1, "is not a number of metres per unit", &t->unit) ? -1 : 1;
-    default: return 0;
-    }
-}
-
-/* Reads the joint map, if one was given: 0, or 1 after printing. */
-static int takes_begin(takes_t *t)
-{
-    mim_error_t err = {0};
-    size_t len;
-    if (!t->map_path || !mim_file_read(t->map_path, 1 << 20, &t->map_text, &len, &err)) return 0;
-    fprintf(stderr, "mimic %s: %s\n", t->cmd, mim_error_text(&err));
-    return 1;
-}
-
-/* The chosen frames of take i as pose-pairs (mim_cli_pairs_read): 0, or
- * -1 after printing. */
-static int takes_read(const takes_t *t, int i, double **frames, uint32_t *n)
-{
-    char msg[1024];
-    if (!mim_cli_pairs_read(t->spec[i], t->map_text, t->unit, (uint32_t)t->every, (uint32_t)t->offset, frames, n, msg,
-                            sizeof msg))
-        return 0;
-    fprintf(stderr, "mimic %s: %s\n", t->cmd, msg);
-    return -1;
-}
-
-static int write_text(const char *cmd, const char *path, const void *text, size_t len)
-{
-    mim_error_t err = {0};
-    mim_file_part_t part = {text, len};
-    if (!mim_file_write_atomic(path, &part, 1, &err)) return 0;
-    fprintf(stderr, "mimic pairs %s: %s\n", cmd, mim_error_text(&err));
-    return -1;
 }
 
 static int coverage(int argc, char **argv)
@@ -129,12 +66,12 @@ static int coverage(int argc, char **argv)
         {0, 0, 0, 0},
     };
     const char *samples_path = NULL;
-    takes_t tk = {.cmd = "pairs coverage", .every = 1};
+    mim_cli_takes_t tk = {.cmd = "pairs coverage", .every = 1};
     int as_json = 0, c, taken;
     optind = 0;
     opterr = 0;
     while ((c = getopt_long(argc, argv, "p:e:k:s:m:u:jh", longopts, NULL)) != -1) {
-        if ((taken = takes_option(&tk, c, optarg))) {
+        if ((taken = mim_cli_takes_option(&tk, c, optarg))) {
             if (taken < 0) return 2;
             continue;
         }
@@ -156,7 +93,7 @@ static int coverage(int argc, char **argv)
         fprintf(stderr, "mimic pairs coverage: unexpected argument '%s'\n", argv[optind]);
         return 2;
     }
-    if (takes_begin(&tk)) return 1;
+    if (mim_cli_takes_begin(&tk)) return 1;
     mim_error_t err = {0};
     size_t len;
     /* the true pose-pairs, prepared (triangulation, shape contexts) */
@@ -168,7 +105,7 @@ static int coverage(int argc, char **argv)
     for (int t = 0; t < tk.n; t++) {
         double *fr = NULL;
         uint32_t nf = 0;
-        if (takes_read(&tk, t, &fr, &nf)) goto done;
+        if (mim_cli_takes_read(&tk, t, &fr, &nf)) goto done;
         mim_pair_prep_t *grown = realloc(g, (size_t)(m + nf) * sizeof *g);
         if (!grown) {
             free(fr);
@@ -242,12 +179,12 @@ static int export_pairs(int argc, char **argv)
         {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
     };
     const char *outp = NULL;
-    takes_t tk = {.cmd = "pairs export", .every = 1};
+    mim_cli_takes_t tk = {.cmd = "pairs export", .every = 1};
     int c, taken;
     optind = 0;
     opterr = 0;
     while ((c = getopt_long(argc, argv, "p:e:k:o:m:u:h", longopts, NULL)) != -1) {
-        if ((taken = takes_option(&tk, c, optarg))) {
+        if ((taken = mim_cli_takes_option(&tk, c, optarg))) {
             if (taken < 0) return 2;
             continue;
         }
@@ -264,43 +201,17 @@ static int export_pairs(int argc, char **argv)
         fprintf(stderr, "mimic pairs export: --pair A,B and -o FILE are required, and nothing else (see mimic pairs --help)\n");
         return 2;
     }
-    if (takes_begin(&tk)) return 1;
-    /* the whole file in memory, then written atomically: nothing half-written */
-    char *buf = NULL, *h = mim_pairs_jsonl_header();
-    size_t blen = 0;
-    FILE *mem = open_memstream(&buf, &blen);
-    int status = 1;
+    if (mim_cli_takes_begin(&tk)) return 1;
+    double *frames = NULL;
     uint32_t total = 0;
-    if (!mem || !h) {
-        fprintf(stderr, "mimic pairs export: out of memory\n");
+    int status = 1;
+    if (mim_cli_takes_read_all(&tk, &frames, &total) ||
+        mim_cli_pairs_write_samples("pairs export", outp, frames, NULL, total))
         goto done;
-    }
-    fprintf(mem, "%s\n", h);
-    for (int t = 0; t < tk.n; t++) {
-        double *fr = NULL;
-        uint32_t nf = 0;
-        if (takes_read(&tk, t, &fr, &nf)) goto done;
-        for (uint32_t i = 0; i < nf; i++) {
-            char *line = mim_pairs_jsonl_line(fr + (size_t)i * 3 * MIM_PAIR_JOINTS, NAN);
-            int ok = line && fprintf(mem, "%s\n", line) > 0;
-            free(line);
-            if (!ok) {
-                fprintf(stderr, "mimic pairs export: out of memory at pose-pair %u of %s\n", i, tk.spec[t]);
-                free(fr);
-                goto done;
-            }
-        }
-        total += nf;
-        free(fr);
-    }
-    fclose(mem);
-    mem = NULL;
-    if (write_text("export", outp, buf, blen)) goto done;
     fprintf(stderr, "mimic pairs export: %u pose-pairs to %s\n", total, outp);
     status = 0;
 done:
-    if (mem) fclose(mem);
-    free(buf), free(h), free(tk.map_text);
+    free(frames), free(tk.map_text);
     return status;
 }
 
@@ -312,17 +223,19 @@ static int annotate(int argc, char **argv)
         {"noise-px", required_argument, 0, 'n'},  {"seed", required_argument, 0, 'S'},
         {"output", required_argument, 0, 'o'},    {"cameras", required_argument, 0, 'c'},
         {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
-        {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
+        {"video", no_argument, 0, 'V'},           {"help", no_argument, 0, 'h'},
+        {0, 0, 0, 0},
     };
     const char *outp = NULL, *cams_path = NULL;
-    takes_t tk = {.cmd = "pairs annotate", .every = 10};
+    int video = 0;
+    mim_cli_takes_t tk = {.cmd = "pairs annotate", .every = 10};
     int c, taken;
     uint64_t views = 1, seed = 1;
     double noise = 2.0;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "p:e:k:v:n:S:o:c:m:u:h", longopts, NULL)) != -1) {
-        if ((taken = takes_option(&tk, c, optarg))) {
+    while ((c = getopt_long(argc, argv, "p:e:k:v:n:S:o:c:m:u:Vh", longopts, NULL)) != -1) {
+        if ((taken = mim_cli_takes_option(&tk, c, optarg))) {
             if (taken < 0) return 2;
             continue;
         }
@@ -339,6 +252,7 @@ static int annotate(int argc, char **argv)
             break;
         case 'o': outp = optarg; break;
         case 'c': cams_path = optarg; break;
+        case 'V': video = 1; break;
         case 'h': help(stdout); return 0;
         default:
             fprintf(stderr, "mimic pairs annotate: unknown or incomplete option '%s' (see mimic pairs --help)\n",
@@ -350,17 +264,26 @@ static int annotate(int argc, char **argv)
         fprintf(stderr, "mimic pairs annotate: --pair A,B and -o FILE are required, and nothing else (see mimic pairs --help)\n");
         return 2;
     }
-    if (takes_begin(&tk)) return 1;
+    if (mim_cli_takes_begin(&tk)) return 1;
     char *ann_text = NULL, *cam_text = NULL;
     mim_pairs_annotations_t a = {0};
-    mim_pairs_camera_t *cams = NULL;
-    uint32_t cap = 0;
+    mim_pairs_camera_t *cams = NULL, *shot_cam = NULL;
+    uint32_t *shot_of = NULL; /* per view: its current shot, and the shot's camera */
+    uint32_t cap = 0, shots = 0;
     int status = 1;
     a.width = 1920, a.height = 1080;
     for (int t = 0; t < tk.n; t++) {
         double *fr = NULL;
         uint32_t nf = 0;
-        if (takes_read(&tk, t, &fr, &nf)) goto done;
+        if (mim_cli_takes_read(&tk, t, &fr, &nf)) goto done;
+        free(shot_cam), free(shot_of);
+        shot_cam = calloc(views, sizeof *shot_cam), shot_of = malloc(views * sizeof *shot_of);
+        if (!shot_cam || !shot_of) {
+            free(fr);
+            fprintf(stderr, "mimic pairs annotate: out of memory for %llu views\n", (unsigned long long)views);
+            goto done;
+        }
+        for (uint32_t v = 0; v < views; v++) shot_of[v] = MIM_PAIRS_NO_SHOT;
         for (uint32_t i = 0; i < nf; i++)
             for (uint32_t v = 0; v < views; v++) {
                 if (a.n == cap) {
@@ -370,6 +293,9 @@ static int annotate(int argc, char **argv)
                     if (t1) a.take = t1;
                     if (t2) a.frame = t2;
                     if (t3) a.view = t3;
+                    uint32_t *t4 = t3 ? realloc(a.shot, cap * sizeof *t4) : NULL;
+                    if (t4) a.shot = t4;
+                    t3 = t4 ? t3 : NULL;
                     double *pp = t3 ? realloc(a.points, (size_t)cap * 2 * MIM_PAIR_JOINTS * sizeof *pp) : NULL;
                     if (pp) a.points = pp;
                     mim_pairs_camera_t *cc = pp ? realloc(cams, cap * sizeof *cc) : NULL;
@@ -385,16 +311,22 @@ static int annotate(int argc, char **argv)
                 mim_rng_t rng;
                 mim_rng_seed(&rng, seed, ((uint64_t)t << 48) ^ ((uint64_t)frame << 16) ^ v);
                 const double *joints = fr + (size_t)i * 3 * MIM_PAIR_JOINTS;
-                if (mim_pairs_camera_random(&rng, joints, &cams[a.n])) {
+                /* a video's camera follows the pair; one that loses it ends its shot */
+                if (video && shot_of[v] != MIM_PAIRS_NO_SHOT && mim_pairs_camera_follow(&shot_cam[v], joints)) {
+                    cams[a.n] = shot_cam[v];
+                } else if (mim_pairs_camera_random(&rng, joints, &cams[a.n])) {
                     fprintf(stderr, "mimic pairs annotate: %s: frame %u: no camera sees both people whole\n", tk.spec[t],
                             frame);
                     free(fr);
                     goto done;
+                } else {
+                    shot_cam[v] = cams[a.n];
+                    shot_of[v] = video ? shots++ : MIM_PAIRS_NO_SHOT;
                 }
                 double *uv = a.points + (size_t)a.n * 2 * MIM_PAIR_JOINTS;
                 mim_pairs_project(&cams[a.n], joints, uv);
                 for (int k = 0; k < 2 * MIM_PAIR_JOINTS; k++) uv[k] += noise * mim_rng_gauss(&rng);
-                a.take[a.n] = (uint32_t)t, a.frame[a.n] = frame, a.view[a.n] = v;
+                a.take[a.n] = (uint32_t)t, a.frame[a.n] = frame, a.view[a.n] = v, a.shot[a.n] = shot_of[v];
                 a.n++;
             }
         free(fr);
@@ -406,14 +338,15 @@ static int annotate(int argc, char **argv)
         goto done;
     }
     /* the cameras first: a failure then leaves the annotations as they were */
-    if ((cams_path && write_text("annotate", cams_path, cam_text, strlen(cam_text))) ||
-        write_text("annotate", outp, ann_text, strlen(ann_text)))
+    if ((cams_path && mim_cli_pairs_write("pairs annotate", cams_path, cam_text, strlen(cam_text))) ||
+        mim_cli_pairs_write("pairs annotate", outp, ann_text, strlen(ann_text)))
         goto done;
     fprintf(stderr, "mimic pairs annotate: %u annotations (%llu views of %u frames) to %s\n", a.n,
             (unsigned long long)views, (unsigned)(a.n / views), outp);
     status = 0;
 done:
     mim_pairs_annotations_free(&a);
+    free(shot_cam), free(shot_of);
     free(cams), free(ann_text), free(cam_text), free(tk.map_text);
     return status;
 }

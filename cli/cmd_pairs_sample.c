@@ -1,4 +1,378 @@
-/* placeholder: mimic pairs sample (being written) */
+/* mimic pairs sample: seed 002's lifting by sampling (Sections 3-5). The
+ * prior motions teach the joint limits, the torso for the annotations'
+ * views and the chains' seeds; the annotations are the likelihood's
+ * evidence; C chains run on C threads, each with its own generator stream
+ * (the same seed and chain count give the same bytes), and their samples
+ * are written chain after chain. */
+#include "args.h"
 #include "commands.h"
+#include "mim_sample_mcmc.h"
+#include "output.h"
+#include "pairs_input.h"
+
+#include <errno.h>
+#include <getopt.h>
+#include <jansson.h>
+#include <math.h>
+#include <ode/ode.h>
+#include <pthread.h>
 #include <stdio.h>
-int mim_cmd_pairs_sample(int argc, char **argv) { (void)argc, (void)argv; fprintf(stderr, "mimic pairs sample: not yet\n"); return 2; }
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#define MAX_CHAINS 256
+#define SEED_TRIES 32 /* prior frames a chain tries before it gives up on a seed */
+
+static void help(FILE *out)
+{
+    fprintf(out,
+            "usage: mimic pairs sample --prior A.bvh,B.bvh [--prior ...] [--every N] [--offset K]\n"
+            "                          [--annotations ANN.json] --samples N [--chains C]\n"
+            "                          [--density ic|cartesian|shape|prior] [--views M] [--sigma-l S]\n"
+            "                          [--seed S] [--start SAMPLES.jsonl[:LINE]] [--bvh DIR]\n"
+            "                          [--joint-map FILE.json] [--unit M] [--json] -o SAMPLES.jsonl\n\n"
+            "3D pose-pairs sampled by Metropolis-Hastings from the posterior of seed 002 (Yin et al.):\n"
+            "the physical prior (joint limits learned from the --prior motions' frames, offset,\n"
+            "offset + every, ...; bone penetration through ODE) times the likelihood of the 2D\n"
+            "annotations (pairs annotate's format) seen along M views drawn from their view density.\n"
+            "Each chain starts from a prior frame (or from --start's sample, the paper's restart) and\n"
+            "walks with the velocity-biased proposal; the density is truncated around the seed's.\n\n"
+            "  --density D      ic (eqs. 8-9, default), cartesian (aligned 2D distance), shape (2D shape\n"
+            "                   contexts), or prior (no annotations, unbiased proposal)\n"
+            "  --samples N      samples in all (1..10000000), split over the chains\n"
+            "  --chains C       chains, one thread each (default 2)\n"
+            "  --views M        views per likelihood (eq. 6; default 8, at most 64)\n"
+            "  --sigma-l S      eq. 9's bandwidth (default 0.01)\n"
+            "  --seed S         the generator's seed (default 1)\n"
+            "  --start F[:L]    every chain starts from line L of samples file F (default: its first sample)\n"
+            "  --bvh DIR        also DIR/chainK_A.bvh and chainK_B.bvh, a frame per sample\n"
+            "  --json           a report: samples, seconds, samples_per_second, acceptance per chain,\n"
+            "                   parameters\n"
+            "  -o FILE          the samples (schemas/pair-samples.md), chain after chain\n\n"
+            "Exit status: 0 done, 1 an input failed (motions, annotations, no seed of finite density),\n"
+            "2 bad usage.\n");
+}
+
+typedef struct chain_job {
+    const mim_pairs_target_t *target;
+    const double *prior;
+    uint32_t n_prior;
+    const double *start; /* NULL: a prior frame */
+    uint64_t seed;
+    uint32_t index, n;
+    double *joints, *log_density;
+    mim_mh_stats_t stats;
+    _Atomic uint64_t done;
+    _Atomic int finished;
+    int rc;
+    mim_error_t err;
+} chain_job_t;
+
+static void *chain_thread(void *arg)
+{
+    chain_job_t *j = arg;
+    mim_penetration_t *pen = NULL;
+    if ((j->rc = mim_penetration_open(&pen, &j->err))) {
+        atomic_store(&j->finished, 1);
+        return NULL;
+    }
+    mim_rng_t rng;
+    mim_rng_seed(&rng, j->seed, j->index);
+    /* a prior frame of finite density (the paper's seed is one good pose-pair) */
+    for (int attempt = 0; attempt < SEED_TRIES; attempt++) {
+        const double *seed = j->start ? j->start : j->prior + 3 * MIM_PAIR_JOINTS * mim_rng_below(&rng, j->n_prior);
+        atomic_store(&j->done, 0);
+        j->rc = mim_pairs_chain_run(j->target, seed, &rng, pen, j->n, j->joints, j->log_density, &j->stats, &j->done,
+                                    &j->err);
+        if (j->rc != MIM_EINVAL || j->start) break;
+    }
+    mim_penetration_close(&pen);
+    dCleanupODEAllDataForThread();
+    atomic_store(&j->finished, 1);
+    return NULL;
+}
+
+/* --start F[:L]: the pose-pair on line L's sample (1 = the first). */
+static int read_start(const char *spec, double *out)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s", spec);
+    uint64_t line = 1;
+    char *colon = strrchr(path, ':');
+    if (colon && colon[1] && strspn(colon + 1, "0123456789") == strlen(colon + 1)) {
+        *colon = 0;
+        if (mim_cli_number("pairs sample", "start's line", colon + 1, 1, UINT32_MAX, &line)) return 2;
+    }
+    mim_error_t err = {0};
+    char *text = NULL;
+    size_t len;
+    mim_pairs_samples_t s = {0};
+    int rc = 0;
+    if (mim_file_read(path, 0, &text, &len, &err) || mim_pairs_samples_parse(text, len, path, &s, &err)) {
+        fprintf(stderr, "mimic pairs sample: --start: %s\n", mim_error_text(&err));
+        rc = 1;
+    } else if (line > s.n) {
+        fprintf(stderr, "mimic pairs sample: --start: %s has %u samples, not %llu\n", path, s.n, (unsigned long long)line);
+        rc = 1;
+    } else {
+        memcpy(out, s.joints + (size_t)(line - 1) * 3 * MIM_PAIR_JOINTS, 3 * MIM_PAIR_JOINTS * sizeof *out);
+    }
+    mim_pairs_samples_free(&s);
+    free(text);
+    return rc;
+}
+
+static int write_bvh(const char *dir, const chain_job_t *jobs, uint32_t chains)
+{
+    if (mkdir(dir, 0777) && errno != EEXIST) {
+        fprintf(stderr, "mimic pairs sample: --bvh %s: %s\n", dir, strerror(errno));
+        return -1;
+    }
+    for (uint32_t c = 0; c < chains; c++)
+        for (int person = 0; person < 2; person++) {
+            if (!jobs[c].n) continue;
+            char path[4200];
+            snprintf(path, sizeof path, "%s/chain%u_%c.bvh", dir, c, person ? 'B' : 'A');
+            /* a sample a frame, at 30 frames a second to play them */
+            char *text = mim_pairs_bvh_text(jobs[c].joints, jobs[c].n, person, 1.0 / 30);
+            int rc = text ? mim_cli_pairs_write("pairs sample", path, text, strlen(text)) : -1;
+            if (!text) fprintf(stderr, "mimic pairs sample: out of memory for %s\n", path);
+            free(text);
+            if (rc) return -1;
+        }
+    return 0;
+}
+
+static json_t *report(const mim_pairs_target_t *t, const chain_job_t *jobs, uint32_t chains, uint64_t total,
+                      double seconds, uint32_t n_prior, uint32_t n_ann, uint32_t dropped, uint64_t seed)
+{
+    json_t *acc = json_array(), *f0 = json_array();
+    for (uint32_t c = 0; c < chains; c++) {
+        const mim_mh_stats_t *s = &jobs[c].stats;
+        json_array_append_new(acc, json_real(s->steps ? (double)s->accepted / (double)s->steps : 0.0));
+        json_array_append_new(f0, json_real(s->seed_log_density));
+    }
+    const mim_pairs_sampler_options_t *o = &t->opt;
+    json_t *params = json_pack("{s:s, s:I, s:f, s:f, s:f, s:f, s:I, s:f, s:f, s:f, s:f, s:f, s:f}", "density",
+                               mim_pairs_density_names[o->density], "views", (json_int_t)o->views, "sigma_l", o->sigma_l,
+                               "sigma_v", MIM_VIEW_DEFAULT_SIGMA, "sigma_p", o->sigma_p, "alpha", o->alpha,
+                               "max_invalid", (json_int_t)o->max_invalid, "c", o->c, "sigma0_rot", o->sigma0_rot,
+                               "sigma0_trans", o->sigma0_trans, "velocity_scale", o->velocity_scale, "beta",
+                               MIM_IC_DEFAULT_BETA, "joint_tolerance", MIM_PAIRS_VALID_TOL);
+    return json_pack("{s:I, s:I, s:f, s:f, s:f, s:o, s:o, s:I, s:I, s:I, s:I, s:o}", "samples", (json_int_t)total,
+                     "chains", (json_int_t)chains, "seconds", seconds, "samples_per_second",
+                     seconds > 0 ? total / seconds : 0.0, "samples_per_second_per_chain",
+                     seconds > 0 ? total / seconds / chains : 0.0, "acceptance", acc, "seed_log_density", f0,
+                     "prior_frames", (json_int_t)n_prior, "annotations", (json_int_t)n_ann, "annotations_dropped",
+                     (json_int_t)dropped, "seed", (json_int_t)seed, "parameters", params);
+}
+
+int mim_cmd_pairs_sample(int argc, char **argv)
+{
+    static const struct option longopts[] = {
+        {"prior", required_argument, 0, 'p'},     {"every", required_argument, 0, 'e'},
+        {"offset", required_argument, 0, 'k'},    {"joint-map", required_argument, 0, 'm'},
+        {"unit", required_argument, 0, 'u'},      {"annotations", required_argument, 0, 'a'},
+        {"samples", required_argument, 0, 'n'},   {"chains", required_argument, 0, 'C'},
+        {"density", required_argument, 0, 'd'},   {"views", required_argument, 0, 'v'},
+        {"sigma-l", required_argument, 0, 'l'},   {"seed", required_argument, 0, 'S'},
+        {"start", required_argument, 0, 's'},     {"bvh", required_argument, 0, 'B'},
+        {"output", required_argument, 0, 'o'},    {"json", no_argument, 0, 'j'},
+        {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
+    };
+    mim_cli_takes_t tk = {.cmd = "pairs sample", .every = 1};
+    mim_pairs_target_t target = {0};
+    mim_pairs_sampler_defaults(&target.opt);
+    const char *ann_path = NULL, *start_spec = NULL, *bvh_dir = NULL, *outp = NULL;
+    uint64_t samples = 0, chains = 2, views = target.opt.views, seed = 1;
+    int as_json = 0, c, taken;
+    optind = 0;
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, "p:e:k:m:u:a:n:C:d:v:l:S:s:B:o:jh", longopts, NULL)) != -1) {
+        if ((taken = mim_cli_takes_option(&tk, c, optarg))) {
+            if (taken < 0) return 2;
+            continue;
+        }
+        switch (c) {
+        case 'a': ann_path = optarg; break;
+        case 'n':
+            if (mim_cli_number("pairs sample", "samples", optarg, 1, MIM_PAIRS_SAMPLES_MAX, &samples)) return 2;
+            break;
+        case 'C':
+            if (mim_cli_number("pairs sample", "chains", optarg, 1, MAX_CHAINS, &chains)) return 2;
+            break;
+        case 'd': {
+            int d = mim_pairs_density_parse(optarg);
+            if (d < 0) {
+                fprintf(stderr, "mimic pairs sample: --density '%s' is not ic, cartesian, shape or prior\n", optarg);
+                return 2;
+            }
+            target.opt.density = (mim_pairs_density_t)d;
+            break;
+        }
+        case 'v':
+            if (mim_cli_number("pairs sample", "views", optarg, 1, MIM_PAIRS_MAX_VIEWS, &views)) return 2;
+            break;
+        case 'l':
+            if (mim_cli_real("pairs sample", "sigma-l", optarg, 0.0, 100.0, 1, "is not a bandwidth in (0, 100]",
+                             &target.opt.sigma_l))
+                return 2;
+            break;
+        case 'S':
+            if (mim_cli_number("pairs sample", "seed", optarg, 0, UINT64_MAX, &seed)) return 2;
+            break;
+        case 's': start_spec = optarg; break;
+        case 'B': bvh_dir = optarg; break;
+        case 'o': outp = optarg; break;
+        case 'j': as_json = 1; break;
+        case 'h': help(stdout); return 0;
+        default:
+            fprintf(stderr, "mimic pairs sample: unknown or incomplete option '%s' (see mimic pairs sample --help)\n",
+                    argv[optind - 1]);
+            return 2;
+        }
+    }
+    target.opt.views = (uint32_t)views;
+    if (!tk.n || !samples || !outp || optind < argc) {
+        fprintf(stderr, "mimic pairs sample: --prior A,B, --samples N and -o FILE are required, and nothing else (see "
+                        "mimic pairs sample --help)\n");
+        return 2;
+    }
+    if (target.opt.density != MIM_DENSITY_PRIOR && !ann_path) {
+        fprintf(stderr, "mimic pairs sample: --density %s needs --annotations (or --density prior)\n",
+                mim_pairs_density_names[target.opt.density]);
+        return 2;
+    }
+    if (chains > samples) chains = samples;
+    if (mim_cli_takes_begin(&tk)) return 1;
+
+    int status = 1;
+    double *prior = NULL, start[3 * MIM_PAIR_JOINTS];
+    uint32_t n_prior = 0, dropped = 0, n_ann = 0;
+    char *text = NULL;
+    mim_pairs_annotations_t ann = {0};
+    mim_pairs_validity_t *validity = NULL;
+    mim_pairs_evidence_t *evidence = NULL;
+    chain_job_t *jobs = NULL;
+    pthread_t *threads = NULL;
+    double *joints = NULL, *logd = NULL, *allowed = NULL;
+    mim_error_t err = {0};
+    int ode = 0;
+    if (mim_cli_takes_read_all(&tk, &prior, &n_prior)) goto done;
+    if (!n_prior) {
+        fprintf(stderr, "mimic pairs sample: the --prior takes have no frames from %llu on\n", (unsigned long long)tk.offset);
+        goto done;
+    }
+    if (start_spec && (status = read_start(start_spec, start))) goto done;
+    status = 1;
+    if (mim_pairs_validity_learn(prior, n_prior, &validity, &err)) {
+        fprintf(stderr, "mimic pairs sample: %s\n", mim_error_text(&err));
+        goto done;
+    }
+    target.validity = validity;
+    if (target.opt.density != MIM_DENSITY_PRIOR) {
+        mim_pairs_torso_t torso;
+        size_t len;
+        mim_progress_t pr = {.fn = mim_cli_progress};
+        if (mim_pairs_torso_learn(prior, n_prior, &torso, &err) || mim_file_read(ann_path, 0, &text, &len, &err) ||
+            mim_pairs_annotations_parse(text, len, ann_path, &ann, &err) ||
+            mim_pairs_evidence_build(&ann, &torso, target.opt.density, &evidence, &dropped, &pr, &err)) {
+            fprintf(stderr, "mimic pairs sample: %s\n", mim_error_text(&err));
+            goto done;
+        }
+        n_ann = mim_pairs_evidence_count(evidence);
+        target.evidence = evidence;
+        if (dropped) mim_cli_logf("pairs sample: %u of %u annotations have no view that can be estimated; left out", dropped, ann.n);
+    }
+    jobs = calloc(chains, sizeof *jobs), threads = calloc(chains, sizeof *threads);
+    joints = malloc((size_t)samples * 3 * MIM_PAIR_JOINTS * sizeof *joints), logd = malloc((size_t)samples * sizeof *logd);
+    if (!jobs || !threads || !joints || !logd) {
+        fprintf(stderr, "mimic pairs sample: out of memory for %llu samples\n", (unsigned long long)samples);
+        goto done;
+    }
+    /* ODE's process-wide state: the program owns it (penetration.c) */
+    if (!dInitODE2(0)) {
+        fprintf(stderr, "mimic pairs sample: the Open Dynamics Engine does not initialise\n");
+        goto done;
+    }
+    ode = 1;
+    /* eta's allowances: what each pair of bones shows in the prior motions */
+    mim_penetration_t *pen = NULL;
+    if (!(allowed = calloc(MIM_PENETRATION_ALLOWANCES, sizeof *allowed)) || mim_penetration_open(&pen, &err)) {
+        fprintf(stderr, "mimic pairs sample: %s\n", allowed ? mim_error_text(&err) : "out of memory");
+        goto done;
+    }
+    for (uint32_t i = 0; i < n_prior; i++) mim_penetration_learn(pen, prior + (size_t)i * 3 * MIM_PAIR_JOINTS, allowed);
+    mim_penetration_close(&pen);
+    target.allowed = allowed;
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    uint64_t at = 0;
+    uint32_t started = 0;
+    for (uint32_t k = 0; k < chains; k++) {
+        chain_job_t *j = &jobs[k];
+        j->target = &target, j->prior = prior, j->n_prior = n_prior, j->start = start_spec ? start : NULL;
+        j->seed = seed, j->index = k;
+        j->n = (uint32_t)(samples / chains + (k < samples % chains));
+        j->joints = joints + at * 3 * MIM_PAIR_JOINTS, j->log_density = logd + at;
+        at += j->n;
+        if (pthread_create(&threads[k], NULL, chain_thread, j)) {
+            fprintf(stderr, "mimic pairs sample: cannot start chain %u's thread\n", k);
+            break;
+        }
+        started++;
+    }
+    /* progress from this thread: the chains only count */
+    mim_progress_t pr = {.fn = mim_cli_progress};
+    mim_progress_begin(&pr, "samples", samples);
+    for (int running = started > 0; running;) {
+        uint64_t done_steps = 0;
+        for (uint32_t k = 0; k < started; k++) done_steps += atomic_load(&jobs[k].done);
+        mim_progress_update(&pr, done_steps);
+        if (done_steps >= samples) break;
+        int alive = 0;
+        for (uint32_t k = 0; k < started; k++) alive |= !atomic_load(&jobs[k].finished);
+        if (!alive) break;
+        usleep(100000);
+    }
+    for (uint32_t k = 0; k < started; k++) pthread_join(threads[k], NULL);
+    mim_progress_end(&pr);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    double seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    if (started < chains) goto done;
+    for (uint32_t k = 0; k < chains; k++)
+        if (jobs[k].rc) {
+            fprintf(stderr, "mimic pairs sample: chain %u: %s%s\n", k, mim_error_text(&jobs[k].err),
+                    jobs[k].rc == MIM_EINVAL && !start_spec ? " (for every prior frame it tried)" : "");
+            goto done;
+        }
+    if (mim_cli_pairs_write_samples("pairs sample", outp, joints, logd, (uint32_t)samples)) goto done;
+    if (bvh_dir && write_bvh(bvh_dir, jobs, (uint32_t)chains)) goto done;
+    if (as_json) {
+        json_t *j = report(&target, jobs, (uint32_t)chains, samples, seconds, n_prior, n_ann, dropped, seed);
+        char *out = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
+        json_decref(j);
+        if (!out) {
+            fprintf(stderr, "mimic pairs sample: cannot make the JSON report\n");
+            goto done;
+        }
+        printf("%s\n", out);
+        free(out);
+    }
+    uint64_t acc = 0, steps = 0;
+    for (uint32_t k = 0; k < chains; k++) acc += jobs[k].stats.accepted, steps += jobs[k].stats.steps;
+    fprintf(stderr, "mimic pairs sample: %llu samples from %llu chains in %.1f s (%.0f/s), %.1f%% accepted, to %s\n",
+            (unsigned long long)samples, (unsigned long long)chains, seconds, seconds > 0 ? samples / seconds : 0.0,
+            steps ? 100.0 * acc / steps : 0.0, outp);
+    status = 0;
+done:
+    if (ode) dCloseODE();
+    free(jobs), free(threads), free(joints), free(logd), free(allowed), free(prior), free(text), free(tk.map_text);
+    mim_pairs_evidence_free(&evidence);
+    mim_pairs_validity_free(&validity);
+    mim_pairs_annotations_free(&ann);
+    return status;
+}

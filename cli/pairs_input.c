@@ -5,6 +5,8 @@
  * person's size, or --unit). */
 #include "pairs_input.h"
 
+#include "args.h"
+
 #include "mim_sample.h"
 #include "mim_vest_motion.h"
 
@@ -99,5 +101,100 @@ int mim_cli_pairs_read(const char *spec, const char *joint_map, double unit, uin
 done:
     mim_vest_joint_motion_free(&ma);
     mim_vest_joint_motion_free(&mb);
+    return rc;
+}
+
+int mim_cli_takes_option(mim_cli_takes_t *t, int c, const char *arg)
+{
+    switch (c) {
+    case 'p':
+        if (t->n == MIM_CLI_MAX_TAKES) {
+            fprintf(stderr, "mimic %s: at most %d takes\n", t->cmd, MIM_CLI_MAX_TAKES);
+            return -1;
+        }
+        t->spec[t->n++] = arg;
+        return 1;
+    case 'e': return mim_cli_number(t->cmd, "every", arg, 1, 1000000, &t->every) ? -1 : 1;
+    case 'k': return mim_cli_number(t->cmd, "offset", arg, 0, 100000000, &t->offset) ? -1 : 1;
+    case 'm': t->map_path = arg; return 1;
+    case 'u':
+        return mim_cli_real(t->cmd, "unit", arg, 0.0, 1000.0, 1, "is not a number of metres per unit", &t->unit) ? -1 : 1;
+    default: return 0;
+    }
+}
+
+int mim_cli_takes_begin(mim_cli_takes_t *t)
+{
+    mim_error_t err = {0};
+    size_t len;
+    if (!t->map_path || !mim_file_read(t->map_path, 1 << 20, &t->map_text, &len, &err)) return 0;
+    fprintf(stderr, "mimic %s: %s\n", t->cmd, mim_error_text(&err));
+    return 1;
+}
+
+int mim_cli_takes_read(const mim_cli_takes_t *t, int i, double **frames, uint32_t *n)
+{
+    char msg[1024];
+    if (!mim_cli_pairs_read(t->spec[i], t->map_text, t->unit, (uint32_t)t->every, (uint32_t)t->offset, frames, n, msg,
+                            sizeof msg))
+        return 0;
+    fprintf(stderr, "mimic %s: %s\n", t->cmd, msg);
+    return -1;
+}
+
+int mim_cli_takes_read_all(const mim_cli_takes_t *t, double **frames, uint32_t *n)
+{
+    *frames = NULL, *n = 0;
+    for (int i = 0; i < t->n; i++) {
+        double *fr = NULL;
+        uint32_t nf = 0;
+        if (mim_cli_takes_read(t, i, &fr, &nf)) {
+            free(*frames), *frames = NULL, *n = 0;
+            return -1;
+        }
+        double *grown = realloc(*frames, (size_t)(*n + nf) * 3 * MIM_PAIR_JOINTS * sizeof *grown);
+        if (!grown) {
+            free(fr), free(*frames), *frames = NULL, *n = 0;
+            fprintf(stderr, "mimic %s: out of memory\n", t->cmd);
+            return -1;
+        }
+        memcpy(grown + (size_t)*n * 3 * MIM_PAIR_JOINTS, fr, (size_t)nf * 3 * MIM_PAIR_JOINTS * sizeof *fr);
+        *frames = grown, *n += nf;
+        free(fr);
+    }
+    return 0;
+}
+
+int mim_cli_pairs_write(const char *cmd, const char *path, const void *text, size_t len)
+{
+    mim_error_t err = {0};
+    mim_file_part_t part = {text, len};
+    if (!mim_file_write_atomic(path, &part, 1, &err)) return 0;
+    fprintf(stderr, "mimic %s: %s\n", cmd, mim_error_text(&err));
+    return -1;
+}
+
+int mim_cli_pairs_write_samples(const char *cmd, const char *path, const double *joints, const double *log_density,
+                                uint32_t n)
+{
+    /* the whole file in memory, then written atomically: nothing half-written */
+    char *buf = NULL, *h = mim_pairs_jsonl_header();
+    size_t len = 0;
+    FILE *mem = open_memstream(&buf, &len);
+    int ok = mem && h && fprintf(mem, "%s\n", h) > 0;
+    for (uint32_t i = 0; ok && i < n; i++) {
+        char *line = mim_pairs_jsonl_line(joints + (size_t)i * 3 * MIM_PAIR_JOINTS, log_density ? log_density[i] : NAN);
+        ok = line && fprintf(mem, "%s\n", line) > 0;
+        free(line);
+    }
+    if (mem) fclose(mem);
+    free(h);
+    if (!ok) {
+        free(buf);
+        fprintf(stderr, "mimic %s: out of memory for %u pose-pairs\n", cmd, n);
+        return -1;
+    }
+    int rc = mim_cli_pairs_write(cmd, path, buf, len);
+    free(buf);
     return rc;
 }

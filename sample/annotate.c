@@ -6,7 +6,9 @@
  * degrees below to 35 above the horizon, upright (no roll), with a
  * 1920 x 1080 image and a focal length of 1000 to 1800 pixels (a 47 to 88
  * degree horizontal field of view, phone to wide lens); a camera that
- * leaves a joint behind it or outside the image is drawn again. */
+ * leaves a joint behind it or outside the image is drawn again. A video
+ * camera keeps its offset from the pair's centre and its lens from frame
+ * to frame (mim_pairs_camera_follow). */
 #include "mim_sample.h"
 
 #include <math.h>
@@ -40,6 +42,19 @@ int mim_pairs_project(const mim_pairs_camera_t *cam, const double *joints, doubl
     return inside;
 }
 
+int mim_pairs_camera_follow(mim_pairs_camera_t *cam, const double *joints)
+{
+    /* the pair's centre sits on the optical axis at the camera's distance:
+     * move the camera by the centre's motion */
+    mim_vec3 c = centre(joints), fwd = mim_v3(cam->R[6], cam->R[7], cam->R[8]);
+    mim_vec3 pos = mim_v3(cam->position[0], cam->position[1], cam->position[2]);
+    mim_vec3 old = mim_v3_add(pos, mim_v3_scale(fwd, cam->dist));
+    pos = mim_v3_add(pos, mim_v3_sub(c, old));
+    cam->position[0] = pos.x, cam->position[1] = pos.y, cam->position[2] = pos.z;
+    double uv[2 * MIM_PAIR_JOINTS];
+    return mim_pairs_project(cam, joints, uv);
+}
+
 int mim_pairs_camera_random(mim_rng_t *rng, const double *joints, mim_pairs_camera_t *cam)
 {
     mim_vec3 c = centre(joints);
@@ -57,6 +72,7 @@ int mim_pairs_camera_random(mim_rng_t *rng, const double *joints, mim_pairs_came
         mim_vec3 right = mim_v3_normalize(mim_v3_cross(fwd, mim_v3(0, 1, 0)));
         mim_vec3 down = mim_v3_cross(fwd, right);
         cam->position[0] = pos.x, cam->position[1] = pos.y, cam->position[2] = pos.z;
+        cam->dist = dist;
         double rows[3][3] = {{right.x, right.y, right.z}, {down.x, down.y, down.z}, {fwd.x, fwd.y, fwd.z}};
         memcpy(cam->R, rows, sizeof rows);
         if (mim_pairs_project(cam, joints, uv)) return 0;

@@ -33,8 +33,11 @@ char *mim_pairs_annotations_json(const mim_pairs_annotations_t *a, const char *c
         json_t *pts = json_array();
         const double *p = a->points + (size_t)i * 2 * MIM_PAIR_JOINTS;
         for (int j = 0; j < MIM_PAIR_JOINTS; j++) json_array_append_new(pts, json_pack("[f, f]", p[2 * j], p[2 * j + 1]));
-        json_array_append_new(list, json_pack("{s:I, s:I, s:I, s:o}", "take", (json_int_t)a->take[i], "frame",
-                                              (json_int_t)a->frame[i], "view", (json_int_t)a->view[i], "points", pts));
+        json_t *one = json_pack("{s:I, s:I, s:I}", "take", (json_int_t)a->take[i], "frame", (json_int_t)a->frame[i],
+                                "view", (json_int_t)a->view[i]);
+        if (a->shot && a->shot[i] != MIM_PAIRS_NO_SHOT) json_object_set_new(one, "shot", json_integer(a->shot[i]));
+        json_object_set_new(one, "points", pts);
+        json_array_append_new(list, one);
     }
     json_t *root = json_pack("{s:s, s:o, s:[I, I], s:o, s:o}", "format", "mimic pair annotations 1", "joints",
                              mim__pairs_joint_labels(), "image", (json_int_t)a->width, (json_int_t)a->height, "takes", tk,
@@ -66,7 +69,7 @@ char *mim_pairs_cameras_json(const mim_pairs_annotations_t *a, const mim_pairs_c
 void mim_pairs_annotations_free(mim_pairs_annotations_t *a)
 {
     if (!a) return;
-    free(a->take), free(a->frame), free(a->view), free(a->points);
+    free(a->take), free(a->frame), free(a->view), free(a->shot), free(a->points);
     memset(a, 0, sizeof *a);
 }
 
@@ -106,8 +109,9 @@ int mim_pairs_annotations_parse(const char *text, size_t len, const char *origin
         out->width = (uint32_t)json_integer_value(json_array_get(img, 0));
         out->height = (uint32_t)json_integer_value(json_array_get(img, 1));
         out->take = malloc(n * sizeof *out->take), out->frame = malloc(n * sizeof *out->frame);
-        out->view = malloc(n * sizeof *out->view), out->points = malloc(n * 2 * MIM_PAIR_JOINTS * sizeof *out->points);
-        if (!out->take || !out->frame || !out->view || !out->points)
+        out->view = malloc(n * sizeof *out->view), out->shot = malloc(n * sizeof *out->shot);
+        out->points = malloc(n * 2 * MIM_PAIR_JOINTS * sizeof *out->points);
+        if (!out->take || !out->frame || !out->view || !out->shot || !out->points)
             rc = mim_error_set(err, MIM_ENOMEM, "%s: out of memory for %zu annotations", origin, n);
         for (size_t i = 0; i < n && !rc; i++) {
             json_t *a = json_array_get(list, i), *pts = json_object_get(a, "points");
@@ -127,6 +131,12 @@ int mim_pairs_annotations_parse(const char *text, size_t len, const char *origin
             }
             out->take[i] = (uint32_t)json_integer_value(t), out->frame[i] = (uint32_t)json_integer_value(f);
             out->view[i] = (uint32_t)json_integer_value(v);
+            json_t *sh = json_object_get(a, "shot");
+            if (sh && (!json_is_integer(sh) || json_integer_value(sh) < 0 || json_integer_value(sh) >= MIM_PAIRS_NO_SHOT)) {
+                rc = mim_error_set(err, MIM_EFORMAT, "%s: annotation %zu: \"shot\" must be a whole number", origin, i);
+                break;
+            }
+            out->shot[i] = sh ? (uint32_t)json_integer_value(sh) : MIM_PAIRS_NO_SHOT;
             double *dst = out->points + i * 2 * MIM_PAIR_JOINTS;
             for (int j = 0; j < MIM_PAIR_JOINTS && !rc; j++) {
                 json_t *uv = json_array_get(pts, (size_t)j);

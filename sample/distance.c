@@ -1,7 +1,7 @@
 /* Dissimilarities between pose-pairs (seed 002): d_I of eq. 8 on
  * interaction coordinates, and the three measures of Section 6 (D_I, D_C,
  * D_S) after a least-squares rigid alignment. Choices: mim_sample.h. */
-#include "mim_sample.h"
+#include "internal.h"
 
 #include <lapacke.h>
 #include <math.h>
@@ -141,6 +141,16 @@ int mim_pair_prepare(const double *joints, mim_pair_prep_t *out, mim_error_t *er
     return rc;
 }
 
+double mim__shape_cost(const float *a, const float *b, int n, int bins)
+{
+    double total = 0;
+    for (int i = 0; i < n * bins; i++) {
+        double x = a[i], y = b[i];
+        if (x + y > 0) total += 0.5 * (x - y) * (x - y) / (x + y);
+    }
+    return total / n;
+}
+
 double mim_sample_distance(const mim_pair_prep_t *a, const mim_pair_prep_t *b, mim_sample_metric_t metric)
 {
     double bb[3 * MIM_PAIR_JOINTS];
@@ -153,16 +163,7 @@ double mim_sample_distance(const mim_pair_prep_t *a, const mim_pair_prep_t *b, m
     if (metric == MIM_METRIC_SHAPE) {
         float sb[MIM_PAIR_JOINTS][MIM_SC_BINS];
         shape_contexts(bb, sb);
-        double total = 0;
-        for (int i = 0; i < MIM_PAIR_JOINTS; i++) {
-            double c = 0;
-            for (int k = 0; k < MIM_SC_BINS; k++) {
-                double x = a->sc[i][k], y = sb[i][k];
-                if (x + y > 0) c += (x - y) * (x - y) / (x + y);
-            }
-            total += 0.5 * c;
-        }
-        return total / MIM_PAIR_JOINTS;
+        return mim__shape_cost(&a->sc[0][0], &sb[0][0], MIM_PAIR_JOINTS, MIM_SC_BINS);
     }
     /* D_I: eq. 8 with each pair's own triangulation (a rigid motion keeps
      * a Delaunay triangulation, so b's still holds for bb) */

@@ -12,4 +12,32 @@
  * against it. */
 json_t *mim__pairs_joint_labels(void);
 
+/* The chi-squared cost between shape contexts (Belongie et al.), the mean
+ * over n joints of 0.5 sum (a - b)^2 / (a + b) over their bins: D_S in 3D
+ * and the shape density's distance in 2D. */
+double mim__shape_cost(const float *a, const float *b, int n, int bins);
+
+/* ---- 2D pose-pairs (pairs2d.c): the likelihood's comparisons ---- */
+#define MIM__SC2_R 5
+#define MIM__SC2_A 12
+#define MIM__SC2_BINS (MIM__SC2_R * MIM__SC2_A)
+/* in (34 [x, y]) centred on its mean and scaled to unit RMS radius into
+ * out: the radius, 0 when every point is at one place or one is NaN. */
+double mim__pairs2d_normalise(const double *in, double *out);
+/* The 2D rotation (cos, sin) of least squares that brings normalised b
+ * onto normalised a, and the mean squared distance after it (per joint). */
+double mim__pairs2d_align(const double *a, const double *b, double *c, double *s);
+void mim__pairs2d_rotate(const double *b, double c, double s, double *out);
+/* Log-polar shape contexts of normalised 2D points (5 radial bins from
+ * 1/8 to 2 of the mean joint distance, 12 angular; each count shared
+ * linearly between neighbouring bins so that the cost is continuous). */
+void mim__pairs2d_shape_contexts(const double *p, float sc[MIM_PAIR_JOINTS][MIM__SC2_BINS]);
+
+/* ---- the evidence's items, for the likelihood (evidence.c) ---- */
+struct mim_pairs_evidence;
+const double *mim__evidence_points(const struct mim_pairs_evidence *e, uint32_t i); /* normalised 34 [x, y] */
+const double *mim__evidence_dir(const struct mim_pairs_evidence *e, uint32_t i);    /* unit view, local frame */
+const mim_ic_t *mim__evidence_ic(const struct mim_pairs_evidence *e, uint32_t i);
+const float *mim__evidence_sc(const struct mim_pairs_evidence *e, uint32_t i);      /* NULL unless shape */
+
 #endif

@@ -133,6 +133,7 @@ typedef struct mim_pairs_camera {
     double R[9]; /* row-major */
     double focal_px, cx, cy;
     uint32_t width, height;
+    double dist; /* from the pair's centre when drawn (mim_pairs_camera_follow keeps it) */
 } mim_pairs_camera_t;
 /* The 34 joints' pixels (2 per joint) through cam: 1 when every joint is
  * in front of the camera and inside the image, else 0 (NaN for a joint
@@ -142,13 +143,21 @@ int mim_pairs_project(const mim_pairs_camera_t *cam, const double *joints, doubl
  * drawn from rng. MIM_ENOTFOUND when 1000 draws all leave a joint out
  * (a pair spread over tens of metres). */
 int mim_pairs_camera_random(mim_rng_t *rng, const double *joints, mim_pairs_camera_t *cam);
+/* A video camera: cam, drawn by mim_pairs_camera_random for an earlier
+ * frame, follows the pair to this frame's joints (it keeps its distance,
+ * direction and lens, as a camera operator keeps the pair framed). 1 when
+ * it still sees the whole pair, else 0 (cam moved all the same). */
+int mim_pairs_camera_follow(mim_pairs_camera_t *cam, const double *joints);
 
 /* A set of annotations: n 2D pose-pairs (34 [u, v] pixels each) in images
- * of width x height, each from a take, a frame and a view. */
+ * of width x height, each from a take, a frame and a view, and a shot: the
+ * annotations of one shot are frames of one camera's video, in the order
+ * of their frames (MIM_PAIRS_NO_SHOT: a photo of its own). */
 #define MIM_PAIRS_ANNOTATIONS_MAX 1000000u
+#define MIM_PAIRS_NO_SHOT UINT32_MAX
 typedef struct mim_pairs_annotations {
     uint32_t n, width, height;
-    uint32_t *take, *frame, *view;
+    uint32_t *take, *frame, *view, *shot;
     double *points; /* n * 34 * 2 */
 } mim_pairs_annotations_t;
 /* The annotations file (schemas/pair-annotations.schema.json) for a, with
@@ -181,8 +190,14 @@ void mim_penetration_close(mim_penetration_t **p); /* accepts NULL; nulls */
 double mim_penetration_capsules(mim_penetration_t *p, const double a0[3], const double a1[3], double ra,
                                 const double b0[3], const double b1[3], double rb);
 /* eta of a 3D pose-pair (34 x 3 doubles, metres): the sum of the
- * penetration depths over its bones' capsule pairs (penetration.c). */
-double mim_penetration_pair(mim_penetration_t *p, const double *joints);
+ * penetration depths over its bones' capsule pairs (penetration.c), each
+ * beyond its allowance in allowed (MIM_PENETRATION_ALLOWANCES entries, from
+ * mim_penetration_learn; NULL: none). */
+#define MIM_PENETRATION_ALLOWANCES (2 * 16 * 16)
+double mim_penetration_pair(mim_penetration_t *p, const double *joints, const double *allowed);
+/* Raises each of allowed's entries (zeroed by the caller before the first
+ * pose-pair) to the depth its pair of bones shows in joints. */
+void mim_penetration_learn(mim_penetration_t *p, const double *joints, double *allowed);
 
 /* ---- camera views relative to a pair (views.c; Section 4.2, eqs. 3-5) ---- */
 #define MIM_VIEW_DEFAULT_SIGMA 0.5 /* radians: eq. 5's bandwidth, the paper's default */
@@ -201,6 +216,31 @@ void mim_pairs_view_direction(const double R[9], double psi, double phi, double 
  * (a view at random, then its kernel; phi reflected into [0, pi]). */
 double mim_pairs_view_density(const double *views, uint32_t n, double sigma, double psi, double phi);
 void mim_pairs_view_draw(const double *views, uint32_t n, double sigma, mim_rng_t *rng, double *psi, double *phi);
+
+/* ---- the view of a 2D annotation (view_estimate.c; Section 4.2) ---- */
+/* A person's mean torso: pelvis, l_hip, r_hip, spine, chest, neck,
+ * l_shoulder, r_shoulder, metres, in the person's own frame (origin at the
+ * pelvis; x from r_hip to l_hip, or r_shoulder to l_shoulder when the hips
+ * sit on the pelvis; y up the back, pelvis to chest, made orthogonal to x;
+ * z = x x y, the person's forward). */
+#define MIM_PAIRS_TORSO_POINTS 8
+typedef struct mim_pairs_torso {
+    double point[MIM_PAIRS_TORSO_POINTS][3];
+} mim_pairs_torso_t;
+/* Learned from n 3D pose-pairs (34 x 3 doubles each): both people of every
+ * pair, each brought into its own frame, averaged; a person whose frame is
+ * degenerate (NaN, backbone along the hips) is skipped. MIM_EINVAL for n of
+ * 0 or when no person has a frame. */
+int mim_pairs_torso_learn(const double *pairs, uint32_t n, mim_pairs_torso_t *out, mim_error_t *err);
+/* The view of a 2D annotation (uv: 34 [u, v] pixels, x right, y down, in
+ * an image of width x height) as eq. 4's (psi, phi): what
+ * mim_pairs_view_angles gives for the camera's forward axis in the pair's
+ * local frame (mim_pairs_local_frame). Each person's torso is fitted to
+ * its 8 torso pixels (method and accuracy: view_estimate.c). MIM_EINVAL
+ * when a torso cannot be fitted (NaN, all points at one place), the frame
+ * is degenerate or width is 0. */
+int mim_pairs_annotation_view(const mim_pairs_torso_t *torso, const double *uv, uint32_t width, uint32_t height,
+                              double *psi, double *phi);
 
 /* ---- samples as JSON lines (samples_file.c; schemas/pair-samples.md) ---- */
 /* The header line and a sample line (malloc'd, no newline; NULL when out
@@ -224,6 +264,19 @@ typedef struct mim_pairs_samples {
 int mim_pairs_samples_parse(const char *text, size_t len, const char *origin, mim_pairs_samples_t *out,
                             mim_error_t *err);
 void mim_pairs_samples_free(mim_pairs_samples_t *s); /* accepts NULL and an empty set */
+
+/* ---- pose-pairs as BVH (bvh_write.c) ---- */
+/* The BVH text (malloc'd; NULL when out of memory, n == 0, pairs NULL or
+ * person not 0 or 1) of person (0: A, 1: B) over n pose-pairs (34 x 3
+ * doubles each, metres), one frame each, frame_time seconds per frame (0,
+ * negative or not finite: 1/30). CMU joint names (mim_pair_joint_map finds them), units
+ * metres, rest pose frame 0 (its bone vectors are the OFFSETs), rotations
+ * Zrotation Xrotation Yrotation in degrees (choices: bvh_write.c). Reading
+ * it back gives the input when the bone lengths are frame 0's in every
+ * frame (forward kinematics); otherwise each bone points where the input's
+ * does with frame 0's length. No NaN is written: a bone with a non-finite
+ * end is left out of its joint's rotation, a non-finite root place is 0. */
+char *mim_pairs_bvh_text(const double *pairs, uint32_t n, int person, double frame_time);
 
 /* ---- coverage (coverage.c; eq. 13) ---- */
 /* C(G, S) = 1/m sum_i min_j D(g_i, s_j) over the m truth pairs g and the k

@@ -14,7 +14,12 @@
  * (0.04), the pelvis to each hip (0.08), thighs (0.07) and shins (0.05).
  * Pairs counted: every bone of A against every bone of B, and within a
  * person every two bones that neither meet at a joint nor are joined by a
- * third (a forearm through the torso); those touch by construction. */
+ * third (a forearm through the torso); those touch by construction.
+ *
+ * The capsules are coarse (an arm hanging by the body overlaps the lowest
+ * spine piece's capsule in natural poses), so eta may be measured beyond
+ * an allowance per pair of bones: the deepest penetration that pair shows
+ * in the prior motions (mim_penetration_learn). */
 #include "mim_sample.h"
 
 #include <ode/ode.h>
@@ -31,6 +36,8 @@ static const struct { uint8_t a, b; float r; } bones[] = {
     {LHIP, LKN, 0.07f},     {RHIP, RKN, 0.07f},    {LKN, LAN, 0.05f},    {RKN, RAN, 0.05f},
 };
 #define NB ((int)(sizeof bones / sizeof *bones))
+_Static_assert(sizeof bones / sizeof *bones * 2 * sizeof bones / sizeof *bones == MIM_PENETRATION_ALLOWANCES,
+               "the allowances are 2 x NB x NB");
 
 struct mim_penetration {
     dGeomID probe[2];      /* two capsules for mim_penetration_capsules */
@@ -113,18 +120,55 @@ double mim_penetration_capsules(mim_penetration_t *p, const double a0[3], const 
     return depth(p->probe[0], p->probe[1]);
 }
 
-double mim_penetration_pair(mim_penetration_t *p, const double *joints)
+/* Pair k's bones (k over i < j of the 2 x NB bones) and whether it counts. */
+static int pair_counts(int i, int j)
+{
+    int same = (i < NB) == (j < NB);
+    return !(same && near_bones(i % NB, j % NB));
+}
+
+/* Where pair (i, j) keeps its allowance: one entry per unordered pair of
+ * bone kinds, within a person or across the two (the two people share it,
+ * so that what A shows, B may do). */
+static int allowance_index(int i, int j)
+{
+    int same = (i < NB) == (j < NB), a = i % NB, b = j % NB;
+    if (a > b) {
+        int t = a;
+        a = b, b = t;
+    }
+    return (same ? 0 : NB * NB) + a * NB + b;
+}
+
+static void place_all(mim_penetration_t *p, const double *joints)
 {
     for (int k = 0; k < 2 * NB; k++) {
         const double *base = joints + (k < NB ? 0 : 3 * MIM_PAIR_PERSON_JOINTS);
         place(p->geom[k], base + 3 * bones[k % NB].a, base + 3 * bones[k % NB].b, bones[k % NB].r);
     }
+}
+
+double mim_penetration_pair(mim_penetration_t *p, const double *joints, const double *allowed)
+{
+    place_all(p, joints);
     double eta = 0;
     for (int i = 0; i < 2 * NB; i++)
         for (int j = i + 1; j < 2 * NB; j++) {
-            int same = (i < NB) == (j < NB);
-            if (same && near_bones(i % NB, j % NB)) continue;
-            eta += depth(p->geom[i], p->geom[j]);
+            if (!pair_counts(i, j)) continue;
+            double d = depth(p->geom[i], p->geom[j]) - (allowed ? allowed[allowance_index(i, j)] : 0.0);
+            if (d > 0) eta += d;
         }
     return eta;
+}
+
+void mim_penetration_learn(mim_penetration_t *p, const double *joints, double *allowed)
+{
+    place_all(p, joints);
+    for (int i = 0; i < 2 * NB; i++)
+        for (int j = i + 1; j < 2 * NB; j++) {
+            if (!pair_counts(i, j)) continue;
+            double d = depth(p->geom[i], p->geom[j]);
+            double *a = &allowed[allowance_index(i, j)];
+            if (d > *a) *a = d;
+        }
 }

@@ -293,15 +293,16 @@ static void test_annotations_reader(void **s)
     (void)s;
     mim_pairs_annotations_t a = {0};
     mim_error_t err = {0};
-    uint32_t take = 0, frame = 4, view = 1;
+    uint32_t take = 0, frame = 4, view = 1, shot = 7;
     double pts[2 * MIM_PAIR_JOINTS];
     for (int k = 0; k < 2 * MIM_PAIR_JOINTS; k++) pts[k] = 100 + k;
-    mim_pairs_annotations_t one = {1, 640, 480, &take, &frame, &view, pts};
+    mim_pairs_annotations_t one = {1, 640, 480, &take, &frame, &view, &shot, pts};
     const char *takes[] = {"a.bvh,b.bvh"};
     char *good = mim_pairs_annotations_json(&one, takes, 1);
     assert_non_null(good);
     assert_int_equal(mim_pairs_annotations_parse(good, strlen(good), "ann.json", &a, &err), 0);
     assert_int_equal(a.n, 1), assert_int_equal(a.width, 640), assert_int_equal(a.frame[0], 4);
+    assert_int_equal(a.shot[0], 7);
     for (int k = 0; k < 2 * MIM_PAIR_JOINTS; k++) assert_true(fabs(a.points[k] - pts[k]) < 1e-4);
     mim_pairs_annotations_free(&a);
     struct { const char *from, *to; int code; const char *phrase; } bad[] = {
@@ -314,6 +315,8 @@ static void test_annotations_reader(void **s)
         {"[100.0,101.0]", "[100.0]", MIM_EFORMAT, "annotation 0: joint 0 is not [u, v]"},
         {"[100.0,101.0]", "[1e300,101.0]", MIM_ENONFINITE, "joint 0: 1e+300 is not a pixel coordinate"},
         {"\"annotations\":[", "\"annotations\":[],\"x\":[", MIM_EEMPTY, "ann.json: no annotations"},
+        {"\"shot\":7", "\"shot\":-7", MIM_EFORMAT, "annotation 0: \"shot\" must be a whole number"},
+        {"\"shot\":7", "\"shot\":\"7\"", MIM_EFORMAT, "annotation 0: \"shot\" must be a whole number"},
     };
     for (size_t k = 0; k < sizeof bad / sizeof *bad; k++) {
         char *p = strstr(good, bad[k].from);
@@ -326,6 +329,13 @@ static void test_annotations_reader(void **s)
             fail_msg("case %zu: %d '%s' (wanted %d '%s')", k, rc, err.msg, bad[k].code, bad[k].phrase);
         assert_int_equal(a.n, 0);
     }
+    /* a photo: no "shot" */
+    char *p = strstr(good, "\"shot\":7,");
+    assert_non_null(p);
+    memmove(p, p + strlen("\"shot\":7,"), strlen(p + strlen("\"shot\":7,")) + 1);
+    assert_int_equal(mim_pairs_annotations_parse(good, strlen(good), "ann.json", &a, &err), 0);
+    assert_int_equal(a.shot[0], MIM_PAIRS_NO_SHOT);
+    mim_pairs_annotations_free(&a);
     /* a take named by bytes that are not UTF-8: no file rather than a short "takes" */
     const char *bad_takes[] = {"a\xff.bvh,b.bvh"};
     assert_null(mim_pairs_annotations_json(&one, bad_takes, 1));

@@ -421,11 +421,11 @@ static void test_penetration(void **s)
     double pair[3 * MIM_PAIR_JOINTS];
     person_t_pose(pair, 0, 0);
     person_t_pose(pair + 3 * MIM_PAIR_PERSON_JOINTS, 2.5, 0);
-    assert_true(mim_penetration_pair(p, pair) < 1e-9); /* apart, and no bone of one person in another of his */
+    assert_true(mim_penetration_pair(p, pair, NULL) < 1e-9); /* apart, and no bone of one person in another of his */
     double prev = 0;
     for (int k = 3; k >= 0; k--) { /* B steps in front of A: 0.3, 0.2, 0.1, 0 m */
         person_t_pose(pair + 3 * MIM_PAIR_PERSON_JOINTS, 0, 0.1 * k);
-        double eta = mim_penetration_pair(p, pair);
+        double eta = mim_penetration_pair(p, pair, NULL);
         if (k == 3) assert_true(eta < 1e-9); /* 0.3 m: the torsos (0.12 + 0.12) clear */
         else assert_true(eta > prev);
         prev = eta;

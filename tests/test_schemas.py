@@ -26,7 +26,8 @@ SCHEMAS = {s["$id"]: s for s in map(load, ["info.schema.json", "list.schema.json
                                             "serve-status.schema.json", "serve-avatar.schema.json",
                                             "serve-transfer-request.schema.json", "serve-error.schema.json",
                                             "store-check.schema.json", "pair-annotations.schema.json", "pair-cameras.schema.json",
-                                            "pairs-coverage.schema.json", "complete.schema.json", "register.schema.json"])}
+                                            "pairs-coverage.schema.json", "complete.schema.json", "register.schema.json",
+                                            "pairs-templates.schema.json"])}
 
 
 def validator(schema_id):
@@ -364,6 +365,23 @@ def pairs_cases(d):
                 ("/mimic/schemas/pairs-coverage.schema.json", cov, "pairs coverage --json")]
 
 
+def pairs_templates_cases(d, store, samples):
+    """mimic pairs templates --json: the pose-pairs pairs_cases exported
+    become templates of a copy of the (indexed) store; list shows them."""
+    import shutil
+    copy = os.path.join(d, "sampled-store")
+    os.makedirs(copy)
+    shutil.copy(os.path.join(store, "data.mdb"), os.path.join(copy, "data.mdb"))
+    doc = json.loads(run("pairs", "templates", "--store", copy, "--samples", samples, "--avatar", "1", "--max", "2",
+                         "--json"))
+    listed = json.loads(run("list", "--store", copy, "--json"))
+    sampled = [t["id"] for t in listed if t["source"].startswith("sampled:")]
+    if not doc["ids"] or sorted(doc["ids"]) != sampled:
+        raise RuntimeError(f"mimic pairs templates --json: ids {doc['ids']}, list shows sampled templates {sampled}")
+    return [("/mimic/schemas/pairs-templates.schema.json", doc, "pairs templates --json"),
+            ("/mimic/schemas/list.schema.json", listed, "list (sampled templates)")]
+
+
 def main():
     passed = failed = 0
     with tempfile.TemporaryDirectory(prefix="mimic-schemas-") as d:
@@ -416,6 +434,8 @@ def main():
         reg_cases = register_cases(d, store, data, landmarks)
         cases += reg_cases
         cases += pairs_cases(d)
+        sampled_cases = pairs_templates_cases(d, store, os.path.join(d, "frames.jsonl"))
+        cases += sampled_cases
         lost = {"frames": [{"landmarks": list(frames["frames"][0]["landmarks"])}, {"landmarks": list(one["landmarks"])}]}
         for k in (7, 8, 13):
             lost["frames"][0]["landmarks"][k] = None
@@ -477,6 +497,13 @@ def main():
         else:
             failed += 1
             print("FAIL register schema accepted a surface distance without p95 or a negative landmark residual")
+        bad = dict(sampled_cases[0][1], ids=[0])
+        if list(validator("/mimic/schemas/pairs-templates.schema.json").iter_errors(bad)):
+            passed += 1
+            print("ok   pairs-templates schema rejects a template id of 0")
+        else:
+            failed += 1
+            print("FAIL pairs-templates schema accepted a template id of 0")
         # list: a template registered from another connectivity carries its
         # figures (none of synth's is registered: the key is absent)
         listed = json.loads(run("list", "--store", store, "--json"))
