@@ -32,22 +32,25 @@ static void help(FILE *out)
             "usage: mimic pairs sample --prior A.bvh,B.bvh [--prior ...] [--every N] [--offset K]\n"
             "                          [--annotations ANN.json] --samples N [--chains C]\n"
             "                          [--density ic|cartesian|shape|prior] [--views M] [--sigma-l S]\n"
-            "                          [--seed S] [--start SAMPLES.jsonl[:LINE]] [--bvh DIR]\n"
+            "                          [--seed S] [--restart-every N] [--start SAMPLES.jsonl[:LINE]] [--bvh DIR]\n"
             "                          [--joint-map FILE.json] [--unit M] [--json] -o SAMPLES.jsonl\n\n"
             "3D pose-pairs sampled by Metropolis-Hastings from the posterior of seed 002 (Yin et al.):\n"
             "the physical prior (joint limits learned from the --prior motions' frames, offset,\n"
             "offset + every, ...; bone penetration through ODE) times the likelihood of the 2D\n"
             "annotations (pairs annotate's format) seen along M views drawn from their view density.\n"
-            "Each chain starts from a prior frame (or from --start's sample, the paper's restart) and\n"
-            "walks with the velocity-biased proposal; the density is truncated around the seed's.\n\n"
+            "Each chain starts from a prior frame drawn at random (or from --start's sample) and walks\n"
+            "with the velocity-biased proposal, the density truncated around the seed's; every\n"
+            "--restart-every steps it starts again from a new seed (the paper's restart).\n\n"
             "  --density D      ic (eqs. 8-9, default), cartesian (aligned 2D distance), shape (2D shape\n"
             "                   contexts), or prior (no annotations, unbiased proposal)\n"
             "  --samples N      samples in all (1..10000000), split over the chains\n"
             "  --chains C       chains, one thread each (default 2)\n"
             "  --views M        views per likelihood (eq. 6; default 8, at most 64)\n"
-            "  --sigma-l S      eq. 9's bandwidth (default 0.01)\n"
+            "  --sigma-l S      eq. 9's bandwidth (default 0.1, in units of the 2D pair's RMS radius)\n"
+            "  --restart-every N  steps of a chain between restarts (default 100; 0: never)\n"
             "  --seed S         the generator's seed (default 1)\n"
-            "  --start F[:L]    every chain starts from line L of samples file F (default: its first sample)\n"
+            "  --start F[:L]    every chain (and restart) starts from line L of samples file F (default:\n"
+            "                   its first sample)\n"
             "  --bvh DIR        also DIR/chainK_A.bvh and chainK_B.bvh, a frame per sample\n"
             "  --json           a report: samples, seconds, samples_per_second, acceptance per chain,\n"
             "                   parameters\n"
@@ -62,7 +65,7 @@ typedef struct chain_job {
     uint32_t n_prior;
     const double *start; /* NULL: a prior frame */
     uint64_t seed;
-    uint32_t index, n;
+    uint32_t index, n, restart_every, restarts;
     double *joints, *log_density;
     mim_mh_stats_t stats;
     _Atomic uint64_t done;
@@ -79,15 +82,27 @@ static void *chain_thread(void *arg)
         atomic_store(&j->finished, 1);
         return NULL;
     }
-    mim_rng_t rng;
+    /* the seeds come from a stream of their own, so that every density
+     * starts its chains from the same prior frames (a paired comparison) */
+    mim_rng_t rng, seeds;
     mim_rng_seed(&rng, j->seed, j->index);
-    /* a prior frame of finite density (the paper's seed is one good pose-pair) */
-    for (int attempt = 0; attempt < SEED_TRIES; attempt++) {
-        const double *seed = j->start ? j->start : j->prior + 3 * MIM_PAIR_JOINTS * mim_rng_below(&rng, j->n_prior);
-        atomic_store(&j->done, 0);
-        j->rc = mim_pairs_chain_run(j->target, seed, &rng, pen, j->n, j->joints, j->log_density, &j->stats, &j->done,
-                                    &j->err);
-        if (j->rc != MIM_EINVAL || j->start) break;
+    mim_rng_seed(&seeds, j->seed, (uint64_t)MAX_CHAINS + j->index);
+    /* runs of restart_every steps, each from a new seed with new views
+     * (Section 5.3's restart, with the sample drawn rather than chosen):
+     * a chain that stays near its seed then still visits many */
+    for (uint32_t at = 0; at < j->n && !j->rc; j->restarts++) {
+        uint32_t len = j->restart_every && j->n - at > j->restart_every ? j->restart_every : j->n - at;
+        mim_mh_stats_t st;
+        /* a prior frame of finite density (the paper's seed is one good pose-pair) */
+        for (int attempt = 0; attempt < SEED_TRIES; attempt++) {
+            const double *seed = j->start ? j->start : j->prior + 3 * MIM_PAIR_JOINTS * mim_rng_below(&seeds, j->n_prior);
+            j->rc = mim_pairs_chain_run(j->target, seed, &rng, pen, len, j->joints + (size_t)at * 3 * MIM_PAIR_JOINTS,
+                                        j->log_density + at, &st, &j->done, &j->err);
+            if (j->rc != MIM_EINVAL || j->start) break;
+        }
+        if (!at) j->stats.seed_log_density = st.seed_log_density;
+        j->stats.steps += st.steps, j->stats.accepted += st.accepted, j->stats.zero += st.zero;
+        at += len;
     }
     mim_penetration_close(&pen);
     dCleanupODEAllDataForThread();
@@ -149,9 +164,10 @@ static int write_bvh(const char *dir, const chain_job_t *jobs, uint32_t chains)
 static json_t *report(const mim_pairs_target_t *t, const chain_job_t *jobs, uint32_t chains, uint64_t total,
                       double seconds, uint32_t n_prior, uint32_t n_ann, uint32_t dropped, uint64_t seed)
 {
-    json_t *acc = json_array(), *f0 = json_array();
+    json_t *acc = json_array(), *f0 = json_array(), *rs = json_array();
     for (uint32_t c = 0; c < chains; c++) {
         const mim_mh_stats_t *s = &jobs[c].stats;
+        json_array_append_new(rs, json_integer(jobs[c].restarts > 0 ? jobs[c].restarts - 1 : 0));
         json_array_append_new(acc, json_real(s->steps ? (double)s->accepted / (double)s->steps : 0.0));
         json_array_append_new(f0, json_real(s->seed_log_density));
     }
@@ -162,10 +178,12 @@ static json_t *report(const mim_pairs_target_t *t, const chain_job_t *jobs, uint
                                "max_invalid", (json_int_t)o->max_invalid, "c", o->c, "sigma0_rot", o->sigma0_rot,
                                "sigma0_trans", o->sigma0_trans, "velocity_scale", o->velocity_scale, "beta",
                                MIM_IC_DEFAULT_BETA, "joint_tolerance", MIM_PAIRS_VALID_TOL);
-    return json_pack("{s:I, s:I, s:f, s:f, s:f, s:o, s:o, s:I, s:I, s:I, s:I, s:o}", "samples", (json_int_t)total,
+    json_object_set_new(params, "restart_every", json_integer(jobs[0].restart_every));
+    json_object_set_new(params, "cone", json_real(o->cone));
+    return json_pack("{s:I, s:I, s:f, s:f, s:f, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:o}", "samples", (json_int_t)total,
                      "chains", (json_int_t)chains, "seconds", seconds, "samples_per_second",
                      seconds > 0 ? total / seconds : 0.0, "samples_per_second_per_chain",
-                     seconds > 0 ? total / seconds / chains : 0.0, "acceptance", acc, "seed_log_density", f0,
+                     seconds > 0 ? total / seconds / chains : 0.0, "acceptance", acc, "seed_log_density", f0, "restarts", rs,
                      "prior_frames", (json_int_t)n_prior, "annotations", (json_int_t)n_ann, "annotations_dropped",
                      (json_int_t)dropped, "seed", (json_int_t)seed, "parameters", params);
 }
@@ -181,17 +199,18 @@ int mim_cmd_pairs_sample(int argc, char **argv)
         {"sigma-l", required_argument, 0, 'l'},   {"seed", required_argument, 0, 'S'},
         {"start", required_argument, 0, 's'},     {"bvh", required_argument, 0, 'B'},
         {"output", required_argument, 0, 'o'},    {"json", no_argument, 0, 'j'},
-        {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
+        {"restart-every", required_argument, 0, 'R'}, {"help", no_argument, 0, 'h'},
+        {0, 0, 0, 0},
     };
     mim_cli_takes_t tk = {.cmd = "pairs sample", .every = 1};
     mim_pairs_target_t target = {0};
     mim_pairs_sampler_defaults(&target.opt);
     const char *ann_path = NULL, *start_spec = NULL, *bvh_dir = NULL, *outp = NULL;
-    uint64_t samples = 0, chains = 2, views = target.opt.views, seed = 1;
+    uint64_t samples = 0, chains = 2, views = target.opt.views, seed = 1, restart_every = 100;
     int as_json = 0, c, taken;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "p:e:k:m:u:a:n:C:d:v:l:S:s:B:o:jh", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "p:e:k:m:u:a:n:C:d:v:l:S:s:B:o:R:jh", longopts, NULL)) != -1) {
         if ((taken = mim_cli_takes_option(&tk, c, optarg))) {
             if (taken < 0) return 2;
             continue;
@@ -225,6 +244,9 @@ int mim_cmd_pairs_sample(int argc, char **argv)
             if (mim_cli_number("pairs sample", "seed", optarg, 0, UINT64_MAX, &seed)) return 2;
             break;
         case 's': start_spec = optarg; break;
+        case 'R':
+            if (mim_cli_number("pairs sample", "restart-every", optarg, 0, MIM_PAIRS_SAMPLES_MAX, &restart_every)) return 2;
+            break;
         case 'B': bvh_dir = optarg; break;
         case 'o': outp = optarg; break;
         case 'j': as_json = 1; break;
@@ -315,7 +337,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
     for (uint32_t k = 0; k < chains; k++) {
         chain_job_t *j = &jobs[k];
         j->target = &target, j->prior = prior, j->n_prior = n_prior, j->start = start_spec ? start : NULL;
-        j->seed = seed, j->index = k;
+        j->seed = seed, j->index = k, j->restart_every = (uint32_t)restart_every;
         j->n = (uint32_t)(samples / chains + (k < samples % chains));
         j->joints = joints + at * 3 * MIM_PAIR_JOINTS, j->log_density = logd + at;
         at += j->n;

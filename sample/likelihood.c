@@ -49,9 +49,9 @@ static void keep(near_t *list, int *len, int k, near_t x)
  * triangulation tq) among the annotations near the local view ldir:
  * distance in the density's measure, *which the annotation. */
 static double best_match(const mim_pairs_evidence_t *e, mim_pairs_density_t density, const double *q, const mim_ic_t *tq,
-                         const double ldir[3], uint32_t *which)
+                         const double ldir[3], double cone_angle, uint32_t *which)
 {
-    const double cone = cos(MIM_VIEW_DEFAULT_SIGMA);
+    const double cone = cone_angle >= M_PI ? -2.0 : cos(cone_angle);
     uint32_t n = mim_pairs_evidence_count(e);
     near_t list[SHORTLIST], views[SHORTLIST];
     int len = 0, vlen = 0, in_cone = 0, k = density == MIM_DENSITY_CARTESIAN ? 1 : SHORTLIST;
@@ -99,7 +99,7 @@ static double best_match(const mim_pairs_evidence_t *e, mim_pairs_density_t dens
 }
 
 double mim_pairs_log_likelihood(const mim_pairs_evidence_t *e, mim_pairs_density_t density, double sigma_l,
-                                const double *joints, const double *views, uint32_t m, uint32_t *nearest)
+                                double cone, const double *joints, const double *views, uint32_t m, uint32_t *nearest)
 {
     double R[9];
     if (density == MIM_DENSITY_PRIOR || !m) return 0.0;
@@ -117,7 +117,7 @@ double mim_pairs_log_likelihood(const mim_pairs_evidence_t *e, mim_pairs_density
         project(joints, dir, uv);
         terms[v] = -INFINITY;
         if (mim__pairs2d_normalise(uv, q) && (density != MIM_DENSITY_IC || !mim_ic_build(q, 2, &tq, &err))) {
-            double d = best_match(e, density, q, &tq, ldir, &which);
+            double d = best_match(e, density, q, &tq, ldir, cone, &which);
             terms[v] = -d / (2 * sigma_l * sigma_l); /* eq. 9 */
         }
         if (nearest) nearest[v] = which;

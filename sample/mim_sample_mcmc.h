@@ -122,7 +122,7 @@ uint32_t mim_pairs_evidence_count(const mim_pairs_evidence_t *e);
 const double *mim_pairs_evidence_views(const mim_pairs_evidence_t *e);
 
 /* ---- the likelihood (likelihood.c; eqs. 6 and 9) ---- */
-#define MIM_PAIRS_DEFAULT_SIGMA_L 0.01
+#define MIM_PAIRS_DEFAULT_SIGMA_L 0.1 /* the paper's 0.01 freezes every chain in mimic's units (chain.c) */
 #define MIM_PAIRS_MAX_VIEWS 64
 /* log L(theta) of eq. 6 for the 34 joints over the m views (psi, phi
  * pairs in the pair's local frame), with eq. 9's kernel of bandwidth
@@ -132,7 +132,7 @@ const double *mim_pairs_evidence_views(const mim_pairs_evidence_t *e);
  * Returns -INFINITY when the pair has no local frame or a projection no
  * triangulation. */
 double mim_pairs_log_likelihood(const mim_pairs_evidence_t *e, mim_pairs_density_t density, double sigma_l,
-                                const double *joints, const double *views, uint32_t m, uint32_t *nearest);
+                                double cone, const double *joints, const double *views, uint32_t m, uint32_t *nearest);
 /* eq. 12's mean squared differential of each group over the annotations
  * nearest[0..m), with the pair's RMS radius (metres) for the translation
  * group: out[g], radians^2 or metres^2. */
@@ -176,14 +176,16 @@ int mim_mh_run(const mim_mh_ops_t *ops, void *ctx, const void *seed, double c, m
 typedef struct mim_pairs_sampler_options {
     mim_pairs_density_t density;
     uint32_t views;       /* m of eq. 6 (default 8) */
-    double sigma_l;       /* eq. 9 (default 0.01) */
+    double sigma_l;       /* eq. 9 (default MIM_PAIRS_DEFAULT_SIGMA_L) */
+    double cone;          /* eq. 9's "similar views": radians (default eq. 5's sigma_v) */
     double sigma_p;       /* eq. 2 (default 0.05) */
     double alpha;         /* eq. 2 (default 10) */
     uint32_t max_invalid; /* eq. 2's isvalid (default 8) */
     double c;             /* eq. 11 (default 100) */
-    double sigma0_rot;    /* eq. 12's sigma_0, radians (default 0.03) */
-    double sigma0_trans;  /* eq. 12's sigma_0 of a translation, metres (default 0.02) */
-    double velocity_scale; /* eq. 12's sum is scaled by this squared (default 1) */
+    double sigma0_rot;    /* eq. 12's sigma_0, radians (default 0.02) */
+    double sigma0_trans;  /* eq. 12's sigma_0 of a translation, metres (default 0.01) */
+    double velocity_scale; /* eq. 12's sum is scaled by this squared (default 0.05: the 2D turns between
+                            * annotated frames, 1/12 s apart in mocap, are far larger than one step) */
 } mim_pairs_sampler_options_t;
 /* The defaults above. */
 void mim_pairs_sampler_defaults(mim_pairs_sampler_options_t *o);

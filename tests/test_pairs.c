@@ -435,6 +435,125 @@ static void test_bad_input(void **s)
     free(a), free(short_b), free(slow_b), free(b), free(smp), free(renamed), free(map), free(bad), free(h);
 }
 
+/* pairs sample end to end: a report as schemas/pairs-sample says, samples
+ * that keep the prior's bones, the same bytes from the same seed, BVH
+ * files, the prior density without annotations, and bad input refused
+ * with nothing written. */
+static void test_sample_cli(void **s)
+{
+    (void)s;
+    char *a = write_bvh("sa.bvh", 0, FRAMES, 1.0 / 120), *b = write_bvh("sb.bvh", 1, FRAMES, 1.0 / 120);
+    char spec[8192], *ann = ts_path(dir, "video.json"), *s1 = ts_path(dir, "s1.jsonl"), *s2 = ts_path(dir, "s2.jsonl"),
+                     *s3 = ts_path(dir, "s3.jsonl"), *bvh = ts_path(dir, "bvh");
+    snprintf(spec, sizeof spec, "%s,%s", a, b);
+    const char *an[] = {"pairs", "annotate", "--pair", spec, "--every", "1", "--views", "3", "--video", "-o", ann, NULL};
+    char *o = NULL, *e = NULL;
+    assert_int_equal(ts_run_mimic(&o, &e, an), 0);
+    free(o), free(e);
+    size_t len;
+    char *text = ts_read_file(ann, &len);
+    mim_pairs_annotations_t av;
+    mim_error_t err = {0};
+    assert_int_equal(mim_pairs_annotations_parse(text, len, ann, &av, &err), 0);
+    for (uint32_t i = 0; i < av.n; i++) assert_int_equal(av.shot[i], av.view[i]); /* one video a camera: it keeps them */
+    mim_pairs_annotations_free(&av);
+    free(text);
+    const char *run1[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "60", "--chains", "2",
+                          "--seed", "5", "--json", "--bvh", bvh, "-o", s1, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, run1), 0);
+    json_error_t je;
+    json_t *rep = json_loads(o, 0, &je);
+    if (!rep) fail_msg("not JSON: %s", o);
+    assert_int_equal(json_integer_value(json_object_get(rep, "samples")), 60);
+    assert_int_equal(json_array_size(json_object_get(rep, "acceptance")), 2);
+    assert_true(num(rep, "samples_per_second") > 0);
+    assert_string_equal(json_string_value(json_object_get(json_object_get(rep, "parameters"), "density")), "ic");
+    assert_int_equal(json_integer_value(json_object_get(rep, "annotations")), 3 * FRAMES);
+    double acc = 0;
+    for (int c = 0; c < 2; c++) acc += json_real_value(json_array_get(json_object_get(rep, "acceptance"), c));
+    assert_true(acc > 0);
+    json_decref(rep);
+    free(o), free(e);
+    /* the samples: 60, bones as long as the prior's, not all one pose */
+    text = ts_read_file(s1, &len);
+    mim_pairs_samples_t sm;
+    assert_int_equal(mim_pairs_samples_parse(text, len, s1, &sm, &err), 0);
+    free(text);
+    assert_int_equal(sm.n, 60);
+    double first[3 * MIM_PAIR_JOINTS], spread = 0;
+    truth(0, first);
+    for (uint32_t i = 0; i < sm.n; i++) {
+        const double *x = sm.joints + (size_t)i * 3 * MIM_PAIR_JOINTS;
+        assert_true(isfinite(sm.log_density[i]));
+        /* head to neck and knee to ankle, each person */
+        static const int bone[2][2] = {{0, 16}, {11, 13}};
+        for (int p = 0; p < 2; p++)
+            for (int k = 0; k < 2; k++) {
+                int u = p * MIM_PAIR_PERSON_JOINTS + bone[k][0], v = p * MIM_PAIR_PERSON_JOINTS + bone[k][1];
+                double d = 0, d0 = 0;
+                for (int c = 0; c < 3; c++) {
+                    d += (x[3 * u + c] - x[3 * v + c]) * (x[3 * u + c] - x[3 * v + c]);
+                    d0 += (first[3 * u + c] - first[3 * v + c]) * (first[3 * u + c] - first[3 * v + c]);
+                }
+                assert_true(fabs(sqrt(d) - sqrt(d0)) < 1e-5);
+            }
+        for (int c = 0; c < 3; c++) spread = fmax(spread, fabs(x[3 * 7 + c] - sm.joints[3 * 7 + c])); /* A's left wrist */
+    }
+    assert_true(spread > 0.005);
+    mim_pairs_samples_free(&sm);
+    /* BVH: a pair per chain */
+    for (int c = 0; c < 2; c++)
+        for (int p = 0; p < 2; p++) {
+            char name[64];
+            snprintf(name, sizeof name, "bvh/chain%d_%c.bvh", c, p ? 'B' : 'A');
+            char *path = ts_path(dir, name), *t = ts_read_file(path, NULL);
+            assert_non_null(t);
+            assert_memory_equal(t, "HIERARCHY", 9);
+            assert_non_null(strstr(t, "Frames: 30"));
+            free(t), free(path);
+        }
+    /* the same seed, the same bytes; another seed, others */
+    const char *run2[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "60", "--chains", "2",
+                          "--seed", "5", "-o", s2, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, run2), 0);
+    free(o), free(e);
+    char *t1 = ts_read_file(s1, NULL), *t2 = ts_read_file(s2, NULL);
+    assert_string_equal(t1, t2);
+    free(t2);
+    const char *run3[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "60", "--chains", "2",
+                          "--seed", "6", "-o", s3, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, run3), 0);
+    free(o), free(e);
+    t2 = ts_read_file(s3, NULL);
+    assert_true(strcmp(t1, t2) != 0);
+    free(t1), free(t2);
+    /* the prior alone needs no annotations; --start restarts from a sample */
+    char start[8192];
+    snprintf(start, sizeof start, "%s:7", s1);
+    const char *run4[] = {"pairs", "sample", "--prior", spec, "--density", "prior", "--samples", "10", "--chains", "1",
+                          "--start", start, "-o", s3, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, run4), 0);
+    free(o), free(e);
+    /* bad input: usage (2) and inputs (1), nothing written */
+    char *none = ts_path(dir, "none.jsonl"), *junk = ts_path(dir, "junk.json");
+    ts_write_file(junk, "{\"format\": \"mimic pair annotations 1\"", 40);
+    const char *b1[] = {"pairs", "sample", "--prior", spec, "--samples", "10", "-o", none, NULL};
+    expect_fail(b1, 2, "--density ic needs --annotations");
+    const char *b2[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "0", "-o", none, NULL};
+    expect_fail(b2, 2, "samples");
+    const char *b3[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5", "--density", "nope", "-o", none, NULL};
+    expect_fail(b3, 2, "--density 'nope' is not ic, cartesian, shape or prior");
+    const char *b4[] = {"pairs", "sample", "--prior", spec, "--annotations", junk, "--samples", "5", "-o", none, NULL};
+    expect_fail(b4, 1, "junk.json:1:");
+    snprintf(start, sizeof start, "%s:99", s1);
+    const char *b5[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5", "--start", start, "-o", none, NULL};
+    expect_fail(b5, 1, "has 60 samples, not 99");
+    const char *b6[] = {"pairs", "sample", "--annotations", ann, "--samples", "5", "-o", none, NULL};
+    expect_fail(b6, 2, "--prior A,B, --samples N and -o FILE are required");
+    assert_int_equal(access(none, F_OK), -1);
+    free(a), free(b), free(ann), free(s1), free(s2), free(s3), free(bvh), free(none), free(junk);
+}
+
 static int setup(void **s)
 {
     (void)s;
@@ -446,6 +565,6 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {cmocka_unit_test(test_coverage_cli), cmocka_unit_test(test_export),
                                        cmocka_unit_test(test_annotate), cmocka_unit_test(test_annotations_reader),
-                                       cmocka_unit_test(test_bad_input)};
+                                       cmocka_unit_test(test_bad_input), cmocka_unit_test(test_sample_cli)};
     return cmocka_run_group_tests(tests, setup, NULL);
 }

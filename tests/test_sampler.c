@@ -405,7 +405,7 @@ static void test_likelihood(void **s)
     for (uint32_t f = 0; f < w.n_prior; f += 6) {
         const double *truth = w.prior + (size_t)f * 3 * MIM_PAIR_JOINTS;
         uint32_t nearest[8];
-        double lt = mim_pairs_log_likelihood(w.evidence, MIM_DENSITY_IC, 0.05, truth, views, 8, nearest);
+        double lt = mim_pairs_log_likelihood(w.evidence, MIM_DENSITY_IC, 0.05, 0.5, truth, views, 8, nearest);
         for (int v = 0; v < 8; v++) assert_true(nearest[v] < mim_pairs_evidence_count(w.evidence));
         mim_pairs_pose_t pose;
         mim_pairs_pose_rest(truth, &pose);
@@ -414,18 +414,18 @@ static void test_likelihood(void **s)
         pose.root[1][0] += 0.5;
         double moved[3 * MIM_PAIR_JOINTS];
         mim_pairs_pose_joints(&pose, moved);
-        double lm = mim_pairs_log_likelihood(w.evidence, MIM_DENSITY_IC, 0.05, moved, views, 8, NULL);
+        double lm = mim_pairs_log_likelihood(w.evidence, MIM_DENSITY_IC, 0.05, 0.5, moved, views, 8, NULL);
         better += lt > lm;
         assert_true(isfinite(lt) && isfinite(lm) && lt <= 0);
     }
     assert_int_equal(better, 10);
     /* the prior density has no likelihood */
-    assert_true(mim_pairs_log_likelihood(w.evidence, MIM_DENSITY_PRIOR, 0.05, w.prior, views, 8, NULL) == 0);
+    assert_true(mim_pairs_log_likelihood(w.evidence, MIM_DENSITY_PRIOR, 0.05, 0.5, w.prior, views, 8, NULL) == 0);
     /* two people at one place have no local frame */
     double same[3 * MIM_PAIR_JOINTS];
     memcpy(same, w.prior, 3 * MIM_PAIR_PERSON_JOINTS * sizeof(double));
     memcpy(same + 3 * MIM_PAIR_PERSON_JOINTS, w.prior, 3 * MIM_PAIR_PERSON_JOINTS * sizeof(double));
-    assert_true(mim_pairs_log_likelihood(w.evidence, MIM_DENSITY_IC, 0.05, same, views, 8, NULL) == -INFINITY);
+    assert_true(mim_pairs_log_likelihood(w.evidence, MIM_DENSITY_IC, 0.05, 0.5, same, views, 8, NULL) == -INFINITY);
     world_free(&w);
 }
 

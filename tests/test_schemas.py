@@ -27,7 +27,7 @@ SCHEMAS = {s["$id"]: s for s in map(load, ["info.schema.json", "list.schema.json
                                             "serve-transfer-request.schema.json", "serve-error.schema.json",
                                             "store-check.schema.json", "pair-annotations.schema.json", "pair-cameras.schema.json",
                                             "pairs-coverage.schema.json", "complete.schema.json", "register.schema.json",
-                                            "pairs-templates.schema.json"])}
+                                            "pairs-templates.schema.json", "pairs-sample.schema.json"])}
 
 
 def validator(schema_id):
@@ -359,10 +359,16 @@ def pairs_cases(d):
     run("pairs", "export", "--pair", a + "," + b, "--every", "2", "-o", frames)
     cov = json.loads(run("pairs", "coverage", "--truth", a + "," + b, "--every", "3", "--offset", "1",
                          "--samples", frames, "--json"))
-    with open(ann) as f1, open(cams) as f2:
+    video = os.path.join(d, "video.json")
+    run("pairs", "annotate", "--pair", a + "," + b, "--every", "1", "--views", "2", "--video", "-o", video)
+    sampled = json.loads(run("pairs", "sample", "--prior", a + "," + b, "--annotations", video, "--samples", "20",
+                             "--chains", "2", "--json", "-o", os.path.join(d, "sampled.jsonl")))
+    with open(ann) as f1, open(cams) as f2, open(video) as f3:
+        cases = [("/mimic/schemas/pair-annotations.schema.json", json.load(f3), "pairs annotate --video"),
+                 ("/mimic/schemas/pairs-sample.schema.json", sampled, "pairs sample --json")]
         return [("/mimic/schemas/pair-annotations.schema.json", json.load(f1), "pairs annotate"),
                 ("/mimic/schemas/pair-cameras.schema.json", json.load(f2), "pairs annotate --cameras"),
-                ("/mimic/schemas/pairs-coverage.schema.json", cov, "pairs coverage --json")]
+                ("/mimic/schemas/pairs-coverage.schema.json", cov, "pairs coverage --json")] + cases
 
 
 def pairs_templates_cases(d, store, samples):
