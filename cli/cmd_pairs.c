@@ -1,6 +1,7 @@
-/* mimic pairs: seed 002's pose-pairs (issue 14). Today: coverage (eq. 13)
- * of true pose-pairs by samples, and the export of a take's pose-pairs in
- * the samples format. */
+/* mimic pairs: seed 002's pose-pairs (issue 14): coverage (eq. 13) of true
+ * pose-pairs by samples, the export of a take's pose-pairs in the samples
+ * format, and 2D annotations; sample (cmd_pairs_sample.c) and templates
+ * (cmd_pairs_templates.c) have files of their own. */
 #include "args.h"
 #include "commands.h"
 #include "mim_sample.h"
@@ -23,7 +24,10 @@ static void help(FILE *out)
             "                          [--joint-map FILE.json] [--unit M] -o FRAMES.jsonl\n"
             "       mimic pairs annotate --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K] [--views V]\n"
             "                            [--video] [--noise-px P] [--seed S] [--joint-map FILE.json] [--unit M]\n"
-            "                            -o ANN.json [--cameras CAMS.json]\n\n"
+            "                            -o ANN.json [--cameras CAMS.json]\n"
+            "       mimic pairs sample --prior A.bvh,B.bvh ... -o SAMPLES.jsonl   (mimic pairs sample --help)\n"
+            "       mimic pairs templates --store DIR --samples SAMPLES.jsonl --avatar ID ...\n"
+            "                                                            (mimic pairs templates --help)\n\n"
             "Two-person pose-pairs (seed 002, Yin et al.). A pose-pair is two people's 17 joints each\n"
             "(the 16 landmarks and the neck) in one world frame, read from the two motion files of one\n"
             "take with the root translation kept; joints are found by their names (CMU/Biovision,\n"
@@ -48,6 +52,8 @@ static void help(FILE *out)
             "             frame it cannot see whole starts a new shot with a new camera); the sampler\n"
             "             takes its proposal's motion (eq. 12) from consecutive frames of a shot.\n"
             "             The same --seed gives the same bytes.\n\n"
+            "  sample     3D pose-pairs lifted from annotations by MCMC sampling (Sections 3-5).\n\n"
+            "  templates  sampled people as templates of a store, so that mimic query knows their poses.\n\n"
             "  --every N          every N-th frame (default 1; annotate: 10)\n"
             "  --offset K         from frame K (default 0)\n"
             "  --unit M           metres per file unit (default: guessed from the people's size)\n"

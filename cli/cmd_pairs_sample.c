@@ -32,7 +32,8 @@ static void help(FILE *out)
             "usage: mimic pairs sample --prior A.bvh,B.bvh [--prior ...] [--every N] [--offset K]\n"
             "                          [--annotations ANN.json] --samples N [--chains C]\n"
             "                          [--density ic|cartesian|shape|prior] [--views M] [--sigma-l S]\n"
-            "                          [--seed S] [--restart-every N] [--start SAMPLES.jsonl[:LINE]] [--bvh DIR]\n"
+            "                          [--seed S] [--restart-every N] [--velocity-scale V]\n"
+            "                          [--start SAMPLES.jsonl[:LINE]] [--bvh DIR]\n"
             "                          [--joint-map FILE.json] [--unit M] [--json] -o SAMPLES.jsonl\n\n"
             "3D pose-pairs sampled by Metropolis-Hastings from the posterior of seed 002 (Yin et al.):\n"
             "the physical prior (joint limits learned from the --prior motions' frames, offset,\n"
@@ -48,6 +49,7 @@ static void help(FILE *out)
             "  --views M        views per likelihood (eq. 6; default 8, at most 64)\n"
             "  --sigma-l S      eq. 9's bandwidth (default 0.1, in units of the 2D pair's RMS radius)\n"
             "  --restart-every N  steps of a chain between restarts (default 100; 0: never)\n"
+            "  --velocity-scale V eq. 12: the annotations' motion is scaled by V in the proposal (default 0.05)\n"
             "  --seed S         the generator's seed (default 1)\n"
             "  --start F[:L]    every chain (and restart) starts from line L of samples file F (default:\n"
             "                   its first sample)\n"
@@ -199,7 +201,8 @@ int mim_cmd_pairs_sample(int argc, char **argv)
         {"sigma-l", required_argument, 0, 'l'},   {"seed", required_argument, 0, 'S'},
         {"start", required_argument, 0, 's'},     {"bvh", required_argument, 0, 'B'},
         {"output", required_argument, 0, 'o'},    {"json", no_argument, 0, 'j'},
-        {"restart-every", required_argument, 0, 'R'}, {"help", no_argument, 0, 'h'},
+        {"restart-every", required_argument, 0, 'R'}, {"velocity-scale", required_argument, 0, 'V'},
+        {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
     };
     mim_cli_takes_t tk = {.cmd = "pairs sample", .every = 1};
@@ -210,7 +213,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
     int as_json = 0, c, taken;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "p:e:k:m:u:a:n:C:d:v:l:S:s:B:o:R:jh", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "p:e:k:m:u:a:n:C:d:v:l:S:s:B:o:R:V:jh", longopts, NULL)) != -1) {
         if ((taken = mim_cli_takes_option(&tk, c, optarg))) {
             if (taken < 0) return 2;
             continue;
@@ -244,6 +247,11 @@ int mim_cmd_pairs_sample(int argc, char **argv)
             if (mim_cli_number("pairs sample", "seed", optarg, 0, UINT64_MAX, &seed)) return 2;
             break;
         case 's': start_spec = optarg; break;
+        case 'V':
+            if (mim_cli_real("pairs sample", "velocity-scale", optarg, 0.0, 100.0, 0, "is not a scale in 0..100",
+                             &target.opt.velocity_scale))
+                return 2;
+            break;
         case 'R':
             if (mim_cli_number("pairs sample", "restart-every", optarg, 0, MIM_PAIRS_SAMPLES_MAX, &restart_every)) return 2;
             break;

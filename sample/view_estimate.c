@@ -32,7 +32,7 @@
  *   annotate.c's cameras.
  * - Measured (2 px of noise, annotate.c's cameras): median 9.5 degrees,
  *   95th percentile 39, on synthetic pairs (tests/test_pairs_views.c);
- *   8.4 and 35 on cmu-pairs; the best constant view: 76.
+ *   the best constant view: 76.
  * - A person's frame when learning: x from r_hip to l_hip; when the hips
  *   sit within 3 cm of each other (skeletons whose hip joints are the
  *   pelvis) the shoulders' line instead. */

@@ -213,6 +213,8 @@ static void test_store_open_exit_status(void **s)
             {"morph", "--store", st, "--avatar", "1", "--keys", "1,2", "--frames-between", "1", "-o", "o.glb", NULL},
             {"serve", "--store", st, "--avatar", "1", "--listen", "127.0.0.1:0", NULL},
             {"ingest", "--store", st, "nothing-to-read", NULL},
+            {"pairs", "templates", "--store", st, "--samples", "s.jsonl", "--avatar", "1", NULL},
+            {"complete", "--store", st, "--landmarks", "x.json", NULL},
         };
         for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
             if (k == 1 && !strcmp(cases[c][0], "ingest"))
@@ -220,8 +222,8 @@ static void test_store_open_exit_status(void **s)
             char *out = NULL, *err = NULL;
             int rc = run(&out, &err, cases[c]);
             if (rc != 2 || !strstr(err, st) || count_lines(err) != 1)
-                fail_msg("mimic %s --store %s: exit %d, stderr '%s' (wanted 2 and one line naming the store)",
-                         cases[c][0], st, rc, err);
+                fail_msg("mimic %s %s --store %s: exit %d, stderr '%s' (wanted 2 and one line naming the store)",
+                         cases[c][0], cases[c][1], st, rc, err);
             free(out), free(err);
         }
     }
