@@ -125,12 +125,14 @@ const double *mim_pairs_evidence_views(const mim_pairs_evidence_t *e);
 #define MIM_PAIRS_DEFAULT_SIGMA_L 0.1 /* the paper's 0.01 freezes every chain in mimic's units (chain.c) */
 #define MIM_PAIRS_MAX_VIEWS 64
 /* log L(theta) of eq. 6 for the 34 joints over the m views (psi, phi
- * pairs in the pair's local frame), with eq. 9's kernel of bandwidth
+ * pairs in the pair's local frame), each view's projection compared with
+ * the annotations whose view lies within cone radians of it (pi: all; the
+ * 8 nearest views when the cone holds fewer), with eq. 9's kernel of bandwidth
  * sigma_l on the density's distance (d_I for IC, the aligned RMS for
  * CARTESIAN, the 2D shape-context cost for SHAPE). nearest (m entries, may
  * be NULL) gets the annotation that decided each view (eq. 12's D*).
- * Returns -INFINITY when the pair has no local frame or a projection no
- * triangulation. */
+ * Returns -INFINITY when the pair has no local frame or no view's
+ * projection has a triangulation (such a view alone counts as no match). */
 double mim_pairs_log_likelihood(const mim_pairs_evidence_t *e, mim_pairs_density_t density, double sigma_l,
                                 double cone, const double *joints, const double *views, uint32_t m, uint32_t *nearest);
 /* eq. 12's mean squared differential of each group over the annotations

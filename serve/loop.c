@@ -24,10 +24,12 @@
  * linear ones, which cost next to nothing; and when even that is not
  * enough, the loop skips to the newest vest frame instead of falling
  * behind (flush_frames). A fixed key rate (--key-rate) overrides the
- * choice of k. Lost landmarks are filled in from the store's templates
+ * choice of k. A lost landmark is held at its last position for up to
+ * HOLD_US of vest time, then filled in from the store's templates
  * (mim_session_complete: seed 002's completion by retrieval) while at least
- * 4 are seen, else held at their last position, so a dropout does not stop
- * the stream.
+ * 4 are seen, else held, so a dropout does not stop the stream. Holding
+ * first: in a vest replay the last position beats retrieval for losses up
+ * to about a second, and retrieval wins beyond (bench/RESULTS.md).
  *
  * A vest that goes away is waited for: a device unplugged (serial, HID),
  * or any vest silent for SILENCE_S (or 5 vest periods, if longer), e.g. a
@@ -44,6 +46,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+
+#define HOLD_US 1000000 /* a lost landmark is held this long before it is completed */
 
 #define BUDGET_FRACTION 0.8 /* of the vest period, for one frame's compute */
 #define K_MAX 30u           /* never fewer key frames than one every 30 vest frames */
@@ -83,6 +87,7 @@ struct mim__loop {
     uint32_t since_key; /* frames published since the latest key */
     float last_u[3 * MIM_LANDMARKS_MAX];
     uint8_t have_u[MIM_LANDMARKS_MAX];
+    uint64_t seen_us[MIM_LANDMARKS_MAX]; /* vest time a landmark was last seen */
     double period, c_key, c_cold, c_warm, c_morph, c_linear; /* seconds: vest period, costs (moving averages) */
     int linear;        /* morphs between the latest keys are linear (frames ones do not fit) */
     uint64_t t_prev_vest;
@@ -272,6 +277,13 @@ static void count_rates(mim__loop_t *l, int key)
     l->window_start = now, l->window_frames = l->window_keys = 0;
 }
 
+/* Whether lost landmark i is still held at its last position at vest time
+ * t (seen, and lost for under HOLD_US). */
+static int held(const mim__loop_t *l, uint32_t i, uint64_t t)
+{
+    return l->have_u[i] && t >= l->seen_us[i] && t - l->seen_us[i] < HOLD_US;
+}
+
 /* One vest frame's landmarks (present[i] = 0 for a lost one): a key frame
  * or a morph, published. */
 static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *present, uint64_t t_vest)
@@ -284,7 +296,7 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
     for (uint32_t i = 0; i < L; i++) {
         if (present[i]) {
             memcpy(l->last_u + 3 * i, xyz + 3 * i, 3 * sizeof *xyz);
-            l->have_u[i] = 1;
+            l->have_u[i] = 1, l->seen_us[i] = t_vest;
         }
         lost |= !present[i];
         complete &= l->have_u[i];
@@ -293,17 +305,23 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
             shown[3 * i + c] = present[i] ? xyz[3 * i + c] : NAN;
         }
     }
-    if (lost) {
+    int to_complete = 0; /* lost landmarks not held any more (or never seen) */
+    for (uint32_t i = 0; i < L; i++)
+        to_complete |= !present[i] && !held(l, i, t_vest);
+    if (lost)
         mim__metrics_add(&sv->m, MIM__C_INCOMPLETE, 1);
+    if (to_complete) {
         /* Lost landmarks are completed from the store's templates (seed
-         * 002's completion by retrieval) when enough are seen; else held. */
+         * 002's completion by retrieval) when enough are seen; else held.
+         * Held first, for HOLD_US: over short losses the last position is
+         * nearer than retrieval (bench/complete.c's vest replay). */
         float filled[3 * MIM_LANDMARKS_MAX];
         uint8_t done[MIM_LANDMARKS_MAX];
         mim_error_t cerr = {0};
         if (mim_session_complete(sv->s, xyz, present, NULL, filled, done, &cerr) == 0) {
             uint32_t n_done = 0;
             for (uint32_t i = 0; i < L; i++)
-                if (done[i]) memcpy(u + 3 * i, filled + 3 * i, 3 * sizeof *u), n_done++;
+                if (done[i] && !held(l, i, t_vest)) memcpy(u + 3 * i, filled + 3 * i, 3 * sizeof *u), n_done++;
             complete = 1;
             mim__metrics_add(&sv->m, MIM__C_COMPLETED, n_done);
             pthread_mutex_lock(&l->lock);

@@ -536,7 +536,8 @@ static void test_sample_cli(void **s)
     free(o), free(e);
     /* bad input: usage (2) and inputs (1), nothing written */
     char *none = ts_path(dir, "none.jsonl"), *junk = ts_path(dir, "junk.json");
-    ts_write_file(junk, "{\"format\": \"mimic pair annotations 1\"", 40);
+    const char *junk_text = "{\"format\": \"mimic pair annotations 1\"";
+    ts_write_file(junk, junk_text, strlen(junk_text));
     const char *b1[] = {"pairs", "sample", "--prior", spec, "--samples", "10", "-o", none, NULL};
     expect_fail(b1, 2, "--density ic needs --annotations");
     const char *b2[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "0", "-o", none, NULL};

@@ -410,8 +410,30 @@ static void run_demo(const char *ddir, int check_live)
     free(out), free(err);
 }
 
-/* ---- 7c. lost vest landmarks completed from the store (issue 14) ----
- * A UDP sender whose frames lose 3 landmarks from the very first one: with
+/* ---- 7c. lost vest landmarks completed from the store (issue 14) ---- */
+/* A UDP frame of a stored body's landmarks at vest time t_us, with
+ * landmarks 7, 8 and 13 lost when lose is set. */
+static int body_frame(char *msg, size_t size, uint64_t t_us, int lose)
+{
+    char *bodies = ts_path(dir, "bodies"), *body = ts_path(bodies, "synth_s01_p02.ply"),
+         *map_path = ts_path(bodies, "landmarks.json");
+    mim_mesh_t m = {0};
+    mim_landmark_map_t map;
+    assert_int_equal(mim_io_read_mesh(body, &m, NULL), 0);
+    assert_int_equal(mim_landmarks_read(&map, map_path, NULL), 0);
+    int len = snprintf(msg, size, "{\"t\": %llu, \"landmarks\": [", (unsigned long long)t_us);
+    for (uint32_t l = 0; l < map.count; l++) {
+        const float *p = m.positions + 3 * (size_t)map.vertex[l];
+        if (lose && (l == 7 || l == 8 || l == 13)) len += snprintf(msg + len, size - len, "%snull", l ? ", " : "");
+        else len += snprintf(msg + len, size - len, "%s[%.6f, %.6f, %.6f]", l ? ", " : "", p[0], p[1], p[2]);
+    }
+    len += snprintf(msg + len, size - len, "]}");
+    mim_mesh_free(&m);
+    free(bodies), free(body), free(map_path);
+    return len;
+}
+
+/* A UDP sender whose frames lose 3 landmarks from the very first one: with
  * landmarks only held at their last position the loop would never have
  * them all and publish nothing; completed by retrieval, frames flow, and
  * status and metrics count the filled landmarks. */
@@ -421,22 +443,8 @@ static void test_lost_landmarks_completed(void **state)
     ss_svc_t U = {0};
     char spec[64];
     int up = serve_on_udp(&U, "c", spec, sizeof spec);
-    /* the landmarks of a stored body, 3 of them lost */
-    char *bodies = ts_path(dir, "bodies"), *body = ts_path(bodies, "synth_s01_p02.ply"),
-         *map_path = ts_path(bodies, "landmarks.json");
-    mim_mesh_t m = {0};
-    mim_landmark_map_t map;
-    assert_int_equal(mim_io_read_mesh(body, &m, NULL), 0);
-    assert_int_equal(mim_landmarks_read(&map, map_path, NULL), 0);
     char msg[4096];
-    int len = snprintf(msg, sizeof msg, "{\"t\": 0, \"landmarks\": [");
-    for (uint32_t l = 0; l < map.count; l++) {
-        const float *p = m.positions + 3 * (size_t)map.vertex[l];
-        if (l == 7 || l == 8 || l == 13) len += snprintf(msg + len, sizeof msg - len, "%snull", l ? ", " : "");
-        else len += snprintf(msg + len, sizeof msg - len, "%s[%.6f, %.6f, %.6f]", l ? ", " : "", p[0], p[1], p[2]);
-    }
-    len += snprintf(msg + len, sizeof msg - len, "]}");
-    mim_mesh_free(&m);
+    int len = body_frame(msg, sizeof msg, 0, 1);
     int sock = socket(AF_INET, SOCK_DGRAM, 0);
     struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons((uint16_t)up)};
     to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
@@ -460,7 +468,46 @@ static void test_lost_landmarks_completed(void **state)
     assert_true(ss_metric(U.port, "mimic_vest_incomplete_frames_total") >= 20);
     ss_svc_term(&U);
     ss_svc_free(&U);
-    free(bodies), free(body), free(map_path);
+}
+
+/* Landmarks seen, then lost: held at their last position for the first
+ * second of vest time (the packets' own clock, so the machine's speed does
+ * not matter), completed by retrieval after it. */
+static void test_lost_landmarks_held_first(void **state)
+{
+    (void)state;
+    ss_svc_t U = {0};
+    char spec[64];
+    int up = serve_on_udp(&U, "h", spec, sizeof spec);
+    int sock = socket(AF_INET, SOCK_DGRAM, 0);
+    struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons((uint16_t)up)};
+    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    const uint64_t period = 16667; /* 60 Hz */
+    char msg[4096];
+    /* 30 whole frames, then 50 that lose 3 landmarks (0.83 s), then 60 more (to 1.83 s) */
+    int k = 0;
+    for (int phase = 0; phase < 3; phase++) {
+        int frames = phase == 0 ? 30 : phase == 1 ? 50 : 60;
+        for (int f = 0; f < frames; f++, k++) {
+            int len = body_frame(msg, sizeof msg, (uint64_t)k * period, phase > 0);
+            assert_true(sendto(sock, msg, (size_t)len, 0, (struct sockaddr *)&to, sizeof to) == len);
+            ss_sleep_ms(5);
+        }
+        if (phase == 0) continue;
+        /* every frame sent has been taken in */
+        double end = ss_now_s() + 30;
+        while (ss_metric(U.port, "mimic_vest_incomplete_frames_total") < (phase == 1 ? 50 : 110)) {
+            if (ss_now_s() > end) fail_msg("the service took in %g lossy frames of %d", ss_metric(U.port, "mimic_vest_incomplete_frames_total"), phase == 1 ? 50 : 110);
+            ss_sleep_ms(20);
+        }
+        double completed = ss_metric(U.port, "mimic_landmarks_completed_total");
+        print_message("lost for %.2f s: %g landmarks completed\n", (k - 30) * period * 1e-6, completed);
+        if (phase == 1) assert_true(completed == 0); /* all held */
+        else assert_true(completed >= 3 * 40 && completed <= 3 * 51); /* from 1 s on: frames 60 .. 110 of the loss */
+    }
+    close(sock);
+    ss_svc_term(&U);
+    ss_svc_free(&U);
 }
 
 static void test_demo(void **state)
@@ -503,6 +550,7 @@ int main(void)
         cmocka_unit_test(test_vest_outage),
         cmocka_unit_test(test_udp_vest_stops),
         cmocka_unit_test(test_lost_landmarks_completed),
+        cmocka_unit_test(test_lost_landmarks_held_first),
         cmocka_unit_test(test_demo),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
