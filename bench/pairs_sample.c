@@ -38,7 +38,7 @@
  * the IC likelihood what can be called from outside: the 2D Delaunay
  * triangulation of a view's projection (mim_ic_build, qhull) and d_I of
  * eq. 8 (mim_ic_distance), with an estimate of the short list's
- * alignments (re-implemented). Calls per step: 2 kinematics (the
+ * alignments (mim_pairs2d_align). Calls per step: 2 kinematics (the
  * proposal's, and the chain's output), 1 validity, 1 penetration, 1
  * likelihood; inside it, per view, one triangulation and 8 d_I
  * (likelihood.c's short list of 8).
@@ -46,10 +46,9 @@
  * Reference: eq. 9 as the paper writes it before "in practice": for each
  * view, the max over ALL annotations of d_I against each annotation's own
  * triangulation, after eq. 9's M (no cone of similar views, no short
- * list). Built here from public functions; the projection, the centring
- * and unit-RMS scaling and the least-squares 2D rotation are sample/'s
- * internals (likelihood.c, pairs2d.c), re-implemented below in the same
- * few lines, so that both likelihoods compare the same projections.
+ * list). Built here from public functions, the likelihood's own 2D
+ * projection, normalisation and rotation (mim_pairs2d_*) among them, so
+ * that both likelihoods compare the same projections.
  *
  * usage: bench_pairs_sample [--data DIR | --synthetic] [--runs R] [--samples N]
  *                           [--naive-states K]
@@ -179,107 +178,25 @@ static int synthetic_take(uint32_t n, int which, take_t *t)
 static int annotate(const take_t *takes, int n_takes, uint32_t views, uint64_t seed, mim_pairs_annotations_t *a,
                     uint32_t *shots)
 {
-    uint32_t total = 0;
-    for (int t = 0; t < n_takes; t++) total += takes[t].n * views;
+    const mim_pairs_annotate_options_t opt = {views, 1, NOISE_PX, seed};
     memset(a, 0, sizeof *a);
-    a->width = 1920, a->height = 1080;
-    a->take = malloc(total * sizeof *a->take), a->frame = malloc(total * sizeof *a->frame);
-    a->view = malloc(total * sizeof *a->view), a->shot = malloc(total * sizeof *a->shot);
-    a->points = malloc((size_t)total * 2 * J * sizeof *a->points);
-    mim_pairs_camera_t shot_cam[ANN_VIEWS];
-    uint32_t shot_of[ANN_VIEWS];
-    if (!a->take || !a->frame || !a->view || !a->shot || !a->points || views > ANN_VIEWS) return -1;
     *shots = 0;
     for (int t = 0; t < n_takes; t++) {
-        for (uint32_t v = 0; v < views; v++) shot_of[v] = MIM_PAIRS_NO_SHOT;
-        for (uint32_t f = 0; f < takes[t].n; f++)
-            for (uint32_t v = 0; v < views; v++) {
-                mim_rng_t rng;
-                mim_rng_seed(&rng, seed, ((uint64_t)t << 48) ^ ((uint64_t)f << 16) ^ v);
-                const double *joints = takes[t].frames + (size_t)f * 3 * J;
-                mim_pairs_camera_t cam;
-                /* a video's camera follows the pair; one that loses it ends its shot */
-                if (shot_of[v] != MIM_PAIRS_NO_SHOT && mim_pairs_camera_follow(&shot_cam[v], joints)) {
-                    cam = shot_cam[v];
-                } else if (mim_pairs_camera_random(&rng, joints, &cam)) {
-                    fprintf(stderr, "bench_pairs_sample: %s frame %u: no camera sees both people\n", takes[t].name, f);
-                    return -1;
-                } else {
-                    shot_cam[v] = cam, shot_of[v] = (*shots)++;
-                }
-                double *uv = a->points + (size_t)a->n * 2 * J;
-                mim_pairs_project(&cam, joints, uv);
-                for (int k = 0; k < 2 * J; k++) uv[k] += NOISE_PX * mim_rng_gauss(&rng);
-                a->take[a->n] = (uint32_t)t, a->frame[a->n] = f, a->view[a->n] = v, a->shot[a->n] = shot_of[v];
-                a->n++;
-            }
+        uint32_t bad = 0;
+        if (mim_pairs_annotate_take(takes[t].frames, takes[t].n, 0, 1, (uint32_t)t, &opt, a, NULL, shots, &bad)) {
+            fprintf(stderr, "bench_pairs_sample: %s frame %u: no annotation (no camera sees both people?)\n", takes[t].name, bad);
+            return -1;
+        }
     }
     return 0;
 }
 
-/* ---- sample/'s 2D internals, re-implemented (likelihood.c, pairs2d.c) ---- */
-/* likelihood.c's project(): orthographic along dir, image axes any two that
- * make (x, y, dir) right-handed. */
-static void project(const double *joints, const double dir[3], double *uv)
-{
-    int a = fabs(dir[0]) < fabs(dir[1]) ? (fabs(dir[0]) < fabs(dir[2]) ? 0 : 2) : (fabs(dir[1]) < fabs(dir[2]) ? 1 : 2);
-    double x[3] = {0, 0, 0};
-    x[a] = 1;
-    double d = x[0] * dir[0] + x[1] * dir[1] + x[2] * dir[2], n = 0;
-    for (int c = 0; c < 3; c++) x[c] -= d * dir[c], n += x[c] * x[c];
-    n = sqrt(n);
-    for (int c = 0; c < 3; c++) x[c] /= n;
-    double y[3] = {dir[1] * x[2] - dir[2] * x[1], dir[2] * x[0] - dir[0] * x[2], dir[0] * x[1] - dir[1] * x[0]};
-    for (int i = 0; i < J; i++) {
-        const double *p = joints + 3 * i;
-        uv[2 * i] = x[0] * p[0] + x[1] * p[1] + x[2] * p[2];
-        uv[2 * i + 1] = y[0] * p[0] + y[1] * p[1] + y[2] * p[2];
-    }
-}
-
-/* pairs2d.c's normalisation: centred, unit RMS radius; 0 when degenerate. */
-static double normalise(const double *in, double *out)
-{
-    double cx = 0, cy = 0;
-    for (int i = 0; i < J; i++) cx += in[2 * i], cy += in[2 * i + 1];
-    cx /= J, cy /= J;
-    double r2 = 0;
-    for (int i = 0; i < J; i++) {
-        out[2 * i] = in[2 * i] - cx, out[2 * i + 1] = in[2 * i + 1] - cy;
-        r2 += out[2 * i] * out[2 * i] + out[2 * i + 1] * out[2 * i + 1];
-    }
-    double r = sqrt(r2 / J);
-    if (!(r > 1e-12) || !isfinite(r)) return 0;
-    for (int i = 0; i < 2 * J; i++) out[i] /= r;
-    return r;
-}
-
-/* eq. 9's M for normalised 2D pairs (pairs2d.c): the least-squares
- * rotation of b onto a, in closed form, applied to b. */
+/* eq. 9's M applied: b turned onto a (normalised 2D pose-pairs). */
 static void align_rotate(const double *a, const double *b, double *out)
 {
-    double dot = 0, cross = 0;
-    for (int i = 0; i < J; i++) {
-        dot += a[2 * i] * b[2 * i] + a[2 * i + 1] * b[2 * i + 1];
-        cross += a[2 * i + 1] * b[2 * i] - a[2 * i] * b[2 * i + 1];
-    }
-    double h = hypot(dot, cross), c = h > 0 ? dot / h : 1.0, s = h > 0 ? cross / h : 0.0;
-    for (int i = 0; i < J; i++) {
-        double x = b[2 * i], y = b[2 * i + 1];
-        out[2 * i] = c * x - s * y, out[2 * i + 1] = s * x + c * y;
-    }
-}
-
-/* pairs2d.c's mean squared distance after that rotation (unit RMS
- * radius: |a - R b|^2 = 2N - 2h): the key of likelihood.c's short list. */
-static double align_mse(const double *a, const double *b)
-{
-    double dot = 0, cross = 0;
-    for (int i = 0; i < J; i++) {
-        dot += a[2 * i] * b[2 * i] + a[2 * i + 1] * b[2 * i + 1];
-        cross += a[2 * i + 1] * b[2 * i] - a[2 * i] * b[2 * i + 1];
-    }
-    return fmax(0.0, (2.0 * J - 2.0 * hypot(dot, cross)) / J);
+    double c, sn;
+    mim_pairs2d_align(a, b, &c, &sn);
+    mim_pairs2d_rotate(b, c, sn, out);
 }
 
 /* The annotations for the reference: each normalised and triangulated. */
@@ -296,7 +213,7 @@ static int naive_build(const mim_pairs_annotations_t *a, naive_t *nv)
     if (!nv->pts || !nv->ic) return -1;
     for (uint32_t i = 0; i < a->n; i++) {
         mim_error_t err = {0};
-        if (normalise(a->points + (size_t)i * 2 * J, nv->pts[nv->n]) && !mim_ic_build(nv->pts[nv->n], 2, &nv->ic[nv->n], &err))
+        if (mim_pairs2d_normalise(a->points + (size_t)i * 2 * J, nv->pts[nv->n]) && !mim_ic_build(nv->pts[nv->n], 2, &nv->ic[nv->n], &err))
             nv->n++;
     }
     return 0;
@@ -307,8 +224,8 @@ static int view_projection(const double R[9], const double *joints, double psi, 
 {
     double dir[3], uv[2 * J];
     mim_pairs_view_direction(R, psi, phi, dir);
-    project(joints, dir, uv);
-    return normalise(uv, q) > 0;
+    mim_pairs2d_project(joints, dir, uv);
+    return mim_pairs2d_normalise(uv, q) > 0;
 }
 
 /* eq. 6 with eq. 9 over every annotation (the paper's likelihood before
@@ -404,7 +321,10 @@ static int piece_run(const prof_t *p, int piece, state_t *s, int reps)
             for (int v = 0; v < CHAIN_VIEWS; v++) {
                 if (!s->ok[v]) continue;
                 for (uint32_t i = 0; i < 8; i++)
-                    acc += align_mse(p->nv->pts[(s->ann[v] + 379 * i) % p->nv->n], s->q[v]), calls++;
+                    {
+                        double c, sn;
+                        acc += mim_pairs2d_align(p->nv->pts[(s->ann[v] + 379 * i) % p->nv->n], s->q[v], &c, &sn), calls++;
+                    }
             }
             break;
         case P_VELOCITY: {
@@ -750,8 +670,8 @@ int main(int argc, char **argv)
     printf("| - the rest: projections, the views of %u annotations scanned, alignments | 1 | | %.1f | %.1f %% |\n",
            mim_pairs_evidence_count(ev_ic), rest_l, 100 * rest_l / step);
     const double aligns = CHAIN_VIEWS * fmax(cone_med, SHORTLIST) * us[P_ALIGN];
-    printf("| -- of it, estimated: the aligned RMS of the %.0f annotations in a view's cone (median; re-implemented "
-           "here) | %.0f | %.3f | %.1f | %.1f %% |\n",
+    printf("| -- of it, estimated: the aligned RMS of the %.0f annotations in a view's cone (median; "
+           "mim_pairs2d_align) | %.0f | %.3f | %.1f | %.1f %% |\n",
            cone_med, CHAIN_VIEWS * fmax(cone_med, SHORTLIST), us[P_ALIGN], aligns, 100 * aligns / step);
     printf("| eq. 12 variances (mim_pairs_velocity) | 1 | %.2f | %.2f | %.2f %% |\n\n", us[P_VELOCITY], us[P_VELOCITY],
            100 * us[P_VELOCITY] / step);

@@ -247,7 +247,7 @@ static int annotate(int argc, char **argv)
         }
         switch (c) {
         case 'v':
-            if (mim_cli_number("pairs annotate", "views", optarg, 1, 1000, &views)) return 2;
+            if (mim_cli_number("pairs annotate", "views", optarg, 1, MIM_PAIRS_ANNOTATE_MAX_VIEWS, &views)) return 2;
             break;
         case 'n':
             if (mim_cli_real("pairs annotate", "noise-px", optarg, 0.0, 1000.0, 0, "is not a number of pixels in 0..1000", &noise))
@@ -273,69 +273,23 @@ static int annotate(int argc, char **argv)
     if (mim_cli_takes_begin(&tk)) return 1;
     char *ann_text = NULL, *cam_text = NULL;
     mim_pairs_annotations_t a = {0};
-    mim_pairs_camera_t *cams = NULL, *shot_cam = NULL;
-    uint32_t *shot_of = NULL; /* per view: its current shot, and the shot's camera */
-    uint32_t cap = 0, shots = 0;
+    mim_pairs_camera_t *cams = NULL;
+    const mim_pairs_annotate_options_t opt = {(uint32_t)views, video, noise, seed};
+    uint32_t shots = 0;
     int status = 1;
-    a.width = 1920, a.height = 1080;
     for (int t = 0; t < tk.n; t++) {
         double *fr = NULL;
-        uint32_t nf = 0;
+        uint32_t nf = 0, bad = 0;
         if (mim_cli_takes_read(&tk, t, &fr, &nf)) goto done;
-        free(shot_cam), free(shot_of);
-        shot_cam = calloc(views, sizeof *shot_cam), shot_of = malloc(views * sizeof *shot_of);
-        if (!shot_cam || !shot_of) {
-            free(fr);
-            fprintf(stderr, "mimic pairs annotate: out of memory for %llu views\n", (unsigned long long)views);
-            goto done;
-        }
-        for (uint32_t v = 0; v < views; v++) shot_of[v] = MIM_PAIRS_NO_SHOT;
-        for (uint32_t i = 0; i < nf; i++)
-            for (uint32_t v = 0; v < views; v++) {
-                if (a.n == cap) {
-                    cap = cap ? 2 * cap : 256;
-                    uint32_t *t1 = realloc(a.take, cap * sizeof *t1), *t2 = t1 ? realloc(a.frame, cap * sizeof *t2) : NULL,
-                             *t3 = t2 ? realloc(a.view, cap * sizeof *t3) : NULL;
-                    if (t1) a.take = t1;
-                    if (t2) a.frame = t2;
-                    if (t3) a.view = t3;
-                    uint32_t *t4 = t3 ? realloc(a.shot, cap * sizeof *t4) : NULL;
-                    if (t4) a.shot = t4;
-                    t3 = t4 ? t3 : NULL;
-                    double *pp = t3 ? realloc(a.points, (size_t)cap * 2 * MIM_PAIR_JOINTS * sizeof *pp) : NULL;
-                    if (pp) a.points = pp;
-                    mim_pairs_camera_t *cc = pp ? realloc(cams, cap * sizeof *cc) : NULL;
-                    if (cc) cams = cc;
-                    if (!cc) {
-                        free(fr);
-                        fprintf(stderr, "mimic pairs annotate: out of memory at %u annotations\n", a.n);
-                        goto done;
-                    }
-                }
-                uint32_t frame = (uint32_t)(tk.offset + i * tk.every);
-                /* one generator stream per (take, frame, view): the same seed, the same bytes */
-                mim_rng_t rng;
-                mim_rng_seed(&rng, seed, ((uint64_t)t << 48) ^ ((uint64_t)frame << 16) ^ v);
-                const double *joints = fr + (size_t)i * 3 * MIM_PAIR_JOINTS;
-                /* a video's camera follows the pair; one that loses it ends its shot */
-                if (video && shot_of[v] != MIM_PAIRS_NO_SHOT && mim_pairs_camera_follow(&shot_cam[v], joints)) {
-                    cams[a.n] = shot_cam[v];
-                } else if (mim_pairs_camera_random(&rng, joints, &cams[a.n])) {
-                    fprintf(stderr, "mimic pairs annotate: %s: frame %u: no camera sees both people whole\n", tk.spec[t],
-                            frame);
-                    free(fr);
-                    goto done;
-                } else {
-                    shot_cam[v] = cams[a.n];
-                    shot_of[v] = video ? shots++ : MIM_PAIRS_NO_SHOT;
-                }
-                double *uv = a.points + (size_t)a.n * 2 * MIM_PAIR_JOINTS;
-                mim_pairs_project(&cams[a.n], joints, uv);
-                for (int k = 0; k < 2 * MIM_PAIR_JOINTS; k++) uv[k] += noise * mim_rng_gauss(&rng);
-                a.take[a.n] = (uint32_t)t, a.frame[a.n] = frame, a.view[a.n] = v, a.shot[a.n] = shot_of[v];
-                a.n++;
-            }
+        int rc = mim_pairs_annotate_take(fr, nf, (uint32_t)tk.offset, (uint32_t)tk.every, (uint32_t)t, &opt, &a, &cams,
+                                         &shots, &bad);
         free(fr);
+        if (rc == MIM_ENOTFOUND)
+            fprintf(stderr, "mimic pairs annotate: %s: frame %u: no camera sees both people whole\n", tk.spec[t], bad);
+        else if (rc)
+            fprintf(stderr, "mimic pairs annotate: %s at %u annotations\n",
+                    rc == MIM_ENOMEM ? "out of memory" : "too many annotations", a.n);
+        if (rc) goto done;
     }
     ann_text = mim_pairs_annotations_json(&a, tk.spec, (uint32_t)tk.n);
     cam_text = cams_path ? mim_pairs_cameras_json(&a, cams) : NULL;
@@ -352,7 +306,6 @@ static int annotate(int argc, char **argv)
     status = 0;
 done:
     mim_pairs_annotations_free(&a);
-    free(shot_cam), free(shot_of);
     free(cams), free(ann_text), free(cam_text), free(tk.map_text);
     return status;
 }

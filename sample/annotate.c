@@ -12,6 +12,7 @@
 #include "mim_sample.h"
 
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 static mim_vec3 centre(const double *joints)
@@ -78,4 +79,67 @@ int mim_pairs_camera_random(mim_rng_t *rng, const double *joints, mim_pairs_came
         if (mim_pairs_project(cam, joints, uv)) return 0;
     }
     return MIM_ENOTFOUND;
+}
+
+/* Grows every array of a (and *cams) to hold cap annotations. */
+static int reserve(mim_pairs_annotations_t *a, mim_pairs_camera_t **cams, size_t cap)
+{
+    uint32_t *t1 = realloc(a->take, cap * sizeof *t1);
+    if (t1) a->take = t1;
+    uint32_t *t2 = t1 ? realloc(a->frame, cap * sizeof *t2) : NULL;
+    if (t2) a->frame = t2;
+    uint32_t *t3 = t2 ? realloc(a->view, cap * sizeof *t3) : NULL;
+    if (t3) a->view = t3;
+    uint32_t *t4 = t3 ? realloc(a->shot, cap * sizeof *t4) : NULL;
+    if (t4) a->shot = t4;
+    double *pp = t4 ? realloc(a->points, cap * 2 * MIM_PAIR_JOINTS * sizeof *pp) : NULL;
+    if (pp) a->points = pp;
+    if (!pp) return MIM_ENOMEM;
+    if (!cams) return 0;
+    mim_pairs_camera_t *cc = realloc(*cams, cap * sizeof *cc);
+    if (!cc) return MIM_ENOMEM;
+    *cams = cc;
+    return 0;
+}
+
+int mim_pairs_annotate_take(const double *frames, uint32_t n, uint32_t first, uint32_t every, uint32_t take,
+                            const mim_pairs_annotate_options_t *o, mim_pairs_annotations_t *a,
+                            mim_pairs_camera_t **cams, uint32_t *shots, uint32_t *bad_frame)
+{
+    if (!o->views || o->views > MIM_PAIRS_ANNOTATE_MAX_VIEWS) return MIM_EINVAL;
+    if ((uint64_t)a->n + (uint64_t)n * o->views > MIM_PAIRS_ANNOTATIONS_MAX) return MIM_EUNSUPPORTED;
+    if (reserve(a, cams, (size_t)a->n + (size_t)n * o->views)) return MIM_ENOMEM;
+    a->width = 1920, a->height = 1080; /* mim_pairs_camera_random's image */
+    /* per view: its current shot, and the shot's camera */
+    mim_pairs_camera_t cam, *shot_cam = malloc(o->views * sizeof *shot_cam);
+    uint32_t *shot_of = malloc(o->views * sizeof *shot_of);
+    int rc = shot_cam && shot_of ? 0 : MIM_ENOMEM;
+    for (uint32_t v = 0; v < o->views && !rc; v++) shot_of[v] = MIM_PAIRS_NO_SHOT;
+    for (uint32_t i = 0; i < n && !rc; i++)
+        for (uint32_t v = 0; v < o->views && !rc; v++) {
+            uint32_t frame = first + i * every;
+            /* one generator stream per (take, frame, view): the same seed, the same bytes */
+            mim_rng_t rng;
+            mim_rng_seed(&rng, o->seed, ((uint64_t)take << 48) ^ ((uint64_t)frame << 16) ^ v);
+            const double *joints = frames + (size_t)i * 3 * MIM_PAIR_JOINTS;
+            /* a video's camera follows the pair; one that loses it ends its shot */
+            if (o->video && shot_of[v] != MIM_PAIRS_NO_SHOT && mim_pairs_camera_follow(&shot_cam[v], joints)) {
+                cam = shot_cam[v];
+            } else if (mim_pairs_camera_random(&rng, joints, &cam)) {
+                if (bad_frame) *bad_frame = frame;
+                rc = MIM_ENOTFOUND;
+                break;
+            } else {
+                shot_cam[v] = cam;
+                shot_of[v] = o->video ? (*shots)++ : MIM_PAIRS_NO_SHOT;
+            }
+            double *uv = a->points + (size_t)a->n * 2 * MIM_PAIR_JOINTS;
+            mim_pairs_project(&cam, joints, uv);
+            for (int k = 0; k < 2 * MIM_PAIR_JOINTS; k++) uv[k] += o->noise_px * mim_rng_gauss(&rng);
+            a->take[a->n] = take, a->frame[a->n] = frame, a->view[a->n] = v, a->shot[a->n] = shot_of[v];
+            if (cams) (*cams)[a->n] = cam;
+            a->n++;
+        }
+    free(shot_cam), free(shot_of);
+    return rc;
 }

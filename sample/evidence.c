@@ -108,7 +108,7 @@ int mim_pairs_evidence_build(const mim_pairs_annotations_t *ann, const mim_pairs
         const double *uv = ann->points + (size_t)i * 2 * MIM_PAIR_JOINTS;
         double psi, phi;
         mim_error_t ic_err = {0};
-        if (!mim__pairs2d_normalise(uv, it->pts) ||
+        if (!mim_pairs2d_normalise(uv, it->pts) ||
             mim_pairs_annotation_view(torso, uv, ann->width, ann->height, &psi, &phi) ||
             mim_ic_build(it->pts, 2, &it->ic, &ic_err)) {
             if (dropped) (*dropped)++;

@@ -21,13 +21,6 @@ double mim__shape_cost(const float *a, const float *b, int n, int bins);
 #define MIM__SC2_R 5
 #define MIM__SC2_A 12
 #define MIM__SC2_BINS (MIM__SC2_R * MIM__SC2_A)
-/* in (34 [x, y]) centred on its mean and scaled to unit RMS radius into
- * out: the radius, 0 when every point is at one place or one is NaN. */
-double mim__pairs2d_normalise(const double *in, double *out);
-/* The 2D rotation (cos, sin) of least squares that brings normalised b
- * onto normalised a, and the mean squared distance after it (per joint). */
-double mim__pairs2d_align(const double *a, const double *b, double *c, double *s);
-void mim__pairs2d_rotate(const double *b, double c, double s, double *out);
 /* Log-polar shape contexts of normalised 2D points (5 radial bins from
  * 1/8 to 2 of the mean joint distance, 12 angular; each count shared
  * linearly between neighbouring bins so that the cost is continuous). */

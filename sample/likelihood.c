@@ -10,26 +10,6 @@
 
 #define SHORTLIST 8 /* annotations measured with the density's distance per view */
 
-/* A view's projection: orthographic along dir, the image's axes any two
- * that make (x, y, dir) right-handed as a camera's right, down, forward
- * (eq. 9's M removes the turn about dir, never a mirror). */
-static void project(const double *joints, const double dir[3], double *uv)
-{
-    int a = fabs(dir[0]) < fabs(dir[1]) ? (fabs(dir[0]) < fabs(dir[2]) ? 0 : 2) : (fabs(dir[1]) < fabs(dir[2]) ? 1 : 2);
-    double x[3] = {0, 0, 0};
-    x[a] = 1;
-    double d = x[0] * dir[0] + x[1] * dir[1] + x[2] * dir[2], n = 0;
-    for (int c = 0; c < 3; c++) x[c] -= d * dir[c], n += x[c] * x[c];
-    n = sqrt(n);
-    for (int c = 0; c < 3; c++) x[c] /= n;
-    double y[3] = {dir[1] * x[2] - dir[2] * x[1], dir[2] * x[0] - dir[0] * x[2], dir[0] * x[1] - dir[1] * x[0]};
-    for (int i = 0; i < MIM_PAIR_JOINTS; i++) {
-        const double *p = joints + 3 * i;
-        uv[2 * i] = x[0] * p[0] + x[1] * p[1] + x[2] * p[2];
-        uv[2 * i + 1] = y[0] * p[0] + y[1] * p[1] + y[2] * p[2];
-    }
-}
-
 typedef struct near {
     double mse;
     uint32_t i;
@@ -66,12 +46,12 @@ static double best_match(const mim_pairs_evidence_t *e, mim_pairs_density_t dens
             continue;
         }
         in_cone++;
-        x.mse = mim__pairs2d_align(mim__evidence_points(e, i), q, &x.c, &x.s);
+        x.mse = mim_pairs2d_align(mim__evidence_points(e, i), q, &x.c, &x.s);
         keep(list, &len, k, x);
     }
     for (int v = 0; in_cone + v < SHORTLIST && v < vlen; v++) {
         near_t x = views[v];
-        x.mse = mim__pairs2d_align(mim__evidence_points(e, x.i), q, &x.c, &x.s);
+        x.mse = mim_pairs2d_align(mim__evidence_points(e, x.i), q, &x.c, &x.s);
         keep(list, &len, k, x);
     }
     double best = INFINITY;
@@ -81,7 +61,7 @@ static double best_match(const mim_pairs_evidence_t *e, mim_pairs_density_t dens
             d = sqrt(list[c].mse);
         } else {
             double r[2 * MIM_PAIR_JOINTS];
-            mim__pairs2d_rotate(q, list[c].c, list[c].s, r);
+            mim_pairs2d_rotate(q, list[c].c, list[c].s, r);
             if (density == MIM_DENSITY_SHAPE) {
                 float sc[MIM_PAIR_JOINTS][MIM__SC2_BINS];
                 mim__pairs2d_shape_contexts(r, sc);
@@ -114,9 +94,9 @@ double mim_pairs_log_likelihood(const mim_pairs_evidence_t *e, mim_pairs_density
         mim_ic_t tq;
         mim_error_t err = {0};
         mim_pairs_view_direction(R, psi, phi, dir);
-        project(joints, dir, uv);
+        mim_pairs2d_project(joints, dir, uv);
         terms[v] = -INFINITY;
-        if (mim__pairs2d_normalise(uv, q) && (density != MIM_DENSITY_IC || !mim_ic_build(q, 2, &tq, &err))) {
+        if (mim_pairs2d_normalise(uv, q) && (density != MIM_DENSITY_IC || !mim_ic_build(q, 2, &tq, &err))) {
             double d = best_match(e, density, q, &tq, ldir, cone, &which);
             terms[v] = -d / (2 * sigma_l * sigma_l); /* eq. 9 */
         }

@@ -175,6 +175,28 @@ int mim_pairs_annotations_parse(const char *text, size_t len, const char *origin
                                 mim_error_t *err);
 void mim_pairs_annotations_free(mim_pairs_annotations_t *a); /* accepts NULL and an empty set */
 
+/* Annotating a take (annotate.c): V views per frame through random
+ * cameras (video: each view one camera that follows the pair, a new shot
+ * when it loses it), Gaussian noise of noise_px on every coordinate. */
+#define MIM_PAIRS_ANNOTATE_MAX_VIEWS 1000
+typedef struct mim_pairs_annotate_options {
+    uint32_t views;
+    int video;
+    double noise_px;
+    uint64_t seed;
+} mim_pairs_annotate_options_t;
+/* The n pose-pairs of a take (34 x 3 each, frame numbers first, first +
+ * every, ...) annotated and appended to a (the image 1920 x 1080), their
+ * cameras to *cams (grown alongside; cams NULL: none); shots are numbered
+ * on from *shots. Each (take, frame, view) draws from its own stream of
+ * seed: the same seed, the same annotations. Errors: MIM_ENOTFOUND (no
+ * camera sees frame *bad_frame whole), MIM_EINVAL (views 0 or over the
+ * maximum), MIM_EUNSUPPORTED (over MIM_PAIRS_ANNOTATIONS_MAX), MIM_ENOMEM;
+ * a then also holds the annotations made before the error. */
+int mim_pairs_annotate_take(const double *frames, uint32_t n, uint32_t first, uint32_t every, uint32_t take,
+                            const mim_pairs_annotate_options_t *o, mim_pairs_annotations_t *a,
+                            mim_pairs_camera_t **cams, uint32_t *shots, uint32_t *bad_frame);
+
 /* ---- penetration between bones (penetration.c; eq. 2's eta, through ODE) ---- */
 /* One context per thread, used on the thread that opened it (ODE keeps
  * per-thread data, which open allocates; the program frees it with
@@ -277,6 +299,21 @@ void mim_pairs_samples_free(mim_pairs_samples_t *s); /* accepts NULL and an empt
  * does with frame 0's length. No NaN is written: a bone with a non-finite
  * end is left out of its joint's rotation, a non-finite root place is 0. */
 char *mim_pairs_bvh_text(const double *pairs, uint32_t n, int person, double frame_time);
+
+/* ---- 2D pose-pairs as the likelihood compares them (pairs2d.c; eq. 9) ---- */
+/* The 34 joints (x y z) seen orthographically along the unit direction
+ * dir: 34 [x, y], the image's axes two that make (x, y, dir) right-handed
+ * like a camera's right, down and forward (eq. 9's M then removes the turn
+ * about dir, never a mirror). */
+void mim_pairs2d_project(const double *joints, const double dir[3], double *uv);
+/* in (34 [x, y]) centred on its mean and scaled to unit RMS radius into
+ * out: the radius, 0 when every point is at one place or one is NaN. */
+double mim_pairs2d_normalise(const double *in, double *out);
+/* The 2D rotation (cos, sin) of least squares that brings normalised b
+ * onto normalised a (eq. 9's M), and the mean squared distance per joint
+ * after it; mim_pairs2d_rotate applies it. */
+double mim_pairs2d_align(const double *a, const double *b, double *c, double *s);
+void mim_pairs2d_rotate(const double *b, double c, double s, double *out);
 
 /* ---- coverage (coverage.c; eq. 13) ---- */
 /* C(G, S) = 1/m sum_i min_j D(g_i, s_j) over the m truth pairs g and the k

@@ -11,7 +11,24 @@
 
 #define N MIM_PAIR_JOINTS
 
-double mim__pairs2d_normalise(const double *in, double *out)
+void mim_pairs2d_project(const double *joints, const double dir[3], double *uv)
+{
+    int a = fabs(dir[0]) < fabs(dir[1]) ? (fabs(dir[0]) < fabs(dir[2]) ? 0 : 2) : (fabs(dir[1]) < fabs(dir[2]) ? 1 : 2);
+    double x[3] = {0, 0, 0};
+    x[a] = 1;
+    double d = x[0] * dir[0] + x[1] * dir[1] + x[2] * dir[2], n = 0;
+    for (int c = 0; c < 3; c++) x[c] -= d * dir[c], n += x[c] * x[c];
+    n = sqrt(n);
+    for (int c = 0; c < 3; c++) x[c] /= n;
+    double y[3] = {dir[1] * x[2] - dir[2] * x[1], dir[2] * x[0] - dir[0] * x[2], dir[0] * x[1] - dir[1] * x[0]};
+    for (int i = 0; i < N; i++) {
+        const double *p = joints + 3 * i;
+        uv[2 * i] = x[0] * p[0] + x[1] * p[1] + x[2] * p[2];
+        uv[2 * i + 1] = y[0] * p[0] + y[1] * p[1] + y[2] * p[2];
+    }
+}
+
+double mim_pairs2d_normalise(const double *in, double *out)
 {
     double cx = 0, cy = 0;
     for (int i = 0; i < N; i++) cx += in[2 * i], cy += in[2 * i + 1];
@@ -27,7 +44,7 @@ double mim__pairs2d_normalise(const double *in, double *out)
     return r;
 }
 
-double mim__pairs2d_align(const double *a, const double *b, double *c, double *s)
+double mim_pairs2d_align(const double *a, const double *b, double *c, double *s)
 {
     double dot = 0, cross = 0;
     for (int i = 0; i < N; i++) {
@@ -40,7 +57,7 @@ double mim__pairs2d_align(const double *a, const double *b, double *c, double *s
     return fmax(0.0, (2.0 * N - 2.0 * h) / N);
 }
 
-void mim__pairs2d_rotate(const double *b, double c, double s, double *out)
+void mim_pairs2d_rotate(const double *b, double c, double s, double *out)
 {
     for (int i = 0; i < N; i++) {
         double x = b[2 * i], y = b[2 * i + 1];

@@ -551,8 +551,31 @@ static void test_sample_cli(void **s)
     expect_fail(b5, 1, "has 60 samples, not 99");
     const char *b6[] = {"pairs", "sample", "--annotations", ann, "--samples", "5", "-o", none, NULL};
     expect_fail(b6, 2, "--prior A,B, --samples N and -o FILE are required");
+    const char *b7[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5", "--velocity-scale", "-1", "-o", none, NULL};
+    expect_fail(b7, 2, "--velocity-scale '-1' is not a scale in 0..100");
+    const char *b8[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5", "--restart-every", "x", "-o", none, NULL};
+    expect_fail(b8, 2, "--restart-every 'x' is not a number");
+    const char *b9[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5", "--chains", "0", "-o", none, NULL};
+    expect_fail(b9, 2, "--chains '0' is not a number in 1..256");
+    snprintf(start, sizeof start, "%s:3", none);
+    const char *b10[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5", "--start", start, "-o", none, NULL};
+    expect_fail(b10, 1, "--start: ");
+    /* annotations whose torsos all sit at one pixel: no view can be estimated */
+    char *flat = ts_path(dir, "flat.json");
+    text = ts_read_file(ann, &len);
+    mim_pairs_annotations_t fa;
+    assert_int_equal(mim_pairs_annotations_parse(text, len, ann, &fa, &err), 0);
+    free(text);
+    for (size_t k = 0; k < (size_t)fa.n * 2 * MIM_PAIR_JOINTS; k++) fa.points[k] = 100.0;
+    const char *takes[] = {spec};
+    char *ft = mim_pairs_annotations_json(&fa, takes, 1);
+    ts_write_file(flat, ft, strlen(ft));
+    free(ft);
+    mim_pairs_annotations_free(&fa);
+    const char *b11[] = {"pairs", "sample", "--prior", spec, "--annotations", flat, "--samples", "5", "-o", none, NULL};
+    expect_fail(b11, 1, "no annotation has a view that can be estimated");
     assert_int_equal(access(none, F_OK), -1);
-    free(a), free(b), free(ann), free(s1), free(s2), free(s3), free(bvh), free(none), free(junk);
+    free(a), free(b), free(ann), free(s1), free(s2), free(s3), free(bvh), free(none), free(junk), free(flat);
 }
 
 static int setup(void **s)
