@@ -33,7 +33,7 @@ static void help(FILE *out)
             "                          [--annotations ANN.json] --samples N [--chains C]\n"
             "                          [--density ic|cartesian|shape|prior] [--views M] [--sigma-l S]\n"
             "                          [--seed S] [--restart-every N] [--velocity-scale V]\n"
-            "                          [--start SAMPLES.jsonl[:LINE]] [--bvh DIR]\n"
+            "                          [--start SAMPLES.jsonl[:LINE[,LINE...]]] [--bvh DIR]\n"
             "                          [--joint-map FILE.json] [--unit M] [--json] -o SAMPLES.jsonl\n\n"
             "3D pose-pairs sampled by Metropolis-Hastings from the posterior of seed 002 (Yin et al.):\n"
             "the physical prior (joint limits learned from the --prior motions' frames, offset,\n"
@@ -51,8 +51,9 @@ static void help(FILE *out)
             "  --restart-every N  steps of a chain between restarts (default 100; 0: never)\n"
             "  --velocity-scale V eq. 12: the annotations' motion is scaled by V in the proposal (default 0.05)\n"
             "  --seed S         the generator's seed (default 1)\n"
-            "  --start F[:L]    every chain (and restart) starts from line L of samples file F (default:\n"
-            "                   its first sample)\n"
+            "  --start F[:L[,L...]] the chains (and their restarts) start from those lines of samples\n"
+            "                   file F, chain k from the k-th line mod their count (the paper's K\n"
+            "                   seeds; default: line 1)\n"
             "  --bvh DIR        also DIR/chainK_A.bvh and chainK_B.bvh, a frame per sample\n"
             "  --json           a report: samples, seconds, samples_per_second, acceptance per chain,\n"
             "                   parameters\n"
@@ -112,16 +113,28 @@ static void *chain_thread(void *arg)
     return NULL;
 }
 
-/* --start F[:L]: the pose-pair on line L's sample (1 = the first). */
-static int read_start(const char *spec, double *out)
+/* --start F[:L[,L...]]: the pose-pairs on those lines of a samples file
+ * (1 = the first sample; default 1), in *starts (n_starts of them): the
+ * paper's K seeds, chain k starting from seed k mod K. */
+static int read_start(const char *spec, double **starts, uint32_t *n_starts)
 {
     char path[4096];
     snprintf(path, sizeof path, "%s", spec);
-    uint64_t line = 1;
+    uint64_t lines[MAX_CHAINS] = {1};
+    uint32_t n = 1;
     char *colon = strrchr(path, ':');
-    if (colon && colon[1] && strspn(colon + 1, "0123456789") == strlen(colon + 1)) {
+    if (colon && colon[1] && strspn(colon + 1, "0123456789,") == strlen(colon + 1)) {
         *colon = 0;
-        if (mim_cli_number("pairs sample", "start's line", colon + 1, 1, UINT32_MAX, &line)) return 2;
+        n = 0;
+        for (char *tok = colon + 1, *next; tok; tok = next) {
+            next = strchr(tok, ',');
+            if (next) *next++ = 0;
+            if (n == MAX_CHAINS) {
+                fprintf(stderr, "mimic pairs sample: --start: more than %d lines\n", MAX_CHAINS);
+                return 2;
+            }
+            if (mim_cli_number("pairs sample", "start's line", tok, 1, UINT32_MAX, &lines[n++])) return 2;
+        }
     }
     mim_error_t err = {0};
     char *text = NULL;
@@ -131,11 +144,21 @@ static int read_start(const char *spec, double *out)
     if (mim_file_read(path, 0, &text, &len, &err) || mim_pairs_samples_parse(text, len, path, &s, &err)) {
         fprintf(stderr, "mimic pairs sample: --start: %s\n", mim_error_text(&err));
         rc = 1;
-    } else if (line > s.n) {
-        fprintf(stderr, "mimic pairs sample: --start: %s has %u samples, not %llu\n", path, s.n, (unsigned long long)line);
+    } else if (!(*starts = malloc((size_t)n * 3 * MIM_PAIR_JOINTS * sizeof **starts))) {
+        fprintf(stderr, "mimic pairs sample: --start: out of memory\n");
         rc = 1;
     } else {
-        memcpy(out, s.joints + (size_t)(line - 1) * 3 * MIM_PAIR_JOINTS, 3 * MIM_PAIR_JOINTS * sizeof *out);
+        *n_starts = n;
+        for (uint32_t i = 0; i < n && !rc; i++) {
+            if (lines[i] > s.n) {
+                fprintf(stderr, "mimic pairs sample: --start: %s has %u samples, not %llu\n", path, s.n,
+                        (unsigned long long)lines[i]);
+                rc = 1;
+            } else {
+                memcpy(*starts + (size_t)i * 3 * MIM_PAIR_JOINTS, s.joints + (size_t)(lines[i] - 1) * 3 * MIM_PAIR_JOINTS,
+                       3 * MIM_PAIR_JOINTS * sizeof **starts);
+            }
+        }
     }
     mim_pairs_samples_free(&s);
     free(text);
@@ -280,7 +303,8 @@ int mim_cmd_pairs_sample(int argc, char **argv)
     if (mim_cli_takes_begin(&tk)) return 1;
 
     int status = 1;
-    double *prior = NULL, start[3 * MIM_PAIR_JOINTS];
+    double *prior = NULL, *starts = NULL;
+    uint32_t n_starts = 0;
     uint32_t n_prior = 0, dropped = 0, n_ann = 0;
     char *text = NULL;
     mim_pairs_annotations_t ann = {0};
@@ -296,7 +320,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
         fprintf(stderr, "mimic pairs sample: the --prior takes have no frames from %llu on\n", (unsigned long long)tk.offset);
         goto done;
     }
-    if (start_spec && (status = read_start(start_spec, start))) goto done;
+    if (start_spec && (status = read_start(start_spec, &starts, &n_starts))) goto done;
     status = 1;
     if (mim_pairs_validity_learn(prior, n_prior, &validity, &err)) {
         fprintf(stderr, "mimic pairs sample: %s\n", mim_error_text(&err));
@@ -344,7 +368,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
     uint32_t started = 0;
     for (uint32_t k = 0; k < chains; k++) {
         chain_job_t *j = &jobs[k];
-        j->target = &target, j->prior = prior, j->n_prior = n_prior, j->start = start_spec ? start : NULL;
+        j->target = &target, j->prior = prior, j->n_prior = n_prior, j->start = starts ? starts + (size_t)(k % n_starts) * 3 * MIM_PAIR_JOINTS : NULL;
         j->seed = seed, j->index = k, j->restart_every = (uint32_t)restart_every;
         j->n = (uint32_t)(samples / chains + (k < samples % chains));
         j->joints = joints + at * 3 * MIM_PAIR_JOINTS, j->log_density = logd + at;
@@ -400,7 +424,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
     status = 0;
 done:
     if (ode) dCloseODE();
-    free(jobs), free(threads), free(joints), free(logd), free(allowed), free(prior), free(text), free(tk.map_text);
+    free(jobs), free(threads), free(joints), free(logd), free(allowed), free(prior), free(starts), free(text), free(tk.map_text);
     mim_pairs_evidence_free(&evidence);
     mim_pairs_validity_free(&validity);
     mim_pairs_annotations_free(&ann);

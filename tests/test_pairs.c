@@ -534,6 +534,35 @@ static void test_sample_cli(void **s)
                           "--start", start, "-o", s3, NULL};
     assert_int_equal(ts_run_mimic(&o, &e, run4), 0);
     free(o), free(e);
+    /* K seeds (--start F:L1,L2): chain k starts from the k-th line, so each
+     * chain's samples are those of a run with its line alone */
+    char *k1 = ts_path(dir, "k1.jsonl"), *k2 = ts_path(dir, "k2.jsonl"), *k12 = ts_path(dir, "k12.jsonl");
+    const char *lines_of[3] = {"7", "12", "7,12"};
+    char *outs[3] = {k1, k2, k12};
+    for (int r = 0; r < 3; r++) {
+        snprintf(start, sizeof start, "%s:%s", s1, lines_of[r]);
+        const char *run5[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "10", "--chains", "2",
+                              "--restart-every", "0", "--start", start, "-o", outs[r], NULL};
+        assert_int_equal(ts_run_mimic(&o, &e, run5), 0);
+        free(o), free(e);
+    }
+    char *body[3];
+    for (int r = 0; r < 3; r++) {
+        char *t = ts_read_file(outs[r], NULL);
+        body[r] = strdup(strchr(t, '\n') + 1); /* after the header: chain 0's 5 lines, then chain 1's */
+        free(t);
+    }
+    char *c0[3], *c1[3];
+    for (int r = 0; r < 3; r++) {
+        char *p = body[r];
+        for (int l = 0; l < 5; l++) p = strchr(p, '\n') + 1;
+        c1[r] = strdup(p), *p = 0, c0[r] = body[r];
+    }
+    assert_string_equal(c0[2], c0[0]);
+    assert_string_equal(c1[2], c1[1]);
+    assert_true(strcmp(c0[0], c0[1]) != 0);
+    for (int r = 0; r < 3; r++) free(c0[r]), free(c1[r]);
+    free(k1), free(k2), free(k12);
     /* bad input: usage (2) and inputs (1), nothing written */
     char *none = ts_path(dir, "none.jsonl"), *junk = ts_path(dir, "junk.json");
     const char *junk_text = "{\"format\": \"mimic pair annotations 1\"";
@@ -560,6 +589,12 @@ static void test_sample_cli(void **s)
     snprintf(start, sizeof start, "%s:3", none);
     const char *b10[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5", "--start", start, "-o", none, NULL};
     expect_fail(b10, 1, "--start: ");
+    snprintf(start, sizeof start, "%s:7,,3", s1);
+    const char *st11[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5", "--start", start, "-o", none, NULL};
+    expect_fail(st11, 2, "--start's line '' is not a number");
+    snprintf(start, sizeof start, "%s:7,61", s1);
+    const char *st12[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5", "--start", start, "-o", none, NULL};
+    expect_fail(st12, 1, "has 60 samples, not 61");
     /* annotations whose torsos all sit at one pixel: no view can be estimated */
     char *flat = ts_path(dir, "flat.json");
     text = ts_read_file(ann, &len);
