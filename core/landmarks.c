@@ -12,6 +12,11 @@ const char *const mim_landmark_default_names[MIM_LANDMARKS_DEFAULT_COUNT] = {
     "head",    "chest",   "pelvis",  "l_shoulder", "r_shoulder", "l_elbow", "r_elbow", "l_wrist",
     "r_wrist", "l_hip",   "r_hip",   "l_knee",     "r_knee",     "l_ankle", "r_ankle", "spine",
 };
+
+const char *const mim_segment_names[MIM_SEGMENTS] = {
+    "pelvis",     "chest",       "head",       "l_shoulder", "r_shoulder", "l_upperarm",
+    "r_upperarm", "l_forearm",   "r_forearm",  "l_hand",     "r_hand",     "l_thigh",
+    "r_thigh",    "l_shin",      "r_shin",     "l_foot",     "r_foot"};
 static const uint32_t default_mirror[MIM_LANDMARKS_DEFAULT_COUNT] = {0,  1,  2,  4,  3,  6,  5,  8,
                                                                      7,  10, 9,  12, 11, 14, 13, 15};
 

@@ -109,6 +109,13 @@ typedef struct mim_landmark_map {
 /* head, chest, pelvis, l_shoulder, r_shoulder, l_elbow, r_elbow, l_wrist,
  * r_wrist, l_hip, r_hip, l_knee, r_knee, l_ankle, r_ankle, spine */
 extern const char *const mim_landmark_default_names[MIM_LANDMARKS_DEFAULT_COUNT];
+/* The 17 body segments of the vest (one sensor each; vest/ numbers them
+ * in this order): pelvis, chest, head, l_shoulder, r_shoulder, l_upperarm,
+ * r_upperarm, l_forearm, r_forearm, l_hand, r_hand, l_thigh, r_thigh,
+ * l_shin, r_shin, l_foot, r_foot. Orientations in landmark frames are
+ * keyed by these names. */
+#define MIM_SEGMENTS 17
+extern const char *const mim_segment_names[MIM_SEGMENTS];
 /* Fills the 16 default names and their mirror table with the given vertices. */
 void mim_landmarks_default(mim_landmark_map_t *map, const uint32_t vertices[MIM_LANDMARKS_DEFAULT_COUNT],
                            uint32_t topology_vertices);
@@ -132,6 +139,14 @@ typedef struct mim_landmark_frames {
     uint32_t n_frames, n_landmarks;
     float *positions; /* n_frames * n_landmarks * 3; NaN where missing */
     uint8_t *present; /* n_frames * n_landmarks: 1 present, 0 missing (null) */
+    /* A frame's optional "orientations" (issue 17): per vest segment
+     * (MIM_SEGMENTS, mim_segment_names order) the rotation from the avatar's
+     * rest mesh to the pose, in the avatar's frame. NULL when no frame has
+     * any. orientations: n_frames * MIM_SEGMENTS * 4 doubles (x y z w),
+     * identity where not given; orient_present: n_frames * MIM_SEGMENTS,
+     * 1 given, 0 null or absent (a frame without the object: all 0). */
+    double *orientations;
+    uint8_t *orient_present;
 } mim_landmark_frames_t;
 /* Errors: malformed JSON with file:line:column (MIM_EFORMAT); a frame whose
  * landmark count differs from n_landmarks, a coordinate that is not a

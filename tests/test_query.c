@@ -143,7 +143,7 @@ static void test_no_index_then_round_trip(void **st)
         }
     }
     /* a batch with a wrong landmark count is refused */
-    mim_landmark_frames_t f = {1, 15, &s.lm[0][0], (uint8_t[15]){0}};
+    mim_landmark_frames_t f = {.n_frames = 1, .n_landmarks = 15, .positions = &s.lm[0][0], .present = (uint8_t[15]){0}};
     mim_index_answer_t a;
     mim_index_hit_t h;
     assert_int_equal(mim_query_batch(q, &f, NULL, &a, &h, &err), MIM_EINVAL);

@@ -185,6 +185,34 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
                       const mim_xfer_options_t *opt, float *out, mim_xfer_report_t *report,
                       mim_error_t *err);
 
+/* ---- segment skinning for the orientation drive (skin.c; issue 17) ---- */
+#define MIM_XFER_SKIN_INFLUENCES 4 /* segments per vertex, as a glTF skin's JOINTS_0 */
+#define MIM_XFER_SKIN_MAX_BONES 64
+/* Measured with bench/transfer_accuracy.c (synth and mh-bodies): the mean
+ * error of the orientation drive is lowest near here (RESULTS.md). */
+#define MIM_XFER_DEFAULT_SKIN_SMOOTHING 8
+/* A vertex's segments and their weights, heaviest first; the weights sum
+ * to 1, unused slots weigh 0. */
+typedef struct mim_xfer_skin {
+    uint8_t bone[MIM_XFER_SKIN_INFLUENCES];
+    float weight[MIM_XFER_SKIN_INFLUENCES];
+} mim_xfer_skin_t;
+/* Weights (n vertices of t) from bones (n_bones x 6 doubles: a pivot's x y
+ * z, then its end's) on the mesh with these positions: the nearest bone,
+ * diffused over the surface for `smoothing` steps (skin.c says how).
+ * Errors: MIM_EINVAL (NULL, 0 or more than MIM_XFER_SKIN_MAX_BONES bones),
+ * MIM_ENONFINITE (a bone end), MIM_ENOMEM. */
+int mim_xfer_skin_from_bones(const mim_xfer_topology_t *t, const float *positions, const double *bones,
+                             uint32_t n_bones, uint32_t smoothing, mim_xfer_skin_t *skin, mim_error_t *err);
+/* The blended rotation of one vertex from its segments' rotations (rot:
+ * unit quaternions indexed by bone). */
+mim_quat mim_xfer_skin_rotation(const mim_xfer_skin_t *s, const mim_quat *rot);
+/* The frames (9 * n) of a pose: each vertex's rest frame (rest_frames,
+ * mim_xfer_frames of the rest mesh) turned by its blended rotation.
+ * mim_xfer_transfer with these frames and one iteration is the
+ * orientation-driven solve. */
+void mim_xfer_skin_frames(uint32_t n_vertices, const mim_xfer_skin_t *skin, const double *rest_frames,
+                          const mim_quat *rot, double *frames);
 /* ---- mode (a): landmarks from the template alone (retarget.c) ---- */
 /* Landmark positions (3 * map->count floats) in the template's pose with
  * the avatar's proportions: from the template's pelvis, each segment of the

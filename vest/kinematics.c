@@ -30,6 +30,36 @@ void mim_vest_state_update(mim_vest_state_t *st, const mim_vest_frame_t *f)
     st->seen[f->sensor] = 1;
 }
 
+/* R_s = Q_s T_s^-1 C_s (the header comment) */
+static mim_quat segment_rotation(const mim_vest_rig_t *rig, const mim_quat q[MIM_VEST_SEGMENTS], uint32_t s)
+{
+    return mim_quat_normalize(mim_quat_mul(mim_quat_mul(q[s], rig->tare_inv[s]), rig->calib[s]));
+}
+
+void mim_vest_segment_rotations(const mim_vest_rig_t *rig, const mim_quat q[MIM_VEST_SEGMENTS], const uint8_t *have,
+                                mim_quat R[MIM_VEST_SEGMENTS])
+{
+    for (uint32_t s = 0; s < MIM_VEST_SEGMENTS; s++)
+        R[s] = !have || have[s] ? segment_rotation(rig, q, s) : mim_quat_identity();
+}
+
+uint32_t mim_vest_rotations_fill(mim_quat R[MIM_VEST_SEGMENTS], const uint8_t have[MIM_VEST_SEGMENTS],
+                                 int8_t from[MIM_VEST_SEGMENTS])
+{
+    int8_t src[MIM_VEST_SEGMENTS];
+    uint32_t filled = 0;
+    for (int s = 0; s < MIM_VEST_SEGMENTS; s++) src[s] = have[s] ? (int8_t)s : -1;
+    if (!have[MIM_VEST_PELVIS] && have[MIM_VEST_CHEST]) /* the pelvis has no parent: its child stands in */
+        R[MIM_VEST_PELVIS] = R[MIM_VEST_CHEST], src[MIM_VEST_PELVIS] = MIM_VEST_CHEST, filled++;
+    for (int s = 1; s < MIM_VEST_SEGMENTS; s++) { /* parents come first */
+        int p = mim_vest_segment_parent((uint32_t)s);
+        if (have[s] || src[p] < 0) continue;
+        R[s] = R[p], src[s] = src[p], filled++;
+    }
+    if (from) memcpy(from, src, sizeof src);
+    return filled;
+}
+
 uint32_t mim_vest_fk_orient(const mim_vest_rig_t *rig, const mim_quat q[MIM_VEST_SEGMENTS], const uint8_t *have,
                             float *xyz, uint8_t *present)
 {
@@ -40,7 +70,7 @@ uint32_t mim_vest_fk_orient(const mim_vest_rig_t *rig, const mim_quat q[MIM_VEST
         int p = mim_vest_segment_parent(s);
         ok[s] = (!have || have[s]) && (p < 0 || ok[p]);
         if (!ok[s]) continue;
-        R[s] = mim_quat_normalize(mim_quat_mul(mim_quat_mul(q[s], rig->tare_inv[s]), rig->calib[s]));
+        R[s] = segment_rotation(rig, q, s);
         P[s] = p < 0 ? rig->root : mim_v3_add(P[p], mim_quat_rotate(R[p], rig->joint[s]));
     }
     uint32_t n = 0;

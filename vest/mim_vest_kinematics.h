@@ -36,6 +36,7 @@ enum {
     MIM_VEST_L_FOOT, MIM_VEST_R_FOOT,
     MIM_VEST_SEGMENTS
 };
+_Static_assert(MIM_VEST_SEGMENTS == MIM_SEGMENTS, "the vest's segments are core's mim_segment_names");
 /* "pelvis", ...: a static string; NULL past the end. */
 const char *mim_vest_segment_name(uint32_t s);
 /* The parent segment (parents have lower ids); -1 for the pelvis and out of range. */
@@ -64,6 +65,9 @@ typedef struct mim_vest_skeleton {
 int mim_vest_skeleton_estimate(mim_vest_skeleton_t *sk, const mim_mesh_t *avatar, const mim_landmark_map_t *map,
                                mim_error_t *err);
 
+/* The 17 bones of a skeleton as 17 x 6 doubles (pivot x y z, end x y z),
+ * segment order: what mim_xfer_skin_from_bones segments an avatar by. */
+void mim_vest_skeleton_bones(const mim_vest_skeleton_t *sk, double bones[MIM_VEST_SEGMENTS * 6]);
 /* ---- calibration (calibrate.c) ---- */
 enum {
     MIM_VEST_POSE_REST = 0, /* the wearer stands as the avatar mesh does */
@@ -96,6 +100,20 @@ typedef struct mim_vest_rig {
 int mim_vest_calibrate(mim_vest_rig_t *rig, const mim_vest_skeleton_t *sk, const mim_vest_calib_options_t *opt,
                        const mim_quat tare[MIM_VEST_SEGMENTS], mim_error_t *err);
 
+/* ---- segment orientations (kinematics.c) ---- */
+/* The rotation of each segment from the avatar's rest pose (R_s of
+ * kinematics.c: the tared reading after the calibration), for the
+ * orientation drive. have may be NULL (all); a missing one is identity. */
+void mim_vest_segment_rotations(const mim_vest_rig_t *rig, const mim_quat q[MIM_VEST_SEGMENTS], const uint8_t *have,
+                                mim_quat R[MIM_VEST_SEGMENTS]);
+/* Lost sensors take a neighbour's rotation (issue 17's first fallback):
+ * a segment without have[s] gets its parent's (after the parent's own
+ * fill), the pelvis the chest's. from[s] (may be NULL) gets the segment
+ * whose reading it holds, or -1 when there was none (the pelvis and chest
+ * both lost: the chest's subtree keeps what it has, identity where lost).
+ * Returns the number of segments filled. */
+uint32_t mim_vest_rotations_fill(mim_quat R[MIM_VEST_SEGMENTS], const uint8_t have[MIM_VEST_SEGMENTS],
+                                 int8_t from[MIM_VEST_SEGMENTS]);
 /* ---- live state and forward kinematics (kinematics.c) ---- */
 /* The latest orientation of each sensor and when it came; plain data. */
 typedef struct mim_vest_state {

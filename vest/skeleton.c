@@ -15,13 +15,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const char *const seg_names[MIM_VEST_SEGMENTS] = {
-    "pelvis",     "chest",       "head",       "l_shoulder", "r_shoulder", "l_upperarm",
-    "r_upperarm", "l_forearm",   "r_forearm",  "l_hand",     "r_hand",     "l_thigh",
-    "r_thigh",    "l_shin",      "r_shin",     "l_foot",     "r_foot"};
 static const int seg_parent[MIM_VEST_SEGMENTS] = {-1, 0, 1, 1, 1, 3, 4, 5, 6, 7, 8, 0, 0, 11, 12, 13, 14};
 
-const char *mim_vest_segment_name(uint32_t s) { return s < MIM_VEST_SEGMENTS ? seg_names[s] : NULL; }
+const char *mim_vest_segment_name(uint32_t s) { return s < MIM_VEST_SEGMENTS ? mim_segment_names[s] : NULL; }
 int mim_vest_segment_parent(uint32_t s) { return s < MIM_VEST_SEGMENTS ? seg_parent[s] : -1; }
 
 enum { HEAD, CHEST, PELVIS, LSH, RSH, LEL, REL, LWR, RWR, LHIP, RHIP, LKN, RKN, LAN, RAN, SPINE, NDEF };
@@ -176,4 +172,13 @@ int mim_vest_skeleton_estimate(mim_vest_skeleton_t *sk, const mim_mesh_t *avatar
         }
     }
     return 0;
+}
+
+void mim_vest_skeleton_bones(const mim_vest_skeleton_t *sk, double bones[MIM_VEST_SEGMENTS * 6])
+{
+    for (int s = 0; s < MIM_VEST_SEGMENTS; s++) {
+        const mim_vec3 a = sk->pivot[s], b = sk->end[s];
+        double *o = bones + 6 * s;
+        o[0] = a.x, o[1] = a.y, o[2] = a.z, o[3] = b.x, o[4] = b.y, o[5] = b.z;
+    }
 }
