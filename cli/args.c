@@ -82,6 +82,14 @@ int mim_cli_template_id(const char *cmd, const char *name, const char *text, uin
     return ok ? 0 : -1;
 }
 
+int mim_cli_drive(const char *cmd, const char *text, int *drive)
+{
+    if ((*drive = mim_session_drive_parse(text)) >= 0)
+        return 0;
+    fprintf(stderr, "mimic %s: --drive '%s' is not auto, template or orientation\n", cmd, text);
+    return -1;
+}
+
 int mim_cli_pose(const char *cmd, const char *name, const char *text, int *pose)
 {
     if (!strcmp(text, "rest"))

@@ -38,6 +38,8 @@ mim_db_options_t mim_cli_db_options(int read_only);
 /* The wearer's pose at the tare given to --name: rest, t or a (T and A
  * too), as MIM_VEST_POSE_*. Prints one line and returns -1 otherwise. */
 int mim_cli_pose(const char *cmd, const char *name, const char *text, int *pose);
+/* --drive auto|template|orientation (mim_session_drive_t); -1 with a line on stderr. */
+int mim_cli_drive(const char *cmd, const char *text, int *drive);
 
 /* Session options for every command that opens one: the map size
  * (mim_cli_db_options), the log on the terminal, and --avatar-landmarks

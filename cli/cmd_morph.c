@@ -17,7 +17,8 @@ static void help(FILE *out)
 {
     fprintf(out,
             "usage: mimic morph --store DIR --avatar (MESH|ID) --keys K1,K2,... --frames-between N\n"
-            "                   [--method linear|frames] [--landmarks FILE.json] [--fps F] [--json] -o OUT.glb\n\n"
+            "                   [--method linear|frames] [--landmarks FILE.json] [--drive auto|template|orientation]\n"
+            "                   [--fps F] [--json] -o OUT.glb\n\n"
             "Transfers the avatar into the pose of each key template, fills N poses between\n"
             "consecutive keys, and writes the sequence as a GLB animation (morph targets).\n\n"
             "  --store DIR          the template store\n"
@@ -31,6 +32,10 @@ static void help(FILE *out)
             "                       one solve each; about half the shrinking) or linear (positions, the paper's)\n"
             "  --landmarks FILE     one landmark frame per key ({\"frames\": [...]}); without it each\n"
             "                       key's landmarks are retargeted from its template\n"
+            "  --drive D            auto (default: where the landmark frames carry \"orientations\",\n"
+            "                       keys are the avatar's own frames turned per segment, one solve,\n"
+            "                       and in-betweens slerp the rotations and solve again), template,\n"
+            "                       or orientation (every frame needs orientations)\n"
             "  --fps F              playback rate of the animation (default 30)\n"
             "  -o, --output OUT     a .glb file\n"
             "  --json               a JSON report on stdout (schemas/morph.schema.json)\n"
@@ -65,16 +70,16 @@ int mim_cmd_morph(int argc, char **argv)
         {"keys", required_argument, 0, 'k'},   {"frames-between", required_argument, 0, 'n'},
         {"method", required_argument, 0, 'm'}, {"landmarks", required_argument, 0, 'l'},
         {"fps", required_argument, 0, 'r'},    {"output", required_argument, 0, 'o'},
-        {"json", no_argument, 0, 'j'},         {"help", no_argument, 0, 'h'},
+        {"json", no_argument, 0, 'j'},         {"help", no_argument, 0, 'h'}, {"drive", required_argument, 0, 'd'},
         {0, 0, 0, 0}};
     const char *store = NULL, *avatar = NULL, *avatar_lm = NULL, *keys_arg = NULL, *lm_path = NULL, *outp = NULL;
     uint64_t between = 0, fps = 30, keys[KEYS_MAX];
     uint32_t n_keys = 0;
-    int have_between = 0, as_json = 0, c;
+    int have_between = 0, as_json = 0, c, drive = MIM_DRIVE_AUTO;
     mim_xfer_morph_method_t method = MIM_XFER_MORPH_FRAMES;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "s:a:k:n:m:l:r:o:jh", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "s:a:k:n:m:l:r:o:jhd:", longopts, NULL)) != -1) {
         if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
         else if (c == 'A') avatar_lm = optarg;
@@ -94,6 +99,8 @@ int mim_cmd_morph(int argc, char **argv)
                 fprintf(stderr, "mimic morph: --method '%s': use linear or frames\n", optarg);
                 return 2;
             }
+        } else if (c == 'd') {
+            if (mim_cli_drive("morph", optarg, &drive)) return 2;
         } else if (c == 'h') return help(stdout), 0;
         else {
             fprintf(stderr, "mimic morph: unknown or incomplete option '%s' (see mimic morph --help)\n",
@@ -111,6 +118,10 @@ int mim_cmd_morph(int argc, char **argv)
         return 2;
     }
     if (parse_keys(keys_arg, keys, &n_keys)) return 2;
+    if (drive == MIM_DRIVE_ORIENTATION && !lm_path) {
+        fprintf(stderr, "mimic morph: --drive orientation needs --landmarks (frames with orientations)\n");
+        return 2;
+    }
     size_t olen = strlen(outp);
     if (olen < 4 || strcasecmp(outp + olen - 4, ".glb")) {
         fprintf(stderr, "mimic morph: -o '%s': the sequence is written as a .glb file\n", outp);
@@ -135,6 +146,8 @@ int mim_cmd_morph(int argc, char **argv)
         rc = mim_landmark_frames_read(lm_path, nl, 0, &lmf, &err);
         if (!rc && lmf.n_frames != n_keys)
             rc = mim_error_set(&err, MIM_EFORMAT, "%s: has %u frames for %u keys", lm_path, lmf.n_frames, n_keys);
+        if (!rc && drive == MIM_DRIVE_ORIENTATION && !lmf.orientations)
+            rc = mim_error_set(&err, MIM_EFORMAT, "%s: --drive orientation, but no frame has \"orientations\"", lm_path);
     }
     /* per key: positions, frames as quaternions, own W, landmarks */
     float *kpos = NULL, *klm = NULL, *seq = NULL;
@@ -150,15 +163,32 @@ int mim_cmd_morph(int argc, char **argv)
             rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for %zu frames of %u vertices", n_frames, n);
     }
     double t0 = mim_now();
-    uint32_t iterations = 0;
+    uint32_t iterations = 0, oriented_keys = 0;
+    uint8_t *oriented = calloc(n_keys, 1);
+    if (!rc && !oriented) rc = mim_error_set(&err, MIM_ENOMEM, "out of memory");
     for (uint32_t k = 0; k < n_keys && !rc; k++) {
         float *u = klm + (size_t)k * 3 * nl, *x = kpos + (size_t)k * 3 * n;
         mim_session_request_t req = {.template_id = keys[k],
-                                     .landmarks = lm_path ? lmf.positions + (size_t)k * 3 * nl : NULL};
+                                     .landmarks = lm_path ? lmf.positions + (size_t)k * 3 * nl : NULL,
+                                     .drive = (mim_session_drive_t)drive};
+        if (lmf.orientations) {
+            req.orientations = (const mim_quat *)lmf.orientations + (size_t)k * MIM_SEGMENTS;
+            req.orient_present = lmf.orient_present + (size_t)k * MIM_SEGMENTS;
+            int any = 0;
+            for (int g = 0; g < MIM_SEGMENTS; g++) any |= req.orient_present[g];
+            if (!any) req.orientations = NULL, req.orient_present = NULL; /* this frame has none */
+        }
+        if (drive == MIM_DRIVE_ORIENTATION && !req.orientations) {
+            rc = mim_error_set(&err, MIM_EFORMAT, "%s: frame %u: --drive orientation, but it has no orientations",
+                               lm_path, k);
+            break;
+        }
         mim_session_report_t rep;
         rc = mim_session_transfer(s, &req, x, &rep, &err);
         if (!rc) {
             iterations += rep.xfer.iterations;
+            oriented[k] = rep.drive == MIM_DRIVE_ORIENTATION;
+            oriented_keys += oriented[k];
             /* the key pose's landmarks, own frames and W, for the frames method */
             memcpy(u, rep.landmarks, 3 * (size_t)nl * sizeof *u);
             mim_xfer_frames(topo, x, F);
@@ -173,9 +203,21 @@ int mim_cmd_morph(int argc, char **argv)
                             kW + (size_t)(k + 1) * 3 * n, klm + (size_t)(k + 1) * 3 * nl};
         size_t f0 = (size_t)k * (between + 1);
         memcpy(seq + f0 * 3 * n, a.positions, 3 * (size_t)n * sizeof *seq);
-        for (uint64_t j = 1; j <= between && !rc; j++)
-            rc = mim_session_morph(s, method, &a, &b, (double)j / (double)(between + 1), seq + (f0 + j) * 3 * n,
-                                &err);
+        /* between two keys of the orientation drive: their rotations slerped, one solve each */
+        mim_session_oriented_key_t oa = {0}, ob = {0};
+        if (oriented[k] && oriented[k + 1]) {
+            const size_t qa = (size_t)k * MIM_SEGMENTS, qb = (size_t)(k + 1) * MIM_SEGMENTS;
+            oa = (mim_session_oriented_key_t){(const mim_quat *)lmf.orientations + qa, lmf.orient_present + qa, a.landmarks,
+                                              keys[k]};
+            ob = (mim_session_oriented_key_t){(const mim_quat *)lmf.orientations + qb, lmf.orient_present + qb, b.landmarks,
+                                              keys[k + 1]};
+        }
+        for (uint64_t j = 1; j <= between && !rc; j++) {
+            double t = (double)j / (double)(between + 1);
+            float *o = seq + (f0 + j) * 3 * n;
+            rc = oa.R && method == MIM_XFER_MORPH_FRAMES ? mim_session_morph_oriented(s, &oa, &ob, t, o, &err)
+                                                        : mim_session_morph(s, method, &a, &b, t, o, &err);
+        }
     }
     if (!rc) memcpy(seq + (n_frames - 1) * 3 * n, kpos + (size_t)(n_keys - 1) * 3 * n, 3 * (size_t)n * sizeof *seq);
     double t_compute = mim_now() - t0;
@@ -193,8 +235,9 @@ int mim_cmd_morph(int argc, char **argv)
     if (rc) {
         fprintf(stderr, "mimic morph: %s\n", mim_error_text(&err));
     } else if (as_json) {
-        json_t *j = json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:i, s:f}", "output", outp, "avatar", mim_session_avatar(s), "method",
+        json_t *j = json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:i, s:i, s:f}", "output", outp, "avatar", mim_session_avatar(s), "method",
                               method == MIM_XFER_MORPH_LINEAR ? "linear" : "frames", "keys", (int)n_keys,
+                              "oriented_keys", (int)oriented_keys,
                               "frames_between", (int)between, "frames", (int)n_frames, "key_iterations",
                               (int)iterations, "seconds", t_compute);
         char *txt = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
@@ -207,7 +250,7 @@ int mim_cmd_morph(int argc, char **argv)
                 method == MIM_XFER_MORPH_LINEAR ? "linear" : "frames", 1e3 * t_compute);
     }
     mim_landmark_frames_free(&lmf);
-    free(kpos), free(klm), free(kq), free(kW), free(F), free(seq);
+    free(kpos), free(klm), free(kq), free(kW), free(F), free(seq), free(oriented);
     mim_session_close(&s);
     return rc == MIM_ENOINDEX ? 2 : rc ? 1 : 0; /* no index: the command could not run */
 }

@@ -18,7 +18,7 @@ static void help(FILE *out)
     fprintf(out,
             "usage: mimic serve --store DIR --avatar (MESH|ID) [--vest SPEC [--vest-pose rest|t|a]]\n"
             "                   [--key-rate auto|HZ] [--listen HOST:PORT] [--max-body BYTES]\n"
-            "                   [--max-clients N] [--warm-start auto|on|off]\n\n"
+            "                   [--max-clients N] [--warm-start auto|on|off] [--drive auto|template|orientation]\n\n"
             "Serves pose transfer until Ctrl-C or SIGTERM: the web viewer at /, the avatar\n"
             "stream at /ws and the JSON API. Prints the viewer's URL on stdout.\n"
             "With --vest, every vest frame becomes landmarks on the avatar and one avatar\n"
@@ -41,6 +41,9 @@ static void help(FILE *out)
             "  --warm-start W       start each key frame's transfer from the previous one (same\n"
             "                       template): faster, less accurate (bench/RESULTS.md); auto\n"
             "                       (default) only when cold key frames do not fit the vest period\n"
+            "  --drive D            what drives key frames: auto (default: the vest's segment\n"
+            "                       orientations, one solve; the template where there are none),\n"
+            "                       template (the template's frames, iterated) or orientation\n"
             "  -h, --help           this help\n\n"
             "Routes (schemas/serve-*.schema.json, schemas/serve-ws-frame.md):\n"
             "  GET  /               the web viewer\n"
@@ -64,6 +67,7 @@ int mim_cmd_serve(int argc, char **argv)
                                               {"key-rate", required_argument, 0, 'k'},
                                               {"max-clients", required_argument, 0, 'c'},
                                               {"warm-start", required_argument, 0, 'w'},
+                                              {"drive", required_argument, 0, 'd'},
                                               {"help", no_argument, 0, 'h'},
                                               {0, 0, 0, 0}};
     const char *store = NULL, *avatar = NULL, *avatar_lm = NULL;
@@ -71,7 +75,7 @@ int mim_cmd_serve(int argc, char **argv)
     int c;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "s:a:l:b:v:p:k:c:w:h", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "s:a:l:b:v:p:k:c:w:d:h", longopts, NULL)) != -1) {
         uint64_t v;
         if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
@@ -92,6 +96,9 @@ int mim_cmd_serve(int argc, char **argv)
                 fprintf(stderr, "mimic serve: --warm-start '%s' is not auto, on or off\n", optarg);
                 return 2;
             }
+        }
+        else if (c == 'd') {
+            if (mim_cli_drive("serve", optarg, &o.drive)) return 2;
         }
         else if (c == 'c') {
             if (mim_cli_number("serve", "max-clients", optarg, 1, 1000, &v)) return 2;

@@ -16,7 +16,8 @@ static void help(FILE *out)
 {
     fprintf(out,
             "usage: mimic transfer --store DIR --avatar (MESH|ID) (--template ID | --landmarks FILE.json | both)\n"
-            "                      [--iterations N] [--tol T] [--formulation least-squares|square] [--json]\n"
+            "                      [--drive auto|template|orientation] [--iterations N] [--tol T]\n"
+            "                      [--formulation least-squares|square] [--json]\n"
             "                      -o OUT.(ply|obj|off|glb)\n\n"
             "Deforms the avatar into a pose, keeping its own shape: the template gives the pose\n"
             "through its local frames, the landmarks (if given) fix 16 points exactly.\n\n"
@@ -30,6 +31,11 @@ static void help(FILE *out)
             "  --landmarks FILE     one landmark frame, {\"landmarks\": [[x,y,z], ...]} in the order of\n"
             "                       the store's landmark map (schemas/landmark-frames.schema.json);\n"
             "                       alone, the template is the nearest pose from mimic query\n"
+            "                       the frame's optional \"orientations\" (the 17 vest segments' rotations\n"
+            "                       from the avatar's rest mesh) drive the avatar's own frames\n"
+            "  --drive D            auto (default: orientations when the frame has them, else the\n"
+            "                       template), template (the template's frames, iterated) or\n"
+            "                       orientation (one solve; needs orientations)\n"
             "  --iterations N       at most N solves (default %u)\n"
             "  --tol T              stop when no vertex moves more than T metres (default %g)\n"
             "  --formulation F      least-squares (default: the landmark rows stay in the objective)\n"
@@ -47,7 +53,7 @@ int mim_cmd_transfer(int argc, char **argv)
         {"template", required_argument, 0, 't'},   {"landmarks", required_argument, 0, 'l'},
         {"iterations", required_argument, 0, 'i'}, {"tol", required_argument, 0, 'T'},
         {"formulation", required_argument, 0, 'f'}, {"output", required_argument, 0, 'o'},
-        {"json", no_argument, 0, 'j'},             {"help", no_argument, 0, 'h'},
+        {"json", no_argument, 0, 'j'},             {"help", no_argument, 0, 'h'}, {"drive", required_argument, 0, 'd'},
         {0, 0, 0, 0}};
     const char *store = NULL, *avatar = NULL, *avatar_lm = NULL, *tmpl_arg = NULL, *lm_path = NULL, *outp = NULL;
     uint64_t iterations = 0, tmpl_id = 0;
@@ -56,7 +62,8 @@ int mim_cmd_transfer(int argc, char **argv)
     mim_xfer_formulation_t form = MIM_XFER_LEAST_SQUARES;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "s:a:t:l:i:T:f:o:jh", longopts, NULL)) != -1) {
+    int drive = MIM_DRIVE_AUTO;
+    while ((c = getopt_long(argc, argv, "s:a:t:l:i:T:f:o:jhd:", longopts, NULL)) != -1) {
         if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
         else if (c == 'A') avatar_lm = optarg;
@@ -76,6 +83,8 @@ int mim_cmd_transfer(int argc, char **argv)
                 fprintf(stderr, "mimic transfer: --formulation '%s': use least-squares or square\n", optarg);
                 return 2;
             }
+        } else if (c == 'd') {
+            if (mim_cli_drive("transfer", optarg, &drive)) return 2;
         } else if (c == 'h') return help(stdout), 0;
         else {
             fprintf(stderr, "mimic transfer: unknown or incomplete option '%s' (see mimic transfer --help)\n",
@@ -93,6 +102,10 @@ int mim_cmd_transfer(int argc, char **argv)
         return 2;
     }
     if (tmpl_arg && mim_cli_template_id("transfer", "template", tmpl_arg, &tmpl_id)) return 2;
+    if (drive == MIM_DRIVE_ORIENTATION && !lm_path) {
+        fprintf(stderr, "mimic transfer: --drive orientation needs --landmarks (a frame with orientations)\n");
+        return 2;
+    }
 
     mim_error_t err = {0};
     mim_session_t *s = NULL;
@@ -116,13 +129,17 @@ int mim_cmd_transfer(int argc, char **argv)
         rc = mim_landmark_frames_read(lm_path, nl, 0, &frames, &err);
         if (!rc && frames.n_frames != 1)
             rc = mim_error_set(&err, MIM_EFORMAT, "%s: has %u frames; transfer takes one", lm_path, frames.n_frames);
+        if (!rc && drive == MIM_DRIVE_ORIENTATION && !frames.orientations)
+            rc = mim_error_set(&err, MIM_EFORMAT, "%s: --drive orientation, but the frame has no \"orientations\"", lm_path);
     }
     float *out = malloc(3 * (size_t)n * sizeof *out);
     if (!rc && !out) rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for %u vertices", n);
     mim_session_report_t rep = {0};
     if (!rc) {
         mim_session_request_t req = {.template_id = tmpl_id, .landmarks = lm_path ? frames.positions : NULL,
-                                     .xfer = {.max_iterations = (uint32_t)iterations, .tol = tol}};
+                                     .xfer = {.max_iterations = (uint32_t)iterations, .tol = tol},
+                                     .orientations = (const mim_quat *)frames.orientations,
+                                     .orient_present = frames.orient_present, .drive = (mim_session_drive_t)drive};
         rc = mim_session_transfer(s, &req, out, &rep, &err);
     }
     if (!rc) { /* in the avatar's own connectivity */
@@ -141,10 +158,12 @@ int mim_cmd_transfer(int argc, char **argv)
     if (rc) {
         fprintf(stderr, "mimic transfer: %s\n", mim_error_text(&err));
     } else if (as_json) {
-        json_t *j = json_pack("{s:s, s:s, s:I, s:s, s:s, s:s, s:i, s:o, s:b, s:b, s:{s:f, s:f, s:f}}", "output", outp,
+        json_t *j = json_pack("{s:s, s:s, s:I, s:s, s:s, s:s, s:s, s:i, s:i, s:i, s:o, s:b, s:b, s:{s:f, s:f, s:f}}", "output", outp,
                               "avatar", mim_session_avatar(s), "template", (json_int_t)rep.template_id, "template_label", rep.label, "mode",
                               lm_path ? (tmpl_arg ? "template+landmarks" : "landmarks") : "template", "formulation",
-                              form == MIM_XFER_SQUARE ? "square" : "least-squares", "iterations", (int)rep.xfer.iterations,
+                              form == MIM_XFER_SQUARE ? "square" : "least-squares", "drive",
+                              mim_session_drive_names[rep.drive], "orientations_filled", (int)rep.orient_filled,
+                              "vertices_from_template", (int)rep.orient_from_template, "iterations", (int)rep.xfer.iterations,
                               "last_move_m", isfinite(rep.xfer.last_move) ? json_real(rep.xfer.last_move) : json_null(),
                               "converged", rep.xfer.converged, "early_stopped", rep.xfer.early_stopped, "seconds",
                               "load", t_load, "factor", t_factor, "transfer", t_solve);
@@ -154,9 +173,11 @@ int mim_cmd_transfer(int argc, char **argv)
         free(txt);
         json_decref(j);
     } else {
-        fprintf(stderr, "mimic transfer: %s -> %s in the pose of template %llu (%s): %u iterations (%s), %.2f ms\n",
-                mim_session_avatar(s), outp, (unsigned long long)rep.template_id, rep.label, rep.xfer.iterations,
-                rep.xfer.converged       ? "converged"
+        fprintf(stderr, "mimic transfer: %s -> %s in the pose of template %llu (%s): %s drive, %u iterations (%s), %.2f ms\n",
+                mim_session_avatar(s), outp, (unsigned long long)rep.template_id, rep.label,
+                mim_session_drive_names[rep.drive], rep.xfer.iterations,
+                rep.drive == MIM_DRIVE_ORIENTATION ? "one solve"
+                : rep.xfer.converged     ? "converged"
                 : rep.xfer.early_stopped ? "stopped when the moves stopped shrinking"
                                          : "iteration cap",
                 1e3 * t_solve);

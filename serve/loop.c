@@ -63,6 +63,9 @@ typedef struct key {
     float u[3 * MIM_LANDMARKS_MAX];
     uint64_t template_id;
     char label[MIM_SESSION_LABEL_MAX]; /* the class name */
+    int oriented;   /* made by the orientation drive, from these segment rotations: */
+    mim_quat R[MIM_VEST_SEGMENTS];
+    uint8_t have_R[MIM_VEST_SEGMENTS];
 } key_pose_t;
 
 struct mim__loop {
@@ -99,6 +102,8 @@ struct mim__loop {
     uint64_t pending_t;
     float pending_xyz[3 * MIM_LANDMARKS_MAX]; /* with these landmarks */
     uint8_t pending_present[MIM_LANDMARKS_MAX];
+    mim_quat pending_R[MIM_VEST_SEGMENTS];    /* and these segment rotations */
+    uint8_t pending_have[MIM_VEST_SEGMENTS];
     uint64_t number;
     double window_start;
     uint32_t window_frames, window_keys;
@@ -107,6 +112,7 @@ struct mim__loop {
     char error[512];
     int outage;        /* error tells of the vest being away (cleared when it is back) */
     uint64_t last_template, warm_starts, iterations, key_frames;
+    uint64_t oriented_keys; /* key frames made by the orientation drive */
     uint64_t completed; /* lost landmarks filled in by retrieval */
     char last_label[MIM_SESSION_LABEL_MAX];
     double key_rate_hz, frame_rate_hz;
@@ -202,15 +208,18 @@ static void morph_ready(mim__loop_t *l, key_pose_t *k)
     k->morph_ready = 1;
 }
 
-/* A new key frame from complete landmarks u into keys[!cur]: the session's
- * pipeline (nearest template, its frames, the solve with the cached factor). */
-static int make_key(mim__loop_t *l, const float *u, mim_error_t *err)
+/* A new key frame from complete landmarks u (and the segment rotations R,
+ * have, when the vest gives them) into keys[!cur]: the session's pipeline
+ * (nearest template; its frames, or the avatar's own turned by R; the
+ * solve with the cached factor). */
+static int make_key(mim__loop_t *l, const float *u, const mim_quat *R, const uint8_t *have, mim_error_t *err)
 {
     mim_serve_t *sv = l->sv;
     const uint32_t L = sv->map->count;
     double t0 = mim_now();
     key_pose_t *prev = &l->keys[l->cur], *k = &l->keys[!l->cur];
-    mim_session_request_t req = {.landmarks = u};
+    mim_session_request_t req = {.landmarks = u, .orientations = R, .orient_present = have,
+                                 .drive = (mim_session_drive_t)l->opt.drive};
     if (prev->valid && want_warm(l)) /* warm start: the same template as the last key frame */
         req.xfer.start = prev->pos, req.start_template = prev->template_id;
     mim_session_report_t *rep = &l->report;
@@ -221,6 +230,8 @@ static int make_key(mim__loop_t *l, const float *u, mim_error_t *err)
         return rc;
     k->valid = 1, k->morph_ready = 0;
     k->template_id = rep->template_id;
+    if ((k->oriented = rep->drive == MIM_DRIVE_ORIENTATION))
+        memcpy(k->R, R, sizeof k->R), memcpy(k->have_R, have, sizeof k->have_R);
     snprintf(k->label, sizeof k->label, "%s", rep->class_name);
     memcpy(k->u, u, 3 * (size_t)L * sizeof *u);
     l->cur = !l->cur;
@@ -234,6 +245,7 @@ static int make_key(mim__loop_t *l, const float *u, mim_error_t *err)
     l->last_template = rep->template_id;
     snprintf(l->last_label, sizeof l->last_label, "%s", k->label);
     l->warm_starts += rep->warm_started;
+    l->oriented_keys += rep->drive == MIM_DRIVE_ORIENTATION;
     l->iterations += rep->xfer.iterations;
     l->key_frames++;
     pthread_mutex_unlock(&l->lock);
@@ -245,6 +257,16 @@ static int make_morph(mim__loop_t *l, key_pose_t *a, key_pose_t *b, double t, mi
 {
     mim_serve_t *sv = l->sv;
     double t0 = mim_now();
+    if (a->oriented && b->oriented && !l->linear) {
+        mim_session_oriented_key_t ka = {a->R, a->have_R, a->u, a->template_id}, kb = {b->R, b->have_R, b->u, b->template_id};
+        int rc = mim_session_morph_oriented(sv->s, &ka, &kb, t, l->out, err);
+        if (!rc) {
+            ewma(&l->c_morph, mim_now() - t0);
+            mim__metrics_add(&sv->m, MIM__C_MORPH_FRAMES, 1);
+            mim__metrics_observe(&sv->m, MIM__H_MORPH_FRAME, mim_now() - t0);
+        }
+        return rc;
+    }
     if (!l->linear)
         morph_ready(l, a), morph_ready(l, b);
     mim_xfer_key_t ka = {a->pos, a->quats, a->W, a->u}, kb = {b->pos, b->quats, b->W, b->u};
@@ -284,9 +306,11 @@ static int held(const mim__loop_t *l, uint32_t i, uint64_t t)
     return l->have_u[i] && t >= l->seen_us[i] && t - l->seen_us[i] < HOLD_US;
 }
 
-/* One vest frame's landmarks (present[i] = 0 for a lost one): a key frame
- * or a morph, published. */
-static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *present, uint64_t t_vest)
+/* One vest frame's landmarks (present[i] = 0 for a lost one) and segment
+ * rotations (R and have; NULL from a landmark source): a key frame or a
+ * morph, published. */
+static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *present, const mim_quat *R,
+                            const uint8_t *have, uint64_t t_vest)
 {
     mim_serve_t *sv = l->sv;
     const uint32_t L = sv->map->count;
@@ -335,7 +359,7 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
     mim_error_t err = {0};
     int key = 0, rc = 0;
     if (!l->keys[l->cur].valid || l->since_key >= l->k) {
-        rc = make_key(l, u, &err);
+        rc = make_key(l, u, R, have, &err);
         if (!rc)
             choose_interval(l), l->since_key = 0, key = 1;
     }
@@ -418,6 +442,8 @@ static void frame_done(mim__loop_t *l, uint64_t t)
     if (l->pending)
         mim__metrics_add(&l->sv->m, MIM__C_SKIPPED, 1);
     mim_vest_fk(&l->rig, &l->st, t, 0, l->pending_xyz, l->pending_present);
+    mim_vest_fresh(&l->st, t, 0, l->pending_have);
+    mim_vest_segment_rotations(&l->rig, l->st.q, l->pending_have, l->pending_R);
     l->pending = 1, l->pending_t = t;
 }
 
@@ -444,7 +470,7 @@ static void on_packet(void *user, const mim_vest_packet_info_t *info, const mim_
 static void flush_frames(mim__loop_t *l)
 {
     if (l->pending)
-        landmarks_frame(l, l->pending_xyz, l->pending_present, l->pending_t);
+        landmarks_frame(l, l->pending_xyz, l->pending_present, l->pending_R, l->pending_have, l->pending_t);
     l->pending = 0;
 }
 
@@ -540,7 +566,7 @@ static void *run(void *arg)
             continue;
         }
         vest_period(l, tu);
-        landmarks_frame(l, xyz, present, tu);
+        landmarks_frame(l, xyz, present, NULL, NULL, tu);
     }
     set_state(l, "stopped", NULL);
     return NULL;
@@ -645,7 +671,7 @@ json_t *mim__loop_status(mim__loop_t *l)
         return json_null();
     pthread_mutex_lock(&l->lock);
     json_t *j = json_pack(
-        "{s:s, s:s, s:o, s:o, s:o, s:I, s:s, s:i, s:s, s:f, s:f, s:f, s:f, s:s, s:I, s:f, s:I}", "spec", l->spec, "state", l->state,
+        "{s:s, s:s, s:o, s:o, s:o, s:I, s:s, s:i, s:s, s:f, s:f, s:f, s:f, s:s, s:I, s:f, s:I, s:s, s:I}", "spec", l->spec, "state", l->state,
         "error", l->error[0] ? json_string(l->error) : json_null(), "last_template",
         l->last_template ? json_integer((json_int_t)l->last_template) : json_null(), "last_label",
         l->last_label[0] ? json_string(l->last_label) : json_null(), "reconnects",
@@ -654,7 +680,8 @@ json_t *mim__loop_status(mim__loop_t *l)
         l->c_key * 1e3, "morph_ms", l->c_morph * 1e3, "warm_start",
         l->opt.warm_start ? (l->opt.warm_start > 0 ? "on" : "off") : "auto", "warm_starts", (json_int_t)l->warm_starts,
         "iterations_per_key", l->key_frames ? (double)l->iterations / (double)l->key_frames : 0.0,
-        "completed_landmarks", (json_int_t)l->completed);
+        "completed_landmarks", (json_int_t)l->completed, "drive", mim_session_drive_names[l->opt.drive],
+        "oriented_keys", (json_int_t)l->oriented_keys);
     pthread_mutex_unlock(&l->lock);
     return j;
 }

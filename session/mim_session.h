@@ -86,15 +86,28 @@ const mim_query_t *mim_session_query(const mim_session_t *s);
 const mim_query_status_t *mim_session_index_status(const mim_session_t *s);
 double mim_session_factor_seconds(const mim_session_t *s); /* the factorisation's time */
 int mim_session_has_avatar(const mim_session_t *s); /* 1 after a successful mim_session_load_avatar */
+/* The avatar's segmentation (n entries), or NULL when it could not be
+ * made; then *why (may be NULL) gets the reason. */
+const mim_xfer_skin_t *mim_session_skin(const mim_session_t *s, const mim_error_t **why);
 
 /* ---- templates ---- */
-/* Template id's positions (3 * n floats) and frames (9 * n doubles; NULL
- * to skip), from its stored encoding, or computed when the store has none.
+/* Template id's positions (3 * n floats) and frames (9 * n doubles); each
+ * NULL to skip, from its stored encoding, or computed when the store has none.
  * label (may be NULL) gets "subject/pose". MIM_ENOTFOUND for an unknown id. */
 int mim_session_template(mim_session_t *s, uint64_t id, float *positions, double *frames, char *label,
                          size_t label_size, mim_error_t *err);
 
 /* ---- the pipeline ---- */
+/* What gives a key frame its vertex frames (issue 17). */
+typedef enum mim_session_drive {
+    MIM_DRIVE_AUTO = 0,        /* orientations when the request has them and the avatar is segmented, else template */
+    MIM_DRIVE_TEMPLATE = 1,    /* the template's frames, iterated (seed 000) */
+    MIM_DRIVE_ORIENTATION = 2  /* the avatar's rest frames turned by the segment rotations, one solve */
+} mim_session_drive_t;
+/* "auto", "template", "orientation" -> the drive; -1 when unknown. */
+int mim_session_drive_parse(const char *name);
+extern const char *const mim_session_drive_names[3];
+
 typedef struct mim_session_request {
     uint64_t template_id;    /* the pose's template; 0: the nearest one to landmarks, through the index */
     const float *landmarks;  /* 3 * map count floats, in map order; NULL: mode (a), the template's own
@@ -102,6 +115,14 @@ typedef struct mim_session_request {
     mim_xfer_options_t xfer; /* iterations, tolerance, damping, warm start (start: 3 * n floats) */
     uint64_t start_template; /* with xfer.start: warm-start only when the pose's template is this one
                                 (a stream's last key frame); 0: whatever the template */
+    /* The 17 segment rotations from the avatar's rest mesh (MIM_SEGMENTS,
+     * mim_segment_names order; a landmark frame's "orientations"), or NULL;
+     * orient_present (17; NULL: all) marks the ones measured. A lost one
+     * takes its neighbour's (mim_vest_rotations_fill), and where no
+     * neighbour has one, the template's frames drive that region. */
+    const mim_quat *orientations;
+    const uint8_t *orient_present;
+    mim_session_drive_t drive;
 } mim_session_request_t;
 
 #define MIM_SESSION_LABEL_MAX 160
@@ -115,12 +136,21 @@ typedef struct mim_session_report {
     int warm_started;                 /* the solve started from xfer.start */
     mim_xfer_report_t xfer;           /* the solve */
     double seconds_query, seconds_template, seconds_solve;
+    mim_session_drive_t drive;        /* the drive used: MIM_DRIVE_TEMPLATE or MIM_DRIVE_ORIENTATION */
+    uint32_t orient_filled;           /* lost segments that took a neighbour's rotation */
+    uint32_t orient_from_template;    /* vertices whose frames came from the template (no neighbour) */
 } mim_session_report_t;
 
 /* Transfers the avatar into one pose and writes its 3 * n positions to out:
  * the template (given, or the nearest to the landmarks), its frames (the
  * last template's are kept between calls), the landmarks (given, or mode
  * (a)), then the iterated solve with the cached factor (seed 000, eq. 3).
+ * The orientation drive (req->drive, req->orientations) still finds the
+ * template (the pose's label and id), but the frames are the avatar's own
+ * rest frames turned per segment, and one solve with the landmarks gives
+ * the pose; it needs landmarks ("orientations need landmarks", MIM_EINVAL)
+ * and, asked for explicitly, a segmented avatar (the reason, MIM_ENOLANDMARKS
+ * or the skeleton's code).
  * report may be NULL. Errors: MIM_EINVAL with neither a template nor
  * landmarks, or before mim_session_load_avatar; MIM_ENOTFOUND for an unknown template, or for landmarks
  * alone when the store has no index ("store has no index (run mimic
@@ -132,6 +162,21 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
  * with the session's factor. */
 int mim_session_morph(mim_session_t *s, mim_xfer_morph_method_t method, const mim_xfer_key_t *a,
                       const mim_xfer_key_t *b, double t, float *out, mim_error_t *err);
+
+/* A key pose of the orientation drive: its segment rotations (17; have
+ * NULL: all measured), its landmarks (3 * map count) and its template. */
+typedef struct mim_session_oriented_key {
+    const mim_quat *R;
+    const uint8_t *have;
+    const float *landmarks;
+    uint64_t template_id;
+} mim_session_oriented_key_t;
+/* The in-between pose at t between two keys of the orientation drive: the
+ * segment rotations slerped, the landmarks lerped, one solve (issue 17: no
+ * template in between; b's names the pose). A segment counts as measured
+ * when both keys measured it. Errors: mim_session_transfer's. */
+int mim_session_morph_oriented(mim_session_t *s, const mim_session_oriented_key_t *a,
+                               const mim_session_oriented_key_t *b, double t, float *out, mim_error_t *err);
 
 /* ---- completion of lost landmarks (complete.c; seed 002, Section 6) ---- */
 #define MIM_COMPLETE_MIN_SEEN 4

@@ -9,6 +9,7 @@
 #include "mim_ingest.h"
 #include "mim_io.h"
 #include "mim_register.h"
+#include "mim_vest_kinematics.h"
 
 #include <math.h>
 #include <pthread.h>
@@ -40,6 +41,9 @@ struct mim_session {
     float *table_lm;
     char **table_subject;
     double *W;                  /* the avatar's encoding, 3 * n */
+    double *restF;              /* the avatar's rest frames, 9 * n (the orientation drive turns them) */
+    mim_xfer_skin_t *skin;      /* its segmentation over the 17 vest segments; NULL: skin_failed says why */
+    mim_error_t skin_failed;
     double t_factor;
     char store[4096];
     char avatar[4096];          /* how the avatar was named: path or "template N" */
@@ -51,6 +55,9 @@ struct mim_session {
     uint64_t cached_id;         /* 0: nothing cached */
     float *tpos;                /* 3 * n */
     double *tF;                 /* 9 * n */
+    double *oF;                 /* 9 * n: the orientation drive's frames */
+    uint64_t label_id;          /* 0, or the template whose "subject/pose" label holds */
+    char label[MIM_SESSION_LABEL_MAX];
     char cached_label[MIM_SESSION_LABEL_MAX];
 };
 
@@ -281,8 +288,38 @@ static int load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err)
     }
     if (!rc)
         mim_xfer_encode(s->topo, s->mesh.positions, F, s->W);
-    free(F);
+    if (rc)
+        free(F);
+    else
+        s->restF = F;
     return rc;
+}
+
+/* The avatar's segmentation (issue 17): bones of the vest skeleton under
+ * its landmarks, skinned over its surface. A map without the 16 default
+ * landmarks cannot be segmented: the orientation drive is then refused
+ * with skin_failed's reason, and auto falls back to templates. */
+static void segment_avatar(mim_session_t *s)
+{
+    mim_vest_skeleton_t sk;
+    double bones[MIM_VEST_SEGMENTS * 6];
+    int rc = mim_vest_skeleton_estimate(&sk, &s->mesh, &s->map, &s->skin_failed);
+    if (!rc) {
+        mim_vest_skeleton_bones(&sk, bones);
+        if (!(s->skin = malloc((size_t)s->mesh.n_vertices * sizeof *s->skin)))
+            rc = mim_error_set(&s->skin_failed, MIM_ENOMEM, "out of memory for the avatar's segments");
+    }
+    if (!rc)
+        rc = mim_xfer_skin_from_bones(s->topo, s->mesh.positions, bones, MIM_VEST_SEGMENTS,
+                                      MIM_XFER_DEFAULT_SKIN_SMOOTHING, s->skin, &s->skin_failed);
+    if (rc) {
+        free(s->skin);
+        s->skin = NULL;
+        mim_error_t why = s->skin_failed;
+        s->skin_failed = (mim_error_t){0};
+        mim_error_set(&s->skin_failed, rc, "%s: the avatar cannot be segmented for the orientation drive: %s",
+                      s->avatar, mim_error_text(&why));
+    }
 }
 
 int mim_session_open(mim_session_t **out, const char *store, const mim_session_options_t *opt, mim_error_t *err)
@@ -321,7 +358,8 @@ int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *e
         s->W = malloc(3 * (size_t)n * sizeof *s->W);
         s->tpos = malloc(3 * (size_t)n * sizeof *s->tpos);
         s->tF = malloc(9 * (size_t)n * sizeof *s->tF);
-        if (!s->W || !s->tpos || !s->tF)
+        s->oF = malloc(9 * (size_t)n * sizeof *s->oF);
+        if (!s->W || !s->tpos || !s->tF || !s->oF)
             return mim_error_set(err, MIM_ENOMEM, "out of memory for %u vertices", n);
     }
     int rc = load_avatar(s, avatar, err);
@@ -331,6 +369,8 @@ int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *e
         rc = mim_xfer_solver_open(&s->solver, s->topo, s->map.vertex, s->map.count, &so, err);
         s->t_factor = mim_now() - t0;
     }
+    if (!rc)
+        segment_avatar(s);
     return rc;
 }
 
@@ -346,7 +386,7 @@ void mim_session_close(mim_session_t **ps)
     mim_mesh_free(&s->own);
     mim_reg_binding_free(&s->binding);
     free(s->out_work);
-    free(s->W), free(s->tpos), free(s->tF);
+    free(s->W), free(s->tpos), free(s->tF), free(s->oF), free(s->restF), free(s->skin);
     mim_db_close(&s->db);
     pthread_mutex_destroy(&s->lock);
     pthread_mutex_destroy(&s->out_lock);
@@ -380,6 +420,22 @@ const mim_query_t *mim_session_query(const mim_session_t *s) { return s->query; 
 const mim_query_status_t *mim_session_index_status(const mim_session_t *s) { return &s->index; }
 double mim_session_factor_seconds(const mim_session_t *s) { return s->t_factor; }
 int mim_session_has_avatar(const mim_session_t *s) { return s->solver != NULL; }
+const mim_xfer_skin_t *mim_session_skin(const mim_session_t *s, const mim_error_t **why)
+{
+    if (why)
+        *why = &s->skin_failed;
+    return s->skin;
+}
+
+const char *const mim_session_drive_names[3] = {"auto", "template", "orientation"};
+
+int mim_session_drive_parse(const char *name)
+{
+    for (int d = 0; d < 3; d++)
+        if (name && !strcmp(name, mim_session_drive_names[d]))
+            return d;
+    return -1;
+}
 
 int mim_session_template(mim_session_t *s, uint64_t id, float *positions, double *frames, char *label,
                          size_t label_size, mim_error_t *err)
@@ -395,7 +451,8 @@ int mim_session_template(mim_session_t *s, uint64_t id, float *positions, double
         rc = mim_error_set(err, MIM_ESTORE, "%s: template %llu has %u vertices, the store's connectivity %u",
                            s->store, (unsigned long long)id, v.n_vertices, s->mesh.n_vertices);
     if (!rc) {
-        memcpy(positions, v.positions, 3 * (size_t)v.n_vertices * sizeof(float));
+        if (positions)
+            memcpy(positions, v.positions, 3 * (size_t)v.n_vertices * sizeof(float));
         if (label)
             snprintf(label, label_size, "%s/%s", v.subject[0] ? v.subject : "-", v.pose[0] ? v.pose : "-");
         mim_db_encoding_t e;
@@ -404,7 +461,7 @@ int mim_session_template(mim_session_t *s, uint64_t id, float *positions, double
             if (mim_db_encoding_get(t, id, &e, NULL) == 0 && e.n_vertices == v.n_vertices)
                 mim_xfer_encoding_unpack(e.n_vertices, e.frames, NULL, frames, NULL);
             else
-                mim_xfer_frames(s->topo, positions, frames);
+                mim_xfer_frames(s->topo, v.positions, frames);
         }
     }
     mim_db_abort(&t);
@@ -429,6 +486,43 @@ static int nearest(mim_session_t *s, const float *u, mim_session_report_t *r, mi
     return 0;
 }
 
+/* The orientation drive's frames into s->oF (under s->lock): lost
+ * segments from their neighbours, and the vertices whose heaviest segment
+ * has no rotation at all from the template's frames, which are loaded
+ * only then. */
+static int orientation_frames(mim_session_t *s, const mim_session_request_t *req, mim_session_report_t *r,
+                              mim_error_t *err)
+{
+    const uint32_t n = s->mesh.n_vertices;
+    mim_quat R[MIM_VEST_SEGMENTS];
+    uint8_t have[MIM_VEST_SEGMENTS];
+    int8_t from[MIM_VEST_SEGMENTS];
+    for (int g = 0; g < MIM_VEST_SEGMENTS; g++) {
+        have[g] = !req->orient_present || req->orient_present[g];
+        R[g] = have[g] ? req->orientations[g] : mim_quat_identity();
+    }
+    r->orient_filled = mim_vest_rotations_fill(R, have, from);
+    mim_xfer_skin_frames(n, s->skin, s->restF, R, s->oF);
+    int unfilled = 0;
+    for (int g = 0; g < MIM_VEST_SEGMENTS; g++)
+        unfilled |= from[g] < 0;
+    if (!unfilled)
+        return 0;
+    if (s->cached_id != r->template_id) {
+        s->cached_id = 0;
+        int rc = mim_session_template(s, r->template_id, s->tpos, s->tF, s->cached_label, sizeof s->cached_label, err);
+        if (rc)
+            return rc;
+        s->cached_id = r->template_id;
+    }
+    for (uint32_t i = 0; i < n; i++)
+        if (from[s->skin[i].bone[0]] < 0) {
+            memcpy(s->oF + 9 * (size_t)i, s->tF + 9 * (size_t)i, 9 * sizeof *s->oF);
+            r->orient_from_template++;
+        }
+    return 0;
+}
+
 int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, float *out,
                          mim_session_report_t *report, mim_error_t *err)
 {
@@ -438,6 +532,14 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
         return mim_error_set(err, MIM_EINVAL, "%s: transfer: no avatar loaded", s->store);
     if (!req->template_id && !req->landmarks)
         return mim_error_set(err, MIM_EINVAL, "transfer: give a template, landmarks, or both");
+    if (req->drive == MIM_DRIVE_ORIENTATION && !req->orientations)
+        return mim_error_set(err, MIM_EINVAL, "transfer: the orientation drive needs orientations");
+    if (req->orientations && !req->landmarks && req->drive != MIM_DRIVE_TEMPLATE)
+        return mim_error_set(err, MIM_EINVAL, "transfer: orientations need landmarks (the solve holds them)");
+    if (req->drive == MIM_DRIVE_ORIENTATION && !s->skin)
+        return mim_error_set(err, s->skin_failed.code, "%s", mim_error_text(&s->skin_failed));
+    r->drive = req->orientations && s->skin && req->drive != MIM_DRIVE_TEMPLATE ? MIM_DRIVE_ORIENTATION
+                                                                                 : MIM_DRIVE_TEMPLATE;
     double t0 = mim_now();
     int rc = 0;
     if (req->template_id)
@@ -451,13 +553,28 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
     const uint32_t n = s->mesh.n_vertices, nl = s->map.count;
     float *u = r->landmarks;
     pthread_mutex_lock(&s->lock);
-    if (s->cached_id != r->template_id) {
+    const double *frames = s->tF;
+    if (r->drive == MIM_DRIVE_ORIENTATION) {
+        rc = orientation_frames(s, req, r, err);
+        frames = s->oF;
+        /* the label without reading the template's mesh (kept: a stream holds a pose) */
+        if (!rc && s->label_id != r->template_id) {
+            s->label_id = 0;
+            rc = mim_session_template(s, r->template_id, NULL, NULL, s->label, sizeof s->label, err);
+            if (!rc)
+                s->label_id = r->template_id;
+        }
+        if (!rc)
+            snprintf(r->label, sizeof r->label, "%s", s->label);
+        if (!rc)
+            memcpy(u, req->landmarks, 3 * (size_t)nl * sizeof *u);
+    } else if (s->cached_id != r->template_id) {
         s->cached_id = 0;
         rc = mim_session_template(s, r->template_id, s->tpos, s->tF, s->cached_label, sizeof s->cached_label, err);
         if (!rc)
             s->cached_id = r->template_id;
     }
-    if (!rc) {
+    if (!rc && r->drive == MIM_DRIVE_TEMPLATE) {
         snprintf(r->label, sizeof r->label, "%s", s->cached_label);
         if (req->landmarks) /* mode (b): the tracked landmarks, held */
             memcpy(u, req->landmarks, 3 * (size_t)nl * sizeof *u);
@@ -469,9 +586,11 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
     mim_xfer_options_t xo = req->xfer;
     if (xo.start && req->start_template && req->start_template != r->template_id)
         xo.start = NULL; /* a warm start from another template's pose would mislead the first solve */
+    if (r->drive == MIM_DRIVE_ORIENTATION) /* the frames are the pose's own: one solve, nothing to iterate */
+        xo.max_iterations = 1, xo.start = NULL;
     r->warm_started = xo.start != NULL;
     if (!rc)
-        rc = mim_xfer_transfer(s->solver, s->W, n, s->tF, u, nl, &xo, out, &r->xfer, err);
+        rc = mim_xfer_transfer(s->solver, s->W, n, frames, u, nl, &xo, out, &r->xfer, err);
     pthread_mutex_unlock(&s->lock);
     r->seconds_solve = mim_now() - t2;
     return rc;
@@ -486,6 +605,24 @@ int mim_session_morph(mim_session_t *s, mim_xfer_morph_method_t method, const mi
     int rc = mim_xfer_morph(s->solver, method, a, b, t, out, err);
     pthread_mutex_unlock(&s->lock);
     return rc;
+}
+
+int mim_session_morph_oriented(mim_session_t *s, const mim_session_oriented_key_t *a,
+                               const mim_session_oriented_key_t *b, double t, float *out, mim_error_t *err)
+{
+    const uint32_t L = s->map.count;
+    mim_quat R[MIM_VEST_SEGMENTS];
+    uint8_t have[MIM_VEST_SEGMENTS];
+    float u[3 * MIM_LANDMARKS_MAX];
+    for (int g = 0; g < MIM_VEST_SEGMENTS; g++) {
+        R[g] = mim_quat_slerp(a->R[g], b->R[g], t);
+        have[g] = (!a->have || a->have[g]) && (!b->have || b->have[g]);
+    }
+    for (uint32_t i = 0; i < 3 * L; i++)
+        u[i] = (float)((1.0 - t) * a->landmarks[i] + t * b->landmarks[i]);
+    mim_session_request_t req = {.template_id = b->template_id, .landmarks = u, .orientations = R,
+                                 .orient_present = have, .drive = MIM_DRIVE_ORIENTATION};
+    return mim_session_transfer(s, &req, out, NULL, err);
 }
 
 json_t *mim_session_answer_json(const mim_query_t *q, const mim_index_answer_t *a, const mim_index_hit_t *hits)

@@ -24,7 +24,8 @@
 # register/ builds on transfer/'s Laplacian, frames and solver; ingest,
 # query and session compose them with db/ and io/ (no arrow sideways between
 # ingest and query; session sits above both: the one pipeline uses query,
-# a foreign avatar is registered through ingest's registrar); serve/ uses
+# a foreign avatar is registered through ingest's registrar; the orientation
+# drive segments the avatar over vest's skeleton); serve/ uses
 # everything below it; cli/ everything. synth/ (the procedural bodies) uses
 # core only. `*` means any module.
 TABLE='
@@ -39,7 +40,7 @@ sample:    core
 register:  core transfer
 query:     core db index
 ingest:    core db io transfer register
-session:   core db io transfer register index query ingest
+session:   core db io transfer register index query ingest vest
 serve:     core db io transfer register index query ingest sample vest synth session
 cli:       *
 '

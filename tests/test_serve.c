@@ -462,6 +462,12 @@ static void test_vest_loop(void **state)
                keys = json_integer_value(json_object_get(j, "key_frames"));
     json_int_t last = json_integer_value(json_object_get(vest, "last_template"));
     assert_true(last >= 1 && last <= SUBJECTS * POSES);
+    /* the vest gives segment orientations and a synth avatar can be
+     * segmented: every key frame is the orientation drive's (auto, issue 17),
+     * and still recognised (last_template above) */
+    assert_string_equal(json_string_value(json_object_get(vest, "drive")), "auto");
+    assert_int_equal(json_integer_value(json_object_get(vest, "oriented_keys")), keys);
+    assert_true(json_number_value(json_object_get(vest, "iterations_per_key")) == 1.0);
     json_decref(j);
     hc_reply_t r = http("GET", "/metrics", NULL, NULL, 0);
     const char *p = strstr(r.body, "\nmimic_vest_frames_skipped_total ");

@@ -92,11 +92,16 @@ uint32_t mim_vest_fk_orient(const mim_vest_rig_t *rig, const mim_quat q[MIM_VEST
 uint32_t mim_vest_fk(const mim_vest_rig_t *rig, const mim_vest_state_t *st, uint64_t now_us, uint64_t timeout_us,
                      float *xyz, uint8_t *present)
 {
-    if (!timeout_us) timeout_us = MIM_VEST_TIMEOUT_US_DEFAULT;
     uint8_t have[MIM_VEST_SEGMENTS];
+    mim_vest_fresh(st, now_us, timeout_us, have);
+    return mim_vest_fk_orient(rig, st->q, have, xyz, present);
+}
+
+void mim_vest_fresh(const mim_vest_state_t *st, uint64_t now_us, uint64_t timeout_us, uint8_t have[MIM_VEST_SEGMENTS])
+{
+    if (!timeout_us) timeout_us = MIM_VEST_TIMEOUT_US_DEFAULT;
     for (int s = 0; s < MIM_VEST_SEGMENTS; s++)
         have[s] = st->seen[s] && (st->t_us[s] >= now_us || now_us - st->t_us[s] <= timeout_us);
-    return mim_vest_fk_orient(rig, st->q, have, xyz, present);
 }
 
 int mim_vest_assembler_push(mim_vest_assembler_t *a, const mim_vest_packet_info_t *info, uint64_t t_done[2],

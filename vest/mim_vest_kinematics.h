@@ -128,6 +128,10 @@ void mim_vest_state_update(mim_vest_state_t *st, const mim_vest_frame_t *f);
 
 #define MIM_VEST_TIMEOUT_US_DEFAULT 250000u
 
+/* Which sensors are fresh at now_us (have[s] 1): seen, and not silent for
+ * more than timeout_us (0 = default; a reading later than now_us counts as
+ * fresh). mim_vest_fk's rule. */
+void mim_vest_fresh(const mim_vest_state_t *st, uint64_t now_us, uint64_t timeout_us, uint8_t have[MIM_VEST_SEGMENTS]);
 /* Landmarks at now_us from the latest orientations: a sensor never seen, or
  * silent for more than timeout_us (0 = default; a reading later than now_us
  * counts as fresh), makes the landmarks of its segment and of the segments

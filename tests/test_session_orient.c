@@ -1,0 +1,216 @@
+/* session/: the orientation drive (issue 17) through the one pipeline, on a
+ * synth store made here: a forearm twist that no landmark shows, lost
+ * sensors and their fallbacks, and the bad requests. */
+#include "test_support.h"
+
+#include "mim_session.h"
+#include "mim_vest_kinematics.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static char *dir, *store;
+static mim_session_t *sess;
+static mim_vest_skeleton_t sk;
+
+static int run(const char *const *args)
+{
+    char *o = NULL, *e = NULL;
+    int rc = ts_run_mimic(&o, &e, args);
+    free(o), free(e);
+    return rc;
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    dir = ts_tempdir("session-orient");
+    char *bodies = ts_path(dir, "bodies");
+    store = ts_path(dir, "store");
+    const char *synth[] = {"synth", "--out", bodies, "--subjects", "3", "--poses", "12", "--vertices", "3000", NULL};
+    const char *ingest[] = {"ingest", "--store", store, bodies, NULL};
+    const char *index[] = {"index", "--store", store, NULL};
+    int rc = run(synth) || run(ingest) || run(index);
+    free(bodies);
+    mim_error_t err = {0};
+    if (!rc) rc = mim_session_open(&sess, store, NULL, &err);
+    if (!rc) rc = mim_session_load_avatar(sess, "1", &err); /* a subject at rest */
+    if (!rc) rc = mim_vest_skeleton_estimate(&sk, mim_session_mesh(sess), mim_session_map(sess), &err);
+    if (rc) fprintf(stderr, "setup: %s\n", mim_error_text(&err));
+    return rc;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    mim_session_close(&sess);
+    ts_rmtree(dir);
+    free(dir), free(store);
+    return 0;
+}
+
+/* The pose: the left forearm and hand twisted 80 degrees about the
+ * forearm's axis; the landmarks by the vest's own forward kinematics. */
+static void twisted_pose(mim_quat R[MIM_VEST_SEGMENTS], float *u)
+{
+    mim_vec3 axis = mim_v3_normalize(mim_v3_sub(sk.end[MIM_VEST_L_FOREARM], sk.pivot[MIM_VEST_L_FOREARM]));
+    for (int g = 0; g < MIM_VEST_SEGMENTS; g++) R[g] = mim_quat_identity();
+    R[MIM_VEST_L_FOREARM] = R[MIM_VEST_L_HAND] = mim_quat_axis_angle(axis, 80.0 * M_PI / 180.0);
+    mim_vest_rig_t rig;
+    mim_error_t err = {0};
+    assert_int_equal(mim_vest_calibrate(&rig, &sk, NULL, NULL, &err), 0); /* rest pose, tared: R_s = reading */
+    assert_int_equal(mim_vest_fk_orient(&rig, R, NULL, u, NULL), mim_session_map(sess)->count);
+}
+
+/* Mean angle (degrees) between R_hand and each left-hand vertex's frame
+ * turn from the rest mesh to pose x. */
+static double hand_angle(const float *x, mim_quat R_hand)
+{
+    const mim_mesh_t *rest = mim_session_mesh(sess);
+    const uint32_t n = rest->n_vertices;
+    const mim_xfer_skin_t *skin = mim_session_skin(sess, NULL);
+    double *F0 = malloc(9 * (size_t)n * sizeof *F0), *F1 = malloc(9 * (size_t)n * sizeof *F1), Rm[9];
+    mim_xfer_frames(mim_session_topology(sess), rest->positions, F0);
+    mim_xfer_frames(mim_session_topology(sess), x, F1);
+    mim_quat_to_matrix(R_hand, Rm);
+    double sum = 0;
+    uint32_t count = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        if (skin[i].bone[0] != MIM_VEST_L_HAND || skin[i].weight[0] < 0.9f) continue;
+        /* tr(R^T M) with M = F1 F0^T: sum over axes k of (R f0_k) . f1_k */
+        double tr = 0;
+        for (int k = 0; k < 3; k++) {
+            const double *a = F0 + 9 * (size_t)i + 3 * k, *b = F1 + 9 * (size_t)i + 3 * k;
+            for (int r = 0; r < 3; r++) tr += (Rm[r] * a[0] + Rm[3 + r] * a[1] + Rm[6 + r] * a[2]) * b[r];
+        }
+        double c = (tr - 1) / 2;
+        sum += acos(c > 1 ? 1 : c < -1 ? -1 : c) * 180.0 / M_PI;
+        count++;
+    }
+    free(F0), free(F1);
+    assert_true(count > 10);
+    return sum / count;
+}
+
+static void test_twist(void **state)
+{
+    (void)state;
+    const uint32_t n = mim_session_mesh(sess)->n_vertices;
+    mim_quat R[MIM_VEST_SEGMENTS];
+    float u[3 * MIM_LANDMARKS_MAX], *x = malloc(3 * (size_t)n * sizeof *x);
+    twisted_pose(R, u);
+    mim_error_t err = {0};
+    double angle[2];
+    for (int d = 0; d < 2; d++) {
+        mim_session_request_t req = {.landmarks = u, .orientations = R,
+                                     .drive = d ? MIM_DRIVE_AUTO : MIM_DRIVE_TEMPLATE};
+        mim_session_report_t rep;
+        assert_int_equal(mim_session_transfer(sess, &req, x, &rep, &err), 0);
+        assert_int_equal(rep.drive, d ? MIM_DRIVE_ORIENTATION : MIM_DRIVE_TEMPLATE);
+        assert_true(rep.queried && rep.template_id >= 1 && rep.label[0]); /* recognition still runs */
+        if (d) assert_int_equal(rep.xfer.iterations, 1);
+        angle[d] = hand_angle(x, R[MIM_VEST_L_HAND]);
+    }
+    print_message("hand turned by 80 degrees: off by %.1f (template drive), %.1f (orientation drive)\n", angle[0],
+                  angle[1]);
+    assert_true(angle[1] < 15.0);
+    assert_true(angle[0] > 2 * angle[1]);
+    free(x);
+}
+
+static void test_lost_sensors(void **state)
+{
+    (void)state;
+    const uint32_t n = mim_session_mesh(sess)->n_vertices;
+    mim_quat R[MIM_VEST_SEGMENTS];
+    float u[3 * MIM_LANDMARKS_MAX], *x = malloc(3 * (size_t)n * sizeof *x);
+    twisted_pose(R, u);
+    mim_error_t err = {0};
+    /* the hand's sensor lost: it takes the forearm's rotation, the same here */
+    uint8_t have[MIM_VEST_SEGMENTS];
+    memset(have, 1, sizeof have);
+    have[MIM_VEST_L_HAND] = 0;
+    mim_quat junk[MIM_VEST_SEGMENTS];
+    memcpy(junk, R, sizeof junk);
+    junk[MIM_VEST_L_HAND] = mim_quat_axis_angle(mim_v3(0, 0, 1), 2.0); /* what a lost sensor held: not read */
+    mim_session_request_t req = {.landmarks = u, .orientations = junk, .orient_present = have};
+    mim_session_report_t rep;
+    assert_int_equal(mim_session_transfer(sess, &req, x, &rep, &err), 0);
+    assert_int_equal(rep.drive, MIM_DRIVE_ORIENTATION);
+    assert_int_equal(rep.orient_filled, 1);
+    assert_int_equal(rep.orient_from_template, 0);
+    assert_true(hand_angle(x, R[MIM_VEST_L_HAND]) < 15.0);
+    /* pelvis and chest lost: no neighbour has a rotation for them, the
+     * template's frames drive their vertices */
+    memset(have, 1, sizeof have);
+    have[MIM_VEST_PELVIS] = have[MIM_VEST_CHEST] = 0;
+    assert_int_equal(mim_session_transfer(sess, &req, x, &rep, &err), 0);
+    assert_int_equal(rep.orient_filled, 0);
+    assert_true(rep.orient_from_template > n / 20);
+    for (size_t i = 0; i < 3 * (size_t)n; i++) assert_true(isfinite(x[i]));
+    free(x);
+}
+
+static void test_bad_requests(void **state)
+{
+    (void)state;
+    const uint32_t n = mim_session_mesh(sess)->n_vertices;
+    mim_quat R[MIM_VEST_SEGMENTS];
+    float u[3 * MIM_LANDMARKS_MAX], *x = malloc(3 * (size_t)n * sizeof *x);
+    twisted_pose(R, u);
+    mim_error_t err = {0};
+    mim_session_request_t no_lm = {.template_id = 1, .orientations = R};
+    assert_int_equal(mim_session_transfer(sess, &no_lm, x, NULL, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "orientations need landmarks"));
+    err = (mim_error_t){0};
+    mim_session_request_t no_or = {.landmarks = u, .drive = MIM_DRIVE_ORIENTATION};
+    assert_int_equal(mim_session_transfer(sess, &no_or, x, NULL, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "needs orientations"));
+    /* the template drive ignores orientations: the same as none */
+    float *y = malloc(3 * (size_t)n * sizeof *y);
+    mim_session_request_t a = {.landmarks = u, .orientations = R, .drive = MIM_DRIVE_TEMPLATE}, b = {.landmarks = u};
+    assert_int_equal(mim_session_transfer(sess, &a, x, NULL, &err), 0);
+    assert_int_equal(mim_session_transfer(sess, &b, y, NULL, &err), 0);
+    assert_memory_equal(x, y, 3 * (size_t)n * sizeof *x);
+    free(x), free(y);
+}
+
+/* In-betweens of two oriented keys: the rotations slerped, one solve; at
+ * t = 0 and 1 they are the keys. */
+static void test_morph(void **state)
+{
+    (void)state;
+    const uint32_t n = mim_session_mesh(sess)->n_vertices;
+    mim_quat R[MIM_VEST_SEGMENTS], I[MIM_VEST_SEGMENTS];
+    float u[3 * MIM_LANDMARKS_MAX], u0[3 * MIM_LANDMARKS_MAX];
+    twisted_pose(R, u);
+    for (int g = 0; g < MIM_VEST_SEGMENTS; g++) I[g] = mim_quat_identity();
+    memcpy(u0, u, sizeof u0);
+    const mim_mesh_t *rest = mim_session_mesh(sess);
+    for (uint32_t k = 0; k < mim_session_map(sess)->count; k++)
+        memcpy(u0 + 3 * k, rest->positions + 3 * (size_t)mim_session_map(sess)->vertex[k], 3 * sizeof *u0);
+    float *x = malloc(3 * (size_t)n * sizeof *x), *key = malloc(3 * (size_t)n * sizeof *key);
+    mim_error_t err = {0};
+    mim_session_oriented_key_t a = {I, NULL, u0, 1}, b = {R, NULL, u, 1};
+    mim_session_request_t rb = {.template_id = 1, .landmarks = u, .orientations = R};
+    assert_int_equal(mim_session_transfer(sess, &rb, key, NULL, &err), 0);
+    assert_int_equal(mim_session_morph_oriented(sess, &a, &b, 1.0, x, &err), 0);
+    for (size_t i = 0; i < 3 * (size_t)n; i++) assert_true(fabs(x[i] - key[i]) < 1e-5);
+    assert_int_equal(mim_session_morph_oriented(sess, &a, &b, 0.5, x, &err), 0);
+    double half = hand_angle(x, mim_quat_slerp(I[0], R[MIM_VEST_L_HAND], 0.5));
+    print_message("half-way in-between: the hand off the half turn by %.1f degrees\n", half);
+    assert_true(half < 15.0);
+    free(x), free(key);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_twist),
+        cmocka_unit_test(test_lost_sensors),
+        cmocka_unit_test(test_bad_requests),
+        cmocka_unit_test(test_morph),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
