@@ -1,4 +1,5 @@
-/* Shared bench helpers: timing statistics and the datasets (bench_data.h). */
+/* Shared bench helpers: timing statistics, pooled errors and the datasets
+ * (bench_data.h). */
 #include "bench_data.h"
 #include "mim_io.h"
 
@@ -26,6 +27,57 @@ double bench_median(double *v, int k)
 {
     qsort(v, (size_t)k, sizeof *v, cmp_d);
     return k % 2 ? v[k / 2] : 0.5 * (v[k / 2 - 1] + v[k / 2]);
+}
+
+int bench_err_init(bench_err_t *e)
+{
+    memset(e, 0, sizeof *e);
+    e->hist = calloc(BENCH_ERR_BINS, sizeof *e->hist);
+    return e->hist ? 0 : -1;
+}
+
+void bench_err_free(bench_err_t *e)
+{
+    free(e->hist);
+    memset(e, 0, sizeof *e);
+}
+
+void bench_err_add_mm(bench_err_t *e, double mm)
+{
+    e->sum += mm;
+    long b = (long)(mm * 100.0);
+    if (b >= BENCH_ERR_BINS || b < 0)
+        b = BENCH_ERR_BINS - 1;
+    e->hist[b]++;
+    e->count++;
+}
+
+void bench_err_add(bench_err_t *e, const float *x, const float *truth, uint32_t n, double *e_mm)
+{
+    for (uint32_t i = 0; i < n; i++) {
+        double dx = x[3 * i] - truth[3 * i], dy = x[3 * i + 1] - truth[3 * i + 1],
+               dz = x[3 * i + 2] - truth[3 * i + 2];
+        double mm = 1000.0 * sqrt(dx * dx + dy * dy + dz * dz);
+        bench_err_add_mm(e, mm);
+        if (e_mm)
+            e_mm[i] = mm;
+    }
+}
+
+double bench_err_mean(const bench_err_t *e)
+{
+    return e->count ? e->sum / (double)e->count : NAN;
+}
+
+double bench_err_p95(const bench_err_t *e)
+{
+    uint64_t want = (uint64_t)ceil(0.95 * (double)e->count), acc = 0;
+    for (long b = 0; b < BENCH_ERR_BINS; b++) {
+        acc += e->hist[b];
+        if (acc >= want)
+            return (b + 0.5) / 100.0;
+    }
+    return INFINITY;
 }
 
 int bench_load_synth(bench_dataset_t *d, uint32_t subjects, uint32_t poses, uint32_t vertices)

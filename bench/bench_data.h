@@ -1,6 +1,6 @@
-/* What the bench programs share: statistics of repeated timings, and the two
- * body datasets with ground truth (synth generated in the run, and
- * ../shared/data/mh-bodies when present). */
+/* What the bench programs share: statistics of repeated timings, pooled
+ * per-vertex errors, and the two body datasets with ground truth (synth
+ * generated in the run, and ../shared/data/mh-bodies when present). */
 #ifndef MIM_BENCH_DATA_H
 #define MIM_BENCH_DATA_H
 
@@ -17,6 +17,24 @@ typedef struct bench_dataset {
 /* Median of v[0..k) (sorts v), and the q-quantile (0..1). */
 double bench_median(double *v, int k);
 double bench_quantile(double *v, int k, double q);
+
+/* Per-vertex errors in mm pooled over many meshes: the sum for the mean and
+ * a histogram of 0.01 mm bins up to 2 m for the p95 (larger errors fall in
+ * the last bin). */
+#define BENCH_ERR_BINS 200000
+typedef struct bench_err {
+    double sum;
+    uint64_t count;
+    uint32_t *hist;
+} bench_err_t;
+int bench_err_init(bench_err_t *e); /* 0, or -1 out of memory */
+void bench_err_free(bench_err_t *e);
+void bench_err_add_mm(bench_err_t *e, double mm);
+/* Adds |x_i - truth_i| (metres in, mm pooled) of n vertices; e_mm (n, may
+ * be NULL) gets each vertex's error in mm. */
+void bench_err_add(bench_err_t *e, const float *x, const float *truth, uint32_t n, double *e_mm);
+double bench_err_mean(const bench_err_t *e);
+double bench_err_p95(const bench_err_t *e);
 /* synth: subjects x poses at about `vertices` vertices (seed 1). */
 int bench_load_synth(bench_dataset_t *d, uint32_t subjects, uint32_t poses, uint32_t vertices);
 /* mh-bodies: 8 x 12 PLY files from dir; 1 when the folder is absent. */

@@ -22,42 +22,13 @@
 #include <string.h>
 
 #define MAXIT 10
-#define HIST_BINS 200000 /* 0.01 mm bins up to 2 m */
 
 typedef struct stat {
     const char *name;
-    double sum;
-    uint64_t count;
-    uint32_t *hist;
+    bench_err_t e; /* pooled per-vertex errors (bench_data.h) */
     double iters;
     uint64_t runs;
 } stat_t;
-
-static void stat_add(stat_t *st, const float *x, const float *truth, uint32_t n)
-{
-    for (uint32_t i = 0; i < n; i++) {
-        double dx = x[3 * i] - truth[3 * i], dy = x[3 * i + 1] - truth[3 * i + 1],
-               dz = x[3 * i + 2] - truth[3 * i + 2];
-        double e = 1000.0 * sqrt(dx * dx + dy * dy + dz * dz);
-        st->sum += e;
-        long b = (long)(e * 100.0);
-        if (b >= HIST_BINS || b < 0)
-            b = HIST_BINS - 1;
-        st->hist[b]++;
-    }
-    st->count += n;
-}
-
-static double stat_p95(const stat_t *st)
-{
-    uint64_t want = (uint64_t)ceil(0.95 * (double)st->count), acc = 0;
-    for (long b = 0; b < HIST_BINS; b++) {
-        acc += st->hist[b];
-        if (acc >= want)
-            return (b + 0.5) / 100.0;
-    }
-    return INFINITY;
-}
 
 enum { M_BASE1, M_BASE2, M_PAPER, M_LS10, M_DEFAULT, M_LS_D1, M_LS_D07, M_LS_D05R1, M_LS_D05R07, M_SQ_DEF, M_LS2, M_LS3, M_ANCHOR, M_RETARGET, M_COUNT };
 static const char *method_names[M_COUNT] = {
@@ -95,7 +66,7 @@ static int run_accuracy(const bench_dataset_t *d, uint32_t pairs_max)
     memset(st, 0, sizeof st);
     for (int m = 0; m < M_COUNT; m++) {
         st[m].name = method_names[m];
-        st[m].hist = calloc(HIST_BINS, sizeof(uint32_t));
+        bench_err_init(&st[m].e);
     }
     double err_ls[MAXIT] = {0}, err_sq[MAXIT] = {0};
     uint64_t pairs = 0;
@@ -156,7 +127,7 @@ static int run_accuracy(const bench_dataset_t *d, uint32_t pairs_max)
                 for (uint32_t i = 0; i < n; i++)
                     for (int q = 0; q < 3; q++)
                         out[3 * i + q] = (float)(tmpl[3 * i + q] + ca[q] - cb[q]);
-                stat_add(&st[M_BASE1], out, truth, n);
+                bench_err_add(&st[M_BASE1].e, out, truth, n, NULL);
                 mim_xfer_frames(topo, tmpl, Ft);
                 mim_xfer_report_t rep;
                 struct {
@@ -186,7 +157,7 @@ static int run_accuracy(const bench_dataset_t *d, uint32_t pairs_max)
                     const float *u = anchor ? targets + 6 : runs[r].m == M_RETARGET ? retarget : targets;
                     if (mim_xfer_transfer(runs[r].s, W, n, runs[r].F, u, anchor ? 1 : c, &runs[r].o, out, &rep, &err))
                         goto fail;
-                    stat_add(&st[runs[r].m], out, truth, n);
+                    bench_err_add(&st[runs[r].m].e, out, truth, n, NULL);
                     if (runs[r].m == M_DEFAULT || runs[r].m == M_PAPER) {
                         int w = runs[r].m == M_PAPER;
                         for (uint32_t i = 0; i < n; i++) {
@@ -211,8 +182,8 @@ static int run_accuracy(const bench_dataset_t *d, uint32_t pairs_max)
            d->subjects, d->poses, (unsigned long long)pairs);
     printf("| method | mean mm | p95 mm | mean iterations |\n|---|---:|---:|---:|\n");
     for (int m = 0; m < M_COUNT; m++)
-        printf("| %s | %.2f | %.2f | %s%.2f |\n", st[m].name, st[m].sum / (double)st[m].count,
-               stat_p95(&st[m]), st[m].runs ? "" : "- ", st[m].runs ? st[m].iters / (double)st[m].runs : 0.0);
+        printf("| %s | %.2f | %.2f | %s%.2f |\n", st[m].name, bench_err_mean(&st[m].e),
+               bench_err_p95(&st[m].e), st[m].runs ? "" : "- ", st[m].runs ? st[m].iters / (double)st[m].runs : 0.0);
     printf("\nmean error (mm) by iteration, no damping, no early stop:\n\n| iteration |");
     for (int k = 0; k < MAXIT; k++)
         printf(" %d |", k + 1);
@@ -235,14 +206,15 @@ static int run_accuracy(const bench_dataset_t *d, uint32_t pairs_max)
             printf("| %s | %.1f%% | %.2f | %.2f |\n", d->map.names[k], 100.0 * (double)reg_cnt[k] / (double)tot,
                    reg_sum[0][k] / (double)reg_cnt[k], reg_sum[1][k] / (double)reg_cnt[k]);
     free(region);
-    double md = st[M_DEFAULT].sum / (double)st[M_DEFAULT].count, mp = st[M_PAPER].sum / (double)st[M_PAPER].count;
-    double m1 = st[M_BASE1].sum / (double)st[M_BASE1].count, m2 = st[M_BASE2].sum / (double)st[M_BASE2].count;
+    double md = bench_err_mean(&st[M_DEFAULT].e), mp = bench_err_mean(&st[M_PAPER].e);
+    double m1 = bench_err_mean(&st[M_BASE1].e), m2 = bench_err_mean(&st[M_BASE2].e);
     printf("\ntargets: default mean < baselines: %s; default p95 < baselines: %s; default mean / paper mean = %.3f (<= 0.6: %s)\n",
            (md < m1 && md < m2) ? "yes" : "NO",
-           (stat_p95(&st[M_DEFAULT]) < stat_p95(&st[M_BASE1]) && stat_p95(&st[M_DEFAULT]) < stat_p95(&st[M_BASE2])) ? "yes" : "NO",
+           (bench_err_p95(&st[M_DEFAULT].e) < bench_err_p95(&st[M_BASE1].e) &&
+            bench_err_p95(&st[M_DEFAULT].e) < bench_err_p95(&st[M_BASE2].e)) ? "yes" : "NO",
            md / mp, md / mp <= 0.6 ? "yes" : "NO");
     for (int m = 0; m < M_COUNT; m++)
-        free(st[m].hist);
+        bench_err_free(&st[m].e);
     free(W);
     free(Fa);
     free(Ft);

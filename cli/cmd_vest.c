@@ -273,9 +273,13 @@ static void print_frame(replay_t *r, uint64_t t, uint64_t mask)
 {
     if (r->rig) {
         float xyz[3 * MIM_LANDMARKS_MAX];
-        uint8_t present[MIM_LANDMARKS_MAX];
+        uint8_t present[MIM_LANDMARKS_MAX], have[MIM_VEST_SEGMENTS];
+        mim_quat R[MIM_VEST_SEGMENTS];
         mim_vest_fk(r->rig, &r->st, t, r->timeout_us, xyz, present);
-        char *js = mim_vest_udp_format(t, xyz, present, r->rig->n_landmarks);
+        /* a segment's rotation needs only its own sensor, not those above it */
+        mim_vest_fresh(&r->st, t, r->timeout_us, have);
+        mim_vest_segment_rotations(r->rig, r->st.q, have, R);
+        char *js = mim_vest_udp_format_orient(t, xyz, present, r->rig->n_landmarks, R, have);
         if (js) puts(js);
         free(js);
     } else {
@@ -312,9 +316,12 @@ static const char replay_help[] =
     "Decodes a recording (or a live device SPEC, as for record) and prints one JSON\n"
     "object per vest frame (schemas/vest-replay.schema.json): {\"t\": us, \"sensors\":\n"
     "[{\"id\", \"name\", \"q\": [x, y, z, w]}, ...]}. Given an avatar, prints its\n"
-    "landmarks in map order instead: {\"t\": us, \"landmarks\": [[x, y, z] | null, ...]};\n"
-    "a landmark is null when its sensor (or one above it) has been silent for longer\n"
-    "than --timeout. Counts of rejected packets go to stderr.\n\n"
+    "landmarks in map order and its 17 segments' rotations from its rest pose instead:\n"
+    "{\"t\": us, \"landmarks\": [[x, y, z] | null, ...], \"orientations\": {\"pelvis\":\n"
+    "[x, y, z, w] | null, ...}}, a frame `mimic transfer --landmarks` reads. A landmark\n"
+    "is null when its sensor (or one above it) has been silent for longer than\n"
+    "--timeout, an orientation when its own sensor has. Counts of rejected packets go\n"
+    "to stderr.\n\n"
     "  --realtime        keep the recorded timing (default: as fast as possible)\n"
     "  --avatar MESH     the avatar mesh (any format mimic reads), or synth[:S] for a\n"
     "                    synthetic body (subject S, rest pose) with its own landmarks\n"
@@ -388,11 +395,15 @@ static int cmd_replay(int argc, char **argv)
         float xyz[3 * MIM_LANDMARKS_MAX];
         uint8_t present[MIM_LANDMARKS_MAX];
         uint32_t n;
-        if (mim_vest_udp_parse((const char *)ch.data, ch.len, &tu, xyz, present, MIM_LANDMARKS_MAX, &n, NULL)) {
+        mim_quat R[MIM_SEGMENTS];
+        uint8_t have[MIM_SEGMENTS];
+        int has_orient;
+        if (mim_vest_udp_parse_orient((const char *)ch.data, ch.len, &tu, xyz, present, MIM_LANDMARKS_MAX, &n, R,
+                                      have, &has_orient, NULL)) {
             bad_udp++;
             continue;
         }
-        char *js = mim_vest_udp_format(tu, xyz, present, n);
+        char *js = mim_vest_udp_format_orient(tu, xyz, present, n, has_orient ? R : NULL, have);
         if (js) puts(js), rp->frames_out++;
         free(js);
     }
@@ -435,11 +446,14 @@ static int faults_arg(const char *text, mim_vest_sim_options_t *o)
         else if (!strcmp(tok, "corrupt")) { if (mim_cli_real("vest simulate", "faults corrupt", eq + 1, 0, 1, 0, NULL, &o->corrupt)) return -1; }
         else if (!strcmp(tok, "disconnect")) { if (mim_cli_real("vest simulate", "faults disconnect", eq + 1, 0.001, 1e7, 0, NULL, &o->disconnect_at)) return -1; }
         else if (!strcmp(tok, "down")) { if (mim_cli_real("vest simulate", "faults down", eq + 1, 0.001, 3600, 0, NULL, &o->disconnect_for)) return -1; }
+        else if (!strcmp(tok, "orient-noise")) { if (mim_cli_real("vest simulate", "faults orient-noise", eq + 1, 0, 180, 0, NULL, &o->orient_noise_deg)) return -1; }
+        else if (!strcmp(tok, "drift")) { if (mim_cli_real("vest simulate", "faults drift", eq + 1, 0, 3600, 0, NULL, &o->drift_deg_per_min)) return -1; }
         else goto bad;
     }
     return 0;
 bad:
-    fprintf(stderr, "mimic vest simulate: --faults '%s' is not drop=P,corrupt=P,disconnect=T[,down=S]\n", text);
+    fprintf(stderr, "mimic vest simulate: --faults '%s' is not a list of drop=P, corrupt=P, disconnect=T, down=S, "
+                    "orient-noise=DEG, drift=DEG_PER_MIN\n", text);
     return -1;
 }
 
@@ -456,9 +470,11 @@ static int write_expected(const char *path, mim_vest_sim_t *sim, const mim_vest_
         uint64_t t;
         float xyz[3 * MIM_LANDMARKS_MAX];
         uint8_t present[MIM_LANDMARKS_MAX];
-        mim_vest_sim_orientations(sim, k, q, have, &t);
+        mim_quat R[MIM_VEST_SEGMENTS];
+        mim_vest_sim_orientations(sim, k, q, have, &t); /* the truth: no sensor error */
         mim_vest_fk_orient(rig, q, have, xyz, present);
-        char *js = mim_vest_udp_format(t, xyz, present, rig->n_landmarks);
+        mim_vest_segment_rotations(rig, q, have, R);
+        char *js = mim_vest_udp_format_orient(t, xyz, present, rig->n_landmarks, R, have);
         if (js) fprintf(f, "%s\n", js);
         free(js);
     }
@@ -471,7 +487,8 @@ static int write_expected(const char *path, mim_vest_sim_t *sim, const mim_vest_
 
 static const char simulate_help[] =
     "usage: mimic vest simulate --motion (FILE.(bvh|amc)|demo) [--asf FILE] [--rate HZ]\n"
-    "         [--faults drop=P,corrupt=P,disconnect=T[,down=S]] [--loop] [--seed K]\n"
+    "         [--faults drop=P,corrupt=P,disconnect=T,down=S,orient-noise=DEG,\n"
+    "                   drift=DEG_PER_MIN] [--loop] [--seed K]\n"
     "         --out (pty[:LINK]|udp:HOST:PORT|FILE) [--avatar MESH --map FILE] [--pose P]\n"
     "         [--expected FILE] [--realtime]\n\n"
     "A simulated PrioVR vest driven by motion data: each of the 17 sensors reports its\n"
@@ -480,14 +497,19 @@ static const char simulate_help[] =
     "With --out pty it opens a pseudo-terminal, prints its path as the first line of\n"
     "stdout (pty:LINK also keeps a symlink LINK to it, across simulated reconnects)\n"
     "and streams at the rate until the motion ends (--loop repeats it). udp:HOST:PORT\n"
-    "sends the avatar's landmarks as JSON datagrams (schemas/vest-udp.schema.json);\n"
-    "FILE writes a recording (as fast as possible unless --realtime).\n\n"
+    "sends the avatar's landmarks and segment orientations as JSON datagrams\n"
+    "(schemas/vest-udp.schema.json); FILE writes a recording (as fast as possible\n"
+    "unless --realtime).\n\n"
     "  --motion FILE   BVH, or AMC with --asf (CMU); 'demo': the built-in motion\n"
     "                  (eight poses in 12 s, T-pose rest)\n"
     "  --asf FILE      the ASF skeleton of an AMC motion\n"
     "  --rate HZ       stream frames per second, 1..2000 (default 60)\n"
     "  --faults LIST   drop=P and corrupt=P per packet (0..1), disconnect=T seconds\n"
-    "                  into the stream for down=S seconds (default 0.5)\n"
+    "                  into the stream for down=S seconds (default 0.5); sensor\n"
+    "                  error on what is sent: orient-noise=DEG (each frame, each\n"
+    "                  sensor turned about a random axis by a Gaussian angle of\n"
+    "                  this standard deviation, 0..180) and drift=DEG_PER_MIN (per\n"
+    "                  sensor a fixed random axis, the angle growing with time)\n"
     "  --loop          repeat the motion until stopped\n"
     "  --seed K        seed of the fault randomness (default 0)\n"
     "  --avatar MESH   avatar for udp output and --expected: a mesh, or synth[:S]\n"
@@ -495,8 +517,9 @@ static const char simulate_help[] =
     "  --map FILE      the avatar's landmark map\n"
     "  --pose P        tare pose of the avatar rig: rest, t or a (default: t or a,\n"
     "                  whichever the motion's rest pose is nearer)\n"
-    "  --expected FILE write the landmarks each frame should give (the avatar's\n"
-    "                  forward kinematics of the motion), one JSON object per line\n"
+    "  --expected FILE write the landmarks and segment orientations each frame\n"
+    "                  should give (the avatar's forward kinematics of the motion,\n"
+    "                  without sensor error), one JSON object per line\n"
     "  -h, --help      this help\n";
 
 static int cmd_simulate(int argc, char **argv)

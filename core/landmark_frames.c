@@ -4,9 +4,11 @@
  *   {"frames": [{"landmarks": [[x, y, z] | null, ...]}, ...]}  or
  *   {"landmarks": [[x, y, z] | null, ...]}                      (one frame)
  * in the order of the store's landmark map. null marks a landmark the
- * tracker lost. JSON through jansson: malformed text is reported with line
- * and column; a wrong count or a bad coordinate names the frame and the
- * landmark. Each frame must be a plausible skeleton (plausible.c). A file
+ * tracker lost. A frame may also carry the vest's segment orientations,
+ * "orientations": {"pelvis": [x, y, z, w] | null, ...} (issue 17). JSON
+ * through jansson: malformed text is reported with line and column; a
+ * wrong count or a bad coordinate names the frame and the landmark (or the
+ * segment). Each frame must be a plausible skeleton (plausible.c). A file
  * is read through a counting callback so that input past
  * MIM_LANDMARK_FRAMES_MAX_BYTES is refused however it arrives (a pipe has
  * no size): jansson's tree takes several times the text's size. */
@@ -26,6 +28,8 @@ void mim_landmark_frames_free(mim_landmark_frames_t *f)
         return;
     free(f->positions);
     free(f->present);
+    free(f->orientations);
+    free(f->orient_present);
     memset(f, 0, sizeof *f);
 }
 
@@ -82,6 +86,71 @@ int mim_landmark_array_parse(const json_t *lm, uint32_t n, uint32_t max_missing,
     return mim_landmarks_check(pos, present, n, origin, frame, err);
 }
 
+/* identity, not given */
+static void orient_clear(double *q, uint8_t *have)
+{
+    for (int s = 0; s < MIM_SEGMENTS; s++) {
+        q[4 * s] = q[4 * s + 1] = q[4 * s + 2] = 0, q[4 * s + 3] = 1;
+        have[s] = 0;
+    }
+}
+
+int mim_orientations_parse(const json_t *obj, const char *origin, long frame, double *q, uint8_t *have,
+                           mim_error_t *err)
+{
+    char wb[600];
+    if (!origin)
+        origin = "orientations";
+    orient_clear(q, have);
+    if (!json_is_object(obj))
+        return mim_error_set(err, MIM_EFORMAT, "%s: \"orientations\" must be an object",
+                             where(wb, sizeof wb, origin, frame));
+    const char *key;
+    json_t *v;
+    json_object_foreach((json_t *)obj, key, v) {
+        int s = 0;
+        while (s < MIM_SEGMENTS && strcmp(key, mim_segment_names[s]))
+            s++;
+        if (s == MIM_SEGMENTS) {
+            char names[256];
+            size_t k = 0;
+            for (int i = 0; i < MIM_SEGMENTS; i++)
+                k += (size_t)snprintf(names + k, sizeof names - k, "%s%s", i ? ", " : "", mim_segment_names[i]);
+            return mim_error_set(err, MIM_EFORMAT, "%s: orientation '%.40s' is not a vest segment (%s)",
+                                 where(wb, sizeof wb, origin, frame), key, names);
+        }
+        if (json_is_null(v))
+            continue; /* a lost sensor */
+        if (!json_is_array(v) || json_array_size(v) != 4)
+            return mim_error_set(err, MIM_EFORMAT, "%s, orientation '%s': expected [x, y, z, w] or null",
+                                 where(wb, sizeof wb, origin, frame), key);
+        double c[4], big = 0;
+        for (int i = 0; i < 4; i++) {
+            json_t *x = json_array_get(v, (size_t)i);
+            if (!json_is_number(x))
+                return mim_error_set(err, MIM_EFORMAT, "%s, orientation '%s': %c is not a number",
+                                     where(wb, sizeof wb, origin, frame), key, "xyzw"[i]);
+            c[i] = json_number_value(x);
+            if (!isfinite(c[i])) /* jansson refuses these today; a future reader may not */
+                return mim_error_set(err, MIM_ENONFINITE, "%s, orientation '%s': %c = %g is not finite",
+                                     where(wb, sizeof wb, origin, frame), key, "xyzw"[i], c[i]);
+            big = fmax(big, fabs(c[i]));
+        }
+        /* scaled, so that [1e200, 0, 0, 0] reports its norm, not inf */
+        double norm = 0;
+        for (int i = 0; big > 0 && i < 4; i++)
+            norm += (c[i] / big) * (c[i] / big);
+        norm = big * sqrt(norm);
+        if (!(fabs(norm - 1) <= MIM_ORIENT_UNIT_TOL))
+            return mim_error_set(err, MIM_EFORMAT, "%s: orientation '%s' is not a unit quaternion (norm %.3g)",
+                                 where(wb, sizeof wb, origin, frame), key, norm);
+        for (int i = 0; i < 4; i++)
+            q[4 * s + i] = c[i] / norm;
+        have[s] = 1;
+    }
+    return 0;
+}
+
 static int parse_root(json_t *root, const char *origin, uint32_t n, uint32_t max_missing,
                       mim_landmark_frames_t *out, mim_error_t *err)
 {
@@ -90,15 +159,26 @@ static int parse_root(json_t *root, const char *origin, uint32_t n, uint32_t max
                              origin);
     json_t *frames = json_object_get(root, "frames");
     json_t *single = json_object_get(root, "landmarks");
+    json_t *single_or = json_object_get(root, "orientations");
     if (frames && single)
         return mim_error_set(err, MIM_EFORMAT, "%s: has both \"frames\" and \"landmarks\"; use one", origin);
     size_t nf;
+    int any_or = 0;
     if (frames) {
         if (!json_is_array(frames) || json_array_size(frames) == 0)
             return mim_error_set(err, MIM_EFORMAT, "%s: \"frames\" must be a non-empty array", origin);
+        /* left out, they would be dropped without a word */
+        if (single_or)
+            return mim_error_set(err, MIM_EFORMAT, "%s: \"orientations\" belong in each frame of \"frames\"",
+                                 origin);
         nf = json_array_size(frames);
+        for (size_t f = 0; f < nf && !any_or; f++)
+            any_or = json_object_get(json_array_get(frames, f), "orientations") != NULL;
     } else if (single) {
         nf = 1;
+        any_or = single_or != NULL;
+    } else if (single_or) {
+        return mim_error_set(err, MIM_EFORMAT, "%s: \"orientations\" need the frame's \"landmarks\"", origin);
     } else {
         return mim_error_set(err, MIM_EFORMAT, "%s: no \"frames\" or \"landmarks\" member", origin);
     }
@@ -106,21 +186,38 @@ static int parse_root(json_t *root, const char *origin, uint32_t n, uint32_t max
         return mim_error_set(err, MIM_EFORMAT, "%s: %zu frames is too many", origin, nf);
     out->positions = malloc(nf * n * 3 * sizeof(float));
     out->present = malloc(nf * n);
-    if (!out->positions || !out->present)
+    if (any_or) {
+        out->orientations = malloc(nf * MIM_SEGMENTS * 4 * sizeof(double));
+        out->orient_present = malloc(nf * MIM_SEGMENTS);
+    }
+    if (!out->positions || !out->present || (any_or && (!out->orientations || !out->orient_present)))
         return mim_error_set(err, MIM_ENOMEM, "%s: out of memory for %zu frames", origin, nf);
     out->n_frames = (uint32_t)nf;
     out->n_landmarks = n;
     for (size_t f = 0; f < nf; f++) {
-        json_t *lm = single;
+        json_t *lm = single, *orient = single_or;
         if (frames) {
             json_t *fr = json_array_get(frames, f);
             lm = json_is_object(fr) ? json_object_get(fr, "landmarks") : NULL;
+            orient = json_is_object(fr) ? json_object_get(fr, "orientations") : NULL;
+            if (!lm && orient)
+                return mim_error_set(err, MIM_EFORMAT, "%s: frame %zu: \"orientations\" need the frame's \"landmarks\"",
+                                     origin, f);
             if (!lm)
                 return mim_error_set(err, MIM_EFORMAT, "%s: frame %zu is not an object with \"landmarks\"",
                                      origin, f);
         }
         int rc = mim_landmark_array_parse(lm, n, max_missing, origin, (long)f, out->positions + f * n * 3,
                                           out->present + f * n, err);
+        if (!rc && any_or) {
+            double *q = out->orientations + f * MIM_SEGMENTS * 4;
+            uint8_t *have = out->orient_present + f * MIM_SEGMENTS;
+            if (orient) {
+                rc = mim_orientations_parse(orient, origin, (long)f, q, have, err);
+            } else {
+                orient_clear(q, have);
+            }
+        }
         if (rc)
             return rc;
     }

@@ -134,7 +134,9 @@ int mim_landmarks_validate(const mim_landmark_map_t *map, uint32_t n_vertices, c
 /* ---- landmark frames: tracked landmark positions, one frame or a batch ----
  * File format (schemas/landmark-frames.schema.json), in landmark map order:
  * {"frames": [{"landmarks": [[x, y, z] | null, ...]}, ...]} or, for one
- * frame, {"landmarks": [...]}. null marks a lost landmark. */
+ * frame, {"landmarks": [...]}. null marks a lost landmark. A frame may add
+ * "orientations": {"pelvis": [x, y, z, w] | null, ...}, keyed by
+ * mim_segment_names (any subset; null: the sensor is lost). */
 typedef struct mim_landmark_frames {
     uint32_t n_frames, n_landmarks;
     float *positions; /* n_frames * n_landmarks * 3; NaN where missing */
@@ -153,7 +155,9 @@ typedef struct mim_landmark_frames {
  * number, or more than max_missing nulls in a frame (MIM_EFORMAT, naming
  * the frame and landmark); a number that is not a finite float
  * (MIM_ENONFINITE); a frame that is no body (mim_landmarks_check,
- * MIM_EFORMAT); a file that cannot be opened (MIM_ENOTFOUND/MIM_EIO).
+ * MIM_EFORMAT); bad orientations (mim_orientations_parse's errors), or
+ * "orientations" in a frame without "landmarks" or beside "frames"
+ * (MIM_EFORMAT); a file that cannot be opened (MIM_ENOTFOUND/MIM_EIO).
  * mim_landmark_frames_read takes at most MIM_LANDMARK_FRAMES_MAX_BYTES
  * (64 MiB, about 100 000 frames of 16 landmarks: half an hour at 60 Hz):
  * the parsed JSON needs several times the file's size in memory, so a
@@ -197,6 +201,17 @@ int mim_landmark_file_read(const char *path, uint32_t n_landmarks, mim_landmark_
 struct json_t;
 int mim_landmark_array_parse(const struct json_t *array, uint32_t n, uint32_t max_missing, const char *origin,
                              long frame, float *positions, uint8_t *present, mim_error_t *err);
+/* One "orientations" object (a jansson value: landmark frames, vest UDP
+ * datagrams) into q (MIM_SEGMENTS * 4 doubles x y z w, mim_segment_names
+ * order, normalised; identity where null or absent) and have (MIM_SEGMENTS:
+ * 1 given). Messages begin as mim_landmark_array_parse's and name the
+ * segment. Errors: not an object, a key that is no segment name, a value
+ * neither null nor [x, y, z, w] of numbers, a norm off 1 by more than
+ * MIM_ORIENT_UNIT_TOL (MIM_EFORMAT); a number that is not finite
+ * (MIM_ENONFINITE). On error q and have are partly written. */
+#define MIM_ORIENT_UNIT_TOL 1e-3
+int mim_orientations_parse(const struct json_t *obj, const char *origin, long frame, double *q, uint8_t *have,
+                           mim_error_t *err);
 
 /* ---- plausibility: what a body and a landmark skeleton can be (plausible.c) ----
  * The one statement of the range; positions are in metres.

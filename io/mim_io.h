@@ -25,6 +25,36 @@ int mim_io_read_mesh(const char *path, mim_mesh_t *out, mim_error_t *err);
 /* 1 if the file name has an extension mim_io_read_mesh handles. */
 int mim_io_format_known(const char *path);
 
+/* ---- a glTF skin (read.c, read_gltf.cpp) ---- */
+#define MIM_IO_SKIN_NAME_MAX 64
+typedef struct mim_io_skin {
+    uint32_t n_vertices;   /* the first primitive's, as mim_io_read_mesh reads it */
+    uint32_t n_joints;     /* the skin's joints */
+    uint16_t *joints;      /* 4 * n_vertices: JOINTS_0, indices into the skin's joints */
+    float *weights;        /* 4 * n_vertices: WEIGHTS_0, each vertex's normalised to sum 1 (all 0 if they were) */
+    char (*names)[MIM_IO_SKIN_NAME_MAX]; /* n_joints node names ("" for a node without one), truncated */
+} mim_io_skin_t;
+/* The skin of the mesh mim_io_read_mesh reads from a .gltf/.glb: the first
+ * primitive's JOINTS_0 and WEIGHTS_0 and the names of its skin's joint
+ * nodes. The skin is that of the first node that instantiates mesh 0 with
+ * a skin, else skins[0]. JOINTS_1/WEIGHTS_1 (influences past the fourth)
+ * are ignored. Names longer than MIM_IO_SKIN_NAME_MAX - 1 bytes are cut
+ * at a UTF-8 character boundary.
+ * Returns 0; MIM_ENOTFOUND when the file has no skin (no JOINTS_0, no
+ * WEIGHTS_0, or no skin: not an error for callers, who then segment by
+ * geometry); mim_io_read_mesh's errors for a file whose mesh it cannot
+ * read; MIM_EFORMAT for a malformed skin, with one line naming what: a
+ * JOINTS_0 that is not VEC4 of unsigned byte/short, a WEIGHTS_0 not VEC4
+ * of float or normalised unsigned byte/short, a count that differs from
+ * POSITION's, a joint index >= n_joints, a negative or non-finite weight,
+ * a skin joint that is not a valid node index, a skin without joints;
+ * MIM_ETRUNCATED for skin data past the end of its buffer;
+ * MIM_EUNSUPPORTED for a sparse skin accessor or a format other than
+ * glTF/GLB; MIM_ENOMEM. On failure *out is zeroed. Safe to call from many
+ * threads. Free with mim_io_skin_free. */
+int mim_io_read_skin(const char *path, mim_io_skin_t *out, mim_error_t *err);
+void mim_io_skin_free(mim_io_skin_t *s); /* accepts NULL; zeroes */
+
 /* ---- the landmark file beside a mesh (sidecar.c) ---- */
 /* Writes to out the path of the landmark file that goes with mesh_path:
  * "dir/NAME.ext" gives "dir/NAME.landmarks.json" (only the last extension

@@ -74,7 +74,9 @@ static int validate(const char *path, int fmt, const mim__decl_t *d, mim__raw_me
     return 0;
 }
 
-int mim_io_read_mesh(const char *path, mim_mesh_t *out, mim_error_t *err)
+/* The whole read of one mesh file, and of its skin when skin is not NULL
+ * (glTF/GLB only: the same parse). */
+static int read_checked(const char *path, mim_mesh_t *out, mim__raw_skin_t *skin, mim_error_t *err)
 {
     memset(out, 0, sizeof *out);
     struct stat st;
@@ -146,7 +148,7 @@ int mim_io_read_mesh(const char *path, mim_mesh_t *out, mim_error_t *err)
 
     mim__raw_mesh_t raw;
     static const char *const om_format[] = {[FMT_OFF] = "off", [FMT_PLY] = "ply", [FMT_OBJ] = "obj", [FMT_STL] = "stl"};
-    int shim_rc = (fmt == FMT_GLTF || fmt == FMT_GLB) ? mim__gltf_read(path, &raw)
+    int shim_rc = (fmt == FMT_GLTF || fmt == FMT_GLB) ? mim__gltf_read(path, &raw, skin)
                                                       : mim__openmesh_read(path, om_format[fmt], &raw);
     rc = validate(path, fmt, &d, &raw, shim_rc, err);
     if (rc) {
@@ -154,5 +156,41 @@ int mim_io_read_mesh(const char *path, mim_mesh_t *out, mim_error_t *err)
         return rc;
     }
     *out = raw.mesh; /* ownership moves to the caller */
+    return 0;
+}
+
+int mim_io_read_mesh(const char *path, mim_mesh_t *out, mim_error_t *err) { return read_checked(path, out, NULL, err); }
+
+void mim_io_skin_free(mim_io_skin_t *s)
+{
+    if (!s) return;
+    free(s->joints);
+    free(s->weights);
+    free(s->names);
+    memset(s, 0, sizeof *s);
+}
+
+/* The skin comes from the same parse as the mesh, and only once the mesh
+ * has passed every check mim_io_read_mesh makes: a skin of a mesh that
+ * cannot be read is no use to anyone. read_gltf.cpp judges the skin. */
+int mim_io_read_skin(const char *path, mim_io_skin_t *out, mim_error_t *err)
+{
+    memset(out, 0, sizeof *out);
+    int fmt = mim__format_of(path);
+    if (fmt != FMT_GLTF && fmt != FMT_GLB)
+        return mim_error_set(err, MIM_EUNSUPPORTED, "%s: no skin: skins are read from glTF and GLB files only (.gltf, .glb)",
+                             path);
+    mim__raw_skin_t skin;
+    memset(&skin, 0, sizeof skin);
+    mim_mesh_t mesh;
+    int rc = read_checked(path, &mesh, &skin, err);
+    mim_mesh_free(&mesh);
+    if (!rc && skin.rc == MIM_ENOMEM) rc = mim_error_set(err, MIM_ENOMEM, "%s: out of memory while reading the skin", path);
+    else if (!rc && skin.rc) rc = mim_error_set(err, skin.rc, "%s: %s", path, skin.msg);
+    if (rc) {
+        mim_io_skin_free(&skin.skin);
+        return rc;
+    }
+    *out = skin.skin; /* ownership moves to the caller */
     return 0;
 }

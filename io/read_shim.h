@@ -5,6 +5,7 @@
 #define MIM_IO_READ_SHIM_H
 
 #include "mim_core.h"
+#include "mim_io.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -25,9 +26,21 @@ void mim__raw_mesh_free(mim__raw_mesh_t *r);
 /* OFF, PLY (ASCII, binary), OBJ, STL (ASCII, binary) through OpenMesh;
  * format is "off", "ply", "obj" or "stl". Safe to call from many threads. */
 int mim__openmesh_read(const char *path, const char *format, mim__raw_mesh_t *out);
+/* What the glTF shim found of a skin. Unlike the mesh, the shim judges
+ * the skin itself (types, counts, ranges, values: see mim_io_read_skin),
+ * because it decodes it; read.c only prefixes the path to msg. */
+typedef struct mim__raw_skin {
+    mim_io_skin_t skin; /* filled when rc is 0 */
+    int rc;             /* 0, MIM_ENOTFOUND, MIM_EFORMAT, MIM_ETRUNCATED, MIM_EUNSUPPORTED, MIM_ENOMEM */
+    char msg[256];      /* one line, without the path */
+} mim__raw_skin_t;
+
 /* glTF / GLB through tinygltf: the first mesh's first primitive, POSITION
- * as stored (the bind pose of a skinned mesh), triangles/strips/fans. */
-int mim__gltf_read(const char *path, mim__raw_mesh_t *out);
+ * as stored (the bind pose of a skinned mesh), triangles/strips/fans.
+ * skin: NULL, or where to put that primitive's skin (read from the same
+ * parse; its rc says whether it was found and well formed, whatever the
+ * mesh's return code). */
+int mim__gltf_read(const char *path, mim__raw_mesh_t *out, mim__raw_skin_t *skin);
 
 #ifdef __cplusplus
 }

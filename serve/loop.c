@@ -557,7 +557,11 @@ static void *run(void *arg)
         float xyz[3 * MIM_LANDMARKS_MAX];
         uint8_t present[MIM_LANDMARKS_MAX];
         uint32_t n = 0;
-        if (mim_vest_udp_parse((const char *)ch.data, ch.len, &tu, xyz, present, MIM_LANDMARKS_MAX, &n, &err) ||
+        mim_quat R[MIM_VEST_SEGMENTS];
+        uint8_t have[MIM_VEST_SEGMENTS];
+        int oriented = 0;
+        if (mim_vest_udp_parse_orient((const char *)ch.data, ch.len, &tu, xyz, present, MIM_LANDMARKS_MAX, &n, R, have,
+                                      &oriented, &err) ||
             n != sv->map->count) {
             if (!err.code)
                 mim_error_set(&err, MIM_EFORMAT, "udp frame: %u landmarks, the avatar has %u", n, sv->map->count);
@@ -566,7 +570,7 @@ static void *run(void *arg)
             continue;
         }
         vest_period(l, tu);
-        landmarks_frame(l, xyz, present, NULL, NULL, tu);
+        landmarks_frame(l, xyz, present, oriented ? R : NULL, oriented ? have : NULL, tu);
     }
     set_state(l, "stopped", NULL);
     return NULL;

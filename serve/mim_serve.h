@@ -71,8 +71,8 @@ typedef struct mim_serve_options {
     int warm_start;
     /* What drives a key frame's frames (mim_session_drive_t): 0 auto (the
      * vest's segment orientations; the template when the avatar cannot be
-     * segmented, or for UDP landmark frames, which carry none), 1 template,
-     * 2 orientation. */
+     * segmented, or for UDP landmark frames without "orientations"), 1
+     * template, 2 orientation. */
     int drive;
     unsigned max_clients; /* WebSocket clients at once; 0: MIM_SERVE_DEFAULT_MAX_CLIENTS */
     /* Called on the loop thread for every published frame (may be NULL),

@@ -87,8 +87,10 @@ const mim_query_status_t *mim_session_index_status(const mim_session_t *s);
 double mim_session_factor_seconds(const mim_session_t *s); /* the factorisation's time */
 int mim_session_has_avatar(const mim_session_t *s); /* 1 after a successful mim_session_load_avatar */
 /* The avatar's segmentation (n entries), or NULL when it could not be
- * made; then *why (may be NULL) gets the reason. */
-const mim_xfer_skin_t *mim_session_skin(const mim_session_t *s, const mim_error_t **why);
+ * made; then *why (may be NULL) gets the reason. *from_rig (may be NULL):
+ * 1 when the weights are the avatar's own skin's (a skinned glTF whose
+ * joint names map to the segments), 0 when made from the geometry. */
+const mim_xfer_skin_t *mim_session_skin(const mim_session_t *s, const mim_error_t **why, int *from_rig);
 
 /* ---- templates ---- */
 /* Template id's positions (3 * n floats) and frames (9 * n doubles); each

@@ -16,6 +16,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 struct mim_session {
     mim_db_t *db;
@@ -44,6 +45,7 @@ struct mim_session {
     double *restF;              /* the avatar's rest frames, 9 * n (the orientation drive turns them) */
     mim_xfer_skin_t *skin;      /* its segmentation over the 17 vest segments; NULL: skin_failed says why */
     mim_error_t skin_failed;
+    int skin_from_rig;          /* the skin's weights are the avatar's own rig's (a skinned glTF) */
     double t_factor;
     char store[4096];
     char avatar[4096];          /* how the avatar was named: path or "template N" */
@@ -295,6 +297,51 @@ static int load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err)
     return rc;
 }
 
+/* A skinned glTF avatar segments by its own rig where its joint names map
+ * to the vest's segments (mim_vest_segments_of_joints), by geometry where
+ * a vertex hangs on unmapped joints only. A rig that covers fewer than
+ * MIN_RIG_SEGMENTS segments is no body rig: the geometry decides alone. A
+ * foreign avatar's rig is on its own vertices, not the proxy's: left out. */
+#define MIN_RIG_SEGMENTS 12
+static void rig_weights(mim_session_t *s)
+{
+    const char *dot = strrchr(s->avatar, '.');
+    if (!dot || (strcasecmp(dot, ".glb") && strcasecmp(dot, ".gltf")))
+        return;
+    mim_io_skin_t rig = {0};
+    mim_error_t e = {0};
+    int rc = mim_io_read_skin(s->avatar, &rig, &e);
+    if (rc) {
+        if (rc != MIM_ENOTFOUND && rc != MIM_EUNSUPPORTED)
+            mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN, "%s; segmenting by the geometry instead",
+                         mim_error_text(&e));
+        return;
+    }
+    const char **names = malloc(rig.n_joints * sizeof *names);
+    int *bone = malloc(rig.n_joints * sizeof *bone);
+    mim_xfer_skin_t *own = malloc((size_t)s->mesh.n_vertices * sizeof *own);
+    if (names && bone && own && rig.n_vertices == s->mesh.n_vertices) {
+        for (uint32_t j = 0; j < rig.n_joints; j++) names[j] = rig.names[j];
+        uint32_t covered = mim_vest_segments_of_joints(names, rig.n_joints, bone);
+        if (covered >= MIN_RIG_SEGMENTS) {
+            uint32_t by_geometry =
+                mim_xfer_skin_from_weights(rig.n_vertices, rig.joints, rig.weights, bone, rig.n_joints, s->skin, own);
+            memcpy(s->skin, own, (size_t)s->mesh.n_vertices * sizeof *own);
+            s->skin_from_rig = 1;
+            mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_INFO,
+                         "%s: segments from its skin (%u joints on %u of the 17 segments; %u vertices by geometry)",
+                         s->avatar, rig.n_joints, covered, by_geometry);
+        } else {
+            mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN,
+                         "%s: its skin's joint names give %u of the 17 segments (at least %d needed): segmenting "
+                         "by the geometry",
+                         s->avatar, covered, MIN_RIG_SEGMENTS);
+        }
+    }
+    free(names), free(bone), free(own);
+    mim_io_skin_free(&rig);
+}
+
 /* The avatar's segmentation (issue 17): bones of the vest skeleton under
  * its landmarks, skinned over its surface. A map without the 16 default
  * landmarks cannot be segmented: the orientation drive is then refused
@@ -312,6 +359,8 @@ static void segment_avatar(mim_session_t *s)
     if (!rc)
         rc = mim_xfer_skin_from_bones(s->topo, s->mesh.positions, bones, MIM_VEST_SEGMENTS,
                                       MIM_XFER_DEFAULT_SKIN_SMOOTHING, s->skin, &s->skin_failed);
+    if (!rc && !s->foreign)
+        rig_weights(s);
     if (rc) {
         free(s->skin);
         s->skin = NULL;
@@ -420,10 +469,12 @@ const mim_query_t *mim_session_query(const mim_session_t *s) { return s->query; 
 const mim_query_status_t *mim_session_index_status(const mim_session_t *s) { return &s->index; }
 double mim_session_factor_seconds(const mim_session_t *s) { return s->t_factor; }
 int mim_session_has_avatar(const mim_session_t *s) { return s->solver != NULL; }
-const mim_xfer_skin_t *mim_session_skin(const mim_session_t *s, const mim_error_t **why)
+const mim_xfer_skin_t *mim_session_skin(const mim_session_t *s, const mim_error_t **why, int *from_rig)
 {
     if (why)
         *why = &s->skin_failed;
+    if (from_rig)
+        *from_rig = s->skin_from_rig;
     return s->skin;
 }
 

@@ -210,6 +210,124 @@ static void test_landmark_frames(void **s)
     assert_int_equal(mim_landmark_frames_read("/nonexistent/x.json", 4, 3, &f, &e), MIM_ENOTFOUND);
 }
 
+/* Orientations in landmark frames (issue 17): all 17, a subset with nulls,
+ * frames without them, and each bad input with its one line. */
+static void test_landmark_frames_orientations(void **s)
+{
+    (void)s;
+    static const char *lm4 = "[[0,0,0],[1,0,0],[0,1,0],[0,0,1]]";
+    char text[4096];
+    mim_error_t e = {0};
+    mim_landmark_frames_t f;
+    /* one frame, all 17 segments: segment i turned by i * 10 degrees about y
+     * (w off 1 by 5e-4 for the pelvis: accepted and normalised) */
+    size_t k = (size_t)snprintf(text, sizeof text, "{\"t\": 5, \"landmarks\": %s, \"orientations\": {", lm4);
+    for (int i = 0; i < MIM_SEGMENTS; i++) {
+        double a = i * 10 * M_PI / 180;
+        k += (size_t)snprintf(text + k, sizeof text - k, "%s\"%s\": [0, %.17g, 0, %.17g]", i ? ", " : "",
+                              mim_segment_names[i], sin(a / 2), i ? cos(a / 2) : 1.0005);
+    }
+    snprintf(text + k, sizeof text - k, "}}");
+    assert_int_equal(mim_landmark_frames_parse(text, strlen(text), "all", 4, 0, &f, &e), 0);
+    assert_non_null(f.orientations);
+    for (int i = 0; i < MIM_SEGMENTS; i++) {
+        double a = i * 10 * M_PI / 180;
+        const double *q = f.orientations + 4 * i;
+        assert_int_equal(f.orient_present[i], 1);
+        assert_true(fabs(q[0]) < 1e-12 && fabs(q[2]) < 1e-12);
+        assert_true(fabs(q[1] - sin(a / 2)) < 1e-12 && fabs(q[3] - cos(a / 2)) < 1e-12);
+    }
+    mim_landmark_frames_free(&f);
+    assert_null(f.orientations);
+
+    /* a batch: a subset with a null (the rest absent), then a frame without */
+    snprintf(text, sizeof text,
+             "{\"frames\": [{\"landmarks\": %s, \"orientations\": {\"l_hand\": [1, 0, 0, 0], \"head\": null}},"
+             " {\"landmarks\": %s}]}", lm4, lm4);
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(text, strlen(text), "some", 4, 0, &f, &e), 0);
+    assert_int_equal(f.n_frames, 2);
+    for (int i = 0; i < 2 * MIM_SEGMENTS; i++) {
+        const double *q = f.orientations + 4 * i;
+        int hand = i == 9; /* l_hand in frame 0 */
+        assert_int_equal(f.orient_present[i], hand);
+        assert_true(q[0] == hand && q[1] == 0 && q[2] == 0 && q[3] == !hand);
+    }
+    mim_landmark_frames_free(&f);
+    /* none anywhere: nothing allocated */
+    snprintf(text, sizeof text, "{\"landmarks\": %s}", lm4);
+    assert_int_equal(mim_landmark_frames_parse(text, strlen(text), "none", 4, 0, &f, &e), 0);
+    assert_null(f.orientations);
+    assert_null(f.orient_present);
+    mim_landmark_frames_free(&f);
+
+    static const struct {
+        const char *orient; /* the single frame's "orientations" value */
+        int code;
+        const char *msg;
+    } bad[] = {
+        {"[0, 0, 0, 1]", MIM_EFORMAT, "o: frame 0: \"orientations\" must be an object"},
+        {"{\"pelvis\": [0, 0, 0, 1], \"l_elbow\": [0, 0, 0, 1]}", MIM_EFORMAT,
+         "o: frame 0: orientation 'l_elbow' is not a vest segment (pelvis, chest, head, l_shoulder, r_shoulder, "
+         "l_upperarm, r_upperarm, l_forearm, r_forearm, l_hand, r_hand, l_thigh, r_thigh, l_shin, r_shin, l_foot, "
+         "r_foot)"},
+        {"{\"head\": [0, 0, 1]}", MIM_EFORMAT, "o: frame 0, orientation 'head': expected [x, y, z, w] or null"},
+        {"{\"head\": \"identity\"}", MIM_EFORMAT, "o: frame 0, orientation 'head': expected [x, y, z, w] or null"},
+        {"{\"head\": [0, 0, 0, 1, 0]}", MIM_EFORMAT, "o: frame 0, orientation 'head': expected [x, y, z, w] or null"},
+        {"{\"chest\": [0, 0, \"0\", 1]}", MIM_EFORMAT, "o: frame 0, orientation 'chest': z is not a number"},
+        {"{\"r_foot\": [0, 0, 0, 1.7]}", MIM_EFORMAT, "o: frame 0: orientation 'r_foot' is not a unit quaternion (norm 1.7)"},
+        {"{\"r_foot\": [0, 0, 0, 0.998]}", MIM_EFORMAT, "o: frame 0: orientation 'r_foot' is not a unit quaternion (norm 0.998)"},
+        {"{\"r_foot\": [0, 0, 0, 0]}", MIM_EFORMAT, "o: frame 0: orientation 'r_foot' is not a unit quaternion (norm 0)"},
+        /* past double's square: the norm is still told */
+        {"{\"pelvis\": [1e200, 0, 0, 0]}", MIM_EFORMAT, "o: frame 0: orientation 'pelvis' is not a unit quaternion (norm 1e+200)"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        snprintf(text, sizeof text, "{\"landmarks\": %s, \"orientations\": %s}", lm4, bad[i].orient);
+        e = (mim_error_t){0};
+        assert_int_equal(mim_landmark_frames_parse(text, strlen(text), "o", 4, 0, &f, &e), bad[i].code);
+        assert_string_equal(e.msg, bad[i].msg);
+        assert_null(f.orientations);
+        assert_null(f.positions);
+    }
+    /* a bad frame after a good one names its frame */
+    snprintf(text, sizeof text,
+             "{\"frames\": [{\"landmarks\": %s}, {\"landmarks\": %s, \"orientations\": {\"hips\": null}}]}", lm4, lm4);
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(text, strlen(text), "b.json", 4, 0, &f, &e), MIM_EFORMAT);
+    assert_non_null(strstr(e.msg, "b.json: frame 1: orientation 'hips' is not a vest segment (pelvis, chest, "));
+    /* orientations need the landmarks, in a batch and alone */
+    snprintf(text, sizeof text, "{\"frames\": [{\"landmarks\": %s}, {\"orientations\": {}}]}", lm4);
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(text, strlen(text), "b.json", 4, 0, &f, &e), MIM_EFORMAT);
+    assert_string_equal(e.msg, "b.json: frame 1: \"orientations\" need the frame's \"landmarks\"");
+    const char *alone = "{\"orientations\": {\"pelvis\": [0, 0, 0, 1]}}";
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(alone, strlen(alone), "a.json", 4, 0, &f, &e), MIM_EFORMAT);
+    assert_string_equal(e.msg, "a.json: \"orientations\" need the frame's \"landmarks\"");
+    /* beside "frames" they would belong to no frame */
+    snprintf(text, sizeof text, "{\"frames\": [{\"landmarks\": %s}], \"orientations\": {}}", lm4);
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(text, strlen(text), "c.json", 4, 0, &f, &e), MIM_EFORMAT);
+    assert_string_equal(e.msg, "c.json: \"orientations\" belong in each frame of \"frames\"");
+    /* a duplicate segment is a duplicate key */
+    snprintf(text, sizeof text, "{\"landmarks\": %s, \"orientations\": {\"head\": null, \"head\": null}}", lm4);
+    e = (mim_error_t){0};
+    assert_int_equal(mim_landmark_frames_parse(text, strlen(text), "d.json", 4, 0, &f, &e), MIM_EFORMAT);
+    assert_non_null(strstr(e.msg, "duplicate"));
+    /* the object parser alone, as the UDP reader calls it: no frame */
+    json_t *j = json_loads("{\"l_foot\": [0, 0.6, 0, 0.8]}", 0, NULL);
+    double q[4 * MIM_SEGMENTS];
+    uint8_t have[MIM_SEGMENTS];
+    e = (mim_error_t){0};
+    assert_int_equal(mim_orientations_parse(j, "udp frame", -1, q, have, &e), 0);
+    assert_true(have[15] == 1 && q[4 * 15 + 1] == 0.6 && have[14] == 0 && q[4 * 14 + 3] == 1);
+    json_decref(j);
+    j = json_loads("{\"l_foot\": [0, 0.6, 0, 0.9]}", 0, NULL);
+    assert_int_equal(mim_orientations_parse(j, "udp frame", -1, q, have, &e), MIM_EFORMAT);
+    assert_string_equal(e.msg, "udp frame: orientation 'l_foot' is not a unit quaternion (norm 1.08)");
+    json_decref(j);
+}
+
 /* Entries of a folder other than . and .., and whether one has ".tmp" in
  * its name (a leftover of a write). */
 static int count_entries(const char *dir, int *tmp_left)
@@ -662,6 +780,7 @@ int main(void)
         cmocka_unit_test(test_landmarks),
         cmocka_unit_test(test_file_read),
         cmocka_unit_test(test_landmark_frames),
+        cmocka_unit_test(test_landmark_frames_orientations),
         cmocka_unit_test(test_file_write_atomic),
         cmocka_unit_test(test_quat_matrix),
         cmocka_unit_test(test_rng),

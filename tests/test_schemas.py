@@ -134,10 +134,17 @@ def vest_cases(d):
         expected = [json.loads(x) for x in f]
     if not sensors or not marks or not expected:
         raise RuntimeError("mimic vest replay printed nothing")
+    # the lines carry the 17 segment orientations (issue 17), or the cases below prove nothing about them
+    for doc in (marks[0], marks[-1], expected[1]):
+        if len(doc.get("orientations", {})) != 17:
+            raise RuntimeError("a vest landmark line without its 17 orientations: %s" % list(doc))
     return [("/mimic/schemas/vest-replay.schema.json", sensors[0], "vest replay (sensor frame)"),
-            ("/mimic/schemas/vest-replay.schema.json", marks[-1], "vest replay --avatar (landmarks)"),
-            ("/mimic/schemas/vest-udp.schema.json", expected[1], "vest simulate --expected (landmarks)"),
-            ("/mimic/schemas/landmark-frames.schema.json", marks[0], "vest replay landmarks as a query frame")]
+            ("/mimic/schemas/vest-replay.schema.json", marks[-1], "vest replay --avatar (landmarks, orientations)"),
+            ("/mimic/schemas/vest-udp.schema.json", expected[1], "vest simulate --expected (landmarks, orientations)"),
+            ("/mimic/schemas/landmark-frames.schema.json", marks[0], "vest replay landmarks as a query frame"),
+            ("/mimic/schemas/landmark-frames.schema.json", marks[-1], "vest replay line as a transfer frame"),
+            ("/mimic/schemas/landmark-frames.schema.json", {"frames": [expected[1]]},
+             "vest simulate --expected line in a batch")]
 
 
 def store_check_cases(d, store, data):
@@ -492,6 +499,19 @@ def main():
         else:
             failed += 1
             print("FAIL landmark-frames schema accepted a 2-component point")
+        lm16 = frames["frames"][0]["landmarks"]
+        v = validator("/mimic/schemas/landmark-frames.schema.json")
+        bad_or = [{"landmarks": lm16, "orientations": {"l_elbow": [0, 0, 0, 1]}},
+                  {"landmarks": lm16, "orientations": {"head": [0, 0, 1]}},
+                  {"frames": [{"landmarks": lm16}], "orientations": {}}]
+        good_or = {"landmarks": lm16, "orientations": {"pelvis": [0, 0, 0, 1], "head": None}}
+        if all(list(v.iter_errors(b)) for b in bad_or) and not list(v.iter_errors(good_or)):
+            passed += 1
+            print("ok   landmark-frames schema takes a subset of orientations and rejects an unknown segment,"
+                  " a 3-component quaternion and orientations beside frames")
+        else:
+            failed += 1
+            print("FAIL landmark-frames schema: orientations accepted or rejected wrongly")
         bad = json.loads(json.dumps(reg_cases[0][1]))
         bad["surface_distance_mm"].pop("p95")
         bad2 = json.loads(json.dumps(reg_cases[0][1]))

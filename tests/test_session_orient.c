@@ -69,7 +69,7 @@ static double hand_angle(const float *x, mim_quat R_hand)
 {
     const mim_mesh_t *rest = mim_session_mesh(sess);
     const uint32_t n = rest->n_vertices;
-    const mim_xfer_skin_t *skin = mim_session_skin(sess, NULL);
+    const mim_xfer_skin_t *skin = mim_session_skin(sess, NULL, NULL);
     double *F0 = malloc(9 * (size_t)n * sizeof *F0), *F1 = malloc(9 * (size_t)n * sizeof *F1), Rm[9];
     mim_xfer_frames(mim_session_topology(sess), rest->positions, F0);
     mim_xfer_frames(mim_session_topology(sess), x, F1);
@@ -204,6 +204,75 @@ static void test_morph(void **state)
     free(x), free(key);
 }
 
+/* A skinned glTF avatar: its own rig's weights drive the segments where
+ * the joint names map (here its left hand rides the forearm bone, unlike
+ * the geometry's segmentation), the geometry where a vertex hangs on an
+ * unmapped joint (a "Hair" bone). */
+static void test_gltf_skin(void **state)
+{
+    (void)state;
+    const mim_mesh_t *m = mim_session_mesh(sess);
+    const uint32_t n = m->n_vertices;
+    const mim_xfer_skin_t *geo = mim_session_skin(sess, NULL, NULL);
+    static const char *const names[MIM_VEST_SEGMENTS + 1] = {
+        "mixamorig:Hips", "mixamorig:Spine2", "mixamorig:Head", "mixamorig:LeftShoulder", "mixamorig:RightShoulder",
+        "mixamorig:LeftArm", "mixamorig:RightArm", "mixamorig:LeftForeArm", "mixamorig:RightForeArm",
+        "mixamorig:LeftHand", "mixamorig:RightHand", "mixamorig:LeftUpLeg", "mixamorig:RightUpLeg", "mixamorig:LeftLeg",
+        "mixamorig:RightLeg", "mixamorig:LeftFoot", "mixamorig:RightFoot", "Hair"};
+    uint16_t *joints = calloc(4 * (size_t)n, sizeof *joints);
+    float *weights = calloc(4 * (size_t)n, sizeof *weights);
+    uint32_t hair = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        uint16_t j = geo[i].bone[0];
+        if (j == MIM_VEST_L_HAND) j = MIM_VEST_L_FOREARM; /* the rig's own choice */
+        if (geo[i].bone[0] == MIM_VEST_HEAD && i % 3 == 0) j = MIM_VEST_SEGMENTS, hair++;
+        joints[4 * (size_t)i] = j, weights[4 * (size_t)i] = 1;
+    }
+    char *glb = ts_path(dir, "skinned.glb");
+    assert_int_equal(ts_write_skinned_glb(glb, m, names, MIM_VEST_SEGMENTS + 1, joints, weights, 0), 0);
+    mim_session_t *s2 = NULL;
+    mim_error_t err = {0};
+    assert_int_equal(mim_session_open(&s2, store, NULL, &err), 0);
+    assert_int_equal(mim_session_load_avatar(s2, glb, &err), 0);
+    int from_rig = 0;
+    const mim_xfer_skin_t *rig = mim_session_skin(s2, NULL, &from_rig);
+    assert_non_null(rig);
+    assert_int_equal(from_rig, 1);
+    uint32_t hands = 0, kept = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        if (geo[i].bone[0] == MIM_VEST_L_HAND) {
+            assert_int_equal(rig[i].bone[0], MIM_VEST_L_FOREARM);
+            assert_true(rig[i].weight[0] == 1.0f);
+            hands++;
+        } else if (joints[4 * (size_t)i] == MIM_VEST_SEGMENTS) { /* the hair: the geometry's weights */
+            assert_memory_equal(&rig[i], &geo[i], sizeof rig[i]);
+            kept++;
+        }
+    }
+    assert_true(hands > 10 && kept == hair && hair > 10);
+    /* the drive then turns the left hand with the forearm's rotation */
+    mim_quat R[MIM_VEST_SEGMENTS];
+    float u[3 * MIM_LANDMARKS_MAX], *x = malloc(3 * (size_t)n * sizeof *x);
+    twisted_pose(R, u);
+    const mim_quat twist = R[MIM_VEST_L_HAND];
+    R[MIM_VEST_L_HAND] = mim_quat_identity(); /* the hand's own sensor says: not turned; this rig does not listen */
+    mim_session_request_t req = {.landmarks = u, .orientations = R};
+    assert_int_equal(mim_session_transfer(s2, &req, x, NULL, &err), 0);
+    assert_true(hand_angle(x, twist) < 15.0);
+    mim_session_close(&s2);
+    /* a rig whose names map to too few segments: the geometry alone */
+    static const char *const few[2] = {"bone_a", "LeftHand"};
+    for (uint32_t i = 0; i < n; i++) joints[4 * (size_t)i] = i % 2;
+    assert_int_equal(ts_write_skinned_glb(glb, m, few, 2, joints, weights, 0), 0);
+    assert_int_equal(mim_session_open(&s2, store, NULL, &err), 0);
+    assert_int_equal(mim_session_load_avatar(s2, glb, &err), 0);
+    rig = mim_session_skin(s2, NULL, &from_rig);
+    assert_int_equal(from_rig, 0);
+    assert_memory_equal(rig, geo, n * sizeof *rig);
+    mim_session_close(&s2);
+    free(joints), free(weights), free(glb), free(x);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -211,6 +280,7 @@ int main(void)
         cmocka_unit_test(test_lost_sensors),
         cmocka_unit_test(test_bad_requests),
         cmocka_unit_test(test_morph),
+        cmocka_unit_test(test_gltf_skin),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

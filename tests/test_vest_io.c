@@ -18,6 +18,54 @@
 
 extern char **environ;
 
+/* The angle between two orientations, in degrees. */
+static double angle_deg(mim_quat a, mim_quat b)
+{
+    mim_quat d = mim_quat_mul(a, (mim_quat){-b.x, -b.y, -b.z, b.w});
+    return 2 * atan2(sqrt(d.x * d.x + d.y * d.y + d.z * d.z), fabs(d.w)) * 180 / M_PI;
+}
+
+/* The rig `mimic vest ... --avatar synth --pose P` builds (subject 0 of a
+ * one-subject synth at its default size; vs_avatar_make's body differs). */
+static void cli_synth_rig(mim_vest_rig_t *rig, int pose)
+{
+    mim_synth_options_t so = {1, 1, 0, 1};
+    mim_synth_t *s = NULL;
+    mim_mesh_t mesh = {0};
+    mim_landmark_map_t map;
+    mim_vest_skeleton_t *sk = malloc(sizeof *sk);
+    assert_int_equal(mim_synth_create(&s, &so, NULL), 0);
+    assert_int_equal(mim_mesh_alloc(&mesh, mim_synth_n_vertices(s), mim_synth_n_faces(s)), 0);
+    memcpy(mesh.faces, mim_synth_faces(s), sizeof *mesh.faces * 3 * mesh.n_faces);
+    assert_int_equal(mim_synth_body(s, 0, 0, mesh.positions), 0);
+    mim_synth_landmarks(s, &map);
+    mim_vest_calib_options_t co = {pose};
+    assert_int_equal(mim_vest_skeleton_estimate(sk, &mesh, &map, NULL), 0);
+    assert_int_equal(mim_vest_calibrate(rig, sk, &co, NULL, NULL), 0);
+    mim_mesh_free(&mesh);
+    mim_synth_destroy(&s);
+    free(sk);
+}
+
+/* One vest landmark line read as a landmark frame (what `mimic transfer
+ * --landmarks` does): its 17 orientations into R and have; returns 1 when
+ * the line has them. */
+static int line_orientations(const char *line, mim_quat R[MIM_SEGMENTS], uint8_t have[MIM_SEGMENTS])
+{
+    mim_landmark_frames_t f;
+    mim_error_t err = {0};
+    int rc = mim_landmark_frames_parse(line, strlen(line), "line", 16, 16, &f, &err);
+    if (rc) fail_msg("%s", err.msg);
+    int has = f.orientations != NULL;
+    for (int s = 0; s < MIM_SEGMENTS && has; s++) {
+        const double *q = f.orientations + 4 * s;
+        R[s] = (mim_quat){q[0], q[1], q[2], q[3]};
+        have[s] = f.orient_present[s];
+    }
+    mim_landmark_frames_free(&f);
+    return has;
+}
+
 /* ------------------------------------------------------------ through a pty */
 
 /* The test motion of `frames` frames (into m, which the caller frees) in
@@ -404,6 +452,19 @@ static void test_udp(void **state)
     free(js);
     assert_int_equal(mim_vest_udp_parse("{\"t\":1,\"landmarks\":[[1,2]]}", 26, &t, got, pg, 4, &n, &err), MIM_EFORMAT);
     assert_int_equal(mim_vest_udp_parse("{\"t\":1,", 7, &t, got, pg, 4, &n, &err), MIM_EFORMAT);
+    /* without orientations: none kept, has_orient 0 */
+    mim_quat R[MIM_SEGMENTS];
+    uint8_t have[MIM_SEGMENTS];
+    int has = -1;
+    js = mim_vest_udp_format(123, xyz, present, 2);
+    assert_int_equal(mim_vest_udp_parse_orient(js, strlen(js), &t, got, pg, 4, &n, R, have, &has, &err), 0);
+    assert_true(has == 0 && have[3] == 0 && R[3].w == 1);
+    free(js);
+    /* a bad orientation makes the datagram bad, as a bad landmark does */
+    const char *bq = "{\"t\":1,\"landmarks\":[[0,0,0],[1,0,0],[0,1,0],[0,0,1]],\"orientations\":{\"neck\":null}}";
+    err = (mim_error_t){0};
+    assert_int_equal(mim_vest_udp_parse(bq, strlen(bq), &t, got, pg, 4, &n, &err), MIM_EFORMAT);
+    assert_non_null(strstr(err.msg, "udp frame: orientation 'neck' is not a vest segment (pelvis, "));
 
     /* the simulator sends landmark frames; the UDP transport receives them */
     vs_avatar_t a;
@@ -446,6 +507,18 @@ static void test_udp(void **state)
         assert_true(tk == t);
         mim_vest_fk_orient(&a.rig, q, have, want, pw);
         for (int i = 0; i < 48; i++) max_err = fmax(max_err, fabs(lm[i] - want[i]));
+        /* and the segment orientations beside them, null where the motion has no sensor */
+        mim_quat R[MIM_SEGMENTS], Rw[MIM_SEGMENTS];
+        uint8_t hr[MIM_SEGMENTS];
+        int has = 0;
+        assert_int_equal(mim_vest_udp_parse_orient((const char *)c.data, c.len, &t, lm, p, MIM_LANDMARKS_MAX, &n, R,
+                                                   hr, &has, &err), 0);
+        assert_int_equal(has, 1);
+        mim_vest_segment_rotations(&a.rig, q, have, Rw);
+        for (int g = 0; g < MIM_SEGMENTS; g++) {
+            assert_int_equal(hr[g], have[g]);
+            if (have[g]) max_err = fmax(max_err, angle_deg(R[g], Rw[g]) * M_PI / 180);
+        }
         frames++;
     }
     pthread_join(th, NULL);
@@ -455,6 +528,58 @@ static void test_udp(void **state)
     mim_vest_transport_close(&tr);
     mim_vest_sim_close(&sim);
     mim_vest_motion_free(&m);
+    vs_avatar_free(&a);
+}
+
+/* The one writer of landmark lines, read back by both readers (the UDP
+ * datagram's and the landmark frames'): orientations to 1e-6, null for a
+ * lost sensor, keys in segment order. */
+static void test_udp_orientations_round_trip(void **state)
+{
+    (void)state;
+    vs_avatar_t a;
+    vs_avatar_make(&a, MIM_VEST_POSE_REST);
+    float xyz[3 * MIM_LANDMARKS_MAX], g[3 * MIM_LANDMARKS_MAX];
+    uint8_t present[MIM_LANDMARKS_MAX], pg[MIM_LANDMARKS_MAX];
+    for (int round = 0; round < 50; round++) {
+        mim_quat q[MIM_SEGMENTS], R[MIM_SEGMENTS], got[MIM_SEGMENTS];
+        uint8_t have[MIM_SEGMENTS], hg[MIM_SEGMENTS];
+        for (int s = 0; s < MIM_SEGMENTS; s++) {
+            float f[4];
+            vs_rand_quat(f);
+            q[s] = (mim_quat){f[0], f[1], f[2], f[3]};
+            have[s] = vs_rnd() % 5 != 0;
+        }
+        have[MIM_VEST_PELVIS] = 1; /* the landmarks must stay a body */
+        mim_vest_fk_orient(&a.rig, q, NULL, xyz, present);
+        mim_vest_segment_rotations(&a.rig, q, have, R);
+        char *js = mim_vest_udp_format_orient(1000u * (uint64_t)round, xyz, present, a.rig.n_landmarks, R, have);
+        assert_non_null(js);
+        assert_non_null(strstr(js, "\"orientations\":{\"pelvis\":["));
+        assert_true(strstr(js, "\"l_foot\":") < strstr(js, "\"r_foot\":"));
+        uint64_t t;
+        uint32_t n;
+        int has = 0;
+        mim_error_t err = {0};
+        assert_int_equal(mim_vest_udp_parse_orient(js, strlen(js), &t, g, pg, MIM_LANDMARKS_MAX, &n, got, hg, &has, &err), 0);
+        assert_true(has == 1 && n == a.rig.n_landmarks && t == 1000u * (uint64_t)round);
+        for (int s = 0; s < MIM_SEGMENTS; s++) {
+            assert_int_equal(hg[s], have[s]);
+            if (!have[s]) {
+                assert_true(got[s].w == 1 && got[s].x == 0);
+                continue;
+            }
+            assert_true(fabs(got[s].x - R[s].x) < 1e-6 && fabs(got[s].y - R[s].y) < 1e-6 &&
+                        fabs(got[s].z - R[s].z) < 1e-6 && fabs(got[s].w - R[s].w) < 1e-6);
+        }
+        mim_quat lf[MIM_SEGMENTS];
+        uint8_t hl[MIM_SEGMENTS];
+        assert_int_equal(line_orientations(js, lf, hl), 1);
+        assert_memory_equal(hl, have, sizeof hl);
+        for (int s = 0; s < MIM_SEGMENTS; s++)
+            if (have[s]) assert_true(angle_deg(lf[s], R[s]) < 1e-4);
+        free(js);
+    }
     vs_avatar_free(&a);
 }
 
@@ -650,7 +775,9 @@ static void test_cli_record_replay(void **state)
     char *want = ts_read_file(exp, NULL);
     assert_non_null(want);
     uint64_t matched = 0;
-    double max_err = 0;
+    double max_err = 0, max_deg = 0, max_truth_deg = 0;
+    mim_vest_rig_t rig;
+    cli_synth_rig(&rig, MIM_VEST_POSE_T);
     for (char *line = out, *nl; line && *line; line = nl) {
         nl = strchr(line, '\n');
         if (nl) *nl++ = 0;
@@ -669,14 +796,109 @@ static void test_cli_record_replay(void **state)
         assert_int_equal(mim_vest_udp_parse(wl, strlen(wl), &tu, e, pe, 16, &n2, NULL), 0);
         assert_int_equal(n1, 16), assert_int_equal(n2, 16);
         for (int i = 0; i < 48; i++) max_err = fmax(max_err, fabs(g[i] - e[i]));
+        /* both lines are frames for `mimic transfer --landmarks`, with the
+         * orientations of the simulator's truth on this rig */
+        mim_quat Rg[MIM_SEGMENTS], Re[MIM_SEGMENTS], q[MIM_SEGMENTS], Rt[MIM_SEGMENTS];
+        uint8_t hg[MIM_SEGMENTS], he[MIM_SEGMENTS], have[MIM_SEGMENTS];
+        assert_int_equal(line_orientations(line, Rg, hg), 1);
+        assert_int_equal(line_orientations(wl, Re, he), 1);
+        mim_vest_sim_orientations(sim, (uint64_t)llround((double)t * 50 / 1e6), q, have, NULL);
+        mim_vest_segment_rotations(&rig, q, have, Rt);
+        for (int s = 0; s < MIM_SEGMENTS; s++) {
+            assert_int_equal(he[s], have[s]);
+            assert_int_equal(hg[s], have[s]);
+            if (!have[s]) continue;
+            max_deg = fmax(max_deg, angle_deg(Rg[s], Re[s]));
+            max_truth_deg = fmax(max_truth_deg, angle_deg(Re[s], Rt[s]));
+        }
         free(wl);
         matched++;
     }
     assert_true(matched == lines);
     assert_true(max_err < 1e-4);
+    assert_true(max_deg < 0.01);
+    assert_true(max_truth_deg < 1e-4);
     free(want), free(out), free(err);
     mim_vest_sim_close(&sim);
     mim_vest_motion_free(&m);
+    ts_rmtree(dir);
+    free(bvh), free(rec), free(exp), free(dir);
+}
+
+/* mimic vest simulate --faults orient-noise / drift: the recording carries
+ * the noisy orientations, replay gives them, --expected keeps the truth;
+ * bad values get one line. */
+static void test_cli_orient_faults(void **state)
+{
+    (void)state;
+    char *dir = ts_tempdir("vest-orient");
+    char *bvh = vs_write_bvh(dir, 31), *rec = ts_path(dir, "n.vest"), *exp = ts_path(dir, "n.jsonl");
+    char *out = NULL, *err = NULL;
+    /* mean angle between replay and --expected per segment, and per time */
+    for (int kind = 0; kind < 3; kind++) {
+        const char *faults = kind == 0 ? "orient-noise=5" : kind == 1 ? "drift=600" : "drop=0";
+        const char *sargs[] = {"vest", "simulate", "--motion", bvh, "--rate", "50", "--out", rec, "--pose", "t",
+                               "--expected", exp, "--faults", faults, "--seed", "7", NULL};
+        int rc = ts_run_mimic(&out, &err, sargs);
+        if (rc) fail_msg("simulate: %s", err);
+        free(out), free(err);
+        const char *rargs[] = {"vest", "replay", rec, "--avatar", "synth", "--pose", "t", NULL};
+        assert_int_equal(ts_run_mimic(&out, &err, rargs), 0);
+        char *want = ts_read_file(exp, NULL);
+        double sum = 0, first = -1, last = 0, t_last = 0;
+        size_t n = 0, lines = 0;
+        for (char *line = out, *nl; line && *line; line = nl) {
+            nl = strchr(line, '\n');
+            if (nl) *nl++ = 0;
+            unsigned long long t;
+            assert_int_equal(sscanf(line, "{\"t\":%llu,", &t), 1);
+            char key[64];
+            snprintf(key, sizeof key, "{\"t\":%llu,", t);
+            char *w = strstr(want, key);
+            assert_non_null(w);
+            char *wl = strndup(w, strcspn(w, "\n"));
+            mim_quat Rg[MIM_SEGMENTS], Re[MIM_SEGMENTS];
+            uint8_t hg[MIM_SEGMENTS], he[MIM_SEGMENTS];
+            assert_int_equal(line_orientations(line, Rg, hg), 1);
+            assert_int_equal(line_orientations(wl, Re, he), 1);
+            double frame = 0;
+            int m = 0;
+            for (int s = 0; s < MIM_SEGMENTS; s++)
+                if (hg[s] && he[s]) frame += angle_deg(Rg[s], Re[s]), m++;
+            assert_true(m > 0);
+            sum += frame, n += (size_t)m, frame /= m;
+            if (first < 0) first = frame;
+            last = frame, t_last = (double)t / 1e6;
+            lines++;
+            free(wl);
+        }
+        assert_true(lines > 25);
+        double mean = sum / (double)n;
+        if (kind == 0) {
+            assert_true(mean > 2 && mean < 10);
+        } else if (kind == 1) { /* 600 degrees a minute over the motion's 1 s: 0 to 10, 5 on average */
+            assert_true(first < 0.01);
+            assert_true(t_last > 0.9 && fabs(last - 10 * t_last) < 0.01);
+            assert_true(mean > 4 && mean < 6);
+        } else {
+            assert_true(mean < 1e-3);
+        }
+        free(want), free(out), free(err);
+    }
+    const char *bad1[] = {"vest", "simulate", "--motion", bvh, "--out", rec, "--faults", "orient-noise=-2", NULL};
+    assert_int_equal(ts_run_mimic(&out, &err, bad1), 2);
+    assert_non_null(strstr(err, "orient-noise '-2'"));
+    free(out), free(err);
+    const char *bad2[] = {"vest", "simulate", "--motion", bvh, "--out", rec, "--faults", "twist=3", NULL};
+    assert_int_equal(ts_run_mimic(&out, &err, bad2), 2);
+    assert_non_null(strstr(err, "mimic vest simulate: --faults 'twist=3' is not a list of drop=P, corrupt=P, "
+                                "disconnect=T, down=S, orient-noise=DEG, drift=DEG_PER_MIN"));
+    free(out), free(err);
+    const char *help[] = {"vest", "simulate", "--help", NULL};
+    assert_int_equal(ts_run_mimic(&out, &err, help), 0);
+    assert_non_null(strstr(out, "orient-noise=DEG"));
+    assert_non_null(strstr(out, "drift=DEG_PER_MIN"));
+    free(out), free(err);
     ts_rmtree(dir);
     free(bvh), free(rec), free(exp), free(dir);
 }
@@ -690,9 +912,11 @@ int main(void)
         cmocka_unit_test(test_serial_errors),
         cmocka_unit_test(test_hid_layer),
         cmocka_unit_test(test_udp),
+        cmocka_unit_test(test_udp_orientations_round_trip),
         cmocka_unit_test(test_record_replay_library),
         cmocka_unit_test(test_cli_list),
         cmocka_unit_test(test_cli_record_replay),
+        cmocka_unit_test(test_cli_orient_faults),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

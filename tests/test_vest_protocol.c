@@ -1,7 +1,7 @@
 /* Tests of vest/ without devices: protocol encoder and decoder (any
  * chunking, corruption, resync), skeleton, calibration and forward
  * kinematics on a synthetic avatar, the frame assembler, motion readers,
- * and the simulator's fault injection. */
+ * and the simulator's fault injection (orientation noise and drift too). */
 #include "vest_support.h"
 
 #include <math.h>
@@ -523,6 +523,123 @@ static void test_corruption_5pct(void **state)
     mim_vest_motion_free(&m);
 }
 
+/* The angle between two orientations, in degrees (atan2 of a b^-1: acos
+ * near 1 would turn float rounding into hundredths of a degree). */
+static double angle_deg(mim_quat a, mim_quat b)
+{
+    mim_quat d = mim_quat_mul(a, (mim_quat){-b.x, -b.y, -b.z, b.w});
+    return 2 * atan2(sqrt(d.x * d.x + d.y * d.y + d.z * d.z), fabs(d.w)) * 180 / M_PI;
+}
+
+/* orient-noise: the wire's orientations are the truth turned by about the
+ * set angle (a Gaussian's mean |angle| is 0.8 sigma), the same for every
+ * call; the packets carry them; drop and corrupt decide as without noise;
+ * and with no noise the wire is the truth, byte for byte. */
+static void test_orient_noise(void **state)
+{
+    (void)state;
+    mim_vest_motion_t m;
+    vs_load_motion(&m, 61);
+    mim_vest_sim_options_t plain_o = {0}, noisy_o = {0};
+    plain_o.drop = noisy_o.drop = 0.05, plain_o.corrupt = noisy_o.corrupt = 0.05;
+    plain_o.seed = noisy_o.seed = 9;
+    noisy_o.orient_noise_deg = 5;
+    mim_vest_sim_t *plain = NULL, *noisy = NULL, *noisy2 = NULL;
+    assert_int_equal(mim_vest_sim_open(&plain, &m, &plain_o, NULL), 0);
+    assert_int_equal(mim_vest_sim_open(&noisy, &m, &noisy_o, NULL), 0);
+    assert_int_equal(mim_vest_sim_open(&noisy2, &m, &noisy_o, NULL), 0);
+    double sum = 0, maxa = 0;
+    size_t n = 0, differ = 0;
+    for (uint64_t k = 0; k < 200; k++) {
+        mim_quat truth[MIM_VEST_SEGMENTS], wire[MIM_VEST_SEGMENTS], again[MIM_VEST_SEGMENTS], pw[MIM_VEST_SEGMENTS];
+        uint8_t have[MIM_VEST_SEGMENTS];
+        mim_vest_sim_orientations(noisy, k, truth, have, NULL);
+        mim_vest_sim_wire_orientations(noisy, 199 - k, again, NULL, NULL); /* any order: the same error */
+        mim_vest_sim_wire_orientations(noisy2, 199 - k, pw, NULL, NULL);
+        assert_memory_equal(again, pw, sizeof pw);
+        mim_vest_sim_wire_orientations(noisy, k, wire, NULL, NULL);
+        mim_vest_sim_wire_orientations(plain, k, pw, NULL, NULL);
+        assert_memory_equal(pw, truth, sizeof pw); /* no noise: the truth itself */
+        for (int i = 0; i < MIM_VEST_SEGMENTS; i++) {
+            if (!have[i]) continue;
+            double a = angle_deg(wire[i], truth[i]);
+            sum += a, maxa = fmax(maxa, a), n++;
+        }
+        /* the same packets are dropped and corrupted; the noisy ones carry the wire's */
+        uint8_t a[1024], b[1024];
+        uint32_t ca[3] = {0}, cb[3] = {0};
+        size_t na = mim_vest_sim_frame(plain, k, a, sizeof a, ca);
+        size_t nb = mim_vest_sim_frame(noisy, k, b, sizeof b, cb);
+        assert_int_equal(na, nb);
+        assert_memory_equal(ca, cb, sizeof ca);
+        differ += na && memcmp(a, b, na) != 0;
+        if (ca[1] || ca[2]) continue;
+        vs_sink_t got = {0};
+        mim_vest_decoder_t *d = NULL;
+        assert_int_equal(mim_vest_decoder_open(&d, NULL, vs_sink_packet, &got), 0);
+        mim_vest_decoder_feed(d, b, nb, 0);
+        mim_vest_decoder_close(&d);
+        assert_true(got.n > 0);
+        for (size_t f = 0; f < got.n; f++) {
+            mim_quat w = wire[got.f[f].sensor];
+            assert_true(got.f[f].q[0] == (float)w.x && got.f[f].q[1] == (float)w.y && got.f[f].q[2] == (float)w.z &&
+                        got.f[f].q[3] == (float)w.w);
+        }
+        free(got.f);
+    }
+    double mean = sum / (double)n;
+    assert_true(mean > 2 && mean < 10);
+    assert_true(maxa > 5 && maxa < 40);
+    assert_true(differ > 150);
+    mim_vest_sim_close(&plain), mim_vest_sim_close(&noisy), mim_vest_sim_close(&noisy2);
+    /* out of range */
+    mim_vest_sim_t *bad = NULL;
+    mim_error_t err = {0};
+    noisy_o.orient_noise_deg = -1;
+    assert_int_equal(mim_vest_sim_open(&bad, &m, &noisy_o, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "orientation noise 0..180 degrees"));
+    noisy_o.orient_noise_deg = 0, noisy_o.drift_deg_per_min = NAN;
+    assert_int_equal(mim_vest_sim_open(&bad, &m, &noisy_o, NULL), MIM_EINVAL);
+    assert_null(bad);
+    mim_vest_motion_free(&m);
+}
+
+/* drift: per sensor a fixed axis, the angle growing linearly with stream
+ * time (past the motion's end too), other axes for other sensors. */
+static void test_drift(void **state)
+{
+    (void)state;
+    mim_vest_motion_t m;
+    vs_load_motion(&m, 31);
+    mim_vest_sim_options_t o = {0};
+    o.rate_hz = 50, o.drift_deg_per_min = 12, o.seed = 4;
+    mim_vest_sim_t *sim = NULL;
+    assert_int_equal(mim_vest_sim_open(&sim, &m, &o, NULL), 0);
+    mim_vec3 axis0 = {0, 0, 0};
+    for (uint64_t sec = 0; sec <= 120; sec += 30) {
+        uint64_t k = sec * 50;
+        mim_quat truth[MIM_VEST_SEGMENTS], wire[MIM_VEST_SEGMENTS];
+        uint8_t have[MIM_VEST_SEGMENTS];
+        mim_vest_sim_orientations(sim, k, truth, have, NULL);
+        mim_vest_sim_wire_orientations(sim, k, wire, NULL, NULL);
+        for (int i = 0; i < MIM_VEST_SEGMENTS; i++) {
+            if (!have[i]) continue;
+            assert_true(fabs(angle_deg(wire[i], truth[i]) - 12.0 * (double)sec / 60) < 0.01);
+            if (sec != 60) continue;
+            /* the error's axis, in the world frame: wire = E truth */
+            mim_quat ti = {-truth[i].x, -truth[i].y, -truth[i].z, truth[i].w};
+            mim_quat e = mim_quat_mul(wire[i], ti);
+            mim_vec3 ax = {e.x, e.y, e.z};
+            double len = sqrt(ax.x * ax.x + ax.y * ax.y + ax.z * ax.z);
+            ax = (mim_vec3){ax.x / len, ax.y / len, ax.z / len};
+            if (i == 0) axis0 = ax;
+            else assert_true(fabs(ax.x * axis0.x + ax.y * axis0.y + ax.z * axis0.z) < 0.999);
+        }
+    }
+    mim_vest_sim_close(&sim);
+    mim_vest_motion_free(&m);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -537,6 +654,8 @@ int main(void)
         cmocka_unit_test(test_motion_bvh),
         cmocka_unit_test(test_motion_shared),
         cmocka_unit_test(test_corruption_5pct),
+        cmocka_unit_test(test_orient_noise),
+        cmocka_unit_test(test_drift),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

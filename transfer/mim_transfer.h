@@ -188,8 +188,10 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
 /* ---- segment skinning for the orientation drive (skin.c; issue 17) ---- */
 #define MIM_XFER_SKIN_INFLUENCES 4 /* segments per vertex, as a glTF skin's JOINTS_0 */
 #define MIM_XFER_SKIN_MAX_BONES 64
-/* Measured with bench/transfer_accuracy.c (synth and mh-bodies): the mean
- * error of the orientation drive is lowest near here (RESULTS.md). */
+/* Diffusion steps of the skin's weights. bench/orient_accuracy.c's sweep
+ * (0..32): mh-bodies is lowest at 2-8 (within 0.1 mm; more smears the
+ * forearm's turn into the fingers), synth keeps falling to 32 (1.3 mm
+ * lower there); 8 is the compromise (bench/RESULTS.md). */
 #define MIM_XFER_DEFAULT_SKIN_SMOOTHING 8
 /* A vertex's segments and their weights, heaviest first; the weights sum
  * to 1, unused slots weigh 0. */
@@ -204,6 +206,14 @@ typedef struct mim_xfer_skin {
  * MIM_ENONFINITE (a bone end), MIM_ENOMEM. */
 int mim_xfer_skin_from_bones(const mim_xfer_topology_t *t, const float *positions, const double *bones,
                              uint32_t n_bones, uint32_t smoothing, mim_xfer_skin_t *skin, mim_error_t *err);
+/* Weights from a rig's own skin (a glTF's JOINTS_0 / WEIGHTS_0: 4 joints
+ * and weights per vertex) whose joint j moves bone joint_bone[j] (-1:
+ * none): a vertex's weights sum per bone. A vertex with no weight on a
+ * mapped joint takes fallback's entry (may be NULL: bone 0). Returns how
+ * many did. */
+uint32_t mim_xfer_skin_from_weights(uint32_t n_vertices, const uint16_t *joints, const float *weights,
+                                    const int *joint_bone, uint32_t n_joints, const mim_xfer_skin_t *fallback,
+                                    mim_xfer_skin_t *skin);
 /* The blended rotation of one vertex from its segments' rotations (rot:
  * unit quaternions indexed by bone). */
 mim_quat mim_xfer_skin_rotation(const mim_xfer_skin_t *s, const mim_quat *rot);

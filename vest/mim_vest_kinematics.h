@@ -68,6 +68,16 @@ int mim_vest_skeleton_estimate(mim_vest_skeleton_t *sk, const mim_mesh_t *avatar
 /* The 17 bones of a skeleton as 17 x 6 doubles (pivot x y z, end x y z),
  * segment order: what mim_xfer_skin_from_bones segments an avatar by. */
 void mim_vest_skeleton_bones(const mim_vest_skeleton_t *sk, double bones[MIM_VEST_SEGMENTS * 6]);
+/* ---- a rig's joint names (segment_names.c) ---- */
+/* The segment a rig joint named `name` turns (the bone from it to its
+ * child; segment_names.c lists the names recognised), or -1.
+ * shoulder_is_upperarm: the rig names its clavicle "collar" (SMPL), so a
+ * sided "shoulder" is the upper arm. */
+int mim_vest_segment_of_joint(const char *name, int shoulder_is_upperarm);
+/* The same for a rig's n joints into segment[n], deciding
+ * shoulder_is_upperarm from the names; returns how many distinct segments
+ * the rig covers. */
+uint32_t mim_vest_segments_of_joints(const char *const *names, uint32_t n, int *segment);
 /* ---- calibration (calibrate.c) ---- */
 enum {
     MIM_VEST_POSE_REST = 0, /* the wearer stands as the avatar mesh does */

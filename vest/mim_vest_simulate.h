@@ -1,7 +1,8 @@
 /* mimic vest, the simulated vest: a motion played as the PrioVR hub's real
  * wire protocol (through the encoder of mim_vest_protocol.h) at a steady
  * rate, with injected faults (dropped packets, corrupted bytes, a
- * disconnect), into a pseudo-terminal, UDP landmark frames, or a recording.
+ * disconnect, orientation noise and drift), into a pseudo-terminal, UDP
+ * landmark frames, or a recording.
  * Implemented by simulate.c.
  *
  * Threads: a simulator is used by one thread at a time; mim_vest_sim_frame
@@ -30,6 +31,13 @@ typedef struct mim_vest_sim_options {
     int loop;
     uint64_t seed;           /* fault randomness: same seed, same calls, same bytes */
     uint32_t header_flags;   /* 0 = default */
+    /* Sensor error on what is sent (mim_vest_sim_wire_orientations): each
+     * frame each sensor turned by a random rotation (random axis, Gaussian
+     * angle of this standard deviation, 0..180 degrees), and per sensor a
+     * fixed random axis whose angle grows with stream time (0..3600 degrees
+     * a minute). 0 = none. Drawn from the seed apart from drop and corrupt,
+     * whose bytes they leave as they were. */
+    double orient_noise_deg, drift_deg_per_min;
 } mim_vest_sim_options_t;
 
 typedef struct mim_vest_sim mim_vest_sim_t;
@@ -37,7 +45,8 @@ typedef struct mim_vest_sim mim_vest_sim_t;
  * m is borrowed, not copied: it must stay alive and unchanged until close.
  * out must not be NULL (not checked); opt NULL = defaults. Returns 0;
  * MIM_EINVAL (m NULL or without frames, rate outside 1..2000 Hz, a
- * probability outside 0..1, a negative or NaN disconnect time); MIM_ENOMEM.
+ * probability outside 0..1, a negative or NaN disconnect time, orientation
+ * noise or drift outside its range); MIM_ENOMEM.
  * *out is NULL on failure. */
 int mim_vest_sim_open(mim_vest_sim_t **out, const mim_vest_motion_t *m, const mim_vest_sim_options_t *opt,
                       mim_error_t *err);
@@ -48,16 +57,24 @@ void mim_vest_sim_close(mim_vest_sim_t **s);
 uint64_t mim_vest_sim_n_frames(const mim_vest_sim_t *s);
 /* The stream rate in Hz, after the default. */
 double mim_vest_sim_rate(const mim_vest_sim_t *s);
-/* The orientations frame k sends (as float32 on the wire, read back), its
- * timestamp (k / rate, microseconds), and which sensors it carries (the
- * motion's have[]). q, have and t_us may each be NULL. Independent of the
- * faults: it does not touch the fault generator. */
+/* The true orientations of frame k (the motion's, as float32 on the wire
+ * would give them), its timestamp (k / rate, microseconds), and which
+ * sensors it carries (the motion's have[]). q, have and t_us may each be
+ * NULL. Independent of the faults (orientation noise and drift included):
+ * it does not touch the fault generator, and is what --expected writes. */
 void mim_vest_sim_orientations(const mim_vest_sim_t *s, uint64_t k, mim_quat q[MIM_VEST_SEGMENTS],
                                uint8_t have[MIM_VEST_SEGMENTS], uint64_t *t_us);
-/* The packets of frame k (faults applied: a dropped packet is left out, a
- * corrupted one has one byte changed). Returns bytes written (0 if all were
- * dropped); packets that do not fit in cap are left out, and cap >= 4 *
- * MIM_VEST_MAX_PACKET is always enough. counts (may be NULL) are added to,
+/* What frame k sends on the wire: the true orientations turned by the
+ * orientation noise and drift (world frame: q' = N D q), as float32; equal
+ * to mim_vest_sim_orientations when both are 0. A function of the seed and
+ * k alone (the same for every call, in any order); it does not touch the
+ * fault generator. Arguments as mim_vest_sim_orientations. */
+void mim_vest_sim_wire_orientations(const mim_vest_sim_t *s, uint64_t k, mim_quat q[MIM_VEST_SEGMENTS],
+                                    uint8_t have[MIM_VEST_SEGMENTS], uint64_t *t_us);
+/* The packets of frame k, carrying the wire's orientations (faults applied:
+ * a dropped packet is left out, a corrupted one has one byte changed).
+ * Returns bytes written (0 if all were dropped); packets that do not fit in
+ * cap are left out, and cap >= 4 * MIM_VEST_MAX_PACKET is always enough. counts (may be NULL) are added to,
  * not reset: [0] packets made, [1] dropped, [2] corrupted. */
 size_t mim_vest_sim_frame(mim_vest_sim_t *s, uint64_t k, uint8_t *buf, size_t cap, uint32_t counts[3]);
 
@@ -65,7 +82,9 @@ typedef struct mim_vest_sim_run {
     /* pty | pty:LINK | udp:HOST:PORT | FILE (a recording). pty:LINK makes
      * LINK a symlink to the pty (replaced atomically) and leaves it there. */
     const char *out;
-    const mim_vest_rig_t *rig;  /* needed by udp: landmarks are sent; read during the run */
+    /* needed by udp: the landmarks and segment orientations of the wire's
+     * orientations on this rig are sent; read during the run */
+    const mim_vest_rig_t *rig;
     int realtime;               /* pty and udp always; FILE only when set */
     /* Called on the running thread with the pty path (or LINK), the udp
      * spec or the file name when the output is ready, and again after a

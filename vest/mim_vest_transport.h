@@ -131,20 +131,36 @@ int mim_vest_recorder_write(mim_vest_recorder_t *r, const mim_vest_chunk_t *chun
 int mim_vest_recorder_close(mim_vest_recorder_t **r, mim_error_t *err);
 
 /* ---- UDP landmark frames (schemas/vest-udp.schema.json), transport_udp.c ----
- * {"t": us, "landmarks": [[x, y, z] | null, ...]}. Both are thread-safe. */
+ * {"t": us, "landmarks": [[x, y, z] | null, ...]}, optionally with
+ * "orientations": {"pelvis": [x, y, z, w] | null, ...} (the 17 segments'
+ * rotations from the avatar's rest pose). All are thread-safe. */
 /* Parses one frame of at most max landmarks into t_us, xyz (3 * max floats)
  * and present (max bytes), all non-NULL (not checked); a null landmark is NaN
  * with present 0. text need not be NUL-terminated. Returns 0 with *count set, or MIM_EFORMAT (not
  * JSON, a duplicate key, "t" not an integer >= 0, no "landmarks" array, more
  * than max, a landmark not [x, y, z] of numbers), or MIM_ENONFINITE (a
- * coordinate that is not a finite float), as mim_landmark_array_parse; the
- * outputs may then be partly written. */
+ * coordinate that is not a finite float), as mim_landmark_array_parse, or
+ * bad "orientations" (mim_orientations_parse's codes: checked even here,
+ * where they are dropped); the outputs may then be partly written. */
 int mim_vest_udp_parse(const char *text, size_t len, uint64_t *t_us, float *xyz, uint8_t *present, uint32_t max,
                        uint32_t *count, mim_error_t *err);
+/* The same, keeping the orientations: *has_orient 1 when the frame has the
+ * object, and R / have then hold the 17 segments (normalised; identity and
+ * 0 where null or absent; all identity and 0 without the object). R, have
+ * and has_orient may each be NULL. */
+int mim_vest_udp_parse_orient(const char *text, size_t len, uint64_t *t_us, float *xyz, uint8_t *present,
+                              uint32_t max, uint32_t *count, mim_quat R[MIM_SEGMENTS], uint8_t have[MIM_SEGMENTS],
+                              int *has_orient, mim_error_t *err);
 /* Formats one frame: a malloc'd NUL-terminated string the caller frees with
  * free(); NULL on allocation failure. Coordinates of present landmarks must
- * be finite (not checked). */
+ * be finite (not checked). Numbers keep 9 significant digits. */
 char *mim_vest_udp_format(uint64_t t_us, const float *xyz, const uint8_t *present, uint32_t count);
+/* The same with "orientations" beside the landmarks when R is not NULL:
+ * every segment in mim_segment_names order, null where have[s] is 0 (have
+ * NULL: all given). R's quaternions should be unit (not checked; a reader
+ * refuses a norm off 1 by more than MIM_ORIENT_UNIT_TOL). */
+char *mim_vest_udp_format_orient(uint64_t t_us, const float *xyz, const uint8_t *present, uint32_t count,
+                                 const mim_quat R[MIM_SEGMENTS], const uint8_t have[MIM_SEGMENTS]);
 
 /* ---- devices that look like vests (list.c) ---- */
 typedef struct mim_vest_device {

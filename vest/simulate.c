@@ -1,8 +1,9 @@
 /* A simulated vest: motion data turned into the PrioVR hub's real wire
  * protocol (through the same encoder the tests check the decoder with), at a
- * steady rate, with injected faults: dropped packets, corrupted bytes and a
- * disconnect. Outputs: a pseudo-terminal (what a USB CDC serial port looks
- * like to mimic), UDP landmark frames, or a recording file. */
+ * steady rate, with injected faults: dropped packets, corrupted bytes, a
+ * disconnect, and sensor error (orientation noise, drift). Outputs: a
+ * pseudo-terminal (what a USB CDC serial port looks like to mimic), UDP
+ * landmark frames, or a recording file. */
 #include "mim_vest_simulate.h"
 #include "mim_vest_transport.h"
 
@@ -25,7 +26,21 @@ struct mim_vest_sim {
     mim_vest_sim_options_t o;
     uint64_t period; /* stream frames in one pass over the motion */
     mim_rng_t rng; /* the faults: deterministic for a seed */
+    mim_vec3 drift_axis[MIM_VEST_SEGMENTS];
 };
+
+/* rng streams of the sensor error, apart from the packet faults' */
+#define DRIFT_STREAM 0x0d21f7u
+#define NOISE_SEED_TAG 0x6f7269656e74ull /* "orient": noise of frame k is stream k */
+
+static mim_vec3 random_axis(mim_rng_t *r)
+{
+    for (;;) { /* a Gaussian vector's direction is uniform on the sphere */
+        mim_vec3 v = {mim_rng_gauss(r), mim_rng_gauss(r), mim_rng_gauss(r)};
+        double n = sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
+        if (n > 1e-9) return (mim_vec3){v.x / n, v.y / n, v.z / n};
+    }
+}
 
 int mim_vest_sim_open(mim_vest_sim_t **out, const mim_vest_motion_t *m, const mim_vest_sim_options_t *opt,
                       mim_error_t *err)
@@ -38,15 +53,22 @@ int mim_vest_sim_open(mim_vest_sim_t **out, const mim_vest_motion_t *m, const mi
     if (opt) s->o = *opt;
     if (s->o.rate_hz == 0) s->o.rate_hz = 60;
     if (!(s->o.rate_hz >= 1 && s->o.rate_hz <= 2000) || !(s->o.drop >= 0 && s->o.drop <= 1) ||
-        !(s->o.corrupt >= 0 && s->o.corrupt <= 1) || !(s->o.disconnect_at >= 0) || !(s->o.disconnect_for >= 0)) {
+        !(s->o.corrupt >= 0 && s->o.corrupt <= 1) || !(s->o.disconnect_at >= 0) || !(s->o.disconnect_for >= 0) ||
+        !(s->o.orient_noise_deg >= 0 && s->o.orient_noise_deg <= 180) ||
+        !(s->o.drift_deg_per_min >= 0 && s->o.drift_deg_per_min <= 3600)) {
         free(s);
-        return mim_error_set(err, MIM_EINVAL, "vest simulate: rate must be 1..2000 Hz, fault probabilities 0..1");
+        return mim_error_set(err, MIM_EINVAL,
+                             "vest simulate: rate must be 1..2000 Hz, fault probabilities 0..1, orientation noise "
+                             "0..180 degrees, drift 0..3600 degrees a minute");
     }
     if (s->o.disconnect_for == 0) s->o.disconnect_for = 0.5;
     if (!s->o.header_flags) s->o.header_flags = MIM_VEST_HDR_DEFAULT;
     double dur = m->n_frames > 1 ? (m->n_frames - 1) * m->frame_time : 1.0;
     s->period = (uint64_t)floor(dur * s->o.rate_hz + 1e-9) + 1;
     mim_rng_seed(&s->rng, s->o.seed, 0x7e57u);
+    mim_rng_t r;
+    mim_rng_seed(&r, s->o.seed, DRIFT_STREAM);
+    for (int i = 0; i < MIM_VEST_SEGMENTS; i++) s->drift_axis[i] = random_axis(&r);
     *out = s;
     return 0;
 }
@@ -77,12 +99,33 @@ void mim_vest_sim_orientations(const mim_vest_sim_t *s, uint64_t k, mim_quat q[M
     }
 }
 
+void mim_vest_sim_wire_orientations(const mim_vest_sim_t *s, uint64_t k, mim_quat q[MIM_VEST_SEGMENTS],
+                                    uint8_t have[MIM_VEST_SEGMENTS], uint64_t *t_us)
+{
+    mim_vest_sim_orientations(s, k, q, have, t_us);
+    if (!q || (s->o.orient_noise_deg == 0 && s->o.drift_deg_per_min == 0)) return;
+    const double deg = 3.141592653589793 / 180;
+    /* noise of frame k from its own stream: any output, any call order, same error */
+    mim_rng_t r;
+    mim_rng_seed(&r, s->o.seed ^ NOISE_SEED_TAG, k);
+    double drift = s->o.drift_deg_per_min * deg * ((double)k / s->o.rate_hz) / 60;
+    for (int i = 0; i < MIM_VEST_SEGMENTS; i++) {
+        mim_quat e = mim_quat_axis_angle(s->drift_axis[i], drift);
+        if (s->o.orient_noise_deg > 0) {
+            mim_vec3 axis = random_axis(&r);
+            e = mim_quat_mul(mim_quat_axis_angle(axis, s->o.orient_noise_deg * deg * mim_rng_gauss(&r)), e);
+        }
+        mim_quat w = mim_quat_normalize(mim_quat_mul(e, q[i]));
+        q[i] = (mim_quat){(float)w.x, (float)w.y, (float)w.z, (float)w.w};
+    }
+}
+
 size_t mim_vest_sim_frame(mim_vest_sim_t *s, uint64_t k, uint8_t *buf, size_t cap, uint32_t counts[3])
 {
     mim_quat q[MIM_VEST_SEGMENTS];
     uint8_t have[MIM_VEST_SEGMENTS];
     uint64_t t;
-    mim_vest_sim_orientations(s, k, q, have, &t);
+    mim_vest_sim_wire_orientations(s, k, q, have, &t);
     uint32_t per = mim_vest_hub_capacity(s->o.header_flags);
     float fq[MIM_VEST_SEGMENTS][4];
     size_t n = 0;
@@ -251,12 +294,14 @@ int mim_vest_sim_run(mim_vest_sim_t *s, const mim_vest_sim_run_t *run, mim_error
             mim_quat q[MIM_VEST_SEGMENTS];
             uint8_t have[MIM_VEST_SEGMENTS];
             uint64_t t;
-            mim_vest_sim_orientations(s, k, q, have, &t);
+            mim_vest_sim_wire_orientations(s, k, q, have, &t);
             float xyz[3 * MIM_LANDMARKS_MAX];
             uint8_t present[MIM_LANDMARKS_MAX];
+            mim_quat R[MIM_VEST_SEGMENTS];
             mim_vest_fk_orient(run->rig, q, have, xyz, present);
+            mim_vest_segment_rotations(run->rig, q, have, R);
             if (s->o.drop > 0 && mim_rng_unit(&s->rng) < s->o.drop) continue;
-            char *js = mim_vest_udp_format(t, xyz, present, run->rig->n_landmarks);
+            char *js = mim_vest_udp_format_orient(t, xyz, present, run->rig->n_landmarks, R, have);
             if (!js) {
                 rc = mim_error_set(err, MIM_ENOMEM, "vest simulate: out of memory");
                 break;

@@ -1,6 +1,8 @@
 /* UDP transport: landmark frames from optical trackers or remote vests, one
  * JSON datagram each (schemas/vest-udp.schema.json):
- * {"t": microseconds, "landmarks": [[x, y, z] | null, ...]}. */
+ * {"t": microseconds, "landmarks": [[x, y, z] | null, ...]}, and the
+ * segment orientations when the sender has them:
+ * "orientations": {"pelvis": [x, y, z, w] | null, ...}. */
 #include "transport_internal.h"
 
 #include <errno.h>
@@ -58,14 +60,18 @@ void mim__udp_close(mim_vest_transport_t *t)
     t->sock = -1;
 }
 
-int mim_vest_udp_parse(const char *text, size_t len, uint64_t *t_us, float *xyz, uint8_t *present, uint32_t max,
-                       uint32_t *count, mim_error_t *err)
+int mim_vest_udp_parse_orient(const char *text, size_t len, uint64_t *t_us, float *xyz, uint8_t *present,
+                              uint32_t max, uint32_t *count, mim_quat R[MIM_SEGMENTS], uint8_t have[MIM_SEGMENTS],
+                              int *has_orient, mim_error_t *err)
 {
+    double q[4 * MIM_SEGMENTS];
+    uint8_t h[MIM_SEGMENTS];
     json_error_t je;
     json_t *root = json_loadb(text, len, JSON_REJECT_DUPLICATES, &je);
     if (!root) return mim_error_set(err, MIM_EFORMAT, "udp frame:%d:%d: %s", je.line, je.column, je.text);
     int rc = 0;
     json_t *t = json_object_get(root, "t"), *lm = json_object_get(root, "landmarks");
+    json_t *orient = json_object_get(root, "orientations");
     if (!json_is_object(root) || !json_is_integer(t) || json_integer_value(t) < 0 || !json_is_array(lm)) {
         rc = mim_error_set(err, MIM_EFORMAT, "udp frame: needs {\"t\": microseconds >= 0, \"landmarks\": [...]}");
         goto done;
@@ -79,6 +85,18 @@ int mim_vest_udp_parse(const char *text, size_t len, uint64_t *t_us, float *xyz,
     rc = mim_landmark_array_parse(lm, (uint32_t)n, (uint32_t)n, "udp frame", -1, xyz, present, err);
     if (rc)
         goto done;
+    if (orient) {
+        rc = mim_orientations_parse(orient, "udp frame", -1, q, h, err);
+        if (rc)
+            goto done;
+    } else {
+        memset(h, 0, sizeof h);
+    }
+    for (int s = 0; s < MIM_SEGMENTS; s++) {
+        if (R) R[s] = h[s] ? (mim_quat){q[4 * s], q[4 * s + 1], q[4 * s + 2], q[4 * s + 3]} : mim_quat_identity();
+        if (have) have[s] = h[s];
+    }
+    if (has_orient) *has_orient = orient != NULL;
     *t_us = (uint64_t)json_integer_value(t);
     *count = (uint32_t)n;
 done:
@@ -86,7 +104,14 @@ done:
     return rc;
 }
 
-char *mim_vest_udp_format(uint64_t t_us, const float *xyz, const uint8_t *present, uint32_t count)
+int mim_vest_udp_parse(const char *text, size_t len, uint64_t *t_us, float *xyz, uint8_t *present, uint32_t max,
+                       uint32_t *count, mim_error_t *err)
+{
+    return mim_vest_udp_parse_orient(text, len, t_us, xyz, present, max, count, NULL, NULL, NULL, err);
+}
+
+char *mim_vest_udp_format_orient(uint64_t t_us, const float *xyz, const uint8_t *present, uint32_t count,
+                                 const mim_quat R[MIM_SEGMENTS], const uint8_t have[MIM_SEGMENTS])
 {
     json_t *root = json_object(), *lm = json_array();
     if (!root || !lm) {
@@ -104,7 +129,26 @@ char *mim_vest_udp_format(uint64_t t_us, const float *xyz, const uint8_t *presen
         json_array_append_new(lm, p);
     }
     json_object_set_new(root, "landmarks", lm);
+    if (R) {
+        json_t *o = json_object();
+        for (int s = 0; o && s < MIM_SEGMENTS; s++) {
+            json_t *v = json_null();
+            if (!have || have[s]) {
+                v = json_array();
+                double c[4] = {R[s].x, R[s].y, R[s].z, R[s].w};
+                for (int i = 0; i < 4; i++) json_array_append_new(v, json_real(c[i]));
+            }
+            json_object_set_new(o, mim_segment_names[s], v);
+        }
+        json_object_set_new(root, "orientations", o);
+    }
+    /* 9 digits: a unit quaternion reads back well within MIM_ORIENT_UNIT_TOL */
     char *s = json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(9));
     json_decref(root);
     return s;
+}
+
+char *mim_vest_udp_format(uint64_t t_us, const float *xyz, const uint8_t *present, uint32_t count)
+{
+    return mim_vest_udp_format_orient(t_us, xyz, present, count, NULL, NULL);
 }

@@ -1,7 +1,8 @@
 /* libFuzzer harness: mim_io_read_mesh on arbitrary bytes. The first byte picks
  * the file extension, the rest is the file. Every input must give either a
  * mesh whose face indices are all in range and coordinates finite, or an
- * error with a message; never a crash, leak or sanitizer report. */
+ * error with a message; never a crash, leak or sanitizer report. The same
+ * for mim_io_read_skin (a glTF's JOINTS_0/WEIGHTS_0). */
 #include "mim_io.h"
 
 #include <math.h>
@@ -31,6 +32,17 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         mim_mesh_free(&m);
     } else if (!err.msg[0] && rc != MIM_ENOMEM) {
         abort(); /* every rejection explains itself */
+    }
+    /* the skin of the same bytes (glTF/GLB): joints in range, weights finite */
+    mim_io_skin_t sk;
+    mim_error_t serr = {0};
+    rc = mim_io_read_skin(path, &sk, &serr);
+    if (rc == 0) {
+        for (size_t i = 0; i < 4 * (size_t)sk.n_vertices; i++)
+            if (sk.joints[i] >= sk.n_joints || !(sk.weights[i] >= 0 && sk.weights[i] <= 1)) abort();
+        mim_io_skin_free(&sk);
+    } else if (!serr.msg[0] && rc != MIM_ENOMEM) {
+        abort();
     }
     remove(path);
     return 0;

@@ -65,6 +65,21 @@ int ts_write_stl_binary(const char *path, const ts_polymesh_t *m); /* triangles 
 /* glTF 2.0: a GLB, or a .gltf with the buffer embedded as a data URI. */
 int ts_write_glb(const char *path, const ts_polymesh_t *m);
 int ts_write_gltf(const char *path, const ts_polymesh_t *m);
+/* A skinned GLB, written by hand: one mesh with one primitive (POSITION
+ * with min/max, indices, JOINTS_0, WEIGHTS_0), node 0 the mesh with skin 0,
+ * nodes 1..n_joints the joints (named joint_names[j]; a NULL array or
+ * entry: no name), the first of them the parent of the others, and skin 0
+ * with those joints (no inverseBindMatrices). joints and weights hold 4 per
+ * vertex and are written as given (bad values too, for hostile tests).
+ * weight_type: 0 float, 1 normalised unsigned byte, 2 normalised unsigned
+ * short (w * 255 resp. w * 65535, rounded); OR TS_SKIN_JOINTS_U8 for
+ * JOINTS_0 as unsigned byte (else unsigned short). JSON layout (for tests
+ * that patch it): the JOINTS_0 accessor is written
+ * {"bufferView":2,"componentType":5123,"count":N,... and skin 0 as
+ * "skins":[{"joints":[1,2,...]}]. Returns 0 or -1. */
+#define TS_SKIN_JOINTS_U8 16
+int ts_write_skinned_glb(const char *path, const mim_mesh_t *m, const char *const *joint_names, uint32_t n_joints,
+                         const uint16_t *joints, const float *weights, int weight_type);
 /* Writes a triangle mesh as binary PLY (as mimic synth does). */
 int ts_write_mesh_ply(const char *path, const mim_mesh_t *m);
 

@@ -218,16 +218,23 @@ int ts_write_stl_binary(const char *path, const ts_polymesh_t *pm)
     return fclose(f);
 }
 
-/* The glTF JSON for one indexed triangle primitive; uri NULL for GLB. */
-static char *gltf_json(const mim_mesh_t *m, const char *uri)
+/* POSITION's min and max, as glTF requires them. */
+static void gltf_bounds(const mim_mesh_t *m, float mn[3], float mx[3])
 {
-    float mn[3] = {INFINITY, INFINITY, INFINITY}, mx[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int a = 0; a < 3; a++) mn[a] = INFINITY, mx[a] = -INFINITY;
     for (uint32_t v = 0; v < m->n_vertices; v++)
         for (int a = 0; a < 3; a++) {
             float x = m->positions[3 * v + a];
             mn[a] = x < mn[a] ? x : mn[a];
             mx[a] = x > mx[a] ? x : mx[a];
         }
+}
+
+/* The glTF JSON for one indexed triangle primitive; uri NULL for GLB. */
+static char *gltf_json(const mim_mesh_t *m, const char *uri)
+{
+    float mn[3], mx[3];
+    gltf_bounds(m, mn, mx);
     size_t pb = (size_t)m->n_vertices * 12, ib = (size_t)m->n_faces * 12;
     size_t cap = 2048 + (uri ? strlen(uri) : 0);
     char *s = malloc(cap);
@@ -253,16 +260,15 @@ static unsigned char *gltf_bin(const mim_mesh_t *m, size_t *len)
     return b;
 }
 
-int ts_write_glb(const char *path, const ts_polymesh_t *pm)
+/* A GLB file: the header, the JSON chunk (padded with spaces), the BIN
+ * chunk (padded with zeros). */
+static int write_glb_file(const char *path, const char *json, const unsigned char *bin, size_t bl)
 {
-    mim_mesh_t m;
-    ts_triangulate(pm, &m);
-    char *json = gltf_json(&m, NULL);
-    size_t bl, jl = strlen(json);
-    unsigned char *bin = gltf_bin(&m, &bl);
+    size_t jl = strlen(json);
     size_t jpad = (jl + 3) & ~(size_t)3, bpad = (bl + 3) & ~(size_t)3;
     uint32_t total = (uint32_t)(12 + 8 + jpad + 8 + bpad), ver = 2, u;
     FILE *f = fopen(path, "wb");
+    if (!f) return -1;
     fwrite("glTF", 1, 4, f);
     fwrite(&ver, 4, 1, f);
     fwrite(&total, 4, 1, f);
@@ -276,10 +282,114 @@ int ts_write_glb(const char *path, const ts_polymesh_t *pm)
     fwrite("BIN\0", 1, 4, f);
     fwrite(bin, 1, bl, f);
     for (size_t i = bl; i < bpad; i++) fputc(0, f);
+    return fclose(f);
+}
+
+int ts_write_glb(const char *path, const ts_polymesh_t *pm)
+{
+    mim_mesh_t m;
+    ts_triangulate(pm, &m);
+    char *json = gltf_json(&m, NULL);
+    size_t bl;
+    unsigned char *bin = gltf_bin(&m, &bl);
+    int rc = write_glb_file(path, json, bin, bl);
     free(json);
     free(bin);
     mim_mesh_free(&m);
-    return fclose(f);
+    return rc;
+}
+
+/* A JSON string literal (quotes, backslashes and control characters escaped). */
+static void json_string(FILE *f, const char *s)
+{
+    fputc('"', f);
+    for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
+        if (*p == '"' || *p == '\\') fprintf(f, "\\%c", *p);
+        else if (*p < 0x20) fprintf(f, "\\u%04x", *p);
+        else fputc(*p, f);
+    }
+    fputc('"', f);
+}
+
+int ts_write_skinned_glb(const char *path, const mim_mesh_t *m, const char *const *joint_names, uint32_t n_joints,
+                         const uint16_t *joints, const float *weights, int weight_type)
+{
+    const int joints_u8 = (weight_type & TS_SKIN_JOINTS_U8) != 0;
+    weight_type &= ~TS_SKIN_JOINTS_U8;
+    if (n_joints == 0 || weight_type < 0 || weight_type > 2) return -1;
+    const size_t nv = m->n_vertices, n4 = 4 * nv;
+    const size_t wsize[3] = {4, 1, 2}, jsize = joints_u8 ? 1 : 2;
+    /* four tightly packed views, each a multiple of 4 bytes long: positions,
+     * indices, JOINTS_0, WEIGHTS_0 */
+    size_t len[4] = {12 * nv, 12 * (size_t)m->n_faces, n4 * jsize, n4 * wsize[weight_type]}, off[4], bl = 0;
+    for (int i = 0; i < 4; i++) off[i] = bl, bl += len[i];
+    unsigned char *bin = calloc(1, bl + 4);
+    if (!bin) return -1;
+    memcpy(bin + off[0], m->positions, len[0]);
+    memcpy(bin + off[1], m->faces, len[1]);
+    for (size_t i = 0; i < n4; i++) {
+        if (joints_u8) bin[off[2] + i] = (unsigned char)joints[i];
+        else memcpy(bin + off[2] + 2 * i, &joints[i], 2);
+        float w = weights[i];
+        if (weight_type == 0) {
+            memcpy(bin + off[3] + 4 * i, &w, 4);
+        } else if (weight_type == 1) {
+            bin[off[3] + i] = (unsigned char)lrintf(w * 255.0f);
+        } else {
+            uint16_t q = (uint16_t)lrintf(w * 65535.0f);
+            memcpy(bin + off[3] + 2 * i, &q, 2);
+        }
+    }
+
+    float mn[3], mx[3];
+    gltf_bounds(m, mn, mx);
+    char *json = NULL;
+    size_t jl = 0;
+    FILE *f = open_memstream(&json, &jl);
+    if (!f) {
+        free(bin);
+        return -1;
+    }
+    /* node 0 the skinned mesh; nodes 1..n_joints the joints, all children of
+     * the first (a skin's joints need a common root) */
+    fprintf(f, "{\"asset\":{\"version\":\"2.0\",\"generator\":\"mimic tests\"},\"scene\":0,"
+               "\"scenes\":[{\"nodes\":[0,1]}],\"nodes\":[{\"name\":\"skinned\",\"mesh\":0,\"skin\":0}");
+    for (uint32_t j = 0; j < n_joints; j++) {
+        fprintf(f, ",{");
+        if (joint_names && joint_names[j]) {
+            fprintf(f, "\"name\":");
+            json_string(f, joint_names[j]);
+        }
+        if (j == 0 && n_joints > 1) {
+            fprintf(f, "%s\"children\":[", joint_names && joint_names[j] ? "," : "");
+            for (uint32_t c = 2; c <= n_joints; c++) fprintf(f, "%s%u", c > 2 ? "," : "", c);
+            fprintf(f, "]");
+        }
+        fprintf(f, "}");
+    }
+    fprintf(f, "],\"skins\":[{\"joints\":[");
+    for (uint32_t j = 0; j < n_joints; j++) fprintf(f, "%s%u", j ? "," : "", j + 1);
+    static const int wtype[3] = {5126, 5121, 5123};
+    fprintf(f,
+            "]}],\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0,\"JOINTS_0\":2,\"WEIGHTS_0\":3},"
+            "\"indices\":1,\"mode\":4}]}],"
+            "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":%u,\"type\":\"VEC3\","
+            "\"min\":[%.9g,%.9g,%.9g],\"max\":[%.9g,%.9g,%.9g]},"
+            "{\"bufferView\":1,\"componentType\":5125,\"count\":%u,\"type\":\"SCALAR\"},"
+            "{\"bufferView\":2,\"componentType\":%d,\"count\":%u,\"type\":\"VEC4\"},"
+            "{\"bufferView\":3,\"componentType\":%d,%s\"count\":%u,\"type\":\"VEC4\"}],\"bufferViews\":[",
+            m->n_vertices, (double)mn[0], (double)mn[1], (double)mn[2], (double)mx[0], (double)mx[1], (double)mx[2],
+            3 * m->n_faces, joints_u8 ? 5121 : 5123, m->n_vertices, wtype[weight_type],
+            weight_type ? "\"normalized\":true," : "", m->n_vertices);
+    for (int i = 0; i < 4; i++)
+        fprintf(f, "%s{\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":%zu,\"target\":%d}", i ? "," : "", off[i], len[i],
+                i == 1 ? 34963 : 34962);
+    fprintf(f, "],\"buffers\":[{\"byteLength\":%zu}]}", bl);
+    int rc = fclose(f);
+    if (rc == 0) rc = write_glb_file(path, json, bin, bl);
+    free(json);
+    free(bin);
+    return rc;
 }
 
 static char *base64(const unsigned char *d, size_t n)
