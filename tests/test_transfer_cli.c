@@ -465,6 +465,144 @@ static void test_complete(void **s)
     free(lost), free(full), free(many);
 }
 
+/* One line of a file (1 = the first) into its own file. */
+static char *line_to_file(const char *from, int line, const char *name)
+{
+    char *text = ts_read_file(from, NULL), *p = text;
+    assert_non_null(text);
+    for (int l = 1; l < line; l++) {
+        p = strchr(p, '\n');
+        assert_non_null(p);
+        p++;
+    }
+    char *end = strchr(p, '\n');
+    if (end) *end = 0;
+    char *path = ts_path(dir, name);
+    assert_int_equal(ts_write_file(path, p, strlen(p)), 0);
+    free(text);
+    return path;
+}
+
+static json_t *transfer_json(const char *const *args)
+{
+    char *o, *e;
+    int rc = ts_run_mimic(&o, &e, args);
+    if (rc) fail_msg("%s", e);
+    json_error_t je;
+    json_t *rep = json_loads(o, 0, &je);
+    assert_non_null(rep);
+    free(o), free(e);
+    return rep;
+}
+
+/* The orientation drive from the command line (issue 17): a simulated
+ * vest's expected frame (landmarks and segment orientations) is a frame
+ * for mimic transfer, which then turns the avatar's own frames and solves
+ * once; --drive template ignores them; bad orientations and a landmark map
+ * that cannot be segmented get one clear line. */
+static void test_orientations(void **s)
+{
+    (void)s;
+    char *avatar = body_path(0, 0), *lmap = ts_path(bodies, "landmarks.json"), *exp = ts_path(dir, "expected.jsonl");
+    char *rec = ts_path(dir, "demo.vest"), *o, *e;
+    const char *sim[] = {"vest", "simulate", "--motion", "demo", "--rate", "10", "--avatar", avatar, "--map", lmap,
+                         "--expected", exp, "--out", rec, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, sim), 0);
+    free(o), free(e);
+    char *frame = line_to_file(exp, 40, "oriented.json"), *outp = ts_path(dir, "oriented.ply");
+    const char *run[] = {"transfer", "--store", store, "--avatar", avatar, "--template", "2", "--landmarks", frame,
+                         "-o", outp, "--json", NULL};
+    json_t *rep = transfer_json(run);
+    assert_string_equal(json_string_value(json_object_get(rep, "drive")), "orientation");
+    assert_int_equal(json_integer_value(json_object_get(rep, "iterations")), 1);
+    assert_int_equal(json_integer_value(json_object_get(rep, "orientations_filled")), 0);
+    json_decref(rep);
+    const char *tmpl[] = {"transfer", "--store", store, "--avatar", avatar, "--template", "2", "--landmarks", frame,
+                          "--drive", "template", "-o", outp, "--json", NULL};
+    rep = transfer_json(tmpl);
+    assert_string_equal(json_string_value(json_object_get(rep, "drive")), "template");
+    json_decref(rep);
+    /* morph: two oriented keys, in-betweens slerped (one solve each) */
+    char *f2 = line_to_file(exp, 60, "oriented2.json"), *t1 = ts_read_file(frame, NULL), *t2 = ts_read_file(f2, NULL);
+    size_t blen = strlen(t1) + strlen(t2) + 64;
+    char *both = malloc(blen), *keys = ts_path(dir, "keys.json"), *glb = ts_path(dir, "oriented.glb");
+    snprintf(both, blen, "{\"frames\": [%s, %s]}", t1, t2);
+    assert_int_equal(ts_write_file(keys, both, strlen(both)), 0);
+    const char *morph[] = {"morph", "--store", store, "--avatar", avatar, "--keys", "2,3", "--frames-between", "2",
+                           "--landmarks", keys, "-o", glb, "--json", NULL};
+    rep = transfer_json(morph);
+    assert_int_equal(json_integer_value(json_object_get(rep, "oriented_keys")), 2);
+    assert_int_equal(json_integer_value(json_object_get(rep, "key_iterations")), 2);
+    json_decref(rep);
+    free(f2), free(t1), free(t2), free(both), free(keys), free(glb);
+    /* a lost sensor: its neighbour's rotation */
+    char *text = ts_read_file(frame, NULL), *at = strstr(text, "\"l_hand\":[");
+    assert_non_null(at);
+    char *close = strchr(at, ']');
+    memmove(at + strlen("\"l_hand\":null"), close + 1, strlen(close + 1) + 1);
+    memcpy(at, "\"l_hand\":null", strlen("\"l_hand\":null"));
+    char *lost = ts_path(dir, "lost.json");
+    assert_int_equal(ts_write_file(lost, text, strlen(text)), 0);
+    free(text);
+    const char *run_lost[] = {"transfer", "--store", store, "--avatar", avatar, "--template", "2", "--landmarks", lost,
+                              "-o", outp, "--json", NULL};
+    rep = transfer_json(run_lost);
+    assert_int_equal(json_integer_value(json_object_get(rep, "orientations_filled")), 1);
+    json_decref(rep);
+    /* bad input */
+    char *bad = ts_path(dir, "bad-orient.json");
+    mim_mesh_t b = {0};
+    read_mesh(avatar, &b);
+    char *plain = write_landmarks("plain.json", b.positions, NULL);
+    const char *need[] = {"transfer", "--store", store, "--avatar", avatar, "--template", "2", "--landmarks", plain,
+                          "--drive", "orientation", "-o", outp, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, need), 1);
+    assert_non_null(strstr(e, "--drive orientation, but the frame has no \"orientations\""));
+    free(o), free(e);
+    const char *bogus[] = {"transfer", "--store", store, "--avatar", avatar, "--template", "2", "--landmarks", plain,
+                           "--drive", "imu", "-o", outp, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, bogus), 2);
+    assert_non_null(strstr(e, "--drive 'imu' is not auto, template or orientation"));
+    free(o), free(e);
+    text = ts_read_file(plain, NULL);
+    char *brace = strrchr(text, '}');
+    *brace = 0;
+    char buf[8192];
+    snprintf(buf, sizeof buf, "%s, \"orientations\": {\"l_hand\": [0, 0, 0, 2]}}", text);
+    assert_int_equal(ts_write_file(bad, buf, strlen(buf)), 0);
+    const char *nonunit[] = {"transfer", "--store", store, "--avatar", avatar, "--template", "2", "--landmarks", bad,
+                             "-o", outp, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, nonunit), 1);
+    assert_non_null(strstr(e, "orientation 'l_hand' is not a unit quaternion (norm 2)"));
+    free(o), free(e);
+    snprintf(buf, sizeof buf, "%s, \"orientations\": {\"l_elbow\": [0, 0, 0, 1]}}", text);
+    assert_int_equal(ts_write_file(bad, buf, strlen(buf)), 0);
+    assert_int_equal(ts_run_mimic(&o, &e, nonunit), 1);
+    assert_non_null(strstr(e, "orientation 'l_elbow' is not a vest segment"));
+    free(o), free(e), free(text);
+    /* a store whose landmarks are not the vest's 16: no skeleton to segment by */
+    char *store2 = ts_path(dir, "store-custom-map"), *map2 = ts_path(dir, "custom-landmarks.json");
+    mim_landmark_map_t renamed = map;
+    for (uint32_t k = 0; k < renamed.count; k++) snprintf(renamed.names[k], sizeof renamed.names[k], "marker%u", k);
+    assert_int_equal(mim_landmarks_write(&renamed, map2, NULL), 0);
+    const char *ingest2[] = {"ingest", "--store", store2, "--landmarks", map2, bodies, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, ingest2), 0);
+    free(o), free(e);
+    const char *auto2[] = {"transfer", "--store", store2, "--avatar", avatar, "--template", "2", "--landmarks", frame,
+                           "-o", outp, "--json", NULL};
+    rep = transfer_json(auto2);
+    assert_string_equal(json_string_value(json_object_get(rep, "drive")), "template");
+    json_decref(rep);
+    const char *forced[] = {"transfer", "--store", store2, "--avatar", avatar, "--template", "2", "--landmarks", frame,
+                            "--drive", "orientation", "-o", outp, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, forced), 1);
+    assert_non_null(strstr(e, "cannot be segmented for the orientation drive"));
+    free(o), free(e);
+    mim_mesh_free(&b);
+    free(avatar), free(lmap), free(exp), free(rec), free(frame), free(outp), free(lost), free(plain), free(bad);
+    free(store2), free(map2);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -474,6 +612,7 @@ int main(void)
         cmocka_unit_test(test_morph),
         cmocka_unit_test(test_bad_inputs),
         cmocka_unit_test(test_complete),
+        cmocka_unit_test(test_orientations),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
