@@ -413,7 +413,15 @@ static void run_demo(const char *ddir, int check_live)
 /* ---- 7c. lost vest landmarks completed from the store (issue 14) ---- */
 /* A UDP frame of a stored body's landmarks at vest time t_us, with
  * landmarks 7, 8 and 13 lost when lose is set. */
+static int body_frame_orient(char *msg, size_t size, uint64_t t_us, int lose, int orient);
 static int body_frame(char *msg, size_t size, uint64_t t_us, int lose)
+{
+    return body_frame_orient(msg, size, t_us, lose, 0);
+}
+
+/* The same with every segment's orientation (the body as it rests: identity)
+ * when orient is set. */
+static int body_frame_orient(char *msg, size_t size, uint64_t t_us, int lose, int orient)
 {
     char *bodies = ts_path(dir, "bodies"), *body = ts_path(bodies, "synth_s01_p02.ply"),
          *map_path = ts_path(bodies, "landmarks.json");
@@ -427,7 +435,14 @@ static int body_frame(char *msg, size_t size, uint64_t t_us, int lose)
         if (lose && (l == 7 || l == 8 || l == 13)) len += snprintf(msg + len, size - len, "%snull", l ? ", " : "");
         else len += snprintf(msg + len, size - len, "%s[%.6f, %.6f, %.6f]", l ? ", " : "", p[0], p[1], p[2]);
     }
-    len += snprintf(msg + len, size - len, "]}");
+    len += snprintf(msg + len, size - len, "]");
+    if (orient) {
+        len += snprintf(msg + len, size - len, ", \"orientations\": {");
+        for (int g = 0; g < MIM_SEGMENTS; g++)
+            len += snprintf(msg + len, size - len, "%s\"%s\": [0, 0, 0, 1]", g ? ", " : "", mim_segment_names[g]);
+        len += snprintf(msg + len, size - len, "}");
+    }
+    len += snprintf(msg + len, size - len, "}");
     mim_mesh_free(&m);
     free(bodies), free(body), free(map_path);
     return len;
@@ -463,6 +478,7 @@ static void test_lost_landmarks_completed(void **state)
     close(sock);
     print_message("lost landmarks: %lld frames, %lld landmarks completed\n", (long long)ss_status_int(st, NULL, "frames"),
                   (long long)ss_status_int(st, "vest", "completed_landmarks"));
+    assert_int_equal(ss_status_int(st, "vest", "oriented_keys"), 0); /* landmark datagrams alone: the template drive */
     json_decref(st);
     assert_true(ss_metric(U.port, "mimic_landmarks_completed_total") >= 60);
     assert_true(ss_metric(U.port, "mimic_vest_incomplete_frames_total") >= 20);
@@ -510,6 +526,39 @@ static void test_lost_landmarks_held_first(void **state)
     ss_svc_free(&U);
 }
 
+/* UDP datagrams that carry segment orientations: the loop's key frames
+ * take the orientation drive (issue 17), one solve each. */
+static void test_udp_orientations(void **state)
+{
+    (void)state;
+    ss_svc_t U = {0};
+    char spec[64];
+    int up = serve_on_udp(&U, "o", spec, sizeof spec);
+    char msg[8192];
+    int sock = socket(AF_INET, SOCK_DGRAM, 0);
+    struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons((uint16_t)up)};
+    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    json_t *st = NULL;
+    double end = ss_now_s() + 30;
+    for (int k = 0;; k++) {
+        int len = body_frame_orient(msg, sizeof msg, (uint64_t)k * 16667, 0, 1);
+        assert_true(sendto(sock, msg, (size_t)len, 0, (struct sockaddr *)&to, sizeof to) == len);
+        ss_sleep_ms(16);
+        if (k % 30 == 29) {
+            json_decref(st);
+            st = ss_get_status(U.port);
+            if (ss_status_int(st, "vest", "oriented_keys") >= 5) break;
+            if (ss_now_s() > end) fail_msg("no oriented key frames from orientation datagrams: %s", json_dumps(st, 0));
+        }
+    }
+    close(sock);
+    /* every key frame one solve: none went the template's iterated way (read under one lock) */
+    assert_true(json_number_value(json_object_get(json_object_get(st, "vest"), "iterations_per_key")) == 1.0);
+    json_decref(st);
+    ss_svc_term(&U);
+    ss_svc_free(&U);
+}
+
 static void test_demo(void **state)
 {
     (void)state;
@@ -551,6 +600,7 @@ int main(void)
         cmocka_unit_test(test_udp_vest_stops),
         cmocka_unit_test(test_lost_landmarks_completed),
         cmocka_unit_test(test_lost_landmarks_held_first),
+        cmocka_unit_test(test_udp_orientations),
         cmocka_unit_test(test_demo),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
