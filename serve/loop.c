@@ -444,6 +444,11 @@ static void frame_done(mim__loop_t *l, uint64_t t)
     mim_vest_fk(&l->rig, &l->st, t, 0, l->pending_xyz, l->pending_present);
     mim_vest_fresh(&l->st, t, 0, l->pending_have);
     mim_vest_segment_rotations(&l->rig, l->st.q, l->pending_have, l->pending_R);
+    for (int g = 0; g < MIM_VEST_SEGMENTS; g++) { /* a reading that is no rotation (a zero quaternion) counts as lost */
+        const mim_quat q = l->pending_R[g];
+        if (!(fabs(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w - 1) < 1e-3))
+            l->pending_have[g] = 0, l->pending_R[g] = mim_quat_identity();
+    }
     l->pending = 1, l->pending_t = t;
 }
 

@@ -150,7 +150,9 @@ typedef struct mim_session_report {
  * The orientation drive (req->drive, req->orientations) still finds the
  * template (the pose's label and id), but the frames are the avatar's own
  * rest frames turned per segment, and one solve with the landmarks gives
- * the pose; it needs landmarks ("orientations need landmarks", MIM_EINVAL)
+ * the pose; each measured orientation must be a unit quaternion (within
+ * MIM_ORIENT_UNIT_TOL: MIM_EINVAL, MIM_ENONFINITE naming the segment); it
+ * needs landmarks ("orientations need landmarks", MIM_EINVAL)
  * and, asked for explicitly, a segmented avatar (the reason, MIM_ENOLANDMARKS
  * or the skeleton's code).
  * report may be NULL. Errors: MIM_EINVAL with neither a template nor

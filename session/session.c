@@ -589,6 +589,13 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
         return mim_error_set(err, MIM_EINVAL, "transfer: orientations need landmarks (the solve holds them)");
     if (req->drive == MIM_DRIVE_ORIENTATION && !s->skin)
         return mim_error_set(err, s->skin_failed.code, "%s", mim_error_text(&s->skin_failed));
+    for (int g = 0; req->orientations && g < MIM_VEST_SEGMENTS; g++) {
+        const mim_quat q = req->orientations[g];
+        double norm = sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
+        if ((!req->orient_present || req->orient_present[g]) && !(fabs(norm - 1) <= MIM_ORIENT_UNIT_TOL))
+            return mim_error_set(err, isfinite(norm) ? MIM_EINVAL : MIM_ENONFINITE,
+                                 "transfer: orientation '%s' is not a unit quaternion (norm %.3g)", mim_segment_names[g], norm);
+    }
     r->drive = req->orientations && s->skin && req->drive != MIM_DRIVE_TEMPLATE ? MIM_DRIVE_ORIENTATION
                                                                                  : MIM_DRIVE_TEMPLATE;
     double t0 = mim_now();

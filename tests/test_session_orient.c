@@ -167,6 +167,22 @@ static void test_bad_requests(void **state)
     mim_session_request_t no_or = {.landmarks = u, .drive = MIM_DRIVE_ORIENTATION};
     assert_int_equal(mim_session_transfer(sess, &no_or, x, NULL, &err), MIM_EINVAL);
     assert_non_null(strstr(err.msg, "needs orientations"));
+    /* an orientation that is no rotation, named */
+    mim_quat Rb[MIM_VEST_SEGMENTS];
+    memcpy(Rb, R, sizeof Rb);
+    Rb[MIM_VEST_L_SHIN] = (mim_quat){0, 0, 0, 0};
+    mim_session_request_t zero = {.landmarks = u, .orientations = Rb};
+    err = (mim_error_t){0};
+    assert_int_equal(mim_session_transfer(sess, &zero, x, NULL, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "orientation 'l_shin' is not a unit quaternion (norm 0)"));
+    Rb[MIM_VEST_L_SHIN].w = NAN;
+    err = (mim_error_t){0};
+    assert_int_equal(mim_session_transfer(sess, &zero, x, NULL, &err), MIM_ENONFINITE);
+    uint8_t have[MIM_VEST_SEGMENTS];
+    memset(have, 1, sizeof have);
+    have[MIM_VEST_L_SHIN] = 0; /* lost: what it holds is not read */
+    zero.orient_present = have;
+    assert_int_equal(mim_session_transfer(sess, &zero, x, NULL, &err), 0);
     /* the template drive ignores orientations: the same as none */
     float *y = malloc(3 * (size_t)n * sizeof *y);
     mim_session_request_t a = {.landmarks = u, .orientations = R, .drive = MIM_DRIVE_TEMPLATE}, b = {.landmarks = u};
