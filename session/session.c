@@ -301,7 +301,9 @@ static int load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err)
  * to the vest's segments (mim_vest_segments_of_joints), by geometry where
  * a vertex hangs on unmapped joints only. A rig that covers fewer than
  * MIN_RIG_SEGMENTS segments is no body rig: the geometry decides alone. A
- * foreign avatar's rig is on its own vertices, not the proxy's: left out. */
+ * foreign avatar's rig is on its own vertices: each proxy vertex takes the
+ * weights of the avatar vertices bound to its triangles, by their
+ * barycentric share. */
 #define MIN_RIG_SEGMENTS 12
 static void rig_weights(mim_session_t *s)
 {
@@ -317,28 +319,48 @@ static void rig_weights(mim_session_t *s)
                          mim_error_text(&e));
         return;
     }
+    const uint32_t n = s->mesh.n_vertices, G = MIM_VEST_SEGMENTS;
     const char **names = malloc(rig.n_joints * sizeof *names);
     int *bone = malloc(rig.n_joints * sizeof *bone);
-    mim_xfer_skin_t *own = malloc((size_t)s->mesh.n_vertices * sizeof *own);
-    if (names && bone && own && rig.n_vertices == s->mesh.n_vertices) {
+    float *dense = calloc((size_t)n * G, sizeof *dense);
+    mim_xfer_skin_t *own = malloc((size_t)n * sizeof *own);
+    uint32_t covered = 0;
+    if (names && bone && dense && own && rig.n_vertices == (s->foreign ? s->own.n_vertices : n)) {
         for (uint32_t j = 0; j < rig.n_joints; j++) names[j] = rig.names[j];
-        uint32_t covered = mim_vest_segments_of_joints(names, rig.n_joints, bone);
-        if (covered >= MIN_RIG_SEGMENTS) {
-            uint32_t by_geometry =
-                mim_xfer_skin_from_weights(rig.n_vertices, rig.joints, rig.weights, bone, rig.n_joints, s->skin, own);
-            memcpy(s->skin, own, (size_t)s->mesh.n_vertices * sizeof *own);
-            s->skin_from_rig = 1;
-            mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_INFO,
-                         "%s: segments from its skin (%u joints on %u of the 17 segments; %u vertices by geometry)",
-                         s->avatar, rig.n_joints, covered, by_geometry);
-        } else {
-            mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN,
-                         "%s: its skin's joint names give %u of the 17 segments (at least %d needed): segmenting "
-                         "by the geometry",
-                         s->avatar, covered, MIN_RIG_SEGMENTS);
-        }
+        covered = mim_vest_segments_of_joints(names, rig.n_joints, bone);
     }
-    free(names), free(bone), free(own);
+    if (covered >= MIN_RIG_SEGMENTS) {
+        /* a rig vertex's joints summed per segment, onto the proxy's corners it sits between */
+        const uint32_t entries = s->foreign ? s->binding.n_vertices : n;
+        for (uint32_t i = 0; i < entries; i++) {
+            uint32_t a = s->foreign ? s->binding.vertex[i] : i, corner[3] = {i, i, i};
+            float share[3] = {1, 0, 0};
+            if (s->foreign) {
+                const uint32_t *fv = s->mesh.faces + 3 * (size_t)s->binding.face[i];
+                float u = s->binding.bary[2 * i], v = s->binding.bary[2 * i + 1];
+                corner[0] = fv[0], corner[1] = fv[1], corner[2] = fv[2];
+                share[0] = 1 - u - v, share[1] = u, share[2] = v;
+            }
+            for (int k = 0; k < 4; k++) {
+                int g = bone[rig.joints[4 * (size_t)a + k]];
+                if (g < 0) continue;
+                for (int c = 0; c < 3; c++)
+                    dense[(size_t)corner[c] * G + g] += share[c] > 0 ? share[c] * rig.weights[4 * (size_t)a + k] : 0;
+            }
+        }
+        uint32_t by_geometry = mim_xfer_skin_from_dense(n, dense, G, s->skin, own);
+        memcpy(s->skin, own, (size_t)n * sizeof *own);
+        s->skin_from_rig = 1;
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_INFO,
+                     "%s: segments from its skin (%u joints on %u of the 17 segments; %u vertices by geometry)",
+                     s->avatar, rig.n_joints, covered, by_geometry);
+    } else if (names && bone && dense && own) {
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN,
+                     "%s: its skin's joint names give %u of the 17 segments (at least %d needed): segmenting "
+                     "by the geometry",
+                     s->avatar, covered, MIN_RIG_SEGMENTS);
+    }
+    free(names), free(bone), free(dense), free(own);
     mim_io_skin_free(&rig);
 }
 
@@ -359,7 +381,7 @@ static void segment_avatar(mim_session_t *s)
     if (!rc)
         rc = mim_xfer_skin_from_bones(s->topo, s->mesh.positions, bones, MIM_VEST_SEGMENTS,
                                       MIM_XFER_DEFAULT_SKIN_SMOOTHING, s->skin, &s->skin_failed);
-    if (!rc && !s->foreign)
+    if (!rc)
         rig_weights(s);
     if (rc) {
         free(s->skin);

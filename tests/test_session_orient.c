@@ -1,6 +1,7 @@
 /* session/: the orientation drive (issue 17) through the one pipeline, on a
  * synth store made here: a forearm twist that no landmark shows, lost
  * sensors and their fallbacks, and the bad requests. */
+#include "foreign_avatar.h"
 #include "test_support.h"
 
 #include "mim_session.h"
@@ -289,6 +290,54 @@ static void test_gltf_skin(void **state)
     free(joints), free(weights), free(glb), free(x);
 }
 
+/* A skinned glTF avatar of another connectivity: its rig's weights reach
+ * the proxy through the binding (each proxy vertex takes the bound avatar
+ * vertices' weights by their barycentric share). The rig here puts the
+ * body's left side on the left forearm and the rest on the hips, which no
+ * geometry would. */
+static void test_foreign_gltf_skin(void **state)
+{
+    (void)state;
+    fa_options_t fo = {.vertices = 3000, .seed = 7, .subdivisions = 1, .shuffle_seed = 5};
+    fa_avatar_t fa;
+    char why[256];
+    assert_int_equal(fa_make(&fo, &fa, why, sizeof why), 0);
+    char *ply = ts_path(dir, "foreign.ply"), *side = ts_path(dir, "foreign.landmarks.json"), *glb = ts_path(dir, "foreign.glb");
+    assert_int_equal(fa_write(&fa, ply, side, -1, why, sizeof why), 0);
+    static const char *const names[MIM_VEST_SEGMENTS] = {
+        "mixamorig:Hips", "mixamorig:Spine2", "mixamorig:Head", "mixamorig:LeftShoulder", "mixamorig:RightShoulder",
+        "mixamorig:LeftArm", "mixamorig:RightArm", "mixamorig:LeftForeArm", "mixamorig:RightForeArm",
+        "mixamorig:LeftHand", "mixamorig:RightHand", "mixamorig:LeftUpLeg", "mixamorig:RightUpLeg", "mixamorig:LeftLeg",
+        "mixamorig:RightLeg", "mixamorig:LeftFoot", "mixamorig:RightFoot"};
+    const uint32_t na = fa.mesh.n_vertices;
+    uint16_t *joints = calloc(4 * (size_t)na, sizeof *joints);
+    float *weights = calloc(4 * (size_t)na, sizeof *weights);
+    for (uint32_t i = 0; i < na; i++)
+        joints[4 * (size_t)i] = fa.mesh.positions[3 * (size_t)i] > 0 ? MIM_VEST_L_FOREARM : MIM_VEST_PELVIS,
+                       weights[4 * (size_t)i] = 1;
+    assert_int_equal(ts_write_skinned_glb(glb, &fa.mesh, names, MIM_VEST_SEGMENTS, joints, weights, 0), 0);
+    mim_session_t *s2 = NULL;
+    mim_error_t err = {0};
+    assert_int_equal(mim_session_open(&s2, store, NULL, &err), 0);
+    if (mim_session_load_avatar(s2, glb, &err)) fail_msg("%s", err.msg);
+    assert_true(mim_session_maps_output(s2));
+    int from_rig = 0;
+    const mim_xfer_skin_t *skin = mim_session_skin(s2, NULL, &from_rig);
+    assert_non_null(skin);
+    assert_int_equal(from_rig, 1);
+    const mim_mesh_t *proxy = mim_session_mesh(s2);
+    uint32_t left = 0, right = 0;
+    for (uint32_t i = 0; i < proxy->n_vertices; i++) {
+        float x = proxy->positions[3 * (size_t)i];
+        if (x > 0.02f) assert_int_equal(skin[i].bone[0], MIM_VEST_L_FOREARM), left++;
+        if (x < -0.02f) assert_int_equal(skin[i].bone[0], MIM_VEST_PELVIS), right++;
+    }
+    assert_true(left > 100 && right > 100);
+    mim_session_close(&s2);
+    fa_free(&fa);
+    free(joints), free(weights), free(ply), free(side), free(glb);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -297,6 +346,7 @@ int main(void)
         cmocka_unit_test(test_bad_requests),
         cmocka_unit_test(test_morph),
         cmocka_unit_test(test_gltf_skin),
+        cmocka_unit_test(test_foreign_gltf_skin),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

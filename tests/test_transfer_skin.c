@@ -195,29 +195,27 @@ static void test_twist(void **state)
     free(skin), free(truth), free(out), free(F), free(G), free(W);
 }
 
-/* A rig's own weights: joints on one segment sum, unmapped joints drop
- * out, a vertex on unmapped joints alone takes the geometric skin. */
-static void test_from_rig_weights(void **state)
+/* Dense per-segment weights (a rig's, summed per segment): the heaviest
+ * four kept and normalised, a vertex without weight takes the fallback. */
+static void test_from_dense(void **state)
 {
     (void)state;
-    const uint16_t joints[3 * 4] = {0, 1, 2, 3, /**/ 2, 3, 0, 0, /**/ 3, 3, 0, 0};
-    const float weights[3 * 4] = {0.4f, 0.3f, 0.2f, 0.1f, /**/ 0.5f, 0.5f, 0, 0, /**/ 1, 0, 0, 0};
-    const int bone[4] = {MIM_VEST_L_FOREARM, MIM_VEST_L_FOREARM, MIM_VEST_L_HAND, -1}; /* 3: a sleeve bone */
+    enum { B = 6 };
+    const float dense[3 * B] = {0.1f, 0.4f, 0.2f, 0.05f, 0.3f, 0.15f, /**/ 0, 0, 0, 2, 0, 0, /**/ 0, 0, 0, 0, 0, 0};
     mim_xfer_skin_t fallback[3] = {{{0}, {1}}, {{0}, {1}}, {{MIM_VEST_HEAD}, {1}}}, skin[3];
-    assert_int_equal(mim_xfer_skin_from_weights(3, joints, weights, bone, 4, fallback, skin), 1);
-    assert_int_equal(skin[0].bone[0], MIM_VEST_L_FOREARM);
-    assert_float_equal(skin[0].weight[0], 0.7f / 0.9f, 1e-6f);
-    assert_int_equal(skin[0].bone[1], MIM_VEST_L_HAND);
-    assert_float_equal(skin[0].weight[1], 0.2f / 0.9f, 1e-6f);
-    assert_true(skin[0].weight[2] == 0.0f);
-    assert_int_equal(skin[1].bone[0], MIM_VEST_L_HAND);
+    assert_int_equal(mim_xfer_skin_from_dense(3, dense, B, fallback, skin), 1);
+    const uint8_t order[4] = {1, 4, 2, 5}; /* 0.4 0.3 0.2 0.15; 0.1 and 0.05 dropped */
+    for (int k = 0; k < 4; k++) {
+        assert_int_equal(skin[0].bone[k], order[k]);
+        assert_float_equal(skin[0].weight[k], dense[order[k]] / 1.05f, 1e-6f);
+    }
+    assert_int_equal(skin[1].bone[0], 3);
     assert_float_equal(skin[1].weight[0], 1.0f, 1e-6f);
+    assert_true(skin[1].weight[1] == 0.0f);
     assert_int_equal(skin[2].bone[0], MIM_VEST_HEAD); /* the fallback's */
-    /* a joint index past the rig's joints counts as unmapped */
-    const uint16_t bad[4] = {9, 0, 0, 0};
-    const float w1[4] = {1, 0, 0, 0};
-    assert_int_equal(mim_xfer_skin_from_weights(1, bad, w1, bone, 4, NULL, skin), 1);
+    assert_int_equal(mim_xfer_skin_from_dense(1, dense + 2 * B, B, NULL, skin), 1);
     assert_int_equal(skin[0].bone[0], 0);
+    assert_true(skin[0].weight[0] == 1.0f);
 }
 
 static void test_bad_inputs(void **state)
@@ -249,7 +247,7 @@ int main(void)
         cmocka_unit_test(test_weights),
         cmocka_unit_test(test_identity_and_rigid),
         cmocka_unit_test(test_twist),
-        cmocka_unit_test(test_from_rig_weights),
+        cmocka_unit_test(test_from_dense),
         cmocka_unit_test(test_bad_inputs),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

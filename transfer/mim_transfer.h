@@ -206,14 +206,12 @@ typedef struct mim_xfer_skin {
  * MIM_ENONFINITE (a bone end), MIM_ENOMEM. */
 int mim_xfer_skin_from_bones(const mim_xfer_topology_t *t, const float *positions, const double *bones,
                              uint32_t n_bones, uint32_t smoothing, mim_xfer_skin_t *skin, mim_error_t *err);
-/* Weights from a rig's own skin (a glTF's JOINTS_0 / WEIGHTS_0: 4 joints
- * and weights per vertex) whose joint j moves bone joint_bone[j] (-1:
- * none): a vertex's weights sum per bone. A vertex with no weight on a
- * mapped joint takes fallback's entry (may be NULL: bone 0). Returns how
- * many did. */
-uint32_t mim_xfer_skin_from_weights(uint32_t n_vertices, const uint16_t *joints, const float *weights,
-                                    const int *joint_bone, uint32_t n_joints, const mim_xfer_skin_t *fallback,
-                                    mim_xfer_skin_t *skin);
+/* Weights from dense per-bone weights (n_vertices x n_bones floats, >= 0,
+ * e.g. a rig's skin summed per segment): each vertex keeps its heaviest
+ * MIM_XFER_SKIN_INFLUENCES, normalised. A vertex with no weight takes
+ * fallback's entry (may be NULL: bone 0). Returns how many did. */
+uint32_t mim_xfer_skin_from_dense(uint32_t n_vertices, const float *w, uint32_t n_bones, const mim_xfer_skin_t *fallback,
+                                  mim_xfer_skin_t *skin);
 /* The blended rotation of one vertex from its segments' rotations (rot:
  * unit quaternions indexed by bone). */
 mim_quat mim_xfer_skin_rotation(const mim_xfer_skin_t *s, const mim_quat *rot);

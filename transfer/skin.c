@@ -78,7 +78,16 @@ int mim_xfer_skin_from_bones(const mim_xfer_topology_t *t, const float *position
         float *tmp = w;
         w = next, next = tmp;
     }
-    for (uint32_t i = 0; i < n; i++) {
+    mim_xfer_skin_from_dense(n, w, n_bones, NULL, skin); /* every row holds weight: no fallback needed */
+    free(w), free(next);
+    return 0;
+}
+
+uint32_t mim_xfer_skin_from_dense(uint32_t n_vertices, const float *w, uint32_t n_bones, const mim_xfer_skin_t *fallback,
+                                  mim_xfer_skin_t *skin)
+{
+    uint32_t fell_back = 0;
+    for (uint32_t i = 0; i < n_vertices; i++) {
         const float *wi = w + (size_t)i * n_bones;
         mim_xfer_skin_t *s = skin + i;
         memset(s, 0, sizeof *s);
@@ -92,46 +101,14 @@ int mim_xfer_skin_from_bones(const mim_xfer_topology_t *t, const float *position
         }
         float sum = 0;
         for (int k = 0; k < MIM_XFER_SKIN_INFLUENCES; k++) sum += s->weight[k];
-        for (int k = 0; k < MIM_XFER_SKIN_INFLUENCES; k++) s->weight[k] /= sum; /* sum >= the one-hot share > 0 */
-    }
-    free(w), free(next);
-    return 0;
-}
-
-uint32_t mim_xfer_skin_from_weights(uint32_t n_vertices, const uint16_t *joints, const float *weights,
-                                    const int *joint_bone, uint32_t n_joints, const mim_xfer_skin_t *fallback,
-                                    mim_xfer_skin_t *skin)
-{
-    uint32_t fell_back = 0;
-    for (uint32_t i = 0; i < n_vertices; i++) {
-        mim_xfer_skin_t *s = skin + i;
-        memset(s, 0, sizeof *s);
-        int used = 0;
-        for (int k = 0; k < 4; k++) { /* a rig's joints sum onto their segments */
-            uint16_t j = joints[4 * (size_t)i + k];
-            float w = weights[4 * (size_t)i + k];
-            if (j >= n_joints || !(w > 0) || joint_bone[j] < 0) continue;
-            int at = 0;
-            while (at < used && s->bone[at] != joint_bone[j]) at++;
-            if (at == used) s->bone[used++] = (uint8_t)joint_bone[j];
-            s->weight[at] += w;
-        }
-        float sum = 0;
-        for (int k = 0; k < used; k++) sum += s->weight[k];
-        if (!(sum > 0)) { /* only unmapped joints (hair, cloth): the geometry decides */
+        if (!(sum > 0)) { /* no weight here (a rig's unmapped joints only): the fallback's */
+            memset(s, 0, sizeof *s);
             if (fallback) *s = fallback[i];
             else s->weight[0] = 1; /* bone 0 */
             fell_back++;
             continue;
         }
-        for (int a = 1; a < used; a++) /* heaviest first */
-            for (int b = a; b > 0 && s->weight[b] > s->weight[b - 1]; b--) {
-                float w = s->weight[b];
-                uint8_t g = s->bone[b];
-                s->weight[b] = s->weight[b - 1], s->bone[b] = s->bone[b - 1];
-                s->weight[b - 1] = w, s->bone[b - 1] = g;
-            }
-        for (int k = 0; k < used; k++) s->weight[k] /= sum;
+        for (int k = 0; k < MIM_XFER_SKIN_INFLUENCES; k++) s->weight[k] /= sum;
     }
     return fell_back;
 }
