@@ -533,7 +533,7 @@ static void print_result(const char *title, const result_t *R, double rate)
 
 static const char usage[] =
     "usage: bench_serve [--clients N] [--seconds S] [--ref-seconds R] [--format f32|i16]\n"
-    "                   [--threads T] [--rate HZ] [--keep DIR]\n\n"
+    "                   [--threads T] [--rate HZ] [--drive auto|template|orientation] [--keep DIR]\n\n"
     "Load benchmark of mimic serve (issue 6): one simulated vest, N WebSocket clients on\n"
     "loopback. Makes a synth store (4 x 12 bodies) in a temp dir with the real mimic\n"
     "binary ($MIMIC_BIN, else the build's), starts `mimic vest simulate` on a pty and\n"
@@ -544,6 +544,7 @@ static const char usage[] =
     "  --format F       f32 (default) or i16 positions\n"
     "  --threads T      client threads (epoll loops), 1..16 (default 1)\n"
     "  --rate HZ        vest rate (default 60)\n"
+    "  --drive D        serve's --drive (default auto: the vest's segment orientations)\n"
     "  --keep DIR       work in DIR and keep it (default: a temp dir, removed)\n"
     "  -h, --help       this help\n";
 
@@ -582,11 +583,12 @@ int main(int argc, char **argv)
 {
     int clients = 50, threads = 1, c;
     double seconds = 60, ref_seconds = 10, rate = 60;
-    const char *keep = NULL;
+    const char *keep = NULL, *drive = "auto";
     static const struct option lo[] = {{"clients", required_argument, 0, 'c'}, {"seconds", required_argument, 0, 's'},
                                        {"ref-seconds", required_argument, 0, 'r'}, {"format", required_argument, 0, 'f'},
                                        {"threads", required_argument, 0, 't'}, {"rate", required_argument, 0, 'R'},
                                        {"keep", required_argument, 0, 'k'},    {"help", no_argument, 0, 'h'},
+                                       {"drive", required_argument, 0, 'd'},
                                        {0, 0, 0, 0}};
     while ((c = getopt_long(argc, argv, "h", lo, NULL)) != -1) {
         if (c == 'c') clients = atoi(optarg);
@@ -596,6 +598,7 @@ int main(int argc, char **argv)
         else if (c == 't') threads = atoi(optarg);
         else if (c == 'R') rate = g_rate = atof(optarg);
         else if (c == 'k') keep = optarg;
+        else if (c == 'd') drive = optarg;
         else if (c == 'h') return fputs(usage, stdout), 0;
         else return fputs(usage, stderr), 2;
     }
@@ -652,7 +655,7 @@ int main(int argc, char **argv)
     }
     char *a_serve[] = {"serve",  "--store",  store,    "--avatar",        "1",    "--vest",
                        serial,   "--vest-pose", "t",   "--listen",        "127.0.0.1:0", "--max-clients",
-                       maxc,     NULL};
+                       maxc,     "--drive", (char *)drive, NULL};
     if (sb_spawn(&g_serve, "serve", a_serve, 1) || sb_first_line(&g_serve, line, sizeof line, 30.0)) {
         fprintf(stderr, "bench_serve: mimic serve did not print its URL:\n");
         sb_print_log_tail(&g_serve);
