@@ -1,7 +1,9 @@
 /* mimic store: the store's own upkeep. `check` verifies every record
  * (mim_db_check; JSON: schemas/store-check.schema.json); `migrate` brings a
  * version-1 or version-2 store to the current schema version (what the
- * first read-write open does anyway), with progress. */
+ * first read-write open does anyway), with progress; `copy` makes a
+ * compacted snapshot of a live store (mim_db_copy; JSON:
+ * schemas/store-copy.schema.json), to ship it to replicas. */
 #include "args.h"
 #include "commands.h"
 #include "mim_db.h"
@@ -16,7 +18,8 @@
 static void help(FILE *out)
 {
     fprintf(out, "usage: mimic store check --store DIR [--json]\n"
-                 "       mimic store migrate --store DIR\n\n"
+                 "       mimic store migrate --store DIR\n"
+                 "       mimic store copy SRC DST [--json]\n\n"
                  "check    reads every record of the store and verifies it: each template, encoding,\n"
                  "         landmark map and index record decodes and passes its checksum, positions\n"
                  "         match their content hash, and the cross-references hold (each template's\n"
@@ -28,9 +31,13 @@ static void help(FILE *out)
                  "         records gain checksums; the registrations, by_source and bindings tables are\n"
                  "         added), in one transaction: all or nothing. Opening a store for writing\n"
                  "         (mimic ingest, mimic index) does the same; read-only commands read an older\n"
-                 "         store as it is.\n\n"
+                 "         store as it is.\n"
+                 "copy     a consistent snapshot of the store SRC, as one moment saw it, while other\n"
+                 "         processes keep writing to it, compacted (no free pages), into the new\n"
+                 "         directory DST: a store to ship to a replica. DST is made whole or not at all.\n\n"
                  "  --store DIR  the template store (or DIR as the argument after the subcommand)\n"
-                 "  --json       check: one JSON object on stdout (schemas/store-check.schema.json)\n"
+                 "  --json       check, copy: one JSON object on stdout (schemas/store-check.schema.json,\n"
+                 "               schemas/store-copy.schema.json)\n"
                  "  -h, --help   this help\n");
 }
 
@@ -144,6 +151,52 @@ static int migrate(const char *store)
     return 0;
 }
 
+static int copy(const char *src, const char *dst, int as_json)
+{
+    mim_error_t err = {0};
+    mim_db_t *db = NULL;
+    mim_db_options_t o = mim_cli_db_options(1);
+    int rc = mim_db_open(&db, src, &o, &err);
+    if (rc) {
+        fprintf(stderr, "mimic store copy: %s\n", mim_error_text(&err));
+        return 2;
+    }
+    mim_db_txn_t *t = NULL;
+    mim_db_meta_t meta = {0};
+    uint64_t bytes = 0;
+    mim_db_stat_t st = {0};
+    double t0 = mim_now();
+    rc = mim_db_stat(db, &st, &err);
+    if (!rc) rc = mim_db_copy(db, dst, &bytes, &err);
+    double seconds = mim_now() - t0;
+    if (!rc) { /* the copy's own count, read back from it */
+        mim_db_t *c = NULL;
+        rc = mim_db_open(&c, dst, &o, &err);
+        if (!rc) rc = mim_db_begin(c, 0, &t, &err);
+        if (!rc) rc = mim_db_meta_get(t, &meta, &err);
+        mim_db_abort(&t);
+        mim_db_close(&c);
+    }
+    mim_db_close(&db);
+    if (rc) {
+        fprintf(stderr, "mimic store copy: %s\n", mim_error_text(&err));
+        return 1;
+    }
+    if (as_json) {
+        json_t *root = json_pack("{s:s, s:s, s:I, s:I, s:I, s:f}", "source", src, "destination", dst, "templates",
+                                 (json_int_t)meta.templates, "bytes", (json_int_t)bytes, "source_bytes",
+                                 (json_int_t)st.file_bytes, "seconds", seconds);
+        char *text = root ? json_dumps(root, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
+        if (text) printf("%s\n", text);
+        free(text);
+        json_decref(root);
+    } else {
+        printf("store %s copied to %s: %llu templates, %.1f MiB (the source's file: %.1f MiB), %.2f s\n", src, dst,
+               (unsigned long long)meta.templates, (double)bytes / (1 << 20), (double)st.file_bytes / (1 << 20), seconds);
+    }
+    return 0;
+}
+
 int mim_cmd_store(int argc, char **argv)
 {
     if (argc < 2) {
@@ -152,8 +205,8 @@ int mim_cmd_store(int argc, char **argv)
     }
     const char *sub = argv[1];
     if (!strcmp(sub, "-h") || !strcmp(sub, "--help") || !strcmp(sub, "help")) return help(stdout), 0;
-    if (strcmp(sub, "check") && strcmp(sub, "migrate")) {
-        fprintf(stderr, "mimic store: unknown subcommand '%s' (check or migrate; see mimic store --help)\n", sub);
+    if (strcmp(sub, "check") && strcmp(sub, "migrate") && strcmp(sub, "copy")) {
+        fprintf(stderr, "mimic store: unknown subcommand '%s' (check, migrate or copy; see mimic store --help)\n", sub);
         return 2;
     }
     static const struct option longopts[] = {
@@ -172,6 +225,13 @@ int mim_cmd_store(int argc, char **argv)
                     argv[optind - 1]);
             return 2;
         }
+    }
+    if (!strcmp(sub, "copy")) {
+        if (store || optind + 2 != argc) {
+            fprintf(stderr, "mimic store copy: give SRC and DST (see mimic store --help)\n");
+            return 2;
+        }
+        return copy(argv[optind], argv[optind + 1], as_json);
     }
     if (optind < argc) {
         if (store || optind + 1 < argc) {

@@ -268,6 +268,16 @@ typedef struct mim_db_check_report {
  * it could not (no snapshot). */
 int mim_db_check(mim_db_t *db, const mim_db_check_options_t *opt, mim_db_check_report_t *out, mim_error_t *err);
 
+/* ---- a snapshot copy (copy.c) ---- */
+/* Copies the store as one read transaction sees it, while writers go on,
+ * compacted (LMDB's mdb_env_copy2 with MDB_CP_COMPACT), into the new
+ * directory dst, which must not exist. The copy is made in a temporary
+ * directory beside dst, flushed, and renamed to dst only when whole, so a
+ * failure leaves nothing at dst. *bytes (may be NULL) gets the copy's
+ * size. Errors: MIM_EINVAL (dst exists), -errno (the file system), an
+ * LMDB failure as -errno or MIM_ESTORE. */
+int mim_db_copy(mim_db_t *db, const char *dst, uint64_t *bytes, mim_error_t *err);
+
 #ifdef __cplusplus
 }
 #endif

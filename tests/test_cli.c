@@ -215,6 +215,8 @@ static void test_store_open_exit_status(void **s)
             {"ingest", "--store", st, "nothing-to-read", NULL},
             {"pairs", "templates", "--store", st, "--samples", "s.jsonl", "--avatar", "1", NULL},
             {"complete", "--store", st, "--landmarks", "x.json", NULL},
+            {"store", "check", "--store", st, NULL},
+            {"store", "copy", st, "copy-dst", NULL},
         };
         for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
             if (k == 1 && !strcmp(cases[c][0], "ingest"))

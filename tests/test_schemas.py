@@ -27,7 +27,8 @@ SCHEMAS = {s["$id"]: s for s in map(load, ["info.schema.json", "list.schema.json
                                             "serve-transfer-request.schema.json", "serve-error.schema.json",
                                             "store-check.schema.json", "pair-annotations.schema.json", "pair-cameras.schema.json",
                                             "pairs-coverage.schema.json", "complete.schema.json", "register.schema.json",
-                                            "pairs-templates.schema.json", "pairs-sample.schema.json"])}
+                                            "pairs-templates.schema.json", "pairs-sample.schema.json",
+                                            "store-copy.schema.json"])}
 
 
 def validator(schema_id):
@@ -168,8 +169,10 @@ def store_check_cases(d, store, data):
     if p.returncode != 1:
         raise RuntimeError(f"mimic store check on a damaged store exited {p.returncode}: {p.stderr.strip()}")
     found = json.loads(p.stdout)
+    copied = json.loads(run("store", "copy", store, os.path.join(d, "copied"), "--json"))
     return [("/mimic/schemas/store-check.schema.json", clean, "store check (clean)"),
-            ("/mimic/schemas/store-check.schema.json", found, "store check (a flipped byte)")]
+            ("/mimic/schemas/store-check.schema.json", found, "store check (a flipped byte)"),
+            ("/mimic/schemas/store-copy.schema.json", copied, "store copy")]
 
 
 def read_ply(path):
