@@ -171,20 +171,14 @@ int mim_cmd_morph(int argc, char **argv)
         mim_session_request_t req = {.template_id = keys[k],
                                      .landmarks = lm_path ? lmf.positions + (size_t)k * 3 * nl : NULL,
                                      .drive = (mim_session_drive_t)drive};
-        if (lmf.orientations) {
+        if (lmf.orientations) { /* a frame without any: none present, the template drive (auto) */
             req.orientations = (const mim_quat *)lmf.orientations + (size_t)k * MIM_SEGMENTS;
             req.orient_present = lmf.orient_present + (size_t)k * MIM_SEGMENTS;
-            int any = 0;
-            for (int g = 0; g < MIM_SEGMENTS; g++) any |= req.orient_present[g];
-            if (!any) req.orientations = NULL, req.orient_present = NULL; /* this frame has none */
-        }
-        if (drive == MIM_DRIVE_ORIENTATION && !req.orientations) {
-            rc = mim_error_set(&err, MIM_EFORMAT, "%s: frame %u: --drive orientation, but it has no orientations",
-                               lm_path, k);
-            break;
         }
         mim_session_report_t rep;
-        rc = mim_session_transfer(s, &req, x, &rep, &err);
+        mim_error_t kerr = {0};
+        if ((rc = mim_session_transfer(s, &req, x, &rep, &kerr)))
+            mim_error_set(&err, rc, "key %u (template %llu): %s", k, (unsigned long long)keys[k], mim_error_text(&kerr));
         if (!rc) {
             iterations += rep.xfer.iterations;
             oriented[k] = rep.drive == MIM_DRIVE_ORIENTATION;

@@ -321,6 +321,12 @@ int mim_cmd_pairs_sample(int argc, char **argv)
         goto done;
     }
     if (start_spec && (status = read_start(start_spec, &starts, &n_starts))) goto done;
+    if (n_starts > chains) {
+        fprintf(stderr, "mimic pairs sample: --start gives %u lines for %llu chains: one a chain at most\n", n_starts,
+                (unsigned long long)chains);
+        status = 2;
+        goto done;
+    }
     status = 1;
     if (mim_pairs_validity_learn(prior, n_prior, &validity, &err)) {
         fprintf(stderr, "mimic pairs sample: %s\n", mim_error_text(&err));

@@ -171,11 +171,13 @@ static int copy(const char *src, const char *dst, int as_json)
     double seconds = mim_now() - t0;
     if (!rc) { /* the copy's own count, read back from it */
         mim_db_t *c = NULL;
-        rc = mim_db_open(&c, dst, &o, &err);
-        if (!rc) rc = mim_db_begin(c, 0, &t, &err);
-        if (!rc) rc = mim_db_meta_get(t, &meta, &err);
+        mim_error_t rerr = {0};
+        rc = mim_db_open(&c, dst, &o, &rerr);
+        if (!rc) rc = mim_db_begin(c, 0, &t, &rerr);
+        if (!rc) rc = mim_db_meta_get(t, &meta, &rerr);
         mim_db_abort(&t);
         mim_db_close(&c);
+        if (rc) mim_error_set(&err, rc, "%s: the copy is there, but reading it back failed: %s", dst, mim_error_text(&rerr));
     }
     mim_db_close(&db);
     if (rc) {

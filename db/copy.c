@@ -67,7 +67,12 @@ int mim_db_copy(mim_db_t *db, const char *dst, uint64_t *bytes, mim_error_t *err
         return mim_error_set(err, rc, "%s: flushing the copy: %s", dst, strerror(-rc));
     }
     if (stat(data, &st) == 0 && bytes) *bytes = (uint64_t)st.st_size;
-    if (rename(tmp, dst) != 0) {
+    /* no replacing: dst may have appeared since the check (an empty
+     * directory would be replaced by rename) */
+    int moved = renameat2(AT_FDCWD, tmp, AT_FDCWD, dst, RENAME_NOREPLACE);
+    if (moved != 0 && errno == EINVAL) /* a file system without it: the check above stands */
+        moved = rename(tmp, dst);
+    if (moved != 0) {
         rc = -errno;
         remove_tmp(tmp);
         return mim_error_set(err, rc, "%s: cannot put the copy in place: %s", dst, strerror(-rc));

@@ -443,12 +443,7 @@ static void frame_done(mim__loop_t *l, uint64_t t)
         mim__metrics_add(&l->sv->m, MIM__C_SKIPPED, 1);
     mim_vest_fk(&l->rig, &l->st, t, 0, l->pending_xyz, l->pending_present);
     mim_vest_fresh(&l->st, t, 0, l->pending_have);
-    mim_vest_segment_rotations(&l->rig, l->st.q, l->pending_have, l->pending_R);
-    for (int g = 0; g < MIM_VEST_SEGMENTS; g++) { /* a reading that is no rotation (a zero quaternion) counts as lost */
-        const mim_quat q = l->pending_R[g];
-        if (!(fabs(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w - 1) < 1e-3))
-            l->pending_have[g] = 0, l->pending_R[g] = mim_quat_identity();
-    }
+    mim_vest_segment_rotations(&l->rig, l->st.q, l->pending_have, l->pending_R); /* the decoder took unit readings only */
     l->pending = 1, l->pending_t = t;
 }
 
@@ -604,6 +599,11 @@ int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t
     }
     if (!ok)
         rc = mim_error_set(err, MIM_ENOMEM, "out of memory for the vest loop");
+    const mim_error_t *why = NULL;
+    if (!rc && (opt->drive < MIM_DRIVE_AUTO || opt->drive > MIM_DRIVE_ORIENTATION))
+        rc = mim_error_set(err, MIM_EINVAL, "serve: unknown drive %d", opt->drive);
+    else if (!rc && opt->drive == MIM_DRIVE_ORIENTATION && !mim_session_skin(sv->s, &why, NULL))
+        rc = mim_error_set(err, why->code, "--drive orientation: %s", mim_error_text(why));
     if (l) {
         l->sv = sv;
         l->opt = *opt;

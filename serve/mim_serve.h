@@ -72,7 +72,9 @@ typedef struct mim_serve_options {
     /* What drives a key frame's frames (mim_session_drive_t): 0 auto (the
      * vest's segment orientations; the template when the avatar cannot be
      * segmented, or for UDP landmark frames without "orientations"), 1
-     * template, 2 orientation. */
+     * template, 2 orientation (refused at open, MIM_EINVAL or the reason,
+     * for an avatar that cannot be segmented; a UDP frame without
+     * orientations is then a vest error). Other values: MIM_EINVAL. */
     int drive;
     unsigned max_clients; /* WebSocket clients at once; 0: MIM_SERVE_DEFAULT_MAX_CLIENTS */
     /* Called on the loop thread for every published frame (may be NULL),

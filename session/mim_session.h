@@ -87,7 +87,8 @@ const mim_query_status_t *mim_session_index_status(const mim_session_t *s);
 double mim_session_factor_seconds(const mim_session_t *s); /* the factorisation's time */
 int mim_session_has_avatar(const mim_session_t *s); /* 1 after a successful mim_session_load_avatar */
 /* The avatar's segmentation (n entries), or NULL when it could not be
- * made; then *why (may be NULL) gets the reason. *from_rig (may be NULL):
+ * made (or before mim_session_load_avatar, with an empty reason); then
+ * *why (may be NULL) gets the reason. *from_rig (may be NULL):
  * 1 when the weights are the avatar's own skin's (a skinned glTF whose
  * joint names map to the segments), 0 when made from the geometry. */
 const mim_xfer_skin_t *mim_session_skin(const mim_session_t *s, const mim_error_t **why, int *from_rig);
@@ -175,10 +176,12 @@ typedef struct mim_session_oriented_key {
     const float *landmarks;
     uint64_t template_id;
 } mim_session_oriented_key_t;
-/* The in-between pose at t between two keys of the orientation drive: the
- * segment rotations slerped, the landmarks lerped, one solve (issue 17: no
- * template in between; b's names the pose). A segment counts as measured
- * when both keys measured it. Errors: mim_session_transfer's. */
+/* The in-between pose at t (0..1) between two keys of the orientation
+ * drive: the segment rotations slerped, the landmarks lerped, one solve
+ * (issue 17: no template in between; b's template names the pose, and with
+ * template_id 0 the index finds one). A segment counts as measured when
+ * both keys measured it. a, b, their R and landmarks, and out must not be
+ * NULL. Errors: mim_session_transfer's. */
 int mim_session_morph_oriented(mim_session_t *s, const mim_session_oriented_key_t *a,
                                const mim_session_oriented_key_t *b, double t, float *out, mim_error_t *err);
 

@@ -314,7 +314,7 @@ static void rig_weights(mim_session_t *s)
     mim_error_t e = {0};
     int rc = mim_io_read_skin(s->avatar, &rig, &e);
     if (rc) {
-        if (rc != MIM_ENOTFOUND && rc != MIM_EUNSUPPORTED)
+        if (rc != MIM_ENOTFOUND) /* no skin is no news; a broken one is */
             mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN, "%s; segmenting by the geometry instead",
                          mim_error_text(&e));
         return;
@@ -323,11 +323,23 @@ static void rig_weights(mim_session_t *s)
     const char **names = malloc(rig.n_joints * sizeof *names);
     int *bone = malloc(rig.n_joints * sizeof *bone);
     float *dense = calloc((size_t)n * G, sizeof *dense);
-    mim_xfer_skin_t *own = malloc((size_t)n * sizeof *own);
+    const uint32_t want = s->foreign ? s->own.n_vertices : n;
     uint32_t covered = 0;
-    if (names && bone && dense && own && rig.n_vertices == (s->foreign ? s->own.n_vertices : n)) {
+    if (!names || !bone || !dense) {
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN, "%s: out of memory for its skin: segmenting by the geometry",
+                     s->avatar);
+    } else if (rig.n_vertices != want) {
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN,
+                     "%s: its skin has %u vertices, the mesh %u: segmenting by the geometry", s->avatar, rig.n_vertices,
+                     want);
+    } else {
         for (uint32_t j = 0; j < rig.n_joints; j++) names[j] = rig.names[j];
         covered = mim_vest_segments_of_joints(names, rig.n_joints, bone);
+        if (covered < MIN_RIG_SEGMENTS)
+            mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN,
+                         "%s: its skin's joint names give %u of the 17 segments (at least %d needed): segmenting "
+                         "by the geometry",
+                         s->avatar, covered, MIN_RIG_SEGMENTS);
     }
     if (covered >= MIN_RIG_SEGMENTS) {
         /* a rig vertex's joints summed per segment, onto the proxy's corners it sits between */
@@ -348,19 +360,13 @@ static void rig_weights(mim_session_t *s)
                     dense[(size_t)corner[c] * G + g] += share[c] > 0 ? share[c] * rig.weights[4 * (size_t)a + k] : 0;
             }
         }
-        uint32_t by_geometry = mim_xfer_skin_from_dense(n, dense, G, s->skin, own);
-        memcpy(s->skin, own, (size_t)n * sizeof *own);
+        uint32_t by_geometry = mim_xfer_skin_from_dense(n, dense, G, s->skin, s->skin); /* in place */
         s->skin_from_rig = 1;
         mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_INFO,
                      "%s: segments from its skin (%u joints on %u of the 17 segments; %u vertices by geometry)",
                      s->avatar, rig.n_joints, covered, by_geometry);
-    } else if (names && bone && dense && own) {
-        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN,
-                     "%s: its skin's joint names give %u of the 17 segments (at least %d needed): segmenting "
-                     "by the geometry",
-                     s->avatar, covered, MIN_RIG_SEGMENTS);
     }
-    free(names), free(bone), free(dense), free(own);
+    free(names), free(bone), free(dense);
     mim_io_skin_free(&rig);
 }
 
@@ -559,6 +565,19 @@ static int nearest(mim_session_t *s, const float *u, mim_session_report_t *r, mi
     return 0;
 }
 
+/* Template id's positions and frames into s->tpos and s->tF, unless they
+ * hold them already (under s->lock). */
+static int cache_template(mim_session_t *s, uint64_t id, mim_error_t *err)
+{
+    if (s->cached_id == id)
+        return 0;
+    s->cached_id = 0;
+    int rc = mim_session_template(s, id, s->tpos, s->tF, s->cached_label, sizeof s->cached_label, err);
+    if (!rc)
+        s->cached_id = id;
+    return rc;
+}
+
 /* The orientation drive's frames into s->oF (under s->lock): lost
  * segments from their neighbours, and the vertices whose heaviest segment
  * has no rotation at all from the template's frames, which are loaded
@@ -581,13 +600,9 @@ static int orientation_frames(mim_session_t *s, const mim_session_request_t *req
         unfilled |= from[g] < 0;
     if (!unfilled)
         return 0;
-    if (s->cached_id != r->template_id) {
-        s->cached_id = 0;
-        int rc = mim_session_template(s, r->template_id, s->tpos, s->tF, s->cached_label, sizeof s->cached_label, err);
-        if (rc)
-            return rc;
-        s->cached_id = r->template_id;
-    }
+    int rc = cache_template(s, r->template_id, err);
+    if (rc)
+        return rc;
     for (uint32_t i = 0; i < n; i++)
         if (from[s->skin[i].bone[0]] < 0) {
             memcpy(s->oF + 9 * (size_t)i, s->tF + 9 * (size_t)i, 9 * sizeof *s->oF);
@@ -605,21 +620,29 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
         return mim_error_set(err, MIM_EINVAL, "%s: transfer: no avatar loaded", s->store);
     if (!req->template_id && !req->landmarks)
         return mim_error_set(err, MIM_EINVAL, "transfer: give a template, landmarks, or both");
-    if (req->drive == MIM_DRIVE_ORIENTATION && !req->orientations)
-        return mim_error_set(err, MIM_EINVAL, "transfer: the orientation drive needs orientations");
-    if (req->orientations && !req->landmarks && req->drive != MIM_DRIVE_TEMPLATE)
-        return mim_error_set(err, MIM_EINVAL, "transfer: orientations need landmarks (the solve holds them)");
+    if (req->drive < MIM_DRIVE_AUTO || req->drive > MIM_DRIVE_ORIENTATION)
+        return mim_error_set(err, MIM_EINVAL, "transfer: unknown drive %d", (int)req->drive);
+    int measured = 0; /* segments with an orientation */
+    for (int g = 0; req->orientations && g < MIM_VEST_SEGMENTS; g++)
+        measured += !req->orient_present || req->orient_present[g];
+    if (req->drive == MIM_DRIVE_ORIENTATION && !measured)
+        return mim_error_set(err, MIM_EINVAL, "transfer: the orientation drive needs orientations (none measured)");
     if (req->drive == MIM_DRIVE_ORIENTATION && !s->skin)
         return mim_error_set(err, s->skin_failed.code, "%s", mim_error_text(&s->skin_failed));
-    for (int g = 0; req->orientations && g < MIM_VEST_SEGMENTS; g++) {
-        const mim_quat q = req->orientations[g];
-        double norm = sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
-        if ((!req->orient_present || req->orient_present[g]) && !(fabs(norm - 1) <= MIM_ORIENT_UNIT_TOL))
-            return mim_error_set(err, isfinite(norm) ? MIM_EINVAL : MIM_ENONFINITE,
-                                 "transfer: orientation '%s' is not a unit quaternion (norm %.3g)", mim_segment_names[g], norm);
+    /* auto: orientations when some are measured and the avatar is segmented */
+    r->drive = measured && s->skin && req->drive != MIM_DRIVE_TEMPLATE ? MIM_DRIVE_ORIENTATION : MIM_DRIVE_TEMPLATE;
+    if (r->drive == MIM_DRIVE_ORIENTATION) {
+        if (!req->landmarks)
+            return mim_error_set(err, MIM_EINVAL, "transfer: orientations need landmarks (the solve holds them)");
+        for (int g = 0; g < MIM_VEST_SEGMENTS; g++) {
+            const mim_quat q = req->orientations[g];
+            double norm = sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
+            if ((!req->orient_present || req->orient_present[g]) && !(fabs(norm - 1) <= MIM_ORIENT_UNIT_TOL))
+                return mim_error_set(err, isfinite(norm) ? MIM_EINVAL : MIM_ENONFINITE,
+                                     "transfer: orientation '%s' is not a unit quaternion (norm %.3g)",
+                                     mim_segment_names[g], norm);
+        }
     }
-    r->drive = req->orientations && s->skin && req->drive != MIM_DRIVE_TEMPLATE ? MIM_DRIVE_ORIENTATION
-                                                                                 : MIM_DRIVE_TEMPLATE;
     double t0 = mim_now();
     int rc = 0;
     if (req->template_id)
@@ -637,22 +660,22 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
     if (r->drive == MIM_DRIVE_ORIENTATION) {
         rc = orientation_frames(s, req, r, err);
         frames = s->oF;
-        /* the label without reading the template's mesh (kept: a stream holds a pose) */
-        if (!rc && s->label_id != r->template_id) {
+        /* the label without reading the template's mesh unless it is cached
+         * (kept: a stream holds a pose) */
+        if (!rc && s->cached_id == r->template_id)
+            snprintf(r->label, sizeof r->label, "%s", s->cached_label);
+        else if (!rc && s->label_id != r->template_id) {
             s->label_id = 0;
             rc = mim_session_template(s, r->template_id, NULL, NULL, s->label, sizeof s->label, err);
             if (!rc)
                 s->label_id = r->template_id;
         }
-        if (!rc)
+        if (!rc && s->cached_id != r->template_id)
             snprintf(r->label, sizeof r->label, "%s", s->label);
         if (!rc)
             memcpy(u, req->landmarks, 3 * (size_t)nl * sizeof *u);
-    } else if (s->cached_id != r->template_id) {
-        s->cached_id = 0;
-        rc = mim_session_template(s, r->template_id, s->tpos, s->tF, s->cached_label, sizeof s->cached_label, err);
-        if (!rc)
-            s->cached_id = r->template_id;
+    } else {
+        rc = cache_template(s, r->template_id, err);
     }
     if (!rc && r->drive == MIM_DRIVE_TEMPLATE) {
         snprintf(r->label, sizeof r->label, "%s", s->cached_label);

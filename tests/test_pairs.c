@@ -595,6 +595,10 @@ static void test_sample_cli(void **s)
     snprintf(start, sizeof start, "%s:7,61", s1);
     const char *st12[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5", "--start", start, "-o", none, NULL};
     expect_fail(st12, 1, "has 60 samples, not 61");
+    snprintf(start, sizeof start, "%s:1,2,3", s1);
+    const char *st13[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5", "--chains", "2",
+                          "--start", start, "-o", none, NULL};
+    expect_fail(st13, 2, "--start gives 3 lines for 2 chains");
     /* annotations whose torsos all sit at one pixel: no view can be estimated */
     char *flat = ts_path(dir, "flat.json");
     text = ts_read_file(ann, &len);

@@ -674,6 +674,31 @@ static void test_orientations(void **s)
     assert_int_equal(ts_run_mimic(&o, &e, forced), 1);
     assert_non_null(strstr(e, "cannot be segmented for the orientation drive"));
     free(o), free(e);
+    /* serve refuses it at start, with the same reason */
+    const char *serve[] = {"serve", "--store", store2, "--avatar", "1", "--vest", rec, "--drive", "orientation",
+                           "--listen", "127.0.0.1:0", NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, serve), 1);
+    assert_non_null(strstr(e, "--drive orientation: template 1: the avatar cannot be segmented"));
+    free(o), free(e);
+    /* orientations all lost: nothing to drive by, the template drive (auto) */
+    text = ts_read_file(frame, NULL);
+    at = strstr(text, "\"orientations\":");
+    assert_non_null(at);
+    char *end = strchr(at, '}');
+    char *none_lost = ts_path(dir, "none-measured.json");
+    snprintf(buf, sizeof buf, "%.*s\"orientations\": {}%s", (int)(at - text), text, end + 1);
+    assert_int_equal(ts_write_file(none_lost, buf, strlen(buf)), 0);
+    free(text);
+    const char *empty[] = {"transfer", "--store", store, "--avatar", avatar, "--template", "2", "--landmarks", none_lost,
+                           "-o", outp, "--json", NULL};
+    rep = transfer_json(empty);
+    assert_string_equal(json_string_value(json_object_get(rep, "drive")), "template");
+    json_decref(rep);
+    const char *empty_forced[] = {"transfer", "--store", store, "--avatar", avatar, "--template", "2", "--landmarks",
+                                  none_lost, "--drive", "orientation", "-o", outp, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, empty_forced), 1);
+    assert_non_null(strstr(e, "the orientation drive needs orientations (none measured)"));
+    free(o), free(e), free(none_lost);
     mim_mesh_free(&b);
     free(avatar), free(lmap), free(exp), free(rec), free(frame), free(outp), free(lost), free(plain), free(bad);
     free(store2), free(map2);

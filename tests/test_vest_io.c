@@ -743,13 +743,14 @@ static void test_cli_record_replay(void **state)
     mim_vest_sim_t *sim = sim_of_motion(&m, 31, &sopt);
     const char *pargs[] = {"vest", "replay", rec, NULL};
     assert_int_equal(ts_run_mimic(&out, &err, pargs), 0);
-    uint64_t lines = 0, found = 0;
+    uint64_t lines = 0, found = 0, first = UINT64_MAX;
     for (char *line = out, *nl; line && *line; line = nl) {
         nl = strchr(line, '\n');
         if (nl) *nl++ = 0;
         unsigned long long t;
         assert_int_equal(sscanf(line, "{\"t\":%llu,", &t), 1);
         uint64_t k = (uint64_t)llround((double)t * 50 / 1e6);
+        if (k < first) first = k;
         mim_quat q[MIM_VEST_SEGMENTS];
         mim_vest_sim_orientations(sim, k, q, NULL, NULL);
         for (int s = 0; s < MIM_VEST_SEGMENTS; s++) {
@@ -764,7 +765,11 @@ static void test_cli_record_replay(void **state)
         }
         lines++;
     }
-    assert_true(lines >= mim_vest_sim_n_frames(sim) * 9 / 10);
+    /* what the simulator sent before the recorder opened the port (a late
+     * start on a busy machine) overflowed the pty and is gone, as from a
+     * real port; from the first frame recorded on, the frames are there */
+    assert_true(first < mim_vest_sim_n_frames(sim) / 2);
+    assert_true(lines >= (mim_vest_sim_n_frames(sim) - first) * 9 / 10);
     assert_true(found >= lines * MIM_VEST_SEGMENTS * 9 / 10);
     free(out), free(err);
 

@@ -207,16 +207,19 @@ typedef struct mim_xfer_skin {
 int mim_xfer_skin_from_bones(const mim_xfer_topology_t *t, const float *positions, const double *bones,
                              uint32_t n_bones, uint32_t smoothing, mim_xfer_skin_t *skin, mim_error_t *err);
 /* Weights from dense per-bone weights (n_vertices x n_bones floats, >= 0,
- * e.g. a rig's skin summed per segment): each vertex keeps its heaviest
- * MIM_XFER_SKIN_INFLUENCES, normalised. A vertex with no weight takes
- * fallback's entry (may be NULL: bone 0). Returns how many did. */
+ * e.g. a rig's skin summed per segment; bones past MIM_XFER_SKIN_MAX_BONES
+ * are not read): each vertex keeps its heaviest MIM_XFER_SKIN_INFLUENCES,
+ * normalised. A vertex with no weight takes fallback's entry (NULL: bone 0
+ * alone); fallback may be skin itself. Returns how many did. w and skin
+ * must not be NULL. */
 uint32_t mim_xfer_skin_from_dense(uint32_t n_vertices, const float *w, uint32_t n_bones, const mim_xfer_skin_t *fallback,
                                   mim_xfer_skin_t *skin);
 /* The blended rotation of one vertex from its segments' rotations (rot:
- * unit quaternions indexed by bone). */
+ * unit quaternions indexed by bone, one for every bone id the skin uses). */
 mim_quat mim_xfer_skin_rotation(const mim_xfer_skin_t *s, const mim_quat *rot);
 /* The frames (9 * n) of a pose: each vertex's rest frame (rest_frames,
- * mim_xfer_frames of the rest mesh) turned by its blended rotation.
+ * mim_xfer_frames of the rest mesh) turned by its blended rotation (rot as
+ * above; no argument may be NULL).
  * mim_xfer_transfer with these frames and one iteration is the
  * orientation-driven solve. */
 void mim_xfer_skin_frames(uint32_t n_vertices, const mim_xfer_skin_t *skin, const double *rest_frames,

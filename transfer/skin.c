@@ -86,12 +86,13 @@ int mim_xfer_skin_from_bones(const mim_xfer_topology_t *t, const float *position
 uint32_t mim_xfer_skin_from_dense(uint32_t n_vertices, const float *w, uint32_t n_bones, const mim_xfer_skin_t *fallback,
                                   mim_xfer_skin_t *skin)
 {
-    uint32_t fell_back = 0;
+    uint32_t fell_back = 0, used = n_bones < MIM_XFER_SKIN_MAX_BONES ? n_bones : MIM_XFER_SKIN_MAX_BONES;
     for (uint32_t i = 0; i < n_vertices; i++) {
         const float *wi = w + (size_t)i * n_bones;
-        mim_xfer_skin_t *s = skin + i;
+        mim_xfer_skin_t *s = skin + i, keep = {{0}, {1}};
+        if (fallback) keep = fallback[i]; /* read first: fallback may be skin itself */
         memset(s, 0, sizeof *s);
-        for (uint32_t b = 0; b < n_bones; b++) { /* insertion into the largest few */
+        for (uint32_t b = 0; b < used; b++) { /* insertion into the largest few */
             int k = MIM_XFER_SKIN_INFLUENCES;
             while (k > 0 && wi[b] > s->weight[k - 1]) k--;
             if (k == MIM_XFER_SKIN_INFLUENCES) continue;
@@ -101,10 +102,8 @@ uint32_t mim_xfer_skin_from_dense(uint32_t n_vertices, const float *w, uint32_t 
         }
         float sum = 0;
         for (int k = 0; k < MIM_XFER_SKIN_INFLUENCES; k++) sum += s->weight[k];
-        if (!(sum > 0)) { /* no weight here (a rig's unmapped joints only): the fallback's */
-            memset(s, 0, sizeof *s);
-            if (fallback) *s = fallback[i];
-            else s->weight[0] = 1; /* bone 0 */
+        if (!(sum > 0)) { /* no weight here (a rig's unmapped joints only): the fallback's, else bone 0 */
+            *s = keep;
             fell_back++;
             continue;
         }

@@ -121,7 +121,7 @@ void mim_vest_segment_rotations(const mim_vest_rig_t *rig, const mim_quat q[MIM_
  * fill), the pelvis the chest's. from[s] (may be NULL) gets the segment
  * whose reading it holds, or -1 when there was none (the pelvis and chest
  * both lost: the chest's subtree keeps what it has, identity where lost).
- * Returns the number of segments filled. */
+ * R and have must not be NULL. Returns the number of segments filled. */
 uint32_t mim_vest_rotations_fill(mim_quat R[MIM_VEST_SEGMENTS], const uint8_t have[MIM_VEST_SEGMENTS],
                                  int8_t from[MIM_VEST_SEGMENTS]);
 /* ---- live state and forward kinematics (kinematics.c) ---- */
