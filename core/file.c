@@ -54,9 +54,17 @@ int mim_file_read(const char *path, size_t max_bytes, char **text, size_t *len, 
     return 0;
 }
 
-/* fsync of the folder that holds path, so that a rename into it survives a
- * crash as well as the file's bytes do. */
-static int sync_folder(const char *path)
+int mim_file_sync(const char *path)
+{
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0)
+        return errno;
+    int e = fsync(fd) != 0 && errno != EINVAL ? errno : 0; /* some file systems cannot sync a folder */
+    close(fd);
+    return e;
+}
+
+int mim_file_sync_folder(const char *path)
 {
     const char *slash = strrchr(path, '/');
     char dir[4096];
@@ -68,12 +76,7 @@ static int sync_folder(const char *path)
         snprintf(dir, sizeof dir, "%.*s", (int)(slash - path), path);
     else
         return ENAMETOOLONG;
-    int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (fd < 0)
-        return errno;
-    int e = fsync(fd) != 0 && errno != EINVAL ? errno : 0; /* some file systems cannot sync a folder */
-    close(fd);
-    return e;
+    return mim_file_sync(dir);
 }
 
 int mim_file_write_atomic(const char *path, const mim_file_part_t *parts, size_t n_parts, mim_error_t *err)
@@ -117,7 +120,7 @@ int mim_file_write_atomic(const char *path, const mim_file_part_t *parts, size_t
         return mim_error_set(err, MIM_EIO, "%s: cannot write: %s", path, strerror(e));
     }
     free(tmp);
-    if ((e = sync_folder(path)) != 0)
+    if ((e = mim_file_sync_folder(path)) != 0)
         return mim_error_set(err, MIM_EIO, "%s: written, but its folder could not be synced: %s", path, strerror(e));
     return 0;
 }

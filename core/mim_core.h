@@ -87,6 +87,12 @@ typedef struct mim_file_part {
     size_t size;
 } mim_file_part_t;
 int mim_file_write_atomic(const char *path, const mim_file_part_t *parts, size_t n_parts, mim_error_t *err);
+/* fsync of path (a file, or a folder for the names in it), and of the
+ * folder that holds path (so that a rename into it survives a crash as
+ * the file's bytes do). 0 or an errno; a file system that cannot sync a
+ * folder counts as done. */
+int mim_file_sync(const char *path);
+int mim_file_sync_folder(const char *path);
 
 /* ---- landmark map: which vertex is each landmark, and the mirror table ----
  * File format (DESIGN.md, schemas/landmarks.schema.json):

@@ -17,16 +17,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-/* fsync of a path (a file, or a directory for the names in it). */
-static int sync_path(const char *path)
-{
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0) return -errno;
-    int rc = fsync(fd) ? -errno : 0;
-    close(fd);
-    return rc;
-}
-
 static void remove_tmp(const char *tmp)
 {
     char f[4200];
@@ -44,16 +34,12 @@ int mim_db_copy(mim_db_t *db, const char *dst, uint64_t *bytes, mim_error_t *err
     if (lstat(dst, &st) == 0)
         return mim_error_set(err, MIM_EINVAL, "%s: exists: a copy goes to a new directory", dst);
     if (errno != ENOENT) return mim_error_set(err, -errno, "%s: %s", dst, strerror(errno));
-    char parent[4096], tmp[4100];
-    if (snprintf(parent, sizeof parent, "%s", dst) >= 4000) /* room for the temporary suffix */
+    char name[4096], tmp[4100];
+    if (snprintf(name, sizeof name, "%s", dst) >= 4000) /* room for the temporary suffix */
         return mim_error_set(err, MIM_EINVAL, "store copy: destination path too long");
-    size_t len = strlen(parent);
-    while (len > 1 && parent[len - 1] == '/') parent[--len] = 0; /* "dst/" names dst */
-    char *slash = strrchr(parent, '/');
-    if (!slash) snprintf(parent, sizeof parent, ".");
-    else if (slash == parent) parent[1] = 0;
-    else *slash = 0;
-    snprintf(tmp, sizeof tmp, "%.*s.copy-XXXXXX", (int)len, dst);
+    size_t len = strlen(name);
+    while (len > 1 && name[len - 1] == '/') name[--len] = 0; /* "dst/" names dst */
+    snprintf(tmp, sizeof tmp, "%s.copy-XXXXXX", name);
     if (!mkdtemp(tmp)) return mim_error_set(err, -errno, "%s: cannot make the copy's directory: %s", dst, strerror(errno));
     int rc = mdb_env_copy2(db->env, tmp, MDB_CP_COMPACT);
     if (rc) {
@@ -62,9 +48,9 @@ int mim_db_copy(mim_db_t *db, const char *dst, uint64_t *bytes, mim_error_t *err
     }
     char data[4200];
     snprintf(data, sizeof data, "%.4100s/data.mdb", tmp);
-    if ((rc = sync_path(data)) || (rc = sync_path(tmp))) {
+    if ((rc = mim_file_sync(data)) || (rc = mim_file_sync(tmp))) {
         remove_tmp(tmp);
-        return mim_error_set(err, rc, "%s: flushing the copy: %s", dst, strerror(-rc));
+        return mim_error_set(err, -rc, "%s: flushing the copy: %s", dst, strerror(rc));
     }
     if (stat(data, &st) == 0 && bytes) *bytes = (uint64_t)st.st_size;
     /* no replacing: dst may have appeared since the check (an empty
@@ -77,6 +63,6 @@ int mim_db_copy(mim_db_t *db, const char *dst, uint64_t *bytes, mim_error_t *err
         remove_tmp(tmp);
         return mim_error_set(err, rc, "%s: cannot put the copy in place: %s", dst, strerror(-rc));
     }
-    sync_path(parent); /* the new name; the copy is whole either way */
+    mim_file_sync_folder(name); /* the new name; the copy is whole either way */
     return 0;
 }

@@ -40,17 +40,16 @@ typedef struct mim_io_skin {
  * a skin, else skins[0]. JOINTS_1/WEIGHTS_1 (influences past the fourth)
  * are ignored. Names longer than MIM_IO_SKIN_NAME_MAX - 1 bytes are cut
  * at a UTF-8 character boundary.
- * Returns 0; MIM_ENOTFOUND when the file has no skin (no JOINTS_0, no
- * WEIGHTS_0, or no skin: not an error for callers, who then segment by
- * geometry); mim_io_read_mesh's errors for a file whose mesh it cannot
+ * Returns 0; MIM_ENOTFOUND when the file has no skin (a format other
+ * than glTF/GLB, no JOINTS_0, no WEIGHTS_0, or no skin: not an error for
+ * callers, who then segment by geometry); mim_io_read_mesh's errors for a file whose mesh it cannot
  * read; MIM_EFORMAT for a malformed skin, with one line naming what: a
  * JOINTS_0 that is not VEC4 of unsigned byte/short, a WEIGHTS_0 not VEC4
  * of float or normalised unsigned byte/short, a count that differs from
  * POSITION's, a joint index >= n_joints, a negative or non-finite weight,
  * a skin joint that is not a valid node index, a skin without joints;
  * MIM_ETRUNCATED for skin data past the end of its buffer;
- * MIM_EUNSUPPORTED for a sparse skin accessor or a format other than
- * glTF/GLB; MIM_ENOMEM. On failure *out is zeroed. Safe to call from many
+ * MIM_EUNSUPPORTED for a sparse skin accessor; MIM_ENOMEM. On failure *out is zeroed. Safe to call from many
  * threads. Free with mim_io_skin_free. */
 int mim_io_read_skin(const char *path, mim_io_skin_t *out, mim_error_t *err);
 void mim_io_skin_free(mim_io_skin_t *s); /* accepts NULL; zeroes */

@@ -178,7 +178,7 @@ int mim_io_read_skin(const char *path, mim_io_skin_t *out, mim_error_t *err)
     memset(out, 0, sizeof *out);
     int fmt = mim__format_of(path);
     if (fmt != FMT_GLTF && fmt != FMT_GLB)
-        return mim_error_set(err, MIM_EUNSUPPORTED, "%s: no skin: skins are read from glTF and GLB files only (.gltf, .glb)",
+        return mim_error_set(err, MIM_ENOTFOUND, "%s: no skin: skins are read from glTF and GLB files only (.gltf, .glb)",
                              path);
     mim__raw_skin_t skin;
     memset(&skin, 0, sizeof skin);

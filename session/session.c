@@ -16,7 +16,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
 struct mim_session {
     mim_db_t *db;
@@ -307,14 +306,11 @@ static int load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err)
 #define MIN_RIG_SEGMENTS 12
 static void rig_weights(mim_session_t *s)
 {
-    const char *dot = strrchr(s->avatar, '.');
-    if (!dot || (strcasecmp(dot, ".glb") && strcasecmp(dot, ".gltf")))
-        return;
     mim_io_skin_t rig = {0};
     mim_error_t e = {0};
     int rc = mim_io_read_skin(s->avatar, &rig, &e);
     if (rc) {
-        if (rc != MIM_ENOTFOUND) /* no skin is no news; a broken one is */
+        if (rc != MIM_ENOTFOUND) /* no skin (a PLY, a template id) is no news; a broken one is */
             mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN, "%s; segmenting by the geometry instead",
                          mim_error_text(&e));
         return;

@@ -448,6 +448,47 @@ static int body_frame_orient(char *msg, size_t size, uint64_t t_us, int lose, in
     return len;
 }
 
+/* A UDP socket to the vest port up on loopback, into *to. */
+static int udp_to(int up, struct sockaddr_in *to)
+{
+    int sock = socket(AF_INET, SOCK_DGRAM, 0);
+    assert_true(sock >= 0);
+    *to = (struct sockaddr_in){.sin_family = AF_INET, .sin_port = htons((uint16_t)up)};
+    to->sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    return sock;
+}
+
+/* Streams a stored body's frames (lose: 3 landmarks lost; orient: with
+ * segment orientations) at about 60 Hz to the service's UDP vest port up
+ * until done(status) holds, checked about twice a second; returns that
+ * status. Fails after 30 s, saying what was awaited. */
+static json_t *stream_until(const ss_svc_t *U, int up, int lose, int orient, int (*done)(json_t *st), const char *what)
+{
+    struct sockaddr_in to;
+    int sock = udp_to(up, &to);
+    char msg[8192];
+    json_t *st = NULL;
+    double end = ss_now_s() + 30;
+    for (int k = 0;; k++) {
+        int len = body_frame_orient(msg, sizeof msg, (uint64_t)k * 16667, lose, orient);
+        assert_true(sendto(sock, msg, (size_t)len, 0, (struct sockaddr *)&to, sizeof to) == len);
+        ss_sleep_ms(16);
+        if (k % 30 == 29) {
+            json_decref(st);
+            st = ss_get_status(U->port);
+            if (done(st)) break;
+            if (ss_now_s() > end) fail_msg("%s: %s", what, json_dumps(st, 0));
+        }
+    }
+    close(sock);
+    return st;
+}
+
+static int completed_enough(json_t *st)
+{
+    return ss_status_int(st, NULL, "frames") > 20 && ss_status_int(st, "vest", "completed_landmarks") >= 60;
+}
+
 /* A UDP sender whose frames lose 3 landmarks from the very first one: with
  * landmarks only held at their last position the loop would never have
  * them all and publish nothing; completed by retrieval, frames flow, and
@@ -458,24 +499,7 @@ static void test_lost_landmarks_completed(void **state)
     ss_svc_t U = {0};
     char spec[64];
     int up = serve_on_udp(&U, "c", spec, sizeof spec);
-    char msg[4096];
-    int len = body_frame(msg, sizeof msg, 0, 1);
-    int sock = socket(AF_INET, SOCK_DGRAM, 0);
-    struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons((uint16_t)up)};
-    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    json_t *st = NULL;
-    double end = ss_now_s() + 30;
-    for (int k = 0;; k++) {
-        assert_true(sendto(sock, msg, (size_t)len, 0, (struct sockaddr *)&to, sizeof to) == len);
-        ss_sleep_ms(16);
-        if (k % 30 == 29) {
-            json_decref(st);
-            st = ss_get_status(U.port);
-            if (ss_status_int(st, NULL, "frames") > 20 && ss_status_int(st, "vest", "completed_landmarks") >= 60) break;
-            if (ss_now_s() > end) fail_msg("no frames from a vest that lost 3 landmarks: %s", json_dumps(st, 0));
-        }
-    }
-    close(sock);
+    json_t *st = stream_until(&U, up, 1, 0, completed_enough, "no frames from a vest that lost 3 landmarks");
     print_message("lost landmarks: %lld frames, %lld landmarks completed\n", (long long)ss_status_int(st, NULL, "frames"),
                   (long long)ss_status_int(st, "vest", "completed_landmarks"));
     assert_int_equal(ss_status_int(st, "vest", "oriented_keys"), 0); /* landmark datagrams alone: the template drive */
@@ -495,9 +519,8 @@ static void test_lost_landmarks_held_first(void **state)
     ss_svc_t U = {0};
     char spec[64];
     int up = serve_on_udp(&U, "h", spec, sizeof spec);
-    int sock = socket(AF_INET, SOCK_DGRAM, 0);
-    struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons((uint16_t)up)};
-    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    struct sockaddr_in to;
+    int sock = udp_to(up, &to);
     const uint64_t period = 16667; /* 60 Hz */
     char msg[4096];
     /* 30 whole frames, then 50 that lose 3 landmarks (0.83 s), then 60 more (to 1.83 s) */
@@ -526,6 +549,11 @@ static void test_lost_landmarks_held_first(void **state)
     ss_svc_free(&U);
 }
 
+static int oriented_enough(json_t *st)
+{
+    return ss_status_int(st, "vest", "oriented_keys") >= 5;
+}
+
 /* UDP datagrams that carry segment orientations: the loop's key frames
  * take the orientation drive (issue 17), one solve each. */
 static void test_udp_orientations(void **state)
@@ -534,24 +562,7 @@ static void test_udp_orientations(void **state)
     ss_svc_t U = {0};
     char spec[64];
     int up = serve_on_udp(&U, "o", spec, sizeof spec);
-    char msg[8192];
-    int sock = socket(AF_INET, SOCK_DGRAM, 0);
-    struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons((uint16_t)up)};
-    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    json_t *st = NULL;
-    double end = ss_now_s() + 30;
-    for (int k = 0;; k++) {
-        int len = body_frame_orient(msg, sizeof msg, (uint64_t)k * 16667, 0, 1);
-        assert_true(sendto(sock, msg, (size_t)len, 0, (struct sockaddr *)&to, sizeof to) == len);
-        ss_sleep_ms(16);
-        if (k % 30 == 29) {
-            json_decref(st);
-            st = ss_get_status(U.port);
-            if (ss_status_int(st, "vest", "oriented_keys") >= 5) break;
-            if (ss_now_s() > end) fail_msg("no oriented key frames from orientation datagrams: %s", json_dumps(st, 0));
-        }
-    }
-    close(sock);
+    json_t *st = stream_until(&U, up, 0, 1, oriented_enough, "no oriented key frames from orientation datagrams");
     /* every key frame one solve: none went the template's iterated way (read under one lock) */
     assert_true(json_number_value(json_object_get(json_object_get(st, "vest"), "iterations_per_key")) == 1.0);
     json_decref(st);

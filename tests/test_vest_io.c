@@ -18,13 +18,6 @@
 
 extern char **environ;
 
-/* The angle between two orientations, in degrees. */
-static double angle_deg(mim_quat a, mim_quat b)
-{
-    mim_quat d = mim_quat_mul(a, (mim_quat){-b.x, -b.y, -b.z, b.w});
-    return 2 * atan2(sqrt(d.x * d.x + d.y * d.y + d.z * d.z), fabs(d.w)) * 180 / M_PI;
-}
-
 /* The rig `mimic vest ... --avatar synth --pose P` builds (subject 0 of a
  * one-subject synth at its default size; vs_avatar_make's body differs). */
 static void cli_synth_rig(mim_vest_rig_t *rig, int pose)
@@ -45,25 +38,6 @@ static void cli_synth_rig(mim_vest_rig_t *rig, int pose)
     mim_mesh_free(&mesh);
     mim_synth_destroy(&s);
     free(sk);
-}
-
-/* One vest landmark line read as a landmark frame (what `mimic transfer
- * --landmarks` does): its 17 orientations into R and have; returns 1 when
- * the line has them. */
-static int line_orientations(const char *line, mim_quat R[MIM_SEGMENTS], uint8_t have[MIM_SEGMENTS])
-{
-    mim_landmark_frames_t f;
-    mim_error_t err = {0};
-    int rc = mim_landmark_frames_parse(line, strlen(line), "line", 16, 16, &f, &err);
-    if (rc) fail_msg("%s", err.msg);
-    int has = f.orientations != NULL;
-    for (int s = 0; s < MIM_SEGMENTS && has; s++) {
-        const double *q = f.orientations + 4 * s;
-        R[s] = (mim_quat){q[0], q[1], q[2], q[3]};
-        have[s] = f.orient_present[s];
-    }
-    mim_landmark_frames_free(&f);
-    return has;
 }
 
 /* ------------------------------------------------------------ through a pty */
@@ -517,7 +491,7 @@ static void test_udp(void **state)
         mim_vest_segment_rotations(&a.rig, q, have, Rw);
         for (int g = 0; g < MIM_SEGMENTS; g++) {
             assert_int_equal(hr[g], have[g]);
-            if (have[g]) max_err = fmax(max_err, angle_deg(R[g], Rw[g]) * M_PI / 180);
+            if (have[g]) max_err = fmax(max_err, vs_angle_deg(R[g], Rw[g]) * M_PI / 180);
         }
         frames++;
     }
@@ -534,55 +508,6 @@ static void test_udp(void **state)
 /* The one writer of landmark lines, read back by both readers (the UDP
  * datagram's and the landmark frames'): orientations to 1e-6, null for a
  * lost sensor, keys in segment order. */
-static void test_udp_orientations_round_trip(void **state)
-{
-    (void)state;
-    vs_avatar_t a;
-    vs_avatar_make(&a, MIM_VEST_POSE_REST);
-    float xyz[3 * MIM_LANDMARKS_MAX], g[3 * MIM_LANDMARKS_MAX];
-    uint8_t present[MIM_LANDMARKS_MAX], pg[MIM_LANDMARKS_MAX];
-    for (int round = 0; round < 50; round++) {
-        mim_quat q[MIM_SEGMENTS], R[MIM_SEGMENTS], got[MIM_SEGMENTS];
-        uint8_t have[MIM_SEGMENTS], hg[MIM_SEGMENTS];
-        for (int s = 0; s < MIM_SEGMENTS; s++) {
-            float f[4];
-            vs_rand_quat(f);
-            q[s] = (mim_quat){f[0], f[1], f[2], f[3]};
-            have[s] = vs_rnd() % 5 != 0;
-        }
-        have[MIM_VEST_PELVIS] = 1; /* the landmarks must stay a body */
-        mim_vest_fk_orient(&a.rig, q, NULL, xyz, present);
-        mim_vest_segment_rotations(&a.rig, q, have, R);
-        char *js = mim_vest_udp_format_orient(1000u * (uint64_t)round, xyz, present, a.rig.n_landmarks, R, have);
-        assert_non_null(js);
-        assert_non_null(strstr(js, "\"orientations\":{\"pelvis\":["));
-        assert_true(strstr(js, "\"l_foot\":") < strstr(js, "\"r_foot\":"));
-        uint64_t t;
-        uint32_t n;
-        int has = 0;
-        mim_error_t err = {0};
-        assert_int_equal(mim_vest_udp_parse_orient(js, strlen(js), &t, g, pg, MIM_LANDMARKS_MAX, &n, got, hg, &has, &err), 0);
-        assert_true(has == 1 && n == a.rig.n_landmarks && t == 1000u * (uint64_t)round);
-        for (int s = 0; s < MIM_SEGMENTS; s++) {
-            assert_int_equal(hg[s], have[s]);
-            if (!have[s]) {
-                assert_true(got[s].w == 1 && got[s].x == 0);
-                continue;
-            }
-            assert_true(fabs(got[s].x - R[s].x) < 1e-6 && fabs(got[s].y - R[s].y) < 1e-6 &&
-                        fabs(got[s].z - R[s].z) < 1e-6 && fabs(got[s].w - R[s].w) < 1e-6);
-        }
-        mim_quat lf[MIM_SEGMENTS];
-        uint8_t hl[MIM_SEGMENTS];
-        assert_int_equal(line_orientations(js, lf, hl), 1);
-        assert_memory_equal(hl, have, sizeof hl);
-        for (int s = 0; s < MIM_SEGMENTS; s++)
-            if (have[s]) assert_true(angle_deg(lf[s], R[s]) < 1e-4);
-        free(js);
-    }
-    vs_avatar_free(&a);
-}
-
 /* ------------------------------------------------------------ recordings */
 
 static void test_record_replay_library(void **state)
@@ -787,12 +712,7 @@ static void test_cli_record_replay(void **state)
         nl = strchr(line, '\n');
         if (nl) *nl++ = 0;
         unsigned long long t;
-        assert_int_equal(sscanf(line, "{\"t\":%llu,", &t), 1);
-        char key[64];
-        snprintf(key, sizeof key, "{\"t\":%llu,", t);
-        char *w = strstr(want, key);
-        assert_non_null(w);
-        char *wl = strndup(w, strcspn(w, "\n"));
+        char *wl = vs_expected_line(want, line, &t);
         float g[48], e[48];
         uint8_t pg[16], pe[16];
         uint64_t tu;
@@ -805,16 +725,16 @@ static void test_cli_record_replay(void **state)
          * orientations of the simulator's truth on this rig */
         mim_quat Rg[MIM_SEGMENTS], Re[MIM_SEGMENTS], q[MIM_SEGMENTS], Rt[MIM_SEGMENTS];
         uint8_t hg[MIM_SEGMENTS], he[MIM_SEGMENTS], have[MIM_SEGMENTS];
-        assert_int_equal(line_orientations(line, Rg, hg), 1);
-        assert_int_equal(line_orientations(wl, Re, he), 1);
+        assert_int_equal(vs_line_orientations(line, Rg, hg), 1);
+        assert_int_equal(vs_line_orientations(wl, Re, he), 1);
         mim_vest_sim_orientations(sim, (uint64_t)llround((double)t * 50 / 1e6), q, have, NULL);
         mim_vest_segment_rotations(&rig, q, have, Rt);
         for (int s = 0; s < MIM_SEGMENTS; s++) {
             assert_int_equal(he[s], have[s]);
             assert_int_equal(hg[s], have[s]);
             if (!have[s]) continue;
-            max_deg = fmax(max_deg, angle_deg(Rg[s], Re[s]));
-            max_truth_deg = fmax(max_truth_deg, angle_deg(Re[s], Rt[s]));
+            max_deg = fmax(max_deg, vs_angle_deg(Rg[s], Re[s]));
+            max_truth_deg = fmax(max_truth_deg, vs_angle_deg(Re[s], Rt[s]));
         }
         free(wl);
         matched++;
@@ -830,84 +750,6 @@ static void test_cli_record_replay(void **state)
     free(bvh), free(rec), free(exp), free(dir);
 }
 
-/* mimic vest simulate --faults orient-noise / drift: the recording carries
- * the noisy orientations, replay gives them, --expected keeps the truth;
- * bad values get one line. */
-static void test_cli_orient_faults(void **state)
-{
-    (void)state;
-    char *dir = ts_tempdir("vest-orient");
-    char *bvh = vs_write_bvh(dir, 31), *rec = ts_path(dir, "n.vest"), *exp = ts_path(dir, "n.jsonl");
-    char *out = NULL, *err = NULL;
-    /* mean angle between replay and --expected per segment, and per time */
-    for (int kind = 0; kind < 3; kind++) {
-        const char *faults = kind == 0 ? "orient-noise=5" : kind == 1 ? "drift=600" : "drop=0";
-        const char *sargs[] = {"vest", "simulate", "--motion", bvh, "--rate", "50", "--out", rec, "--pose", "t",
-                               "--expected", exp, "--faults", faults, "--seed", "7", NULL};
-        int rc = ts_run_mimic(&out, &err, sargs);
-        if (rc) fail_msg("simulate: %s", err);
-        free(out), free(err);
-        const char *rargs[] = {"vest", "replay", rec, "--avatar", "synth", "--pose", "t", NULL};
-        assert_int_equal(ts_run_mimic(&out, &err, rargs), 0);
-        char *want = ts_read_file(exp, NULL);
-        double sum = 0, first = -1, last = 0, t_last = 0;
-        size_t n = 0, lines = 0;
-        for (char *line = out, *nl; line && *line; line = nl) {
-            nl = strchr(line, '\n');
-            if (nl) *nl++ = 0;
-            unsigned long long t;
-            assert_int_equal(sscanf(line, "{\"t\":%llu,", &t), 1);
-            char key[64];
-            snprintf(key, sizeof key, "{\"t\":%llu,", t);
-            char *w = strstr(want, key);
-            assert_non_null(w);
-            char *wl = strndup(w, strcspn(w, "\n"));
-            mim_quat Rg[MIM_SEGMENTS], Re[MIM_SEGMENTS];
-            uint8_t hg[MIM_SEGMENTS], he[MIM_SEGMENTS];
-            assert_int_equal(line_orientations(line, Rg, hg), 1);
-            assert_int_equal(line_orientations(wl, Re, he), 1);
-            double frame = 0;
-            int m = 0;
-            for (int s = 0; s < MIM_SEGMENTS; s++)
-                if (hg[s] && he[s]) frame += angle_deg(Rg[s], Re[s]), m++;
-            assert_true(m > 0);
-            sum += frame, n += (size_t)m, frame /= m;
-            if (first < 0) first = frame;
-            last = frame, t_last = (double)t / 1e6;
-            lines++;
-            free(wl);
-        }
-        assert_true(lines > 25);
-        double mean = sum / (double)n;
-        if (kind == 0) {
-            assert_true(mean > 2 && mean < 10);
-        } else if (kind == 1) { /* 600 degrees a minute over the motion's 1 s: 0 to 10, 5 on average */
-            assert_true(first < 0.01);
-            assert_true(t_last > 0.9 && fabs(last - 10 * t_last) < 0.01);
-            assert_true(mean > 4 && mean < 6);
-        } else {
-            assert_true(mean < 1e-3);
-        }
-        free(want), free(out), free(err);
-    }
-    const char *bad1[] = {"vest", "simulate", "--motion", bvh, "--out", rec, "--faults", "orient-noise=-2", NULL};
-    assert_int_equal(ts_run_mimic(&out, &err, bad1), 2);
-    assert_non_null(strstr(err, "orient-noise '-2'"));
-    free(out), free(err);
-    const char *bad2[] = {"vest", "simulate", "--motion", bvh, "--out", rec, "--faults", "twist=3", NULL};
-    assert_int_equal(ts_run_mimic(&out, &err, bad2), 2);
-    assert_non_null(strstr(err, "mimic vest simulate: --faults 'twist=3' is not a list of drop=P, corrupt=P, "
-                                "disconnect=T, down=S, orient-noise=DEG, drift=DEG_PER_MIN"));
-    free(out), free(err);
-    const char *help[] = {"vest", "simulate", "--help", NULL};
-    assert_int_equal(ts_run_mimic(&out, &err, help), 0);
-    assert_non_null(strstr(out, "orient-noise=DEG"));
-    assert_non_null(strstr(out, "drift=DEG_PER_MIN"));
-    free(out), free(err);
-    ts_rmtree(dir);
-    free(bvh), free(rec), free(exp), free(dir);
-}
-
 int main(void)
 {
     signal(SIGPIPE, SIG_IGN);
@@ -917,11 +759,9 @@ int main(void)
         cmocka_unit_test(test_serial_errors),
         cmocka_unit_test(test_hid_layer),
         cmocka_unit_test(test_udp),
-        cmocka_unit_test(test_udp_orientations_round_trip),
         cmocka_unit_test(test_record_replay_library),
         cmocka_unit_test(test_cli_list),
         cmocka_unit_test(test_cli_record_replay),
-        cmocka_unit_test(test_cli_orient_faults),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -181,3 +181,38 @@ void vs_assert_frames_equal(const mim_vest_frame_t *a, const mim_vest_frame_t *b
     if (check_t) assert_true(a->t_us == b->t_us);
 }
 
+/* The angle between two orientations, in degrees. */
+double vs_angle_deg(mim_quat a, mim_quat b)
+{
+    mim_quat d = mim_quat_mul(a, (mim_quat){-b.x, -b.y, -b.z, b.w});
+    return 2 * atan2(sqrt(d.x * d.x + d.y * d.y + d.z * d.z), fabs(d.w)) * 180 / M_PI;
+}
+
+/* One vest landmark line read as a landmark frame (what `mimic transfer
+ * --landmarks` does): its 17 orientations into R and have; returns 1 when
+ * the line has them. */
+int vs_line_orientations(const char *line, mim_quat R[MIM_SEGMENTS], uint8_t have[MIM_SEGMENTS])
+{
+    mim_landmark_frames_t f;
+    mim_error_t err = {0};
+    int rc = mim_landmark_frames_parse(line, strlen(line), "line", 16, 16, &f, &err);
+    if (rc) fail_msg("%s", err.msg);
+    int has = f.orientations != NULL;
+    for (int s = 0; s < MIM_SEGMENTS && has; s++) {
+        const double *q = f.orientations + 4 * s;
+        R[s] = (mim_quat){q[0], q[1], q[2], q[3]};
+        have[s] = f.orient_present[s];
+    }
+    mim_landmark_frames_free(&f);
+    return has;
+}
+
+char *vs_expected_line(const char *want, const char *line, unsigned long long *t)
+{
+    assert_int_equal(sscanf(line, "{\"t\":%llu,", t), 1);
+    char key[64];
+    snprintf(key, sizeof key, "{\"t\":%llu,", *t);
+    const char *w = strstr(want, key);
+    assert_non_null(w);
+    return strndup(w, strcspn(w, "\n"));
+}

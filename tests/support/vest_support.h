@@ -56,4 +56,14 @@ void vs_make_stream(vs_stream_t *s, uint32_t f, int packets, int garbage);
 
 void vs_assert_frames_equal(const mim_vest_frame_t *a, const mim_vest_frame_t *b, int check_t);
 
+/* The angle between two orientations, in degrees. */
+double vs_angle_deg(mim_quat a, mim_quat b);
+/* One vest landmark line read as a landmark frame (what `mimic transfer
+ * --landmarks` does): its 17 orientations into R and have; returns 1 when
+ * the line has them (fails the test when the line is no frame). */
+int vs_line_orientations(const char *line, mim_quat R[MIM_SEGMENTS], uint8_t have[MIM_SEGMENTS]);
+/* The line of want (a file of vest lines) with line's time stamp, malloc'd
+ * (fails the test when there is none); *t gets the time stamp. */
+char *vs_expected_line(const char *want, const char *line, unsigned long long *t);
+
 #endif
