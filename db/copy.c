@@ -39,7 +39,7 @@ int mim_db_copy(mim_db_t *db, const char *dst, uint64_t *bytes, mim_error_t *err
         return mim_error_set(err, MIM_EINVAL, "store copy: destination path too long");
     size_t len = strlen(name);
     while (len > 1 && name[len - 1] == '/') name[--len] = 0; /* "dst/" names dst */
-    snprintf(tmp, sizeof tmp, "%s.copy-XXXXXX", name);
+    snprintf(tmp, sizeof tmp, "%.4000s.copy-XXXXXX", name); /* name is shorter, checked above */
     if (!mkdtemp(tmp)) return mim_error_set(err, -errno, "%s: cannot make the copy's directory: %s", dst, strerror(errno));
     int rc = mdb_env_copy2(db->env, tmp, MDB_CP_COMPACT);
     if (rc) {
