@@ -17,7 +17,7 @@ PACKAGES=(
   libsuitesparse-dev libopenblas-dev libflann-dev libsvm-dev
   libhidapi-dev libwebsockets-dev libxxhash-dev
   liblapacke-dev libssl-dev libqhull-dev libode-dev
-  python3-jsonschema
+  python3-jsonschema haproxy
 )
 
 install_deps() {

@@ -162,6 +162,18 @@ void bench_dataset_free(bench_dataset_t *d)
     memset(d, 0, sizeof *d);
 }
 
+const char *const bench_region_names[BENCH_REGIONS] = {"head", "hands", "feet", "torso", "limbs"};
+
+int bench_region_of_segment(uint32_t segment)
+{
+    static const uint8_t region[MIM_SEGMENTS] = {
+        BENCH_REGION_TORSO, BENCH_REGION_TORSO, BENCH_REGION_HEAD,  BENCH_REGION_TORSO, BENCH_REGION_TORSO,
+        BENCH_REGION_LIMBS, BENCH_REGION_LIMBS, BENCH_REGION_LIMBS, BENCH_REGION_LIMBS, BENCH_REGION_HANDS,
+        BENCH_REGION_HANDS, BENCH_REGION_LIMBS, BENCH_REGION_LIMBS, BENCH_REGION_LIMBS, BENCH_REGION_LIMBS,
+        BENCH_REGION_FEET,  BENCH_REGION_FEET};
+    return segment < MIM_SEGMENTS ? region[segment] : BENCH_REGION_LIMBS;
+}
+
 const char *bench_mh_dir(char *buf, size_t size)
 {
     const char *env = getenv("MIMIC_SHARED_DATA");

@@ -44,6 +44,13 @@ void bench_dataset_free(bench_dataset_t *d);
  * tree's sibling ../shared/data/mh-bodies. */
 const char *bench_mh_dir(char *buf, size_t size);
 
+/* Body regions the accuracy benches report by: a vertex's region is its
+ * heaviest segment's (mim_segment_names order): head; hands; feet; torso
+ * (pelvis, chest, shoulders); limbs (upper arms, forearms, thighs, shins). */
+enum { BENCH_REGION_HEAD, BENCH_REGION_HANDS, BENCH_REGION_FEET, BENCH_REGION_TORSO, BENCH_REGION_LIMBS, BENCH_REGIONS };
+extern const char *const bench_region_names[BENCH_REGIONS];
+int bench_region_of_segment(uint32_t segment);
+
 /* The options every body-set bench takes: --vertices N (synth, default
  * 7000), --mh DIR, --no-mh. */
 typedef struct bench_sets {

@@ -60,25 +60,12 @@
 static const uint32_t smoothings[] = {0, 2, 4, 8, 16, 32};
 #define NSMOOTH (sizeof smoothings / sizeof smoothings[0])
 
-enum { REG_HEAD, REG_HANDS, REG_FEET, REG_TORSO, REG_LIMBS, NREG };
-static const char *reg_names[NREG] = {"head", "hands", "feet", "torso", "limbs"};
-
-static int region_of(uint32_t seg)
-{
-    switch (seg) {
-    case MIM_VEST_HEAD: return REG_HEAD;
-    case MIM_VEST_L_HAND: case MIM_VEST_R_HAND: return REG_HANDS;
-    case MIM_VEST_L_FOOT: case MIM_VEST_R_FOOT: return REG_FEET;
-    case MIM_VEST_PELVIS: case MIM_VEST_CHEST: case MIM_VEST_L_SHOULDER: case MIM_VEST_R_SHOULDER: return REG_TORSO;
-    default: return REG_LIMBS;
-    }
-}
 
 /* One method's pooled errors, overall and by region. */
 typedef struct row {
     bench_err_t e;
-    double rsum[NREG];
-    uint64_t rcnt[NREG];
+    double rsum[BENCH_REGIONS];
+    uint64_t rcnt[BENCH_REGIONS];
 } row_t;
 
 enum { R_TEMPLATE, R_O0, R_O5, R_O10, R_L1, R_L2, R_L3, R_CORR5, R_HYBRID, R_ORACLE,
@@ -282,7 +269,7 @@ static int avatar_build(avatar_t *av, const bench_dataset_t *d, const mim_xfer_t
         if ((rc = mim_xfer_skin_from_bones(topo, rest, av->bones, NSEG, smoothings[k], av->sweep[k], err)))
             return rc;
     for (uint32_t i = 0; i < n; i++)
-        av->seg[i] = av->skin[i].bone[0], av->region[i] = (uint8_t)region_of(av->skin[i].bone[0]);
+        av->seg[i] = av->skin[i].bone[0], av->region[i] = (uint8_t)bench_region_of_segment(av->skin[i].bone[0]);
     return 0;
 }
 
@@ -445,7 +432,7 @@ static int run_set(const bench_dataset_t *d, void *user)
                     mim_xfer_skin_frames(n, av.skin, av.Fa, Rn, F); /* the orientation drive's again, for the row below */
                     /* diagnostic: the same with the template's frames on the hands */
                     for (uint32_t i = 0; i < n; i++)
-                        if (av.region[i] == REG_HANDS)
+                        if (av.region[i] == BENCH_REGION_HANDS)
                             memcpy(F + 9 * (size_t)i, Ft + 9 * (size_t)i, 9 * sizeof *F);
                     if (mim_xfer_transfer(ls, av.W, n, F, targets, c, &o1, out, NULL, &err))
                         goto done;
@@ -478,12 +465,12 @@ static int run_set(const bench_dataset_t *d, void *user)
            d->name, n, d->n_faces, S, P, (unsigned long long)pairs, (unsigned long long)total, op->draws,
            MIM_XFER_DEFAULT_SKIN_SMOOTHING);
     uint64_t rtot = 0;
-    for (int g = 0; g < NREG; g++)
+    for (int g = 0; g < BENCH_REGIONS; g++)
         rtot += rows[R_TEMPLATE].rcnt[g];
     printf("regions (heaviest segment of A's skin), share of vertices:");
-    for (int g = 0; g < NREG; g++)
-        printf(" %s %.1f%%%s", reg_names[g], 100.0 * (double)rows[R_TEMPLATE].rcnt[g] / (double)rtot,
-               g + 1 < NREG ? "," : "\n");
+    for (int g = 0; g < BENCH_REGIONS; g++)
+        printf(" %s %.1f%%%s", bench_region_names[g], 100.0 * (double)rows[R_TEMPLATE].rcnt[g] / (double)rtot,
+               g + 1 < BENCH_REGIONS ? "," : "\n");
     printf("rigid fits of the true rotations: rms residual %.2f mm mean over segments and poses, "
            "largest %.2f mm (%s)\n",
            rms_cnt ? rms_sum / (double)rms_cnt : NAN, rms_max, mim_vest_segment_name((uint32_t)rms_max_seg));
@@ -495,17 +482,17 @@ static int run_set(const bench_dataset_t *d, void *user)
     for (int r = 0; r < NROW; r++) {
         const row_t *w = &rows[r];
         printf("| %s | %.2f | %.2f |", row_names[r], bench_err_mean(&w->e), bench_err_p95(&w->e));
-        for (int g = 0; g < NREG; g++)
+        for (int g = 0; g < BENCH_REGIONS; g++)
             printf(" %.2f |", row_reg(w, g));
         if (r == R_TEMPLATE)
             printf(" - | - | - |\n");
         else
             printf(" %+.1f%% | %+.1f%% | %+.1f%% |\n", pct(bench_err_mean(&w->e), bench_err_mean(&tp->e)),
-                   pct(row_reg(w, REG_HANDS), row_reg(tp, REG_HANDS)), pct(row_reg(w, REG_FEET), row_reg(tp, REG_FEET)));
+                   pct(row_reg(w, BENCH_REGION_HANDS), row_reg(tp, BENCH_REGION_HANDS)), pct(row_reg(w, BENCH_REGION_FEET), row_reg(tp, BENCH_REGION_FEET)));
     }
     const row_t *o5 = &rows[R_O5];
     double dm = pct(bench_err_mean(&o5->e), bench_err_mean(&tp->e));
-    double dh = pct(row_reg(o5, REG_HANDS), row_reg(tp, REG_HANDS)), df = pct(row_reg(o5, REG_FEET), row_reg(tp, REG_FEET));
+    double dh = pct(row_reg(o5, BENCH_REGION_HANDS), row_reg(tp, BENCH_REGION_HANDS)), df = pct(row_reg(o5, BENCH_REGION_FEET), row_reg(tp, BENCH_REGION_FEET));
     printf("\norient 5 deg vs template: mean %+.1f%%, hands %+.1f%%, feet %+.1f%% "
            "(issue 17's target: mean <= -25%%: %s; hands and feet <= -30%%: %s)\n",
            dm, dh, df, dm <= -25 ? "yes" : "NO", dh <= -30 && df <= -30 ? "yes" : "NO");
@@ -528,7 +515,7 @@ static int run_set(const bench_dataset_t *d, void *user)
     for (size_t s = 0; s < NSMOOTH; s++) {
         printf("| %u | %.2f | %.2f | %.2f |", smoothings[s], bench_err_mean(&sw0[s].e), bench_err_mean(&sw5[s].e),
                bench_err_p95(&sw5[s].e));
-        for (int g = 0; g < NREG; g++)
+        for (int g = 0; g < BENCH_REGIONS; g++)
             printf(" %.2f |", row_reg(&sw5[s], g));
         printf("\n");
         if (bench_err_mean(&sw0[s].e) < bench_err_mean(&sw0[best0].e))

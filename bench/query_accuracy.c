@@ -9,9 +9,19 @@
  * landmark noise of 1 cm and 3 cm (sigma per coordinate); 1, 2 and 3
  * missing landmarks (random, several draws per frame).
  *
- *   bench_query_accuracy [--draws N] [--no-mh]
+ * Issue 15 adds the hard set (hard_set.c: 8 synth subjects x 40 poses, 5
+ * designed poses each with 7 variants that turn one or two joints by 12-20
+ * degrees, every body with its own +-3 degree jitter) at 0, 1, 2 and 3 cm
+ * of noise and 1-3 missing landmarks, columns: mimic's default index and
+ * the index without noise augmentation (issue 4's), the 1-NN baseline;
+ * --sweep 1 / --sweep 2 run the other settings measured for the choice.
+ * The issue-4 sets run with the default index at d = 20, 40, 60, 70.
+ *
+ *   bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1|2]
+ *                        [--hard-subjects S] [--hard-poses P]
  * Prints a Markdown table per dataset. */
 #include "bench_data.h"
+#include "hard_set.h"
 #include "mim_index.h"
 
 #include <math.h>
@@ -19,10 +29,45 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum { N_COND = 6, N_METHOD = 5 };
-static const char *const cond_name[N_COND] = {"no noise", "noise 1 cm", "noise 3 cm", "1 missing", "2 missing",
-                                              "3 missing"};
-static const uint32_t ds[4] = {20, 40, 60, 70};
+enum { MAX_COND = 8, MAX_METHOD = 16 };
+
+/* A condition: Gaussian noise of sigma (metres, per coordinate) or some
+ * missing landmarks. */
+typedef struct {
+    const char *name;
+    double sigma;
+    uint32_t missing;
+} cond_t;
+static const cond_t cond_issue4[] = {{"no noise", 0, 0},  {"noise 1 cm", 0.01, 0}, {"noise 3 cm", 0.03, 0},
+                                     {"1 missing", 0, 1}, {"2 missing", 0, 2},     {"3 missing", 0, 3}};
+static const cond_t cond_hard[] = {{"no noise", 0, 0},   {"noise 1 cm", 0.01, 0}, {"noise 2 cm", 0.02, 0},
+                                   {"noise 3 cm", 0.03, 0}, {"1 missing", 0, 1},   {"2 missing", 0, 2},
+                                   {"3 missing", 0, 3}};
+
+/* A column: mimic's index built with these options. */
+typedef struct {
+    const char *label;
+    mim_index_options_t o;
+} method_t;
+static const method_t methods_issue4[] = {
+    {"d = 20", {.features = 20}}, {"d = 40", {.features = 40}}, {"d = 60", {.features = 60}}, {"d = 70", {.features = 70}}};
+/* The hard set: the default index, the issue-4 index (no augmentation),
+ * and with --sweep the other settings measured for issue 15. */
+static const method_t methods_hard[] = {{"default (d = 60, noise 0.025 x4)", {0}},
+                                        {"no augmentation (issue 4)", {.noise = -1}}};
+static const method_t methods_sweep1[] = {
+    {"default (d = 60, noise 0.025 x4)", {0}},
+    {"no augmentation (issue 4)", {.noise = -1}},
+    {"noise 0.05 x4", {.noise = 0.05, .augment = 4}},
+    {"noise 0.075 x4", {.noise = 0.075, .augment = 4}},
+    {"noise 0.05 x2", {.noise = 0.05, .augment = 2}},
+};
+static const method_t methods_sweep2[] = {
+    {"d = 40 augmented", {.features = 40}},
+    {"d = 100 augmented", {.features = 100}},
+    {"d = 100, no augmentation", {.features = 100, .noise = -1}},
+    {"d = 20 augmented", {.features = 20}},
+};
 
 static uint64_t rng_state = 12345;
 static double uniform(void)
@@ -32,23 +77,19 @@ static double uniform(void)
 }
 static double gauss(void) { return sqrt(-2 * log(uniform())) * cos(2 * M_PI * uniform()); }
 
-/* A query frame for condition c, draw r: noise or missing landmarks. */
-static void make_frame(const float *lm, uint32_t L, int c, float *out, uint8_t *present)
+/* A query frame for condition c: noise or missing landmarks. */
+static void make_frame(const float *lm, uint32_t L, const cond_t *c, float *out, uint8_t *present)
 {
     memcpy(out, lm, sizeof(float) * 3 * L);
     memset(present, 1, L);
-    if (c == 1 || c == 2) {
-        double sigma = c == 1 ? 0.01 : 0.03;
-        for (uint32_t i = 0; i < 3 * L; i++) out[i] += (float)(sigma * gauss());
-    } else if (c >= 3) {
-        uint32_t miss = (uint32_t)c - 2;
-        for (uint32_t m = 0; m < miss;) {
-            uint32_t l = (uint32_t)(uniform() * L) % L;
-            if (!present[l]) continue;
-            present[l] = 0;
-            out[3 * l] = out[3 * l + 1] = out[3 * l + 2] = NAN;
-            m++;
-        }
+    if (c->sigma > 0)
+        for (uint32_t i = 0; i < 3 * L; i++) out[i] += (float)(c->sigma * gauss());
+    for (uint32_t m = 0; m < c->missing;) {
+        uint32_t l = (uint32_t)(uniform() * L) % L;
+        if (!present[l]) continue;
+        present[l] = 0;
+        out[3 * l] = out[3 * l + 1] = out[3 * l + 2] = NAN;
+        m++;
     }
 }
 
@@ -73,10 +114,24 @@ static uint32_t nn_all(const float *angles, const uint32_t *train, uint32_t ntra
     return arg;
 }
 
-static void run_dataset(const char *name, bench_dataset_t *d, int draws)
+/* One set: S subjects x P poses of L landmarks (lm, [(s * P + p) * L * 3]). */
+typedef struct {
+    const char *name;
+    uint32_t S, P, L;
+    const float *lm;
+    const uint32_t *mirror;
+    const cond_t *cond;
+    int n_cond;
+    const method_t *method;
+    int n_method;
+} set_t;
+
+static void run_set(const set_t *set, int draws)
 {
-    uint32_t S = d->subjects, P = d->poses, n = S * P, L = d->map.count, nf = mim_index_angle_count(L);
-    float *lm = malloc(sizeof(float) * 3 * L * n), *angles = malloc(sizeof(float) * (size_t)n * nf);
+    uint32_t S = set->S, P = set->P, n = S * P, L = set->L, nf = mim_index_angle_count(L);
+    int NC = set->n_cond, NM = set->n_method;
+    const float *lm = set->lm;
+    float *angles = malloc(sizeof(float) * (size_t)n * nf);
     char (*subj)[16] = malloc(16 * n), (*pose)[16] = malloc(16 * n);
     const char **sp = malloc(sizeof(char *) * n), **pp = malloc(sizeof(char *) * n);
     uint64_t *ids = malloc(sizeof(uint64_t) * n);
@@ -84,20 +139,19 @@ static void run_dataset(const char *name, bench_dataset_t *d, int draws)
     float ymin = INFINITY, ymax = -INFINITY;
     for (uint32_t t = 0; t < n; t++) {
         for (uint32_t l = 0; l < L; l++) {
-            memcpy(lm + 3 * (L * t + l), d->pos[t] + 3 * d->map.vertex[l], 12);
             float y = lm[3 * (L * t + l) + 1];
             ymin = y < ymin ? y : ymin, ymax = y > ymax ? y : ymax;
         }
         snprintf(subj[t], 16, "s%u", t / P);
         snprintf(pose[t], 16, "p%u", t % P);
         sp[t] = subj[t], pp[t] = pose[t], ids[t] = t + 1;
+        mim_index_angles(lm + 3 * L * t, NULL, L, angles + (size_t)t * nf);
     }
-    fprintf(stderr, "%s: %u subjects x %u poses, %u landmarks, landmark height span %.2f (units: metres)\n", name, S, P,
-            L, ymax - ymin);
-    /* hits[method][cond], tests[cond] */
-    double hits[N_METHOD][N_COND] = {{0}}, tests[N_COND] = {0}, cv[4] = {0}, Cs[4][4] = {{0}};
-    double build_s = 0;
-    int builds = 0;
+    fprintf(stderr, "%s: %u subjects x %u poses, %u landmarks, landmark height span %.2f (units: metres)\n", set->name,
+            S, P, L, ymax - ymin);
+    /* hits[method][cond] (the last method is the 1-NN), tests[cond] */
+    double hits[MAX_METHOD + 1][MAX_COND] = {{0}}, tests[MAX_COND] = {0}, cv[MAX_METHOD] = {0}, lc[MAX_METHOD] = {0};
+    double build_s[MAX_METHOD] = {0};
     float *frame = malloc(sizeof(float) * 3 * L), *qa = malloc(sizeof(float) * nf);
     uint8_t *present = malloc(L);
     for (uint32_t s = 0; s < S; s++) {
@@ -112,89 +166,141 @@ static void run_dataset(const char *name, bench_dataset_t *d, int draws)
             memcpy(tlm + 3 * L * i, lm + 3 * L * train[i], sizeof(float) * 3 * L);
             tsp[i] = sp[train[i]], tpp[i] = pp[train[i]], tid[i] = ids[train[i]];
         }
-        for (uint32_t t = 0; t < n; t++) mim_index_angles(lm + 3 * L * t, NULL, L, angles + (size_t)t * nf);
-        mim_index_t *ix[4] = {0};
-        for (int di = 0; di < 4; di++) {
-            mim_index_input_t in = {ntrain, L, tlm, tid, tsp, tpp, d->map.mirror};
-            mim_index_options_t o = {.features = ds[di]};
+        mim_index_t *ix[MAX_METHOD] = {0};
+        for (int mi = 0; mi < NM; mi++) {
+            mim_index_input_t in = {ntrain, L, tlm, tid, tsp, tpp, set->mirror};
             mim_index_report_t rep;
             mim_error_t err = {0};
-            if (mim_index_build(&ix[di], &in, &o, &rep, &err)) {
-                fprintf(stderr, "%s: build failed: %s\n", name, mim_error_text(&err));
+            if (mim_index_build(&ix[mi], &in, &set->method[mi].o, &rep, &err)) {
+                fprintf(stderr, "%s: build failed: %s\n", set->name, mim_error_text(&err));
                 exit(2);
             }
-            build_s += rep.seconds, builds++;
-            cv[di] += rep.cv_accuracy / S;
-            Cs[di][0] += log10(rep.C) / S;
+            build_s[mi] += rep.seconds / S;
+            cv[mi] += rep.cv_accuracy / S;
+            lc[mi] += log10(rep.C) / S;
         }
         for (uint32_t p = 0; p < P; p++) {
             uint32_t t = s * P + p;
-            for (int c = 0; c < N_COND; c++) {
-                int nd = c == 0 ? 1 : draws;
+            for (int c = 0; c < NC; c++) {
+                int nd = set->cond[c].sigma > 0 || set->cond[c].missing ? draws : 1;
                 for (int r = 0; r < nd; r++) {
-                    make_frame(lm + 3 * L * t, L, c, frame, present);
+                    make_frame(lm + 3 * L * t, L, &set->cond[c], frame, present);
                     tests[c]++;
-                    for (int di = 0; di < 4; di++) {
+                    for (int mi = 0; mi < NM; mi++) {
                         mim_index_query_options_t qo = {.k = 1};
                         mim_index_answer_t a;
                         mim_index_hit_t h;
                         mim_error_t err = {0};
-                        if (mim_index_query(ix[di], frame, present, &qo, &a, &h, &err) == 0 && a.n_hits)
-                            hits[di][c] += !strcmp(h.pose, pose[t]);
+                        if (mim_index_query(ix[mi], frame, present, &qo, &a, &h, &err) == 0 && a.n_hits)
+                            hits[mi][c] += !strcmp(h.pose, pose[t]);
                     }
                     mim_index_angles(frame, present, L, qa);
                     uint32_t arg = nn_all(angles, train, ntrain, nf, qa);
-                    hits[4][c] += !strcmp(pose[arg], pose[t]);
+                    hits[NM][c] += !strcmp(pose[arg], pose[t]);
                 }
             }
         }
-        for (int di = 0; di < 4; di++) mim_index_close(&ix[di]);
+        for (int mi = 0; mi < NM; mi++) mim_index_close(&ix[mi]);
         free(tlm), free(tsp), free(tpp), free(tid);
     }
-    printf("\n### %s (%u subjects x %u poses, leave one subject out, %d draws per noisy/missing frame)\n\n", name, S, P,
-           draws);
-    printf("| condition | d = 20 | d = 40 | d = 60 | d = 70 | 1-NN, all %u angles |\n|---|---|---|---|---|---|\n", nf);
-    for (int c = 0; c < N_COND; c++) {
-        printf("| %s |", cond_name[c]);
-        for (int m = 0; m < N_METHOD; m++) printf(" %.3f |", hits[m][c] / tests[c]);
+    printf("\n### %s (%u subjects x %u poses, leave one subject out, %d draws per noisy/missing frame)\n\n", set->name,
+           S, P, draws);
+    printf("| condition |");
+    for (int mi = 0; mi < NM; mi++) printf(" %s |", set->method[mi].label);
+    printf(" 1-NN, all %u angles |\n|---|", nf);
+    for (int mi = 0; mi <= NM; mi++) printf("---|");
+    printf("\n");
+    for (int c = 0; c < NC; c++) {
+        printf("| %s |", set->cond[c].name);
+        for (int m = 0; m <= NM; m++) printf(" %.3f |", hits[m][c] / tests[c]);
         printf("\n");
     }
-    printf("\nMean cross-validation accuracy of the SVMs on the training subjects: d=20 %.3f, d=40 %.3f, d=60 %.3f, "
-           "d=70 %.3f; mean log10(C) %.2f/%.2f/%.2f/%.2f; mean build %.3f s.\n",
-           cv[0], cv[1], cv[2], cv[3], Cs[0][0], Cs[1][0], Cs[2][0], Cs[3][0], build_s / builds);
+    printf("\nPer column: mean cross-validation accuracy of the SVMs on the training subjects; mean log10(C); mean "
+           "build (s):");
+    for (int mi = 0; mi < NM; mi++)
+        printf("%s %s %.3f / %.2f / %.3f", mi ? ";" : "", set->method[mi].label, cv[mi], lc[mi], build_s[mi]);
+    printf(".\n");
     fflush(stdout);
-    free(lm), free(angles), free(subj), free(pose), free(sp), free(pp), free(ids), free(train), free(frame), free(qa);
+    free(angles), free(subj), free(pose), free(sp), free(pp), free(ids), free(train), free(frame), free(qa);
     free(present);
+}
+
+/* A body dataset's landmarks, for run_set. */
+static float *dataset_landmarks(const bench_dataset_t *d)
+{
+    uint32_t n = d->subjects * d->poses, L = d->map.count;
+    float *lm = malloc(sizeof(float) * 3 * L * n);
+    for (uint32_t t = 0; t < n; t++)
+        for (uint32_t l = 0; l < L; l++) memcpy(lm + 3 * (L * t + l), d->pos[t] + 3 * d->map.vertex[l], 12);
+    return lm;
+}
+
+static void run_dataset(const char *name, bench_dataset_t *d, int draws)
+{
+    float *lm = dataset_landmarks(d);
+    set_t set = {name, d->subjects, d->poses, d->map.count, lm, d->map.mirror, cond_issue4, 6, methods_issue4, 4};
+    run_set(&set, draws);
+    free(lm);
+}
+
+static int run_hard(uint32_t S, uint32_t P, int sweep, int draws)
+{
+    bench_hard_t h;
+    mim_error_t err = {0};
+    if (bench_hard_make(&h, S, P, 3000, 1, &err)) {
+        fprintf(stderr, "hard set: %s\n", mim_error_text(&err));
+        return 2;
+    }
+    set_t set = {"hard (synth seed 1, nearby poses)", S, P, h.n_landmarks, h.landmarks, h.mirror, cond_hard, 7,
+                 methods_hard, (int)(sizeof methods_hard / sizeof *methods_hard)};
+    if (sweep == 1) set.method = methods_sweep1, set.n_method = sizeof methods_sweep1 / sizeof *methods_sweep1;
+    if (sweep == 2) set.method = methods_sweep2, set.n_method = sizeof methods_sweep2 / sizeof *methods_sweep2;
+    run_set(&set, draws);
+    bench_hard_free(&h);
+    return 0;
 }
 
 int main(int argc, char **argv)
 {
-    int draws = 5, mh = 1;
+    int draws = 5, mh = 1, hard = 1, easy = 1, sweep = 0;
+    uint32_t hs = 8, hp = 40;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--draws") && i + 1 < argc) draws = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--no-mh")) mh = 0;
+        else if (!strcmp(argv[i], "--no-hard")) hard = 0;
+        else if (!strcmp(argv[i], "--hard-only")) easy = 0;
+        else if (!strcmp(argv[i], "--sweep") && i + 1 < argc) sweep = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--hard-subjects") && i + 1 < argc) hs = (uint32_t)atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--hard-poses") && i + 1 < argc) hp = (uint32_t)atoi(argv[++i]);
         else {
-            fprintf(stderr, "usage: bench_query_accuracy [--draws N] [--no-mh]\n");
+            fprintf(stderr, "usage: bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1|2] "
+                            "[--hard-subjects S] [--hard-poses P]\n");
             return 2;
         }
     }
     if (draws < 1) draws = 1;
-    bench_dataset_t d;
-    if (bench_load_synth(&d, 8, 12, 3000)) {
-        fprintf(stderr, "synth failed\n");
+    if (hs < 2 || hp < 2 || hp > 1000) {
+        fprintf(stderr, "bench_query_accuracy: the hard set needs 2+ subjects and 2..1000 poses\n");
         return 2;
     }
-    run_dataset("synth (seed 1)", &d, draws);
-    bench_dataset_free(&d);
-    char buf[4096];
-    if (mh) {
-        int rc = bench_load_mh(&d, bench_mh_dir(buf, sizeof buf));
-        if (rc == 0) {
-            run_dataset("mh-bodies", &d, draws);
-            bench_dataset_free(&d);
-        } else {
-            printf("\n(mh-bodies not found at %s: skipped)\n", buf);
+    bench_dataset_t d;
+    if (easy) {
+        if (bench_load_synth(&d, 8, 12, 3000)) {
+            fprintf(stderr, "synth failed\n");
+            return 2;
+        }
+        run_dataset("synth (seed 1)", &d, draws);
+        bench_dataset_free(&d);
+        char buf[4096];
+        if (mh) {
+            int rc = bench_load_mh(&d, bench_mh_dir(buf, sizeof buf));
+            if (rc == 0) {
+                run_dataset("mh-bodies", &d, draws);
+                bench_dataset_free(&d);
+            } else {
+                printf("\n(mh-bodies not found at %s: skipped)\n", buf);
+            }
         }
     }
-    return 0;
+    return hard ? run_hard(hs, hp, sweep, draws) : 0;
 }

@@ -82,6 +82,42 @@ int mim_cli_template_id(const char *cmd, const char *name, const char *text, uin
     return ok ? 0 : -1;
 }
 
+int mim_cli_on_off(const char *cmd, const char *name, const char *text, int *out)
+{
+    if (text && (!strcmp(text, "on") || !strcmp(text, "off"))) {
+        *out = !strcmp(text, "on");
+        return 0;
+    }
+    fprintf(stderr, "mimic %s: --%s '%s': use on or off\n", cmd, name, text ? text : "");
+    return -1;
+}
+
+int mim_cli_template_ids(const char *cmd, const char *name, const char *text, uint64_t *ids, uint32_t max,
+                         uint32_t *n)
+{
+    char buf[1024];
+    *n = 0;
+    if (!text || strlen(text) >= sizeof buf) {
+        fprintf(stderr, "mimic %s: --%s: the list is too long\n", cmd, name);
+        return -1;
+    }
+    snprintf(buf, sizeof buf, "%s", text);
+    char *save = NULL;
+    for (char *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+        if (*n == max) {
+            fprintf(stderr, "mimic %s: --%s: more than %u template ids\n", cmd, name, max);
+            return -1;
+        }
+        if (mim_cli_template_id(cmd, name, tok, &ids[*n])) return -1;
+        ++*n;
+    }
+    if (!*n || text[strlen(text) - 1] == ',' || text[0] == ',' || strstr(text, ",,")) {
+        fprintf(stderr, "mimic %s: --%s '%s' is not a list of template ids (ID,ID,...)\n", cmd, name, text);
+        return -1;
+    }
+    return 0;
+}
+
 int mim_cli_drive(const char *cmd, const char *text, int *drive)
 {
     if ((*drive = mim_session_drive_parse(text)) >= 0)

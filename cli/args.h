@@ -29,6 +29,12 @@ int mim_cli_listen(const char *cmd, const char *listen);
 /* A template id (a whole number >= 1, as mimic list shows) given to
  * --name. Prints one line and returns -1 otherwise. */
 int mim_cli_template_id(const char *cmd, const char *name, const char *text, uint64_t *id);
+/* "on" -> 1, "off" -> 0; -1 after a line on stderr. */
+int mim_cli_on_off(const char *cmd, const char *name, const char *text, int *out);
+/* A comma-separated list of 1..max template ids into ids (*n of them); -1
+ * after a line on stderr. */
+int mim_cli_template_ids(const char *cmd, const char *name, const char *text, uint64_t *ids, uint32_t max,
+                         uint32_t *n);
 
 /* Store options for every command: read_only, the LMDB map size from
  * MIMIC_MAP_SIZE (bytes; unset or not a whole number: the default), and the

@@ -33,7 +33,8 @@ static void help(FILE *out)
             "                          [--annotations ANN.json] --samples N [--chains C]\n"
             "                          [--density ic|cartesian|shape|prior] [--views M] [--sigma-l S]\n"
             "                          [--seed S] [--restart-every N] [--velocity-scale V]\n"
-            "                          [--start SAMPLES.jsonl[:LINE[,LINE...]]] [--bvh DIR]\n"
+            "                          [--start SAMPLES.jsonl[:LINE[,LINE...]]] [--seed-jitter DEG,M]\n"
+            "                          [--bvh DIR]\n"
             "                          [--joint-map FILE.json] [--unit M] [--json] -o SAMPLES.jsonl\n\n"
             "3D pose-pairs sampled by Metropolis-Hastings from the posterior of seed 002 (Yin et al.):\n"
             "the physical prior (joint limits learned from the --prior motions' frames, offset,\n"
@@ -54,6 +55,10 @@ static void help(FILE *out)
             "  --start F[:L[,L...]] the chains (and their restarts) start from those lines of samples\n"
             "                   file F, chain k from the k-th line mod their count (the paper's K\n"
             "                   seeds; default: line 1)\n"
+            "  --seed-jitter DEG,M every seed edited before its chain starts: each joint turned by a\n"
+            "                   random rotation of DEG degrees a component, B moved by M metres a\n"
+            "                   component (a rough lifting, as the paper's hand-edited seed; redrawn\n"
+            "                   while the prior forbids it; default 0,0)\n"
             "  --bvh DIR        also DIR/chainK_A.bvh and chainK_B.bvh, a frame per sample\n"
             "  --json           a report: samples, seconds, samples_per_second, acceptance per chain,\n"
             "                   parameters\n"
@@ -69,6 +74,7 @@ typedef struct chain_job {
     const double *start; /* NULL: a prior frame */
     uint64_t seed;
     uint32_t index, n, restart_every, restarts;
+    double jitter_rot, jitter_trans; /* --seed-jitter: radians, metres (0: the seeds as they are) */
     double *joints, *log_density;
     mim_mh_stats_t stats;
     _Atomic uint64_t done;
@@ -97,11 +103,18 @@ static void *chain_thread(void *arg)
         uint32_t len = j->restart_every && j->n - at > j->restart_every ? j->restart_every : j->n - at;
         mim_mh_stats_t st;
         /* a prior frame of finite density (the paper's seed is one good pose-pair) */
+        int jitter = j->jitter_rot > 0 || j->jitter_trans > 0;
         for (int attempt = 0; attempt < SEED_TRIES; attempt++) {
             const double *seed = j->start ? j->start : j->prior + 3 * MIM_PAIR_JOINTS * mim_rng_below(&seeds, j->n_prior);
+            double edited[3 * MIM_PAIR_JOINTS];
+            if (jitter) {
+                /* drawn from the seeds' stream too: every density gets the same edits */
+                mim_pairs_seed_jitter(seed, j->jitter_rot, j->jitter_trans, &seeds, edited);
+                seed = edited;
+            }
             j->rc = mim_pairs_chain_run(j->target, seed, &rng, pen, len, j->joints + (size_t)at * 3 * MIM_PAIR_JOINTS,
                                         j->log_density + at, &st, &j->done, &j->err);
-            if (j->rc != MIM_EINVAL || j->start) break;
+            if (j->rc != MIM_EINVAL || (j->start && !jitter)) break;
         }
         if (!at) j->stats.seed_log_density = st.seed_log_density;
         j->stats.steps += st.steps, j->stats.accepted += st.accepted, j->stats.zero += st.zero;
@@ -205,6 +218,8 @@ static json_t *report(const mim_pairs_target_t *t, const chain_job_t *jobs, uint
                                MIM_IC_DEFAULT_BETA, "joint_tolerance", MIM_PAIRS_VALID_TOL);
     json_object_set_new(params, "restart_every", json_integer(jobs[0].restart_every));
     json_object_set_new(params, "cone", json_real(o->cone));
+    json_object_set_new(params, "seed_jitter_deg", json_real(jobs[0].jitter_rot * 180 / M_PI));
+    json_object_set_new(params, "seed_jitter_m", json_real(jobs[0].jitter_trans));
     return json_pack("{s:I, s:I, s:f, s:f, s:f, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:o}", "samples", (json_int_t)total,
                      "chains", (json_int_t)chains, "seconds", seconds, "samples_per_second",
                      seconds > 0 ? total / seconds : 0.0, "samples_per_second_per_chain",
@@ -225,6 +240,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
         {"start", required_argument, 0, 's'},     {"bvh", required_argument, 0, 'B'},
         {"output", required_argument, 0, 'o'},    {"json", no_argument, 0, 'j'},
         {"restart-every", required_argument, 0, 'R'}, {"velocity-scale", required_argument, 0, 'V'},
+        {"seed-jitter", required_argument, 0, 'J'},
         {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
     };
@@ -233,10 +249,11 @@ int mim_cmd_pairs_sample(int argc, char **argv)
     mim_pairs_sampler_defaults(&target.opt);
     const char *ann_path = NULL, *start_spec = NULL, *bvh_dir = NULL, *outp = NULL;
     uint64_t samples = 0, chains = 2, views = target.opt.views, seed = 1, restart_every = 100;
+    double jitter_deg = 0, jitter_m = 0;
     int as_json = 0, c, taken;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "p:e:k:m:u:a:n:C:d:v:l:S:s:B:o:R:V:jh", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "p:e:k:m:u:a:n:C:d:v:l:S:s:B:o:R:V:J:jh", longopts, NULL)) != -1) {
         if ((taken = mim_cli_takes_option(&tk, c, optarg))) {
             if (taken < 0) return 2;
             continue;
@@ -278,6 +295,22 @@ int mim_cmd_pairs_sample(int argc, char **argv)
         case 'R':
             if (mim_cli_number("pairs sample", "restart-every", optarg, 0, MIM_PAIRS_SAMPLES_MAX, &restart_every)) return 2;
             break;
+        case 'J': {
+            char deg[64];
+            const char *comma = strchr(optarg, ',');
+            if (!comma || (size_t)(comma - optarg) >= sizeof deg) {
+                fprintf(stderr, "mimic pairs sample: --seed-jitter '%s' is not DEG,M (degrees, metres)\n", optarg);
+                return 2;
+            }
+            memcpy(deg, optarg, (size_t)(comma - optarg));
+            deg[comma - optarg] = 0;
+            if (mim_cli_real("pairs sample", "seed-jitter", deg, 0.0, 90.0, 0, "does not start with degrees in 0..90",
+                             &jitter_deg) ||
+                mim_cli_real("pairs sample", "seed-jitter", comma + 1, 0.0, 10.0, 0, "does not end with metres in 0..10",
+                             &jitter_m))
+                return 2;
+            break;
+        }
         case 'B': bvh_dir = optarg; break;
         case 'o': outp = optarg; break;
         case 'j': as_json = 1; break;
@@ -376,6 +409,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
         chain_job_t *j = &jobs[k];
         j->target = &target, j->prior = prior, j->n_prior = n_prior, j->start = starts ? starts + (size_t)(k % n_starts) * 3 * MIM_PAIR_JOINTS : NULL;
         j->seed = seed, j->index = k, j->restart_every = (uint32_t)restart_every;
+        j->jitter_rot = jitter_deg * M_PI / 180, j->jitter_trans = jitter_m;
         j->n = (uint32_t)(samples / chains + (k < samples % chains));
         j->joints = joints + at * 3 * MIM_PAIR_JOINTS, j->log_density = logd + at;
         at += j->n;
@@ -406,7 +440,10 @@ int mim_cmd_pairs_sample(int argc, char **argv)
     for (uint32_t k = 0; k < chains; k++)
         if (jobs[k].rc) {
             fprintf(stderr, "mimic pairs sample: chain %u: %s%s\n", k, mim_error_text(&jobs[k].err),
-                    jobs[k].rc == MIM_EINVAL && !start_spec ? " (for every prior frame it tried)" : "");
+                    jobs[k].rc != MIM_EINVAL                  ? ""
+                    : jitter_deg > 0 || jitter_m > 0 ? " (for every edit of a seed it tried: a smaller --seed-jitter?)"
+                    : !start_spec                    ? " (for every prior frame it tried)"
+                                                     : "");
             goto done;
         }
     if (mim_cli_pairs_write_samples("pairs sample", outp, joints, logd, (uint32_t)samples)) goto done;

@@ -147,13 +147,6 @@ static int joint_index(const char *name)
     return -1;
 }
 
-static int map_index(const mim_landmark_map_t *map, const char *name)
-{
-    for (uint32_t l = 0; l < map->count; l++)
-        if (!strcmp(map->names[l], name)) return (int)l;
-    return -1;
-}
-
 /* The body's own left, horizontal (x, z with +Y up), from its hips and
  * shoulders; 0 when they lie along the vertical (no facing to take). */
 static int left_of(const double *lh, const double *rh, const double *ls, const double *rs, double *x, double *z)
@@ -282,8 +275,8 @@ static int transfer_all(mim_session_t *s, const char *avatar, const mim_pairs_sa
     /* the avatar's facing and centre, from its rest landmarks */
     for (uint32_t l = 0; l < pp.nl; l++)
         for (int k = 0; k < 3; k++) pp.avatar_centre[k] += pp.rest[3 * (size_t)pp.map->vertex[l] + k] / (double)pp.nl;
-    int lh = map_index(pp.map, "l_hip"), rh = map_index(pp.map, "r_hip"), ls = map_index(pp.map, "l_shoulder"),
-        rs = map_index(pp.map, "r_shoulder");
+    int lh = mim_landmarks_find(pp.map, "l_hip"), rh = mim_landmarks_find(pp.map, "r_hip"), ls = mim_landmarks_find(pp.map, "l_shoulder"),
+        rs = mim_landmarks_find(pp.map, "r_shoulder");
     if (lh >= 0 && rh >= 0 && ls >= 0 && rs >= 0) {
         double at[4][3];
         const int which[4] = {lh, rh, ls, rs};

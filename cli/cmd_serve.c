@@ -18,7 +18,8 @@ static void help(FILE *out)
     fprintf(out,
             "usage: mimic serve --store DIR --avatar (MESH|ID) [--vest SPEC [--vest-pose rest|t|a]]\n"
             "                   [--key-rate auto|HZ] [--listen HOST:PORT] [--max-body BYTES]\n"
-            "                   [--max-clients N] [--warm-start auto|on|off] [--drive auto|template|orientation]\n\n"
+            "                   [--max-clients N] [--warm-start auto|on|off] [--drive auto|template|orientation]\n"
+            "                   [--blend K] [--segment-correction on|off]\n\n"
             "Serves pose transfer until Ctrl-C or SIGTERM: the web viewer at /, the avatar\n"
             "stream at /ws and the JSON API. Prints the viewer's URL on stdout.\n"
             "With --vest, every vest frame becomes landmarks on the avatar and one avatar\n"
@@ -44,6 +45,10 @@ static void help(FILE *out)
             "  --drive D            what drives key frames: auto (default: the vest's segment\n"
             "                       orientations, one solve; the template where there are none),\n"
             "                       template (the template's frames, iterated) or orientation\n"
+            "  --blend K            the template drive blends the frames of the K nearest templates\n"
+            "                       (default 1; mimic transfer --help)\n"
+            "  --segment-correction on|off  each template's frames turned onto the landmarks first\n"
+            "                       (default off)\n"
             "  -h, --help           this help\n\n"
             "Routes (schemas/serve-*.schema.json, schemas/serve-ws-frame.md):\n"
             "  GET  /               the web viewer\n"
@@ -68,6 +73,8 @@ int mim_cmd_serve(int argc, char **argv)
                                               {"max-clients", required_argument, 0, 'c'},
                                               {"warm-start", required_argument, 0, 'w'},
                                               {"drive", required_argument, 0, 'd'},
+                                              {"blend", required_argument, 0, 'B'},
+                                              {"segment-correction", required_argument, 0, 'C'},
                                               {"help", no_argument, 0, 'h'},
                                               {0, 0, 0, 0}};
     const char *store = NULL, *avatar = NULL, *avatar_lm = NULL;
@@ -75,7 +82,7 @@ int mim_cmd_serve(int argc, char **argv)
     int c;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "s:a:l:b:v:p:k:c:w:d:h", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "s:a:l:b:v:p:k:c:w:d:B:C:h", longopts, NULL)) != -1) {
         uint64_t v;
         if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
@@ -99,6 +106,13 @@ int mim_cmd_serve(int argc, char **argv)
         }
         else if (c == 'd') {
             if (mim_cli_drive("serve", optarg, &o.drive)) return 2;
+        }
+        else if (c == 'B') {
+            if (mim_cli_number("serve", "blend", optarg, 1, MIM_XFER_BLEND_MAX, &v)) return 2;
+            o.blend = (uint32_t)v;
+        }
+        else if (c == 'C') {
+            if (mim_cli_on_off("serve", "segment-correction", optarg, &o.segment_correction)) return 2;
         }
         else if (c == 'c') {
             if (mim_cli_number("serve", "max-clients", optarg, 1, 1000, &v)) return 2;

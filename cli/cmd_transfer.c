@@ -15,8 +15,9 @@
 static void help(FILE *out)
 {
     fprintf(out,
-            "usage: mimic transfer --store DIR --avatar (MESH|ID) (--template ID | --landmarks FILE.json | both)\n"
-            "                      [--drive auto|template|orientation] [--iterations N] [--tol T]\n"
+            "usage: mimic transfer --store DIR --avatar (MESH|ID) (--template ID[,ID...] | --landmarks FILE.json | both)\n"
+            "                      [--drive auto|template|orientation] [--blend K] [--segment-correction on|off]\n"
+            "                      [--iterations N] [--tol T]\n"
             "                      [--formulation least-squares|square] [--json]\n"
             "                      -o OUT.(ply|obj|off|glb)\n\n"
             "Deforms the avatar into a pose, keeping its own shape: the template gives the pose\n"
@@ -26,8 +27,9 @@ static void help(FILE *out)
             "                       is registered onto the store's once and bound (kept in the store)\n"
             "  --avatar-landmarks FILE  that mesh's landmarks (default: NAME.landmarks.json beside it,\n"
             "                       or a built-in map of its connectivity)\n"
-            "  --template ID        the template whose pose to take; with no --landmarks, mimic\n"
-            "                       retargets its landmarks onto the avatar's proportions\n"
+            "  --template ID[,ID...] the template whose pose to take; with no --landmarks, mimic\n"
+            "                       retargets its landmarks onto the avatar's proportions; several\n"
+            "                       (at most %d): their frames blended with equal weights\n"
             "  --landmarks FILE     one landmark frame, {\"landmarks\": [[x,y,z], ...]} in the order of\n"
             "                       the store's landmark map (schemas/landmark-frames.schema.json);\n"
             "                       alone, the template is the nearest pose from mimic query\n"
@@ -36,6 +38,10 @@ static void help(FILE *out)
             "  --drive D            auto (default: orientations when the frame has them, else the\n"
             "                       template), template (the template's frames, iterated) or\n"
             "                       orientation (one solve; needs orientations)\n"
+            "  --blend K            with --landmarks alone: blend the frames of the K nearest templates,\n"
+            "                       weighted by query distance (default %d; 1: the nearest alone)\n"
+            "  --segment-correction on|off  turn each template's frames so that its landmark skeleton\n"
+            "                       lies along the landmarks' before the solve (default off)\n"
             "  --iterations N       at most N solves (default %u)\n"
             "  --tol T              stop when no vertex moves more than T metres (default %g)\n"
             "  --formulation F      least-squares (default: the landmark rows stay in the objective)\n"
@@ -43,7 +49,7 @@ static void help(FILE *out)
             "  -o, --output OUT     .ply .obj .off or .glb\n"
             "  --json               a JSON report on stdout (schemas/transfer.schema.json)\n"
             "  -h, --help           this help\n",
-            MIM_XFER_DEFAULT_MAX_ITERATIONS, MIM_XFER_DEFAULT_TOL);
+            MIM_XFER_BLEND_MAX, MIM_SESSION_DEFAULT_BLEND, MIM_XFER_DEFAULT_MAX_ITERATIONS, MIM_XFER_DEFAULT_TOL);
 }
 
 int mim_cmd_transfer(int argc, char **argv)
@@ -54,16 +60,19 @@ int mim_cmd_transfer(int argc, char **argv)
         {"iterations", required_argument, 0, 'i'}, {"tol", required_argument, 0, 'T'},
         {"formulation", required_argument, 0, 'f'}, {"output", required_argument, 0, 'o'},
         {"json", no_argument, 0, 'j'},             {"help", no_argument, 0, 'h'}, {"drive", required_argument, 0, 'd'},
+        {"blend", required_argument, 0, 'b'},      {"segment-correction", required_argument, 0, 'C'},
         {0, 0, 0, 0}};
     const char *store = NULL, *avatar = NULL, *avatar_lm = NULL, *tmpl_arg = NULL, *lm_path = NULL, *outp = NULL;
-    uint64_t iterations = 0, tmpl_id = 0;
+    uint64_t iterations = 0, blend = 0, tmpl_ids[MIM_XFER_BLEND_MAX];
+    uint32_t n_tmpl = 0;
+    int correction = 0;
     double tol = 0.0;
     int as_json = 0, c;
     mim_xfer_formulation_t form = MIM_XFER_LEAST_SQUARES;
     optind = 0;
     opterr = 0;
     int drive = MIM_DRIVE_AUTO;
-    while ((c = getopt_long(argc, argv, "s:a:t:l:i:T:f:o:jhd:", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "s:a:t:l:i:T:f:o:jhd:b:C:", longopts, NULL)) != -1) {
         if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
         else if (c == 'A') avatar_lm = optarg;
@@ -71,7 +80,11 @@ int mim_cmd_transfer(int argc, char **argv)
         else if (c == 'l') lm_path = optarg;
         else if (c == 'o') outp = optarg;
         else if (c == 'j') as_json = 1;
-        else if (c == 'i') {
+        else if (c == 'b') {
+            if (mim_cli_number("transfer", "blend", optarg, 1, MIM_XFER_BLEND_MAX, &blend)) return 2;
+        } else if (c == 'C') {
+            if (mim_cli_on_off("transfer", "segment-correction", optarg, &correction)) return 2;
+        } else if (c == 'i') {
             if (mim_cli_number("transfer", "iterations", optarg, 1, 1000, &iterations)) return 2;
         } else if (c == 'T') {
             if (mim_cli_real("transfer", "tol", optarg, 0.0, HUGE_VAL, 1, "is not a positive number of metres", &tol))
@@ -101,7 +114,12 @@ int mim_cmd_transfer(int argc, char **argv)
                         "(see mimic transfer --help)\n");
         return 2;
     }
-    if (tmpl_arg && mim_cli_template_id("transfer", "template", tmpl_arg, &tmpl_id)) return 2;
+    if (tmpl_arg && mim_cli_template_ids("transfer", "template", tmpl_arg, tmpl_ids, MIM_XFER_BLEND_MAX, &n_tmpl))
+        return 2;
+    if (blend && tmpl_arg) {
+        fprintf(stderr, "mimic transfer: --blend K takes the K nearest templates; --template names them (use one)\n");
+        return 2;
+    }
     if (drive == MIM_DRIVE_ORIENTATION && !lm_path) {
         fprintf(stderr, "mimic transfer: --drive orientation needs --landmarks (a frame with orientations)\n");
         return 2;
@@ -136,7 +154,9 @@ int mim_cmd_transfer(int argc, char **argv)
     if (!rc && !out) rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for %u vertices", n);
     mim_session_report_t rep = {0};
     if (!rc) {
-        mim_session_request_t req = {.template_id = tmpl_id, .landmarks = lm_path ? frames.positions : NULL,
+        mim_session_request_t req = {.template_ids = tmpl_ids, .n_templates = n_tmpl, .blend = (uint32_t)blend,
+                                     .segment_correction = correction,
+                                     .landmarks = lm_path ? frames.positions : NULL,
                                      .xfer = {.max_iterations = (uint32_t)iterations, .tol = tol},
                                      .orientations = (const mim_quat *)frames.orientations,
                                      .orient_present = frames.orient_present, .drive = (mim_session_drive_t)drive};
@@ -167,14 +187,27 @@ int mim_cmd_transfer(int argc, char **argv)
                               "last_move_m", isfinite(rep.xfer.last_move) ? json_real(rep.xfer.last_move) : json_null(),
                               "converged", rep.xfer.converged, "early_stopped", rep.xfer.early_stopped, "seconds",
                               "load", t_load, "factor", t_factor, "transfer", t_solve);
+        json_t *ids = json_array();
+        for (uint32_t k = 0; k < rep.n_templates; k++)
+            json_array_append_new(ids, json_integer((json_int_t)rep.templates[k]));
+        if (j) {
+            json_object_set_new(j, "templates", ids);
+            json_object_set_new(j, "segment_correction", json_boolean(rep.corrected));
+        } else {
+            json_decref(ids);
+        }
         char *txt = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
         if (txt) printf("%s\n", txt);
         else rc = MIM_EINVAL, fprintf(stderr, "mimic transfer: cannot make the JSON report (is every path valid UTF-8?)\n");
         free(txt);
         json_decref(j);
     } else {
-        fprintf(stderr, "mimic transfer: %s -> %s in the pose of template %llu (%s): %s drive, %u iterations (%s), %.2f ms\n",
+        char more[48] = "";
+        if (rep.n_templates > 1)
+            snprintf(more, sizeof more, " and %u more, blended", rep.n_templates - 1);
+        fprintf(stderr, "mimic transfer: %s -> %s in the pose of template %llu (%s)%s: %s drive, %u iterations (%s), %.2f ms\n",
                 mim_session_avatar(s), outp, (unsigned long long)rep.template_id, rep.label,
+                more,
                 mim_session_drive_names[rep.drive], rep.xfer.iterations,
                 rep.drive == MIM_DRIVE_ORIENTATION ? "one solve"
                 : rep.xfer.converged     ? "converged"

@@ -20,6 +20,14 @@ const char *const mim_segment_names[MIM_SEGMENTS] = {
 static const uint32_t default_mirror[MIM_LANDMARKS_DEFAULT_COUNT] = {0,  1,  2,  4,  3,  6,  5,  8,
                                                                      7,  10, 9,  12, 11, 14, 13, 15};
 
+int mim_landmarks_find(const mim_landmark_map_t *map, const char *name)
+{
+    for (uint32_t i = 0; map && name && i < map->count; i++)
+        if (!strcmp(map->names[i], name))
+            return (int)i;
+    return -1;
+}
+
 void mim_landmarks_default(mim_landmark_map_t *map, const uint32_t vertices[MIM_LANDMARKS_DEFAULT_COUNT],
                            uint32_t topology_vertices)
 {

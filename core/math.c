@@ -26,6 +26,22 @@ mim_quat mim_quat_axis_angle(mim_vec3 axis, double radians)
     return q;
 }
 
+mim_quat mim_quat_between(mim_vec3 a, mim_vec3 b)
+{
+    a = mim_v3_normalize(a), b = mim_v3_normalize(b);
+    double d = mim_v3_dot(a, b);
+    if (mim_v3_dot(a, a) == 0 || mim_v3_dot(b, b) == 0)
+        return mim_quat_identity();
+    if (d < -1 + 1e-12) { /* opposite: half a turn about any axis normal to a */
+        mim_vec3 n = mim_v3_cross(a, fabs(a.x) < 0.9 ? mim_v3(1, 0, 0) : mim_v3(0, 1, 0));
+        return mim_quat_axis_angle(n, M_PI);
+    }
+    /* (1 + d, a x b) normalised is the half-angle quaternion of the arc */
+    mim_vec3 c = mim_v3_cross(a, b);
+    mim_quat q = {c.x, c.y, c.z, 1 + d};
+    return mim_quat_normalize(q);
+}
+
 mim_quat mim_quat_mul(mim_quat a, mim_quat b)
 {
     mim_quat r = {

@@ -122,6 +122,8 @@ extern const char *const mim_landmark_default_names[MIM_LANDMARKS_DEFAULT_COUNT]
  * keyed by these names. */
 #define MIM_SEGMENTS 17
 extern const char *const mim_segment_names[MIM_SEGMENTS];
+/* The index of the landmark called name in map, or -1. */
+int mim_landmarks_find(const mim_landmark_map_t *map, const char *name);
 /* Fills the 16 default names and their mirror table with the given vertices. */
 void mim_landmarks_default(mim_landmark_map_t *map, const uint32_t vertices[MIM_LANDMARKS_DEFAULT_COUNT],
                            uint32_t topology_vertices);
@@ -287,6 +289,9 @@ static inline mim_vec3 mim_v3_lerp(mim_vec3 a, mim_vec3 b, double t)
 
 mim_quat mim_quat_identity(void);
 mim_quat mim_quat_axis_angle(mim_vec3 axis, double radians);
+/* The shortest-arc rotation that turns direction a onto direction b (their
+ * lengths do not matter; identity when either is zero). */
+mim_quat mim_quat_between(mim_vec3 a, mim_vec3 b);
 mim_quat mim_quat_mul(mim_quat a, mim_quat b); /* a then... : rotates by b first, then a */
 mim_quat mim_quat_normalize(mim_quat q);
 mim_vec3 mim_quat_rotate(mim_quat q, mim_vec3 v);

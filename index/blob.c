@@ -1,10 +1,10 @@
 /* The recognition index as one blob (what the store keeps):
  *
- *   0  "MIXB"   4 u32 version (1)   8 u64 payload bytes   16 u64 checksum
+ *   0  "MIXB"   4 u32 version (2)   8 u64 payload bytes   16 u64 checksum
  *  24  u32 0x01020304 (byte order)  28 u32 0
  *  32  payload, little-endian, unaligned:
  *      u32 n_landmarks, d, n_templates, n_classes, n_strings, class_source,
- *          exact_max, checks, d2; f64 C, gamma, cv_accuracy
+ *          exact_max, checks, d2, augment; f64 C, gamma, cv_accuracy, noise
  *      u32 selected[d2]                         ranked angles, the descriptor first
  *      n_strings x (u32 length, bytes)          label strings, [0] = ""
  *      u32 class_name[n_classes], u32 class_start[n_classes + 1]
@@ -15,7 +15,10 @@
  *                   f64 sv[n_sv * d])           the SVMs
  * The checksum is mim_hash64 of the payload. The FLANN indexes are not in
  * the blob: a saved FLANN index does not hold its data, and rebuilding from
- * desc (exact scans need nothing; kd-forests are seeded) is what load does. */
+ * desc (exact scans need nothing; kd-forests are seeded) is what load does.
+ *
+ * Version 1 (before noise augmentation, issue 15) lacks augment and noise;
+ * it is still read, as an index built without augmentation. */
 #include "internal.h"
 
 #include <math.h>
@@ -23,7 +26,7 @@
 #include <string.h>
 
 #define BLOB_MAGIC "MIXB"
-#define BLOB_VERSION 1
+#define BLOB_VERSION 2
 #define BLOB_HEADER 32
 
 typedef struct {
@@ -58,9 +61,10 @@ int mim_index_save(const mim_index_t *ix, void **blob, size_t *len, mim_error_t 
     unsigned char hdr[BLOB_HEADER] = {0};
     put(&b, hdr, sizeof hdr);
     uint32_t n = ix->n_templates, d = ix->d, nc = ix->n_classes;
-    uint32_t head[9] = {ix->n_landmarks, d, n, nc, ix->n_strings, ix->class_source, ix->exact_max, ix->checks, ix->d2};
+    uint32_t head[10] = {ix->n_landmarks, d, n, nc, ix->n_strings, ix->class_source, ix->exact_max, ix->checks, ix->d2,
+                         ix->augment};
     put(&b, head, sizeof head);
-    putf64(&b, ix->C), putf64(&b, ix->gamma), putf64(&b, ix->cv_accuracy);
+    putf64(&b, ix->C), putf64(&b, ix->gamma), putf64(&b, ix->cv_accuracy), putf64(&b, ix->noise);
     put(&b, ix->selected, sizeof(uint32_t) * ix->d2);
     for (uint32_t i = 0; i < ix->n_strings; i++) {
         uint32_t l = (uint32_t)strlen(ix->strings[i]);
@@ -144,8 +148,8 @@ int mim_index_load(mim_index_t **out, const void *blob, size_t len, mim_error_t 
     memcpy(&plen, p + 8, 8);
     memcpy(&sum, p + 16, 8);
     memcpy(&bom, p + 24, 4);
-    if (ver != BLOB_VERSION)
-        return mim_error_set(err, MIM_EFORMAT, "index blob: version %u, this mimic reads version %d (run mimic index)",
+    if (ver != BLOB_VERSION && ver != 1)
+        return mim_error_set(err, MIM_EFORMAT, "index blob: version %u, this mimic reads versions 1 to %d (run mimic index)",
                              ver, BLOB_VERSION);
     if (bom != 0x01020304) return mim_error_set(err, MIM_EFORMAT, "index blob: written with another byte order");
     if (plen != len - BLOB_HEADER)
@@ -158,10 +162,14 @@ int mim_index_load(mim_index_t **out, const void *blob, size_t len, mim_error_t 
     int rc = 0;
     mim_index_t *ix = calloc(1, sizeof *ix);
     if (!ix) return MIM_ENOMEM;
-    uint32_t head[9];
-    get(&r, head, sizeof head);
+    uint32_t head[10] = {0};
+    get(&r, head, sizeof(uint32_t) * (ver == 1 ? 9 : 10));
     get(&r, &ix->C, 8), get(&r, &ix->gamma, 8), get(&r, &ix->cv_accuracy, 8);
+    if (ver >= 2) get(&r, &ix->noise, 8);
     if (r.bad) BAD("index blob: truncated header");
+    ix->augment = head[9];
+    if (!(ix->noise >= 0 && ix->noise <= 1) || ix->augment > 64 || (ix->augment == 0) != (ix->noise == 0))
+        BAD("index blob: noise augmentation out of range (%u copies, noise %g)", ix->augment, ix->noise);
     ix->n_landmarks = head[0], ix->d = head[1], ix->n_templates = head[2], ix->n_classes = head[3];
     ix->class_source = head[5], ix->exact_max = head[6], ix->checks = head[7], ix->d2 = head[8];
     uint32_t L = ix->n_landmarks, d = ix->d, n = ix->n_templates, nc = ix->n_classes, ns = head[4], d2 = ix->d2;

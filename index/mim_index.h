@@ -133,8 +133,21 @@ typedef struct mim_index_options {
     uint32_t exact_max;       /* classes up to this size get an exact k-NN; 0 means 8192 */
     uint32_t checks;          /* kd-forest checks for larger classes; 0 means 128 */
     double C, gamma;          /* both > 0: skip cross-validation and use these */
+    /* Noise augmentation: the tree and the SVMs also learn from `augment`
+     * copies of every template whose landmarks carry Gaussian noise of
+     * sigma = noise x the bodies' scale (the median over templates of the
+     * RMS distance of the landmarks from their centroid: 0.43-0.61 m over
+     * synth's bodies and poses, so the default 0.025 is about 1.3 cm), each
+     * copy also mirrored by the tree. Defaults chosen on the hard set of
+     * bench/query_accuracy (bench/RESULTS.md, issue 15). Seeded: the same
+     * input gives the same index. */
+    double noise;             /* 0 means MIM_INDEX_NOISE_DEFAULT; < 0: no augmentation */
+    uint32_t augment;         /* copies per template; 0 means MIM_INDEX_AUGMENT_DEFAULT */
     mim_progress_t *progress; /* fn and ctx set by the caller, run by the build; NULL: quiet */
 } mim_index_options_t;
+
+#define MIM_INDEX_NOISE_DEFAULT 0.025
+#define MIM_INDEX_AUGMENT_DEFAULT 4u
 
 enum { MIM_CLASSES_LABELS = 0, MIM_CLASSES_KMEANS = 1 };
 
@@ -143,6 +156,8 @@ typedef struct mim_index_report {
     double C, gamma, cv_accuracy;        /* cv_accuracy < 0: not cross-validated */
     uint32_t support_vectors;            /* all SVMs together */
     uint32_t exact_classes;              /* classes with an exact k-NN */
+    uint32_t augment;                    /* noisy copies per template learnt from (0: none) */
+    double noise;                        /* their sigma / the bodies' scale (0: none) */
     mim_select_report_t select;
     double seconds;
 } mim_index_report_t;
@@ -161,6 +176,8 @@ int mim_index_load(mim_index_t **out, const void *blob, size_t len, mim_error_t 
 typedef struct mim_index_info {
     uint32_t n_templates, n_landmarks, d, d2, n_classes, class_source;
     double C, gamma, cv_accuracy;
+    uint32_t augment; /* noisy copies per template the build learnt from (0: none) */
+    double noise;     /* their sigma, a fraction of the bodies' scale (0: none) */
 } mim_index_info_t;
 void mim_index_get_info(const mim_index_t *ix, mim_index_info_t *out);
 const char *mim_index_class_name(const mim_index_t *ix, uint32_t cls);

@@ -127,6 +127,41 @@ static void full_angles(const mim_index_input_t *in, uint32_t t, float *out)
     mim_index_angles(in->landmarks + (size_t)t * in->n_landmarks * 3, NULL, in->n_landmarks, out);
 }
 
+/* ---- noise augmentation (issue 15) ----
+ * The bodies' scale: the median, over at most 1001 evenly spread templates,
+ * of the RMS distance of a template's landmarks from their centroid. One
+ * number per store, in the store's own unit, so that the training noise
+ * means the same for bodies in metres or millimetres. */
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+static double body_scale(const mim_index_input_t *in)
+{
+    uint32_t n = in->n_templates, L = in->n_landmarks, m = n < 1001 ? n : 1001;
+    double r[1001];
+    for (uint32_t i = 0; i < m; i++) {
+        const float *p = in->landmarks + (size_t)((uint64_t)i * n / m) * L * 3;
+        double c[3] = {0, 0, 0}, s = 0;
+        for (uint32_t l = 0; l < L; l++)
+            for (int k = 0; k < 3; k++) c[k] += p[3 * l + k] / (double)L;
+        for (uint32_t l = 0; l < L; l++)
+            for (int k = 0; k < 3; k++) s += (p[3 * l + k] - c[k]) * (p[3 * l + k] - c[k]);
+        r[i] = sqrt(s / L);
+    }
+    qsort(r, m, sizeof *r, cmp_double);
+    return r[m / 2];
+}
+
+/* Template t's landmarks with Gaussian noise of sigma on every coordinate. */
+static void noisy_landmarks(const mim_index_input_t *in, uint32_t t, double sigma, mim_rng_t *rng, float *out)
+{
+    const float *p = in->landmarks + (size_t)t * in->n_landmarks * 3;
+    for (uint32_t i = 0; i < 3 * in->n_landmarks; i++) out[i] = (float)(p[i] + sigma * mim_rng_gauss(rng));
+}
+
 /* Nearest of k centres (rows of nf doubles) to the angles a; NaN left out. */
 static uint32_t nearest_centre(const float *a, const double *centres, uint32_t k, uint32_t nf)
 {
@@ -323,11 +358,18 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
     uint32_t d2 = opt.missing_features ? opt.missing_features : 3 * d;
     if (d2 < d) d2 = d;
     if (d2 > nf) d2 = nf;
+    if (!(opt.noise <= 1) || (opt.augment > 64 && opt.noise >= 0))
+        return mim_error_set(err, MIM_EINVAL, "noise augmentation: noise %g (at most 1) and %u copies (at most 64)",
+                             opt.noise, opt.augment);
+    double noise = opt.noise < 0 ? 0 : opt.noise > 0 ? opt.noise : MIM_INDEX_NOISE_DEFAULT;
+    uint32_t A = noise > 0 ? (opt.augment ? opt.augment : MIM_INDEX_AUGMENT_DEFAULT) : 0;
+    double sigma = A ? noise * body_scale(in) : 0;
+    if (!A) noise = 0;
     mim_index_t *ix = calloc(1, sizeof *ix);
     strtab_t st = {0};
     uint32_t *cls = malloc(sizeof(uint32_t) * n), *names = NULL, nc = 0, source = 0;
     uint32_t *order = NULL, *rows = NULL, *mmap = NULL, *y = NULL, *grp = NULL;
-    float *x = NULL, *desc = NULL;
+    float *x = NULL, *desc = NULL, *noisy = NULL;
     double *sx = NULL;
     int rc = 0;
     mim_progress_t *progress = NULL; /* set once begun */
@@ -336,6 +378,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
         goto out;
     }
     ix->n_landmarks = L, ix->d = d, ix->d2 = d2, ix->n_templates = n;
+    ix->augment = A, ix->noise = noise;
     ix->exact_max = opt.exact_max ? opt.exact_max : 8192;
     ix->checks = opt.checks ? opt.checks : 128;
     if ((rc = assign_classes(in, &st, cls, &names, &nc, &source, err))) goto out;
@@ -343,14 +386,23 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
     progress = opt.progress;
     if (progress) mim_progress_begin(progress, "index", (nc > 1 && !(opt.C > 0 && opt.gamma > 0) ? 16 : 0) + nc);
 
-    /* the tree chooses the d angles, on a sample of at most select_max */
-    uint32_t smax = opt.select_max_samples ? opt.select_max_samples : 4000, m = n < smax ? n : smax;
+    /* the tree chooses the d angles, on a sample of at most select_max rows
+     * (templates and their noisy copies) */
+    uint32_t smax = opt.select_max_samples ? opt.select_max_samples : 4000;
+    uint32_t m = n < smax / (1 + A) ? n : smax / (1 + A);
+    if (!m) m = 1;
+    /* SVMs: a uniform sample of at most 2 * svm_max rows, copies included */
+    uint32_t vmax = 2 * (opt.svm_max_samples ? opt.svm_max_samples : 4000);
+    uint32_t sm = n < vmax / (1 + A) ? n : vmax / (1 + A);
+    if (!sm) sm = 1;
+    size_t ycap = (size_t)(m > sm ? m : sm) * (1 + A);
     rows = malloc(sizeof(uint32_t) * n);
-    x = malloc(sizeof(float) * (size_t)m * nf);
-    y = malloc(sizeof(uint32_t) * (m > n ? m : n));
+    x = malloc(sizeof(float) * (size_t)m * (1 + A) * nf);
+    y = malloc(sizeof(uint32_t) * (ycap > n ? ycap : n));
+    noisy = malloc(sizeof(float) * 3 * L);
     ix->selected = malloc(sizeof(uint32_t) * d2);
     if (in->mirror) mmap = malloc(sizeof(uint32_t) * nf);
-    if (!rows || !x || !y || !ix->selected || (in->mirror && !mmap)) {
+    if (!rows || !x || !y || !noisy || !ix->selected || (in->mirror && !mmap)) {
         rc = MIM_ENOMEM;
         goto out;
     }
@@ -365,11 +417,19 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
         full_angles(in, rows[i], x + (size_t)i * nf);
         y[i] = cls[rows[i]];
     }
+    mim_rng_seed(&rng, MIM__INDEX_SEED, 0x6e6f6973ULL);
+    for (uint32_t i = 0; i < m; i++) /* the noisy copies after the templates */
+        for (uint32_t a = 0; a < A; a++) {
+            size_t row = m + (size_t)i * A + a;
+            noisy_landmarks(in, rows[i], sigma, &rng, noisy);
+            mim_index_angles(noisy, NULL, L, x + row * nf);
+            y[row] = cls[rows[i]];
+        }
     if (mmap) mim_index_angle_mirror(L, in->mirror, mmap);
     mim_select_options_t so = {.features = d2}; /* ranked: the first d are the descriptor */
     mim_select_report_t srep = {0};
     if (nc > 1) {
-        if ((rc = mim_index_select(x, y, m, nf, nc, mmap, &so, ix->selected, &srep, err))) goto out;
+        if ((rc = mim_index_select(x, y, m * (1 + A), nf, nc, mmap, &so, ix->selected, &srep, err))) goto out;
     } else { /* one class: nothing to separate; keep the first d angles */
         for (uint32_t s = 0; s < d2; s++) ix->selected[s] = s * (nf / d2);
     }
@@ -433,11 +493,11 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
                 if (isnan(col[r * stride])) col[r * stride] = cnt ? (float)(s / cnt) : 0.5f * 3.14159265f;
         }
 
-    /* SVMs on a uniform sample of at most 2 * svm_max templates */
+    /* SVMs on a uniform sample of at most 2 * svm_max rows: sm templates
+     * and their noisy copies */
     ix->svm = calloc(nc ? nc : 1, sizeof *ix->svm);
-    uint32_t vmax = 2 * (opt.svm_max_samples ? opt.svm_max_samples : 4000), sm = n < vmax ? n : vmax;
-    sx = malloc(sizeof(double) * (size_t)sm * d);
-    grp = malloc(sizeof(uint32_t) * sm);
+    sx = malloc(sizeof(double) * (size_t)sm * (1 + A) * d);
+    grp = malloc(sizeof(uint32_t) * (size_t)sm * (1 + A));
     if (!ix->svm || !sx || !grp) {
         rc = MIM_ENOMEM;
         goto out;
@@ -467,8 +527,19 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
             for (uint32_t f = 0; f < d; f++) sx[(size_t)i * d + f] = ix->desc[(size_t)r * d + f];
         }
         free(gmap);
+        mim_rng_seed(&rng, MIM__INDEX_SEED, 0x6e6f6974ULL);
+        for (uint32_t i = 0; i < sm; i++)
+            for (uint32_t a = 0; a < A; a++) {
+                size_t row = sm + (size_t)i * A + a;
+                uint32_t r = rows[i];
+                noisy_landmarks(in, order[r], sigma, &rng, noisy);
+                mim_index_descriptor(noisy, NULL, L, ix->selected, d, desc);
+                y[row] = y[i], grp[row] = grp[i];
+                for (uint32_t f = 0; f < d; f++) /* an undefined angle: the template's own */
+                    sx[row * d + f] = isnan(desc[f]) ? ix->desc[(size_t)r * d + f] : desc[f];
+            }
     }
-    mim__svm_data_t sd = {sx, y, grp, sm, d, nc, n_groups};
+    mim__svm_data_t sd = {sx, y, grp, sm * (1 + A), d, nc, n_groups};
     if ((rc = mim__svm_train_all(&sd, &opt, ix->svm, &ix->C, &ix->gamma, &ix->cv_accuracy, err))) goto out;
     if ((rc = mim__index_build_knn(ix, err))) goto out;
     ix->strings = st.s, ix->n_strings = st.n;
@@ -482,6 +553,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
             report->exact_classes += ix->flann_exact[c] != 0;
         }
         report->select = srep;
+        report->augment = A, report->noise = noise;
         report->seconds = mim_now() - t0;
     }
     *out = ix;
@@ -492,6 +564,7 @@ out:
     free(st.s), free(st.slot);
     mim_index_close(&ix);
     free(cls), free(names), free(order), free(rows), free(mmap), free(y), free(grp), free(x), free(desc), free(sx);
+    free(noisy);
     return rc;
 }
 
@@ -501,6 +574,7 @@ void mim_index_get_info(const mim_index_t *ix, mim_index_info_t *o)
     o->n_templates = ix->n_templates, o->n_landmarks = ix->n_landmarks, o->d = ix->d, o->d2 = ix->d2;
     o->n_classes = ix->n_classes, o->class_source = ix->class_source;
     o->C = ix->C, o->gamma = ix->gamma, o->cv_accuracy = ix->cv_accuracy;
+    o->augment = ix->augment, o->noise = ix->noise;
 }
 
 const char *mim_index_class_name(const mim_index_t *ix, uint32_t c)

@@ -79,6 +79,19 @@ static void move(void *ctx, const void *from, const double *eps, void *to)
     }
 }
 
+void mim_pairs_seed_jitter(const double *pair, double rot_sd, double trans_sd, mim_rng_t *rng, double *out)
+{
+    mim_pairs_pose_t rest, edited;
+    mim_pairs_pose_rest(pair, &rest);
+    double eps[3 * MIM_PAIRS_GROUPS];
+    for (int g = 0; g < MIM_PAIRS_GROUPS; g++) {
+        double sd = !mim_pairs_group_free(g) ? 0.0 : g >= MIM_PAIRS_GROUP_TRANS(0) ? trans_sd : rot_sd;
+        for (int c = 0; c < 3; c++) eps[3 * g + c] = sd * mim_rng_gauss(rng);
+    }
+    move(NULL, &rest, eps, &edited);
+    mim_pairs_pose_joints(&edited, out);
+}
+
 static double rms_radius(const double *joints)
 {
     double c[3] = {0, 0, 0}, s = 0;

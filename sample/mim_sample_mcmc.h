@@ -209,6 +209,12 @@ typedef struct mim_pairs_target {
 int mim_pairs_chain_run(const mim_pairs_target_t *t, const double *seed, mim_rng_t *rng, mim_penetration_t *pen,
                         uint32_t n, double *out_joints, double *out_log_density, mim_mh_stats_t *stats,
                         _Atomic uint64_t *done, mim_error_t *err);
+/* A rough seed, as the paper's is one annotation lifted to 3D and edited by
+ * hand (Section 5): pair (34 x 3) with every free joint turned by a rotation
+ * vector of rot_sd radians a component and B's pelvis moved by trans_sd
+ * metres a component (the moves of eq. 12), into out (34 x 3, may not alias
+ * pair). Bone lengths are kept; the result may be invalid under the prior. */
+void mim_pairs_seed_jitter(const double *pair, double rot_sd, double trans_sd, mim_rng_t *rng, double *out);
 /* log f(theta|D) (eqs. 1, 2, 6, 9) of a pose-pair under the chain's
  * views: prior plus likelihood; -INFINITY when invalid. The building block
  * of mim_pairs_chain_run, public for tests and for choosing seeds. */

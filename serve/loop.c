@@ -219,7 +219,8 @@ static int make_key(mim__loop_t *l, const float *u, const mim_quat *R, const uin
     double t0 = mim_now();
     key_pose_t *prev = &l->keys[l->cur], *k = &l->keys[!l->cur];
     mim_session_request_t req = {.landmarks = u, .orientations = R, .orient_present = have,
-                                 .drive = (mim_session_drive_t)l->opt.drive};
+                                 .drive = (mim_session_drive_t)l->opt.drive, .blend = l->opt.blend,
+                                 .segment_correction = l->opt.segment_correction};
     if (prev->valid && want_warm(l)) /* warm start: the same template as the last key frame */
         req.xfer.start = prev->pos, req.start_template = prev->template_id;
     mim_session_report_t *rep = &l->report;
@@ -602,6 +603,8 @@ int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t
     const mim_error_t *why = NULL;
     if (!rc && (opt->drive < MIM_DRIVE_AUTO || opt->drive > MIM_DRIVE_ORIENTATION))
         rc = mim_error_set(err, MIM_EINVAL, "serve: unknown drive %d", opt->drive);
+    else if (!rc && opt->blend > MIM_XFER_BLEND_MAX)
+        rc = mim_error_set(err, MIM_EINVAL, "serve: --blend %u: at most %d templates", opt->blend, MIM_XFER_BLEND_MAX);
     else if (!rc && opt->drive == MIM_DRIVE_ORIENTATION && !mim_session_skin(sv->s, &why, NULL))
         rc = mim_error_set(err, why->code, "--drive orientation: %s", mim_error_text(why));
     if (l) {

@@ -76,6 +76,10 @@ typedef struct mim_serve_options {
      * for an avatar that cannot be segmented; a UDP frame without
      * orientations is then a vest error). Other values: MIM_EINVAL. */
     int drive;
+    /* The template drive's templates (mim_session_request_t's blend, 0:
+     * MIM_SESSION_DEFAULT_BLEND) and segment correction (1: on). */
+    uint32_t blend;
+    int segment_correction;
     unsigned max_clients; /* WebSocket clients at once; 0: MIM_SERVE_DEFAULT_MAX_CLIENTS */
     /* Called on the loop thread for every published frame (may be NULL),
      * e.g. to record the served sequence; it must return quickly. */

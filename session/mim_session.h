@@ -111,8 +111,22 @@ typedef enum mim_session_drive {
 int mim_session_drive_parse(const char *name);
 extern const char *const mim_session_drive_names[3];
 
+/* The template drive can blend the frames of the k templates nearest to
+ * the landmarks, weighted by 1 / (query distance + the floor), each first
+ * turned by the segment correction (issue 15). The default is the nearest
+ * alone: on body data the index has not seen, blending changed the mean
+ * error by -1.7 % to +3 % and the correction added error
+ * (bench/blend_accuracy.c, bench/RESULTS.md). */
+#define MIM_SESSION_DEFAULT_BLEND 1
+#define MIM_SESSION_BLEND_DISTANCE_FLOOR 1e-3 /* radians: two equal descriptors do not weigh infinitely */
 typedef struct mim_session_request {
     uint64_t template_id;    /* the pose's template; 0: the nearest one to landmarks, through the index */
+    /* Templates to blend, given (n_templates, 1..MIM_XFER_BLEND_MAX; equal
+     * weights; template_id is then not read); 0: template_id, or the index's */
+    const uint64_t *template_ids;
+    uint32_t n_templates;
+    uint32_t blend;          /* templates the index gives to blend (1..MIM_XFER_BLEND_MAX); 0: MIM_SESSION_DEFAULT_BLEND */
+    int segment_correction;  /* 1: each template's frames turned onto the landmarks first (default off: bench/RESULTS.md) */
     const float *landmarks;  /* 3 * map count floats, in map order; NULL: mode (a), the template's own
                                 landmarks retargeted onto the avatar's proportions */
     mim_xfer_options_t xfer; /* iterations, tolerance, damping, warm start (start: 3 * n floats) */
@@ -130,7 +144,10 @@ typedef struct mim_session_request {
 
 #define MIM_SESSION_LABEL_MAX 160
 typedef struct mim_session_report {
-    uint64_t template_id;             /* the template whose frames gave the pose */
+    uint64_t template_id;             /* the template whose frames gave the pose (the first blended) */
+    uint32_t n_templates;             /* the templates blended (1 for the orientation drive) */
+    uint64_t templates[MIM_XFER_BLEND_MAX];
+    int corrected;                    /* 1: their frames were turned by the segment correction */
     char label[MIM_SESSION_LABEL_MAX]; /* its "subject/pose" */
     int queried;                      /* 1: the template came from the index */
     mim_index_answer_t answer;        /* when queried: the class and its probability */
@@ -145,9 +162,10 @@ typedef struct mim_session_report {
 } mim_session_report_t;
 
 /* Transfers the avatar into one pose and writes its 3 * n positions to out:
- * the template (given, or the nearest to the landmarks), its frames (the
- * last template's are kept between calls), the landmarks (given, or mode
- * (a)), then the iterated solve with the cached factor (seed 000, eq. 3).
+ * the template (given, or the nearest to the landmarks; or several,
+ * blended: template_ids, blend), its frames (the last templates' are kept
+ * between calls), the landmarks (given, or mode (a) from the first
+ * template), then the iterated solve with the cached factor (seed 000, eq. 3).
  * The orientation drive (req->drive, req->orientations) still finds the
  * template (the pose's label and id), but the frames are the avatar's own
  * rest frames turned per segment, and one solve with the landmarks gives

@@ -17,6 +17,16 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* A template read for transfers: its positions and frames, and its frames
+ * turned by the segment correction (allocated on first use). */
+typedef struct template_slot {
+    uint64_t id;                /* 0: empty */
+    uint64_t used;              /* the session's tick when last used */
+    float *pos;                 /* 3 * n */
+    double *F, *cF;             /* 9 * n each */
+    char label[MIM_SESSION_LABEL_MAX];
+} template_slot_t;
+
 struct mim_session {
     mim_db_t *db;
     mim_query_t *query;         /* NULL when the store has no index */
@@ -49,17 +59,16 @@ struct mim_session {
     char store[4096];
     char avatar[4096];          /* how the avatar was named: path or "template N" */
 
-    /* guarded by lock: the one factor, and the last template's frames,
+    /* guarded by lock: the one factor, and the last templates' frames,
      * which most consecutive transfers share (a vest holding a pose) */
     pthread_mutex_t lock;
     mim_xfer_solver_t *solver;
-    uint64_t cached_id;         /* 0: nothing cached */
-    float *tpos;                /* 3 * n */
-    double *tF;                 /* 9 * n */
+    template_slot_t slot[MIM_XFER_BLEND_MAX];
+    uint64_t tick;              /* the slots' clock (least recently used goes first) */
+    double *bF;                 /* 9 * n: the blended templates' frames */
     double *oF;                 /* 9 * n: the orientation drive's frames */
     uint64_t label_id;          /* 0, or the template whose "subject/pose" label holds */
     char label[MIM_SESSION_LABEL_MAX];
-    char cached_label[MIM_SESSION_LABEL_MAX];
 };
 
 static int all_digits(const char *s)
@@ -429,10 +438,9 @@ int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *e
     const uint32_t n = s->mesh.n_vertices;
     if (!s->W) {
         s->W = malloc(3 * (size_t)n * sizeof *s->W);
-        s->tpos = malloc(3 * (size_t)n * sizeof *s->tpos);
-        s->tF = malloc(9 * (size_t)n * sizeof *s->tF);
+        s->bF = malloc(9 * (size_t)n * sizeof *s->bF);
         s->oF = malloc(9 * (size_t)n * sizeof *s->oF);
-        if (!s->W || !s->tpos || !s->tF || !s->oF)
+        if (!s->W || !s->bF || !s->oF)
             return mim_error_set(err, MIM_ENOMEM, "out of memory for %u vertices", n);
     }
     int rc = load_avatar(s, avatar, err);
@@ -459,7 +467,9 @@ void mim_session_close(mim_session_t **ps)
     mim_mesh_free(&s->own);
     mim_reg_binding_free(&s->binding);
     free(s->out_work);
-    free(s->W), free(s->tpos), free(s->tF), free(s->oF), free(s->restF), free(s->skin);
+    for (int k = 0; k < MIM_XFER_BLEND_MAX; k++)
+        free(s->slot[k].pos), free(s->slot[k].F), free(s->slot[k].cF);
+    free(s->W), free(s->bF), free(s->oF), free(s->restF), free(s->skin);
     mim_db_close(&s->db);
     pthread_mutex_destroy(&s->lock);
     pthread_mutex_destroy(&s->out_lock);
@@ -543,35 +553,55 @@ int mim_session_template(mim_session_t *s, uint64_t id, float *positions, double
     return rc;
 }
 
-/* The nearest template of complete landmarks u, through the index. */
-static int nearest(mim_session_t *s, const float *u, mim_session_report_t *r, mim_error_t *err)
+/* The k nearest templates of complete landmarks u, through the index, into
+ * r->templates, and their weights (the inverse of the query distance:
+ * bench/blend_accuracy.c). */
+static int nearest(mim_session_t *s, const float *u, uint32_t k, mim_session_report_t *r, double *weights,
+                   mim_error_t *err)
 {
     if (!s->query)
         return mim_error_set(err, MIM_ENOTFOUND, "%s: store has no index (run mimic index)", s->store);
-    mim_index_query_options_t qo = {.k = 1};
-    mim_index_hit_t hit;
-    int rc = mim_query_frame(s->query, u, NULL, &qo, &r->answer, &hit, err);
+    mim_index_query_options_t qo = {.k = k};
+    mim_index_hit_t hits[MIM_XFER_BLEND_MAX];
+    int rc = mim_query_frame(s->query, u, NULL, &qo, &r->answer, hits, err);
     if (!rc && !r->answer.n_hits)
         rc = mim_error_set(err, MIM_ENOTFOUND, "%s: the index returned no template", s->store);
     if (rc)
         return rc;
     r->queried = 1;
-    r->template_id = hit.id;
+    r->n_templates = r->answer.n_hits;
+    for (uint32_t j = 0; j < r->n_templates; j++)
+        r->templates[j] = hits[j].id, weights[j] = 1.0 / (hits[j].distance + MIM_SESSION_BLEND_DISTANCE_FLOOR);
     snprintf(r->class_name, sizeof r->class_name, "%s", mim_index_class_name(mim_query_index(s->query), r->answer.cls));
     return 0;
 }
 
-/* Template id's positions and frames into s->tpos and s->tF, unless they
- * hold them already (under s->lock). */
-static int cache_template(mim_session_t *s, uint64_t id, mim_error_t *err)
+/* Template id's slot (under s->lock): the one holding it, else the least
+ * recently used one, read again. */
+static int cache_template(mim_session_t *s, uint64_t id, template_slot_t **out, mim_error_t *err)
 {
-    if (s->cached_id == id)
-        return 0;
-    s->cached_id = 0;
-    int rc = mim_session_template(s, id, s->tpos, s->tF, s->cached_label, sizeof s->cached_label, err);
-    if (!rc)
-        s->cached_id = id;
-    return rc;
+    template_slot_t *slot = &s->slot[0];
+    for (int k = 0; k < MIM_XFER_BLEND_MAX; k++) {
+        if (s->slot[k].id == id) {
+            s->slot[k].used = ++s->tick;
+            *out = &s->slot[k];
+            return 0;
+        }
+        if (s->slot[k].used < slot->used)
+            slot = &s->slot[k];
+    }
+    const size_t n = s->mesh.n_vertices;
+    slot->id = 0;
+    if (!slot->pos && !(slot->pos = malloc(3 * n * sizeof *slot->pos)))
+        return mim_error_set(err, MIM_ENOMEM, "out of memory for a template of %zu vertices", n);
+    if (!slot->F && !(slot->F = malloc(9 * n * sizeof *slot->F)))
+        return mim_error_set(err, MIM_ENOMEM, "out of memory for a template of %zu vertices", n);
+    int rc = mim_session_template(s, id, slot->pos, slot->F, slot->label, sizeof slot->label, err);
+    if (rc)
+        return rc;
+    slot->id = id, slot->used = ++s->tick;
+    *out = slot;
+    return 0;
 }
 
 /* The orientation drive's frames into s->oF (under s->lock): lost
@@ -596,14 +626,62 @@ static int orientation_frames(mim_session_t *s, const mim_session_request_t *req
         unfilled |= from[g] < 0;
     if (!unfilled)
         return 0;
-    int rc = cache_template(s, r->template_id, err);
+    template_slot_t *t;
+    int rc = cache_template(s, r->template_id, &t, err);
     if (rc)
         return rc;
     for (uint32_t i = 0; i < n; i++)
         if (from[s->skin[i].bone[0]] < 0) {
-            memcpy(s->oF + 9 * (size_t)i, s->tF + 9 * (size_t)i, 9 * sizeof *s->oF);
+            memcpy(s->oF + 9 * (size_t)i, t->F + 9 * (size_t)i, 9 * sizeof *s->oF);
             r->orient_from_template++;
         }
+    return 0;
+}
+
+/* The template drive's frames (under s->lock): each template's, turned by
+ * the segment correction from its landmark skeleton onto the targets u when
+ * the avatar is segmented, then blended with these weights (issue 15).
+ * *frames points at them; the first template's slot in *first. */
+static int template_frames(mim_session_t *s, const mim_session_request_t *req, mim_session_report_t *r,
+                           const double *weights, const float *u, const double **frames, template_slot_t **first,
+                           mim_error_t *err)
+{
+    const uint32_t n = s->mesh.n_vertices, nl = s->map.count;
+    const double *src[MIM_XFER_BLEND_MAX];
+    int correct = s->skin && u && req->segment_correction;
+    for (uint32_t j = 0; j < r->n_templates; j++) {
+        template_slot_t *t;
+        int rc = cache_template(s, r->templates[j], &t, err);
+        if (rc)
+            return rc;
+        if (!j)
+            *first = t;
+        src[j] = t->F;
+        if (!correct)
+            continue;
+        if (!t->cF && !(t->cF = malloc(9 * (size_t)n * sizeof *t->cF)))
+            return mim_error_set(err, MIM_ENOMEM, "out of memory for a template of %u vertices", n);
+        float lm[3 * MIM_LANDMARKS_MAX];
+        for (uint32_t l = 0; l < nl; l++)
+            memcpy(lm + 3 * l, t->pos + 3 * (size_t)s->map.vertex[l], 3 * sizeof *lm);
+        mim_quat R[MIM_SEGMENTS];
+        mim_error_t cerr = {0};
+        if ((rc = mim_xfer_segment_correction(&s->map, lm, u, R, &cerr)) == MIM_EUNSUPPORTED) {
+            correct = 0; /* a map without the default landmarks (the first template finds out) */
+            continue;
+        }
+        if (rc)
+            return mim_error_set(err, rc, "%s", mim_error_text(&cerr));
+        mim_xfer_skin_frames(n, s->skin, t->F, R, t->cF);
+        src[j] = t->cF;
+    }
+    r->corrected = correct;
+    if (r->n_templates == 1) {
+        *frames = src[0];
+        return 0;
+    }
+    mim_xfer_frames_blend(n, r->n_templates, src, weights, s->bF);
+    *frames = s->bF;
     return 0;
 }
 
@@ -614,10 +692,16 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
     memset(r, 0, sizeof *r);
     if (!s->solver)
         return mim_error_set(err, MIM_EINVAL, "%s: transfer: no avatar loaded", s->store);
-    if (!req->template_id && !req->landmarks)
+    if (!req->template_id && !req->n_templates && !req->landmarks)
         return mim_error_set(err, MIM_EINVAL, "transfer: give a template, landmarks, or both");
     if (req->drive < MIM_DRIVE_AUTO || req->drive > MIM_DRIVE_ORIENTATION)
         return mim_error_set(err, MIM_EINVAL, "transfer: unknown drive %d", (int)req->drive);
+    if (req->n_templates > MIM_XFER_BLEND_MAX || req->blend > MIM_XFER_BLEND_MAX || (req->n_templates && !req->template_ids))
+        return mim_error_set(err, MIM_EINVAL, "transfer: %u templates to blend (at most %d)",
+                             req->n_templates > req->blend ? req->n_templates : req->blend, MIM_XFER_BLEND_MAX);
+    for (uint32_t j = 0; j < req->n_templates; j++)
+        if (!req->template_ids[j])
+            return mim_error_set(err, MIM_EINVAL, "transfer: template id 0 in the list to blend");
     int measured = 0; /* segments with an orientation */
     for (int g = 0; req->orientations && g < MIM_VEST_SEGMENTS; g++)
         measured += !req->orient_present || req->orient_present[g];
@@ -641,10 +725,18 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
     }
     double t0 = mim_now();
     int rc = 0;
-    if (req->template_id)
-        r->template_id = req->template_id;
-    else
-        rc = nearest(s, req->landmarks, r, err); /* outside the lock: queries run concurrently */
+    double weights[MIM_XFER_BLEND_MAX];
+    if (req->n_templates) { /* given: equal weights */
+        r->n_templates = req->n_templates;
+        for (uint32_t j = 0; j < r->n_templates; j++)
+            r->templates[j] = req->template_ids[j], weights[j] = 1.0;
+    } else if (req->template_id) {
+        r->n_templates = 1, r->templates[0] = req->template_id, weights[0] = 1.0;
+    } else { /* outside the lock: queries run concurrently; the orientation drive names the pose by one */
+        uint32_t k = r->drive == MIM_DRIVE_ORIENTATION ? 1 : req->blend ? req->blend : MIM_SESSION_DEFAULT_BLEND;
+        rc = nearest(s, req->landmarks, k, r, weights, err);
+    }
+    r->template_id = r->templates[0];
     double t1 = mim_now();
     r->seconds_query = t1 - t0;
     if (rc)
@@ -652,33 +744,38 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
     const uint32_t n = s->mesh.n_vertices, nl = s->map.count;
     float *u = r->landmarks;
     pthread_mutex_lock(&s->lock);
-    const double *frames = s->tF;
+    const double *frames = NULL;
+    template_slot_t *first = NULL;
     if (r->drive == MIM_DRIVE_ORIENTATION) {
+        r->n_templates = 1;
         rc = orientation_frames(s, req, r, err);
         frames = s->oF;
         /* the label without reading the template's mesh unless it is cached
          * (kept: a stream holds a pose) */
-        if (!rc && s->cached_id == r->template_id)
-            snprintf(r->label, sizeof r->label, "%s", s->cached_label);
-        else if (!rc && s->label_id != r->template_id) {
+        for (int k = 0; !rc && k < MIM_XFER_BLEND_MAX && !r->label[0]; k++)
+            if (s->slot[k].id == r->template_id)
+                snprintf(r->label, sizeof r->label, "%s", s->slot[k].label);
+        if (!rc && !r->label[0] && s->label_id != r->template_id) {
             s->label_id = 0;
             rc = mim_session_template(s, r->template_id, NULL, NULL, s->label, sizeof s->label, err);
             if (!rc)
                 s->label_id = r->template_id;
         }
-        if (!rc && s->cached_id != r->template_id)
+        if (!rc && !r->label[0])
             snprintf(r->label, sizeof r->label, "%s", s->label);
         if (!rc)
             memcpy(u, req->landmarks, 3 * (size_t)nl * sizeof *u);
     } else {
-        rc = cache_template(s, r->template_id, err);
-    }
-    if (!rc && r->drive == MIM_DRIVE_TEMPLATE) {
-        snprintf(r->label, sizeof r->label, "%s", s->cached_label);
-        if (req->landmarks) /* mode (b): the tracked landmarks, held */
+        template_slot_t *t0slot = NULL;
+        rc = cache_template(s, r->templates[0], &t0slot, err);
+        if (!rc && req->landmarks) /* mode (b): the tracked landmarks, held */
             memcpy(u, req->landmarks, 3 * (size_t)nl * sizeof *u);
-        else /* mode (a): the template's landmarks on the avatar's proportions */
-            rc = mim_xfer_retarget_landmarks(&s->map, s->mesh.positions, s->tpos, u, err);
+        else if (!rc) /* mode (a): the first template's landmarks on the avatar's proportions */
+            rc = mim_xfer_retarget_landmarks(&s->map, s->mesh.positions, t0slot->pos, u, err);
+        if (!rc)
+            rc = template_frames(s, req, r, weights, u, &frames, &first, err);
+        if (!rc)
+            snprintf(r->label, sizeof r->label, "%s", first->label);
     }
     double t2 = mim_now();
     r->seconds_template = t2 - t1;

@@ -534,6 +534,27 @@ static void test_sample_cli(void **s)
                           "--start", start, "-o", s3, NULL};
     assert_int_equal(ts_run_mimic(&o, &e, run4), 0);
     free(o), free(e);
+    /* --seed-jitter edits the seed (the same way for the same seed): the
+     * first sample moves away from the unedited run's */
+    char *j1 = ts_path(dir, "j1.jsonl"), *j2 = ts_path(dir, "j2.jsonl");
+    const char *jit[] = {"pairs", "sample", "--prior", spec, "--density", "prior", "--samples", "10", "--chains", "1",
+                         "--start", start, "--seed-jitter", "5,0.05", "-o", j1, "--json", NULL};
+    if (ts_run_mimic(&o, &e, jit)) fail_msg("%s", e);
+    json_error_t jerr;
+    json_t *jrep = json_loads(o, 0, &jerr);
+    assert_non_null(jrep);
+    json_t *params = json_object_get(jrep, "parameters");
+    assert_true(fabs(json_real_value(json_object_get(params, "seed_jitter_deg")) - 5) < 1e-9);
+    assert_true(fabs(json_real_value(json_object_get(params, "seed_jitter_m")) - 0.05) < 1e-9);
+    json_decref(jrep);
+    free(o), free(e);
+    jit[15] = j2;
+    assert_int_equal(ts_run_mimic(&o, &e, jit), 0);
+    free(o), free(e);
+    char *tj1 = ts_read_file(j1, NULL), *tj2 = ts_read_file(j2, NULL), *tplain = ts_read_file(s3, NULL);
+    assert_string_equal(tj1, tj2);
+    assert_true(strcmp(tj1, tplain) != 0);
+    free(tj1), free(tj2), free(tplain), free(j1), free(j2);
     /* K seeds (--start F:L1,L2): chain k starts from the k-th line, so each
      * chain's samples are those of a run with its line alone */
     char *k1 = ts_path(dir, "k1.jsonl"), *k2 = ts_path(dir, "k2.jsonl"), *k12 = ts_path(dir, "k12.jsonl");
@@ -586,6 +607,18 @@ static void test_sample_cli(void **s)
     expect_fail(b8, 2, "--restart-every 'x' is not a number");
     const char *b9[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5", "--chains", "0", "-o", none, NULL};
     expect_fail(b9, 2, "--chains '0' is not a number in 1..256");
+    static const char *const jitters[][2] = {{"15", "--seed-jitter '15' is not DEG,M"},
+                                             {"95,0", "does not start with degrees in 0..90"},
+                                             {"5,-1", "does not end with metres in 0..10"}};
+    for (size_t k = 0; k < sizeof jitters / sizeof jitters[0]; k++) {
+        const char *jb[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5",
+                            "--seed-jitter", jitters[k][0], "-o", none, NULL};
+        expect_fail(jb, 2, jitters[k][1]);
+    }
+    snprintf(start, sizeof start, "%s:7", s1);
+    const char *j6[] = {"pairs", "sample", "--prior", spec, "--density", "prior", "--samples", "5", "--start", start,
+                        "--seed-jitter", "90,5", "-o", none, NULL};
+    expect_fail(j6, 1, "a smaller --seed-jitter?");
     snprintf(start, sizeof start, "%s:3", none);
     const char *b10[] = {"pairs", "sample", "--prior", spec, "--annotations", ann, "--samples", "5", "--start", start, "-o", none, NULL};
     expect_fail(b10, 1, "--start: ");

@@ -239,6 +239,38 @@ static void test_pose_model(void **s)
     assert_true(mim_pairs_group_free(MIM_PAIRS_ROT)); /* B's root rotation */
 }
 
+/* A rough seed (--seed-jitter): bones keep their lengths, A's pelvis stays
+ * (its root does not move), the joints move by about the turn asked for,
+ * and no turn gives the pair back. */
+static void test_seed_jitter(void **s)
+{
+    (void)s;
+    mim_rng_t r, j;
+    mim_rng_seed(&r, 3, 0);
+    mim_rng_seed(&j, 4, 0);
+    double pair[3 * MIM_PAIR_JOINTS], out[3 * MIM_PAIR_JOINTS];
+    synthetic_pair(&r, 0.5, pair);
+    mim_pairs_seed_jitter(pair, 0, 0, &j, out);
+    for (int i = 0; i < 3 * MIM_PAIR_JOINTS; i++) assert_true(fabs(out[i] - pair[i]) < 1e-12);
+    double moved = 0, moved_small = 0;
+    for (int trial = 0; trial < 20; trial++) {
+        mim_pairs_seed_jitter(pair, 15 * M_PI / 180, 0.2, &j, out);
+        for (int k = 0; k < MIM_PAIR_JOINTS; k++) {
+            int parent = mim_pairs_parent[k % MIM_PAIR_PERSON_JOINTS];
+            if (parent < 0) continue;
+            int pk = parent + (k >= MIM_PAIR_PERSON_JOINTS ? MIM_PAIR_PERSON_JOINTS : 0);
+            assert_true(fabs(dist3(out + 3 * k, out + 3 * pk) - dist3(pair + 3 * k, pair + 3 * pk)) < 1e-12);
+        }
+        assert_true(dist3(out + 3 * 2, pair + 3 * 2) < 1e-12); /* A's pelvis */
+        for (int k = 0; k < MIM_PAIR_JOINTS; k++) moved += dist3(out + 3 * k, pair + 3 * k) / MIM_PAIR_JOINTS / 20;
+        mim_pairs_seed_jitter(pair, 2 * M_PI / 180, 0.02, &j, out);
+        for (int k = 0; k < MIM_PAIR_JOINTS; k++) moved_small += dist3(out + 3 * k, pair + 3 * k) / MIM_PAIR_JOINTS / 20;
+    }
+    print_message("seed jitter 15 deg, 0.2 m: joints moved %.3f m on average; 2 deg, 0.02 m: %.3f m\n", moved, moved_small);
+    assert_true(moved > 0.05 && moved < 1.0);
+    assert_true(moved_small < 0.3 * moved);
+}
+
 /* Joint limits learned from poses: those poses are valid, a knee bent
  * the wrong way is not (by about the excess angle), the mirror image of
  * a valid pose is valid, and nothing learned is an error. */
@@ -490,7 +522,8 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_mh_matches_toy_density), cmocka_unit_test(test_mh_truncation),
-        cmocka_unit_test(test_pose_model),             cmocka_unit_test(test_validity),
+        cmocka_unit_test(test_pose_model),             cmocka_unit_test(test_seed_jitter),
+        cmocka_unit_test(test_validity),
         cmocka_unit_test(test_penetration_allowance),  cmocka_unit_test(test_likelihood),
         cmocka_unit_test(test_chains),
     };

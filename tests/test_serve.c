@@ -382,6 +382,8 @@ static void test_bad_usage(void **state)
         {{"serve", "--store", "S", "--avatar", "1", "--key-rate", "0"}, "--key-rate '0' is neither auto nor"},
         {{"serve", "--store", "S", "--avatar", "1", "--warm-start", "maybe"}, "--warm-start 'maybe' is not auto, on or off"},
         {{"serve", "--store", "S", "--avatar", "1", "--max-clients", "0"}, "--max-clients '0' is not a number in 1..1000"},
+        {{"serve", "--store", "S", "--avatar", "1", "--blend", "17"}, "--blend '17' is not a number in 1..16"},
+        {{"serve", "--store", "S", "--avatar", "1", "--segment-correction", "yes"}, "--segment-correction 'yes': use on or off"},
         {{"demo", "--duration", "-3"}, "--duration '-3' is not a number of seconds"},
         {{"demo", "--listen", "8080"}, "mimic demo: --listen '8080' is not HOST:PORT"},
         {{"demo", "--key-rate", "x"}, "mimic demo: --key-rate 'x' is neither auto nor"},

@@ -14,6 +14,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 static char *dir, *bodies, *store;
 static mim_landmark_map_t map;
@@ -704,6 +705,85 @@ static void test_orientations(void **s)
     free(store2), free(map2);
 }
 
+/* Several templates (issue 15): --template ID,ID blends their frames,
+ * --blend K the index's K nearest, --segment-correction turns them first;
+ * the landmarks are held whatever the frames. */
+static void test_blend(void **s)
+{
+    (void)s;
+    char *truth_path = body_path(0, 2), *outp = ts_path(dir, "blend.ply");
+    mim_mesh_t truth = {0};
+    read_mesh(truth_path, &truth);
+    char *lm = write_landmarks("blend_lm.json", truth.positions, NULL);
+    /* subjects 1 and 2 in pose 2 are templates 7 and 11 */
+    const char *ids[] = {"7", "11", "7,11", "7,7", "7,11"};
+    const char *correction[] = {"off", "off", "off", "off", "on"};
+    mim_mesh_t got[5] = {{0}};
+    for (int k = 0; k < 5; k++) {
+        const char *args[] = {"transfer", "--store", store, "--avatar", "1", "--template", ids[k], "--landmarks", lm,
+                              "--segment-correction", correction[k], "-o", outp, "--json", NULL};
+        json_t *rep = transfer_json(args);
+        json_t *t = json_object_get(rep, "templates");
+        assert_int_equal(json_array_size(t), k == 0 || k == 1 ? 1 : 2);
+        assert_int_equal(json_integer_value(json_array_get(t, 0)), k == 1 ? 11 : 7);
+        assert_int_equal(json_integer_value(json_object_get(rep, "template")), k == 1 ? 11 : 7);
+        assert_int_equal(json_is_true(json_object_get(rep, "segment_correction")), k == 4);
+        json_decref(rep);
+        read_mesh(outp, &got[k]);
+        for (uint32_t l = 0; l < map.count; l++)
+            for (int c = 0; c < 3; c++)
+                assert_true(fabsf(got[k].positions[3 * (size_t)map.vertex[l] + c] -
+                                  truth.positions[3 * (size_t)map.vertex[l] + c]) < 1e-5f);
+    }
+    /* the blend is neither template alone; a template blended with itself is that template */
+    double d_7 = mean_error(&got[2], &got[0]), d_11 = mean_error(&got[2], &got[1]), d_same = mean_error(&got[3], &got[0]);
+    double d_corr = mean_error(&got[4], &got[2]);
+    print_message("blend of 7 and 11: %.3f mm from 7's, %.3f mm from 11's; 7 with itself %.2g mm from 7's; corrected "
+                  "%.3f mm from uncorrected\n", 1e3 * d_7, 1e3 * d_11, 1e3 * d_same, 1e3 * d_corr);
+    assert_true(d_7 > 1e-5 && d_11 > 1e-5);
+    assert_true(d_same < 1e-6);
+    assert_true(d_corr > 1e-5);
+    /* the index's two nearest: both in the truth's pose (templates 7 and 11,
+     * or the truth itself, template 3; the store's index is built here, the
+     * last test) */
+    char *io, *ie;
+    const char *index[] = {"index", "--store", store, NULL};
+    if (ts_run_mimic(&io, &ie, index)) fail_msg("%s", ie);
+    free(io), free(ie);
+    const char *knn[] = {"transfer", "--store", store, "--avatar", "1", "--landmarks", lm, "--blend", "2",
+                         "-o", outp, "--json", NULL};
+    json_t *rep = transfer_json(knn);
+    json_t *t = json_object_get(rep, "templates");
+    assert_int_equal(json_array_size(t), 2);
+    json_int_t a = json_integer_value(json_array_get(t, 0)), b = json_integer_value(json_array_get(t, 1));
+    assert_true(a != b && (a == 3 || a == 7 || a == 11) && (b == 3 || b == 7 || b == 11));
+    json_decref(rep);
+    /* bad uses, one line each, nothing written */
+    const char *bad[][2] = {{"--template", "7,,11"}, {"--template", "7,x"}, {"--template", ",7"},
+                            {"--template", "1,2,3,4,5,6,7,8,9,10,11,12,1,2,3,4,5"}, {"--blend", "0"}, {"--blend", "17"},
+                            {"--segment-correction", "maybe"}};
+    const char *want[] = {"not a list of template ids", "is not a template id", "not a list of template ids",
+                          "more than 16 template ids", "blend", "blend", "use on or off"};
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
+        char *badout = ts_path(dir, "blend_bad.ply"), *o, *e;
+        const char *args[] = {"transfer", "--store", store, "--avatar", "1", "--landmarks", lm, bad[k][0], bad[k][1],
+                              "-o", badout, NULL};
+        assert_int_equal(ts_run_mimic(&o, &e, args), 2);
+        if (!strstr(e, want[k])) fail_msg("%s %s: %s", bad[k][0], bad[k][1], e);
+        assert_int_equal(access(badout, F_OK), -1);
+        free(badout), free(o), free(e);
+    }
+    char *o, *e;
+    const char *both[] = {"transfer", "--store", store, "--avatar", "1", "--template", "7", "--blend", "2",
+                          "-o", outp, NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, both), 2);
+    assert_non_null(strstr(e, "--blend K takes the K nearest"));
+    free(o), free(e);
+    for (int k = 0; k < 5; k++) mim_mesh_free(&got[k]);
+    mim_mesh_free(&truth);
+    free(truth_path), free(outp), free(lm);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -714,6 +794,7 @@ int main(void)
         cmocka_unit_test(test_bad_inputs),
         cmocka_unit_test(test_complete),
         cmocka_unit_test(test_orientations),
+        cmocka_unit_test(test_blend),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -224,6 +224,23 @@ mim_quat mim_xfer_skin_rotation(const mim_xfer_skin_t *s, const mim_quat *rot);
  * orientation-driven solve. */
 void mim_xfer_skin_frames(uint32_t n_vertices, const mim_xfer_skin_t *skin, const double *rest_frames,
                           const mim_quat *rot, double *frames);
+/* ---- several templates (blend.c; issue 15) ---- */
+#define MIM_XFER_BLEND_MAX 16 /* templates one blend reads at most */
+/* The per-vertex weighted average of k templates' frames (each 9 * n,
+ * rotations) into out (9 * n; may be frames[0]). weights (k, >= 0; NULL:
+ * equal); a weight that is not a positive finite number counts 0, and
+ * when none is positive out gets frames[0]. k above MIM_XFER_BLEND_MAX
+ * reads the first MIM_XFER_BLEND_MAX. */
+void mim_xfer_frames_blend(uint32_t n_vertices, uint32_t k, const double *const *frames, const double *weights,
+                           double *out);
+/* The segment correction: the rotation of each of the MIM_SEGMENTS body
+ * segments that takes the landmark skeleton `from` (3 * map->count floats,
+ * a template's landmarks) onto `to` (the target's). With a skin,
+ * mim_xfer_skin_frames(n, skin, template_frames, R, out) turns the
+ * template's frames by them. Errors: MIM_EUNSUPPORTED (a default landmark
+ * missing from map), MIM_ENONFINITE. */
+int mim_xfer_segment_correction(const mim_landmark_map_t *map, const float *from, const float *to,
+                                mim_quat R[MIM_SEGMENTS], mim_error_t *err);
 /* ---- mode (a): landmarks from the template alone (retarget.c) ---- */
 /* Landmark positions (3 * map->count floats) in the template's pose with
  * the avatar's proportions: from the template's pelvis, each segment of the

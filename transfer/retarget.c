@@ -22,25 +22,17 @@ static const char *const tree[][2] = {
     {"r_knee", "r_hip"},          {"l_ankle", "l_knee"},      {"r_ankle", "r_knee"},
 };
 
-static int find(const mim_landmark_map_t *map, const char *name)
-{
-    for (uint32_t i = 0; i < map->count; i++)
-        if (strcmp(map->names[i], name) == 0)
-            return (int)i;
-    return -1;
-}
-
 int mim_xfer_retarget_landmarks(const mim_landmark_map_t *map, const float *avatar_rest, const float *tmpl,
                                 float *out, mim_error_t *err)
 {
-    int root = find(map, "pelvis");
+    int root = mim_landmarks_find(map, "pelvis");
     if (root < 0 || map->count != sizeof tree / sizeof tree[0] + 1)
         return mim_error_set(err, MIM_EUNSUPPORTED,
                              "transfer: retargeting needs the 16 default landmarks (pelvis, spine, ...)");
     int child[sizeof tree / sizeof tree[0]], parent[sizeof tree / sizeof tree[0]];
     for (size_t k = 0; k < sizeof tree / sizeof tree[0]; k++) {
-        child[k] = find(map, tree[k][0]);
-        parent[k] = find(map, tree[k][1]);
+        child[k] = mim_landmarks_find(map, tree[k][0]);
+        parent[k] = mim_landmarks_find(map, tree[k][1]);
         if (child[k] < 0 || parent[k] < 0)
             return mim_error_set(err, MIM_EUNSUPPORTED, "transfer: retargeting needs landmark '%s'",
                                  child[k] < 0 ? tree[k][0] : tree[k][1]);
@@ -64,7 +56,7 @@ int mim_xfer_retarget_landmarks(const mim_landmark_map_t *map, const float *avat
     /* placed where the template stands: the midpoints of the ankles
      * coincide (the template's pelvis would sink or lift a body with
      * other leg lengths) */
-    const int la = find(map, "l_ankle"), ra = find(map, "r_ankle");
+    const int la = mim_landmarks_find(map, "l_ankle"), ra = mim_landmarks_find(map, "r_ankle");
     double shift[3];
     for (int c = 0; c < 3; c++)
         shift[c] = 0.5 * ((double)tmpl[3 * (size_t)map->vertex[la] + c] + tmpl[3 * (size_t)map->vertex[ra] + c] -

@@ -57,6 +57,11 @@ void ss_child_kill(pid_t p)
 /* Runs `mimic args...` with stdout and stderr to files; its pid. */
 pid_t ss_spawn(const char *const *args, const char *out, const char *err)
 {
+    return ss_spawn_program(ts_mimic_bin(), args, out, err);
+}
+
+pid_t ss_spawn_program(const char *program, const char *const *args, const char *out, const char *err)
+{
     pid_t p = fork();
     if (p == 0) {
         int fo = open(out, O_WRONLY | O_CREAT | O_TRUNC, 0644), fe = open(err, O_WRONLY | O_CREAT | O_TRUNC, 0644);
@@ -66,10 +71,10 @@ pid_t ss_spawn(const char *const *args, const char *out, const char *err)
         while (args[n])
             n++;
         char **argv = calloc((size_t)n + 2, sizeof *argv);
-        argv[0] = (char *)ts_mimic_bin();
+        argv[0] = (char *)program;
         for (int i = 0; i < n; i++)
             argv[i + 1] = (char *)args[i];
-        execv(argv[0], argv);
+        execvp(argv[0], argv);
         _exit(127);
     }
     if (p > 0)

@@ -29,6 +29,8 @@ void ss_sleep_ms(int ms);
 void ss_child_kill(pid_t p);
 /* Runs `mimic args...` with stdout and stderr to files; its pid. */
 pid_t ss_spawn(const char *const *args, const char *out, const char *err);
+/* The same for another program (found on PATH), killed at the end too. */
+pid_t ss_spawn_program(const char *program, const char *const *args, const char *out, const char *err);
 /* Waits for the child to exit within timeout_s: its wait status, or -1
  * (then it is still running). */
 int ss_wait_exit(pid_t p, double timeout_s);

@@ -1,0 +1,153 @@
+/* transfer/blend.c (issue 15): the per-vertex average of several
+ * templates' frames and the segment correction, on rotations and landmark
+ * skeletons whose answers are known; and core's shortest arc. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include "mim_core.h"
+#include "mim_transfer.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#define NV 5
+
+static double angle_between(mim_quat a, mim_quat b)
+{
+    double d = fabs(a.x * b.x + a.y * b.y + a.z * b.z + a.w * b.w);
+    return 2 * acos(d > 1 ? 1 : d);
+}
+
+static void frames_of(mim_quat q, double *F)
+{
+    for (int i = 0; i < NV; i++) mim_quat_to_matrix(q, F + 9 * i);
+}
+
+static void test_quat_between(void **state)
+{
+    (void)state;
+    const mim_vec3 pairs[][2] = {{{1, 0, 0}, {0, 1, 0}}, {{0, 0, 2}, {0, 3, 3}}, {{1, 2, 3}, {1, 2, 3}},
+                                 {{1, 0, 0}, {-1, 0, 0}}, {{0, 1, 0}, {0, -5, 0}}};
+    for (size_t k = 0; k < sizeof pairs / sizeof pairs[0]; k++) {
+        mim_quat q = mim_quat_between(pairs[k][0], pairs[k][1]);
+        mim_vec3 r = mim_v3_normalize(mim_quat_rotate(q, pairs[k][0])), b = mim_v3_normalize(pairs[k][1]);
+        assert_true(mim_v3_norm(mim_v3_sub(r, b)) < 1e-9);
+        /* the shortest arc: its angle is the angle between the directions */
+        double want = acos(fmax(-1, fmin(1, mim_v3_dot(mim_v3_normalize(pairs[k][0]), b))));
+        assert_true(fabs(angle_between(q, mim_quat_identity()) - want) < 1e-9);
+    }
+    mim_quat z = mim_quat_between(mim_v3(0, 0, 0), mim_v3(1, 0, 0));
+    assert_true(angle_between(z, mim_quat_identity()) < 1e-12);
+}
+
+static void test_blend_rotations(void **state)
+{
+    (void)state;
+    double A[9 * NV], B[9 * NV], C[9 * NV], out[9 * NV];
+    mim_vec3 axis = mim_v3(0.3, 1, -0.2);
+    frames_of(mim_quat_axis_angle(axis, 0.2), A);
+    frames_of(mim_quat_axis_angle(axis, 0.8), B);
+    /* the same rotation stored as -q must not cancel */
+    mim_quat c = mim_quat_axis_angle(axis, 0.8);
+    c.x = -c.x, c.y = -c.y, c.z = -c.z, c.w = -c.w;
+    frames_of(c, C);
+    const double *two[2] = {A, B}, *neg[2] = {A, C};
+    mim_xfer_frames_blend(NV, 2, two, NULL, out);
+    for (int i = 0; i < NV; i++)
+        assert_true(angle_between(mim_quat_from_matrix(out + 9 * i), mim_quat_axis_angle(axis, 0.5)) < 1e-9);
+    mim_xfer_frames_blend(NV, 2, neg, NULL, out);
+    assert_true(angle_between(mim_quat_from_matrix(out), mim_quat_axis_angle(axis, 0.5)) < 1e-9);
+    /* weights pull towards the heavier: 3:1 lies between the middle and B */
+    const double w31[2] = {1, 3};
+    mim_xfer_frames_blend(NV, 2, two, w31, out);
+    double to_b = angle_between(mim_quat_from_matrix(out), mim_quat_axis_angle(axis, 0.8));
+    assert_true(to_b < 0.2 && to_b > 0.1);
+    /* a zero or NaN weight counts nothing; none positive gives the first */
+    const double w0[2] = {0, 2}, wnan[2] = {NAN, 1}, wnone[2] = {0, -1};
+    mim_xfer_frames_blend(NV, 2, two, w0, out);
+    assert_true(angle_between(mim_quat_from_matrix(out), mim_quat_axis_angle(axis, 0.8)) < 1e-9);
+    mim_xfer_frames_blend(NV, 2, two, wnan, out);
+    assert_true(angle_between(mim_quat_from_matrix(out), mim_quat_axis_angle(axis, 0.8)) < 1e-9);
+    mim_xfer_frames_blend(NV, 2, two, wnone, out);
+    assert_memory_equal(out, A, sizeof A);
+    /* in place over the first */
+    memcpy(C, A, sizeof A);
+    const double *inplace[2] = {C, B};
+    mim_xfer_frames_blend(NV, 2, inplace, NULL, C);
+    assert_true(angle_between(mim_quat_from_matrix(C + 9 * (NV - 1)), mim_quat_axis_angle(axis, 0.5)) < 1e-9);
+}
+
+/* A landmark skeleton (the 16 default names, default order) standing in
+ * an A-pose: x is the body's left, y up. */
+static void skeleton(float *lm)
+{
+    static const float p[16][3] = {
+        {0, 1.70f, 0},      {0, 1.40f, 0},     {0, 1.00f, 0},      {0.18f, 1.45f, 0}, {-0.18f, 1.45f, 0},
+        {0.30f, 1.20f, 0},  {-0.30f, 1.20f, 0}, {0.40f, 0.95f, 0.05f}, {-0.40f, 0.95f, 0.05f}, {0.10f, 0.95f, 0},
+        {-0.10f, 0.95f, 0}, {0.11f, 0.50f, 0.02f}, {-0.11f, 0.50f, 0.02f}, {0.12f, 0.08f, 0}, {-0.12f, 0.08f, 0},
+        {0, 1.20f, 0}};
+    memcpy(lm, p, sizeof p);
+}
+
+static mim_vec3 lm_at(const float *lm, int l) { return mim_v3(lm[3 * l], lm[3 * l + 1], lm[3 * l + 2]); }
+
+static void test_segment_correction(void **state)
+{
+    (void)state;
+    mim_landmark_map_t map;
+    uint32_t v[16];
+    for (int i = 0; i < 16; i++) v[i] = (uint32_t)i;
+    mim_landmarks_default(&map, v, 0);
+    float from[48], to[48];
+    skeleton(from);
+    mim_quat R[MIM_SEGMENTS];
+    mim_error_t err = {0};
+    /* the same skeleton: no turn anywhere */
+    assert_int_equal(mim_xfer_segment_correction(&map, from, from, R, &err), 0);
+    for (int s = 0; s < MIM_SEGMENTS; s++) assert_true(angle_between(R[s], mim_quat_identity()) < 1e-6);
+    /* the whole body turned 30 degrees about +Y: every segment turns so */
+    mim_quat turn = mim_quat_axis_angle(mim_v3(0, 1, 0), M_PI / 6);
+    for (int l = 0; l < 16; l++) {
+        mim_vec3 r = mim_quat_rotate(turn, lm_at(from, l));
+        to[3 * l] = (float)r.x, to[3 * l + 1] = (float)r.y, to[3 * l + 2] = (float)r.z;
+    }
+    assert_int_equal(mim_xfer_segment_correction(&map, from, to, R, &err), 0);
+    for (int s = 0; s < MIM_SEGMENTS; s++) assert_true(angle_between(R[s], turn) < 1e-5);
+    /* the left forearm alone bent 60 degrees at the elbow (about +Z):
+     * the forearm and the hand turn, the upper arm and the rest do not */
+    skeleton(to);
+    mim_quat bend = mim_quat_axis_angle(mim_v3(0, 0, 1), M_PI / 3);
+    mim_vec3 e = lm_at(from, 5), w = mim_v3_add(e, mim_quat_rotate(bend, mim_v3_sub(lm_at(from, 7), e)));
+    to[21] = (float)w.x, to[22] = (float)w.y, to[23] = (float)w.z;
+    assert_int_equal(mim_xfer_segment_correction(&map, from, to, R, &err), 0);
+    mim_vec3 d0 = mim_v3_sub(lm_at(from, 7), e), d1 = mim_v3_sub(lm_at(to, 7), e);
+    mim_quat arc = mim_quat_between(d0, d1);
+    assert_true(angle_between(R[7], arc) < 1e-5);  /* l_forearm */
+    assert_true(angle_between(R[9], arc) < 1e-5);  /* l_hand follows it */
+    assert_true(angle_between(R[5], mim_quat_identity()) < 1e-6); /* l_upperarm */
+    assert_true(angle_between(R[8], mim_quat_identity()) < 1e-6); /* r_forearm */
+    assert_true(angle_between(R[0], mim_quat_identity()) < 1e-6); /* pelvis */
+    /* bad input */
+    to[0] = NAN;
+    assert_int_equal(mim_xfer_segment_correction(&map, from, to, R, &err), MIM_ENONFINITE);
+    assert_non_null(strstr(mim_error_text(&err), "head"));
+    snprintf(map.names[15], sizeof map.names[15], "waist");
+    skeleton(to);
+    mim_error_t err2 = {0}; /* the first error of an error object stays */
+    assert_int_equal(mim_xfer_segment_correction(&map, from, to, R, &err2), MIM_EUNSUPPORTED);
+    assert_non_null(strstr(mim_error_text(&err2), "spine"));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_quat_between),
+        cmocka_unit_test(test_blend_rotations),
+        cmocka_unit_test(test_segment_correction),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

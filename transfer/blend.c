@@ -1,0 +1,136 @@
+/* Frames from several templates (issue 15). One template's frames carry
+ * its subject's build and its small differences of pose; the k templates
+ * nearest to the query, each first turned segment by segment so that its
+ * landmark skeleton lies along the target's (the segment correction), then
+ * averaged per vertex, carry less of either.
+ *
+ * Averaging: a vertex's frames are rotations; their weighted average is
+ * the normalised weighted sum of their quaternions, each taken in the
+ * hemisphere of the first (q and -q are one rotation). For rotations a
+ * few tens of degrees apart, as the same pose's frames on other bodies
+ * are, it is within a fraction of a degree of the geodesic mean and costs
+ * one pass.
+ *
+ * Segment correction: each body segment's rotation from the template's
+ * landmark skeleton to the target's. The pelvis and the chest are frames
+ * of three landmarks (the hip or shoulder line, and the spine's
+ * direction); every other segment takes its parent's rotation and then the
+ * shortest arc from the parent-turned bone to the target's bone, so a
+ * bone's twist, which landmarks cannot see, is the parent's. A hand and a
+ * foot have no landmark beyond the wrist or the ankle: they take the
+ * forearm's and the shin's. */
+#include "internal.h"
+
+#include <math.h>
+#include <string.h>
+
+void mim_xfer_frames_blend(uint32_t n_vertices, uint32_t k, const double *const *frames, const double *weights,
+                           double *out)
+{
+    double w[MIM_XFER_BLEND_MAX], total = 0;
+    k = k > MIM_XFER_BLEND_MAX ? MIM_XFER_BLEND_MAX : k;
+    for (uint32_t j = 0; j < k; j++)
+        total += w[j] = weights && weights[j] > 0 && isfinite(weights[j]) ? weights[j] : weights ? 0.0 : 1.0;
+    if (!k || !(total > 0)) { /* nothing to weigh: the first (or nothing) */
+        if (k && out != frames[0])
+            memcpy(out, frames[0], 9 * (size_t)n_vertices * sizeof *out);
+        return;
+    }
+    for (uint32_t i = 0; i < n_vertices; i++) {
+        mim_quat sum = {0, 0, 0, 0}, first = {0, 0, 0, 1};
+        for (uint32_t j = 0; j < k; j++) {
+            if (w[j] == 0)
+                continue;
+            mim_quat q = mim_quat_from_matrix(frames[j] + 9 * (size_t)i);
+            if (sum.w == 0 && sum.x == 0 && sum.y == 0 && sum.z == 0)
+                first = q;
+            double s = q.x * first.x + q.y * first.y + q.z * first.z + q.w * first.w < 0 ? -w[j] : w[j];
+            sum.x += s * q.x, sum.y += s * q.y, sum.z += s * q.z, sum.w += s * q.w;
+        }
+        mim_quat_to_matrix(mim_quat_normalize(sum), out + 9 * (size_t)i);
+    }
+}
+
+/* The segments as landmark geometry: a frame (pelvis, chest) of an axis
+ * from -> to and an up direction up_from -> up_to; or a bone from -> to
+ * turned after its parent; or a copy of the parent (hand, foot). */
+typedef struct {
+    int parent; /* segment index, -1: none */
+    const char *from, *to, *up_from, *up_to;
+} segment_t;
+
+static const segment_t segments[MIM_SEGMENTS] = {
+    /* pelvis */ {-1, "r_hip", "l_hip", "pelvis", "spine"},
+    /* chest */ {-1, "r_shoulder", "l_shoulder", "spine", "chest"},
+    /* head */ {1, "chest", "head", NULL, NULL},
+    /* l_shoulder */ {1, "chest", "l_shoulder", NULL, NULL},
+    /* r_shoulder */ {1, "chest", "r_shoulder", NULL, NULL},
+    /* l_upperarm */ {3, "l_shoulder", "l_elbow", NULL, NULL},
+    /* r_upperarm */ {4, "r_shoulder", "r_elbow", NULL, NULL},
+    /* l_forearm */ {5, "l_elbow", "l_wrist", NULL, NULL},
+    /* r_forearm */ {6, "r_elbow", "r_wrist", NULL, NULL},
+    /* l_hand */ {7, NULL, NULL, NULL, NULL},
+    /* r_hand */ {8, NULL, NULL, NULL, NULL},
+    /* l_thigh */ {0, "l_hip", "l_knee", NULL, NULL},
+    /* r_thigh */ {0, "r_hip", "r_knee", NULL, NULL},
+    /* l_shin */ {11, "l_knee", "l_ankle", NULL, NULL},
+    /* r_shin */ {12, "r_knee", "r_ankle", NULL, NULL},
+    /* l_foot */ {13, NULL, NULL, NULL, NULL},
+    /* r_foot */ {14, NULL, NULL, NULL, NULL},
+};
+
+static mim_vec3 at(const float *lm, int l) { return mim_v3(lm[3 * l], lm[3 * l + 1], lm[3 * l + 2]); }
+
+/* The orthonormal frame (columns x, y, z) of axis a with up u. 0 when
+ * they are parallel or zero. */
+static int frame_of(mim_vec3 a, mim_vec3 u, double m[9])
+{
+    mim_vec3 x = mim_v3_normalize(a);
+    mim_vec3 y = mim_v3_normalize(mim_v3_sub(u, mim_v3_scale(x, mim_v3_dot(u, x))));
+    mim_vec3 z = mim_v3_cross(x, y);
+    if (mim_v3_dot(x, x) == 0 || mim_v3_dot(y, y) == 0)
+        return 0;
+    const mim_vec3 c[3] = {x, y, z};
+    for (int k = 0; k < 3; k++)
+        m[3 * k] = c[k].x, m[3 * k + 1] = c[k].y, m[3 * k + 2] = c[k].z;
+    return 1;
+}
+
+int mim_xfer_segment_correction(const mim_landmark_map_t *map, const float *from, const float *to,
+                                mim_quat R[MIM_SEGMENTS], mim_error_t *err)
+{
+    int idx[MIM_SEGMENTS][4];
+    for (int s = 0; s < MIM_SEGMENTS; s++) {
+        const char *names[4] = {segments[s].from, segments[s].to, segments[s].up_from, segments[s].up_to};
+        for (int k = 0; k < 4; k++)
+            if ((idx[s][k] = names[k] ? mim_landmarks_find(map, names[k]) : -1) < 0 && names[k])
+                return mim_error_set(err, MIM_EUNSUPPORTED, "transfer: segment correction needs landmark '%s'",
+                                     names[k]);
+    }
+    for (uint32_t i = 0; i < 3 * map->count; i++)
+        if (!isfinite(from[i]) || !isfinite(to[i]))
+            return mim_error_set(err, MIM_ENONFINITE, "transfer: segment correction: landmark '%s' is not finite",
+                                 map->names[i / 3]);
+    for (int s = 0; s < MIM_SEGMENTS; s++) { /* parents come first */
+        const int *l = idx[s];
+        if (segments[s].up_from) {
+            double a[9], b[9], ab[9];
+            if (!frame_of(mim_v3_sub(at(from, l[1]), at(from, l[0])), mim_v3_sub(at(from, l[3]), at(from, l[2])), a) ||
+                !frame_of(mim_v3_sub(at(to, l[1]), at(to, l[0])), mim_v3_sub(at(to, l[3]), at(to, l[2])), b)) {
+                R[s] = mim_quat_identity(); /* a degenerate frame: no turn to take */
+                continue;
+            }
+            for (int c = 0; c < 3; c++) /* b a^T, column-major */
+                for (int r = 0; r < 3; r++)
+                    ab[3 * c + r] = b[r] * a[c] + b[3 + r] * a[3 + c] + b[6 + r] * a[6 + c];
+            R[s] = mim_quat_from_matrix(ab);
+        } else if (segments[s].from) {
+            mim_quat p = R[segments[s].parent];
+            mim_vec3 d0 = mim_quat_rotate(p, mim_v3_sub(at(from, l[1]), at(from, l[0])));
+            R[s] = mim_quat_normalize(mim_quat_mul(mim_quat_between(d0, mim_v3_sub(at(to, l[1]), at(to, l[0]))), p));
+        } else {
+            R[s] = R[segments[s].parent];
+        }
+    }
+    return 0;
+}
