@@ -17,7 +17,10 @@ PACKAGES=(
   libsuitesparse-dev libopenblas-dev libflann-dev libsvm-dev
   libhidapi-dev libwebsockets-dev libxxhash-dev
   liblapacke-dev libssl-dev libqhull-dev libode-dev
-  python3-jsonschema haproxy
+  python3-jsonschema
+  # issue 16: HAProxy for the deployment test (tests/test_deploy.c), FAISS
+  # for bench_knn_compare (neither is linked into mimic)
+  haproxy libfaiss-dev
 )
 
 install_deps() {

@@ -6,6 +6,10 @@
 
 #include "mim_core.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct bench_dataset {
     const char *name;
     uint32_t n, n_faces, subjects, poses;
@@ -67,4 +71,7 @@ int bench_sets_arg(bench_sets_t *s, int argc, char **argv, int *i);
 typedef int (*bench_set_fn)(const bench_dataset_t *d, void *user);
 int bench_sets_run(bench_sets_t *s, uint32_t subjects, uint32_t poses, bench_set_fn fn, void *user);
 
+#ifdef __cplusplus
+}
+#endif
 #endif

@@ -13,12 +13,20 @@
  *      f32 extra[n * (d2 - d)]                  the further angles (missing landmarks)
  *      n_classes x (u32 n_sv, f64 rho, prob_a, prob_b, f64 coef[n_sv],
  *                   f64 sv[n_sv * d])           the SVMs
- * The checksum is mim_hash64 of the payload. The FLANN indexes are not in
- * the blob: a saved FLANN index does not hold its data, and rebuilding from
- * desc (exact scans need nothing; kd-forests are seeded) is what load does.
+ *      u32 n_forests, n_forests x (u32 class, u64 bytes, bytes)
+ *                                               the classes' kd-forests (forest.c)
+ * The checksum is mim_hash64 of the payload. An exact class needs no forest;
+ * a kd-forest is saved as FLANN writes it (the trees; the points are desc),
+ * and one that is missing or will not load is built again from desc.
+ * FLANN's loader trusts those bytes (a node's feature or point number is
+ * not range-checked): the checksum is what guards them, so a store is
+ * trusted as far as its checksums go, as mimic's own files are; everything
+ * else in the blob is checked here and fuzzed (tests/fuzz). 
  *
  * Version 1 (before noise augmentation, issue 15) lacks augment and noise;
- * it is still read, as an index built without augmentation. */
+ * it is still read, as an index built without augmentation. Version 2
+ * (before saved forests, issue 16) lacks the forests: they are built at
+ * load, as they always were then. */
 #include "internal.h"
 
 #include <math.h>
@@ -26,7 +34,7 @@
 #include <string.h>
 
 #define BLOB_MAGIC "MIXB"
-#define BLOB_VERSION 2
+#define BLOB_VERSION 3
 #define BLOB_HEADER 32
 
 typedef struct {
@@ -87,6 +95,25 @@ int mim_index_save(const mim_index_t *ix, void **blob, size_t *len, mim_error_t 
             put(&b, m->sv, sizeof(double) * m->n_sv * d);
         }
     }
+    /* the kd-forests; one that cannot be saved here (no in-memory file) is
+     * left out and built at load */
+    uint32_t n_forests = 0;
+    void **fb = calloc(nc, sizeof *fb);
+    size_t *fl = calloc(nc, sizeof *fl);
+    if (!fb || !fl) b.oom = 1;
+    for (uint32_t c = 0; !b.oom && c < nc; c++)
+        if (ix->flann[c] && !ix->flann_exact[c] && !mim__forest_save(ix->flann[c], &fb[c], &fl[c], NULL))
+            n_forests++;
+    put32(&b, n_forests);
+    for (uint32_t c = 0; !b.oom && c < nc; c++)
+        if (fb[c]) {
+            uint64_t l = fl[c];
+            put32(&b, c);
+            put(&b, &l, 8);
+            put(&b, fb[c], fl[c]);
+        }
+    for (uint32_t c = 0; fb && c < nc; c++) free(fb[c]);
+    free(fb), free(fl);
     if (b.oom) {
         free(b.p);
         return mim_error_set(err, MIM_ENOMEM, "index blob: out of memory (%zu bytes)", b.len);
@@ -148,7 +175,7 @@ int mim_index_load(mim_index_t **out, const void *blob, size_t len, mim_error_t 
     memcpy(&plen, p + 8, 8);
     memcpy(&sum, p + 16, 8);
     memcpy(&bom, p + 24, 4);
-    if (ver != BLOB_VERSION && ver != 1)
+    if (ver < 1 || ver > BLOB_VERSION)
         return mim_error_set(err, MIM_EFORMAT, "index blob: version %u, this mimic reads versions 1 to %d (run mimic index)",
                              ver, BLOB_VERSION);
     if (bom != 0x01020304) return mim_error_set(err, MIM_EFORMAT, "index blob: written with another byte order");
@@ -217,8 +244,34 @@ int mim_index_load(mim_index_t **out, const void *blob, size_t len, mim_error_t 
         for (size_t i = 0; i < (size_t)m->n_sv * d && finite; i++) finite = isfinite(m->sv[i]);
         if (!finite) BAD("index blob: SVM of class %u holds a non-finite number", c);
     }
-    if (r.off != r.len) BAD("index blob: %zu bytes left over after the last SVM", r.len - r.off);
-    if ((rc = mim__index_build_knn(ix, err))) goto out;
+    mim__forest_bytes_t *saved = NULL;
+    if (ver >= 3) {
+        uint32_t nf = 0;
+        if (get(&r, &nf, 4)) goto trunc;
+        if (nf > nc) BAD("index blob: %u forests for %u classes", nf, nc);
+        if (!(saved = calloc(nc, sizeof *saved))) goto trunc;
+        for (uint32_t f = 0; f < nf; f++) {
+            uint32_t c = 0;
+            uint64_t l = 0;
+            if (get(&r, &c, 4) || get(&r, &l, 8) || l > r.len - r.off || !l) {
+                free(saved);
+                BAD("index blob: forest %u truncated", f);
+            }
+            if (c >= nc || saved[c].len) {
+                free(saved);
+                BAD("index blob: forest %u is for class %u (of %u), or a second one", f, c, nc);
+            }
+            saved[c].bytes = r.p + r.off, saved[c].len = (size_t)l;
+            r.off += (size_t)l;
+        }
+    }
+    if (r.off != r.len) {
+        free(saved);
+        BAD("index blob: %zu bytes left over after the last %s", r.len - r.off, ver >= 3 ? "forest" : "SVM");
+    }
+    rc = mim__index_build_knn(ix, saved, err);
+    free(saved);
+    if (rc) goto out;
     *out = ix;
     return 0;
 trunc:

@@ -36,6 +36,7 @@ struct mim_index {
     mim__svm_t *svm;       /* n_classes (all n_sv 0 when there is one class) */
     flann_index_t *flann;  /* n_classes */
     int *flann_exact;      /* n_classes */
+    uint32_t forests_loaded, forests_built; /* kd-forests read from the blob / built (the rest: exact) */
 };
 
 /* Every random choice of an index build (samples, folds, k-means++ seeds,
@@ -63,7 +64,19 @@ double mim__svm_decision(const mim__svm_t *m, double gamma, const double *x, con
 double mim__svm_probability(const mim__svm_t *m, double f);
 void mim__svm_free(mim__svm_t *m);
 
-/* model.c: (re)builds the per-class FLANN indexes of a filled index. */
-int mim__index_build_knn(mim_index_t *ix, mim_error_t *err);
+/* forest.c: a kd-forest as bytes (malloc'd) and back. Load returns NULL
+ * when the bytes cannot be loaded (the caller builds the forest instead);
+ * points must outlive the forest. */
+int mim__forest_save(flann_index_t forest, void **bytes, size_t *len, mim_error_t *err);
+flann_index_t mim__forest_load(const void *bytes, size_t len, float *points, uint32_t rows, uint32_t cols);
+
+/* A class's saved kd-forest in a blob (len 0: none). */
+typedef struct {
+    const void *bytes;
+    size_t len;
+} mim__forest_bytes_t;
+/* model.c: the per-class FLANN indexes of a filled index: saved[c]'s
+ * forest where it loads (saved may be NULL), else built. */
+int mim__index_build_knn(mim_index_t *ix, const mim__forest_bytes_t *saved, mim_error_t *err);
 
 #endif

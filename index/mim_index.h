@@ -178,6 +178,10 @@ typedef struct mim_index_info {
     double C, gamma, cv_accuracy;
     uint32_t augment; /* noisy copies per template the build learnt from (0: none) */
     double noise;     /* their sigma, a fraction of the bodies' scale (0: none) */
+    /* kd-forests (classes above the exact scan's size) read from the blob
+     * and built when it was made or loaded (a blob before version 3, or a
+     * forest that would not load, builds them again) */
+    uint32_t forests_loaded, forests_built;
 } mim_index_info_t;
 void mim_index_get_info(const mim_index_t *ix, mim_index_info_t *out);
 const char *mim_index_class_name(const mim_index_t *ix, uint32_t cls);

@@ -84,7 +84,7 @@ static struct FLANNParameters flann_params(const mim_index_t *ix, int exact)
     return p;
 }
 
-int mim__index_build_knn(mim_index_t *ix, mim_error_t *err)
+int mim__index_build_knn(mim_index_t *ix, const mim__forest_bytes_t *saved, mim_error_t *err)
 {
     ix->flann = calloc(ix->n_classes, sizeof *ix->flann);
     ix->flann_exact = calloc(ix->n_classes, sizeof *ix->flann_exact);
@@ -94,9 +94,14 @@ int mim__index_build_knn(mim_index_t *ix, mim_error_t *err)
         ix->flann_exact[c] = n <= ix->exact_max;
         if (!n) continue;
         struct FLANNParameters p = flann_params(ix, ix->flann_exact[c]);
-        float speedup = 0;
-        ix->flann[c] = flann_build_index_float(ix->desc + (size_t)ix->class_start[c] * ix->d, (int)n, (int)ix->d,
-                                               &speedup, &p);
+        float speedup = 0, *points = ix->desc + (size_t)ix->class_start[c] * ix->d;
+        if (!ix->flann_exact[c] && saved && saved[c].len &&
+            (ix->flann[c] = mim__forest_load(saved[c].bytes, saved[c].len, points, n, ix->d))) {
+            ix->forests_loaded++;
+            continue;
+        }
+        ix->flann[c] = flann_build_index_float(points, (int)n, (int)ix->d, &speedup, &p);
+        ix->forests_built += !ix->flann_exact[c];
         if (!ix->flann[c]) return mim_error_set(err, MIM_ENOMEM, "k-NN index of class %u (%u templates) failed", c, n);
     }
     return 0;
@@ -541,7 +546,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
     }
     mim__svm_data_t sd = {sx, y, grp, sm * (1 + A), d, nc, n_groups};
     if ((rc = mim__svm_train_all(&sd, &opt, ix->svm, &ix->C, &ix->gamma, &ix->cv_accuracy, err))) goto out;
-    if ((rc = mim__index_build_knn(ix, err))) goto out;
+    if ((rc = mim__index_build_knn(ix, NULL, err))) goto out;
     ix->strings = st.s, ix->n_strings = st.n;
     st.s = NULL, st.n = 0;
     if (report) {
@@ -575,6 +580,7 @@ void mim_index_get_info(const mim_index_t *ix, mim_index_info_t *o)
     o->n_classes = ix->n_classes, o->class_source = ix->class_source;
     o->C = ix->C, o->gamma = ix->gamma, o->cv_accuracy = ix->cv_accuracy;
     o->augment = ix->augment, o->noise = ix->noise;
+    o->forests_loaded = ix->forests_loaded, o->forests_built = ix->forests_built;
 }
 
 const char *mim_index_class_name(const mim_index_t *ix, uint32_t c)

@@ -459,6 +459,142 @@ static void test_concurrent_queries(void **s)
     synth_set_free(&ss);
 }
 
+/* kd-forests are saved with the index (issue 16): a loaded index reads
+ * them instead of building them (FLANN's build shuffles with
+ * std::random_device and draws from libc's rand()), so it answers exactly
+ * as the index that was saved, even with so few checks that the answers
+ * depend on the trees, and loading leaves rand() alone. */
+static void test_saved_forests(void **s)
+{
+    (void)s;
+    synth_set_t ss;
+    synth_set(&ss, 4, 12, 29);
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_options_t o = {.features = 40, .exact_max = 2, .checks = 1};
+    mim_index_t *ix = NULL, *back = NULL;
+    assert_int_equal(mim_index_build(&ix, &in, &o, NULL, NULL), 0);
+    mim_index_info_t info;
+    mim_index_get_info(ix, &info);
+    assert_int_equal(info.forests_built, info.n_classes);
+    assert_int_equal(info.forests_loaded, 0);
+    void *blob = NULL;
+    size_t len = 0;
+    assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
+    srand(5);
+    int r0 = rand();
+    srand(5);
+    assert_int_equal(mim_index_load(&back, blob, len, NULL), 0);
+    assert_int_equal(rand(), r0);
+    mim_index_get_info(back, &info);
+    assert_int_equal(info.forests_loaded, info.n_classes);
+    assert_int_equal(info.forests_built, 0);
+    uint64_t seed = 31;
+    for (uint32_t t = 0; t < ss.n; t++) {
+        float frame[48];
+        for (int i = 0; i < 48; i++) {
+            seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+            frame[i] = ss.lm[48 * t + i] + 0.04f * ((float)(seed >> 40) / 16777216.0f - 0.5f);
+        }
+        mim_index_query_options_t qo = {.k = 3};
+        mim_index_answer_t a, b;
+        mim_index_hit_t ha[3], hb[3];
+        assert_int_equal(mim_index_query(ix, frame, NULL, &qo, &a, ha, NULL), 0);
+        assert_int_equal(mim_index_query(back, frame, NULL, &qo, &b, hb, NULL), 0);
+        assert_true(same_answer(&a, ha, &b, hb));
+    }
+    free(blob);
+    mim_index_close(&ix), mim_index_close(&back);
+    synth_set_free(&ss);
+}
+
+/* The forests' section of a blob is checked before FLANN sees a byte of
+ * it: a count above the classes, a class out of range or named twice, a
+ * length past the end or of zero, and bytes after the last forest are each
+ * MIM_EFORMAT with the checksum made right (a damaged store fails the
+ * checksum first). */
+static void patch_checksum(unsigned char *blob, size_t len)
+{
+    uint64_t plen = len - 32, sum = mim_hash64(blob + 32, plen, 0x6d6978ULL);
+    memcpy(blob + 8, &plen, 8), memcpy(blob + 16, &sum, 8);
+}
+
+static void test_forest_section_hostile(void **s)
+{
+    (void)s;
+    synth_set_t ss;
+    synth_set(&ss, 4, 12, 37);
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_options_t kd = {.features = 40, .exact_max = 2, .C = 10, .gamma = 1}, ex = kd;
+    ex.exact_max = 0;
+    mim_index_t *a = NULL, *b = NULL;
+    assert_int_equal(mim_index_build(&a, &in, &kd, NULL, NULL), 0);
+    assert_int_equal(mim_index_build(&b, &in, &ex, NULL, NULL), 0);
+    void *ka = NULL, *kb = NULL;
+    size_t la = 0, lb = 0;
+    assert_int_equal(mim_index_save(a, &ka, &la, NULL), 0);
+    assert_int_equal(mim_index_save(b, &kb, &lb, NULL), 0);
+    mim_index_info_t info;
+    mim_index_get_info(a, &info);
+    mim_index_close(&a), mim_index_close(&b);
+    /* the exact index's blob ends with a forest count of 0: the kd one's
+     * forest section starts where that count is */
+    const size_t at = lb - 4;
+    uint32_t nf;
+    memcpy(&nf, (unsigned char *)ka + at, 4);
+    assert_int_equal(nf, info.n_classes);
+    struct {
+        const char *what;
+        size_t off; /* from the section's start */
+        uint64_t value;
+        int width;
+        const char *says;
+    } cases[] = {
+        {"count", 0, info.n_classes + 1, 4, "forests for"},
+        {"class", 4, info.n_classes, 4, "is for class"},
+        {"length", 8, 1ULL << 40, 8, "truncated"},
+        {"length 0", 8, 0, 8, "truncated"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        unsigned char *p = malloc(la);
+        memcpy(p, ka, la);
+        memcpy(p + at + cases[k].off, &cases[k].value, (size_t)cases[k].width);
+        patch_checksum(p, la);
+        mim_index_t *ix = NULL;
+        mim_error_t err = {0};
+        assert_int_equal(mim_index_load(&ix, p, la, &err), MIM_EFORMAT);
+        if (!strstr(mim_error_text(&err), cases[k].says)) fail_msg("%s: %s", cases[k].what, mim_error_text(&err));
+        assert_null(ix);
+        free(p);
+    }
+    /* the second forest names the first one's class */
+    uint64_t first_len;
+    memcpy(&first_len, (unsigned char *)ka + at + 8, 8);
+    unsigned char *p = malloc(la + 8);
+    memcpy(p, ka, la);
+    uint32_t c0;
+    memcpy(&c0, p + at + 4, 4);
+    memcpy(p + at + 4 + 12 + first_len, &c0, 4);
+    patch_checksum(p, la);
+    mim_index_t *ix = NULL;
+    mim_error_t err = {0};
+    assert_int_equal(mim_index_load(&ix, p, la, &err), MIM_EFORMAT);
+    assert_non_null(strstr(mim_error_text(&err), "or a second one"));
+    /* bytes after the last forest */
+    memcpy(p, ka, la);
+    memset(p + la, 0, 8);
+    patch_checksum(p, la + 8);
+    mim_error_t err2 = {0};
+    assert_int_equal(mim_index_load(&ix, p, la + 8, &err2), MIM_EFORMAT);
+    assert_non_null(strstr(mim_error_text(&err2), "left over after the last forest"));
+    /* the blob as saved loads, its forests read */
+    assert_int_equal(mim_index_load(&ix, ka, la, NULL), 0);
+    mim_index_get_info(ix, &info);
+    assert_int_equal(info.forests_loaded, info.n_classes);
+    mim_index_close(&ix);
+    free(p), free(ka), free(kb);
+    synth_set_free(&ss);
+}
+
 /* Without pose labels the store is clustered: k = round(sqrt(n / 2)). */
 static void test_kmeans_classes(void **s)
 {
@@ -507,6 +643,8 @@ int main(void)
         cmocka_unit_test(test_kmeans_classes),
         cmocka_unit_test(test_reproducible_without_rand),
         cmocka_unit_test(test_concurrent_queries),
+        cmocka_unit_test(test_saved_forests),
+        cmocka_unit_test(test_forest_section_hostile),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -97,8 +97,8 @@ static void test_hard_set_accuracy(void **state)
     free(s);
 }
 
-/* The augmentation is stored with the index (blob version 2); a version 1
- * blob (no augmentation fields) still loads, as an index without
+/* The augmentation is stored with the index (blob version 2 on); a version 1
+ * blob (no augmentation fields, no forests) still loads, as an index without
  * augmentation that answers as before; options out of range are refused. */
 static void test_blob_versions(void **state)
 {
@@ -112,21 +112,26 @@ static void test_blob_versions(void **state)
     assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
     uint32_t ver;
     memcpy(&ver, (char *)blob + 4, 4);
-    assert_int_equal(ver, 2);
+    assert_int_equal(ver, 3);
     assert_int_equal(mim_index_load(&back, blob, len, NULL), 0);
     mim_index_info_t info;
     mim_index_get_info(back, &info);
     assert_int_equal(info.augment, 2);
     assert_true(info.noise == 0.03);
     mim_index_close(&back);
-    /* version 1: the header's 9 u32 (augment gone) and 3 f64 (noise gone) */
+    /* version 1: the header's 9 u32 (augment gone) and 3 f64 (noise gone),
+     * and no forest count at the end (every class here is scanned exactly,
+     * so version 3's count is 0) */
+    uint32_t n_forests;
+    memcpy(&n_forests, (char *)blob + len - 4, 4);
+    assert_int_equal(n_forests, 0);
     unsigned char *v1 = malloc(len);
     const unsigned char *p = blob;
     size_t o1 = 0;
     memcpy(v1, p, 32), o1 = 32;
     memcpy(v1 + o1, p + 32, 36), o1 += 36;            /* n_landmarks .. d2 */
     memcpy(v1 + o1, p + 32 + 40, 24), o1 += 24;       /* C, gamma, cv_accuracy */
-    memcpy(v1 + o1, p + 32 + 72, len - 104), o1 += len - 104; /* the rest */
+    memcpy(v1 + o1, p + 32 + 72, len - 108), o1 += len - 108; /* the rest, without the forest count */
     uint32_t one = 1;
     uint64_t plen = o1 - 32, sum = mim_hash64(v1 + 32, plen, 0x6d6978ULL);
     memcpy(v1 + 4, &one, 4), memcpy(v1 + 8, &plen, 8), memcpy(v1 + 16, &sum, 8);

@@ -1,8 +1,12 @@
 /* libFuzzer harness: the recognition index blob as the store keeps it
  * (index/blob.c). The input is the payload; the harness writes the header
  * with the right length and checksum around it, so the fuzzer reaches the
- * payload decoder instead of stopping at the checksum. A blob that loads
- * must answer a query without crashing. */
+ * payload decoder instead of stopping at the checksum. The first byte picks
+ * the layout, version 1 or 2 (without and with the augmentation fields).
+ * Version 3 adds the kd-forests as FLANN's own bytes, which FLANN's loader
+ * does not check; the checksum guards them against damage, and this harness
+ * does not feed them to it (index/blob.c). A blob that loads must answer a
+ * query without crashing. */
 #include "mim_core.h"
 #include "mim_index.h"
 
@@ -11,10 +15,13 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
+    if (!size)
+        return 0;
+    uint32_t version = 1 + data[0] % 2, order = 0x01020304, zero = 0;
+    data++, size--;
     unsigned char *blob = malloc(32 + size);
     if (!blob)
         return 0;
-    uint32_t version = 1, order = 0x01020304, zero = 0;
     uint64_t plen = size, sum = mim_hash64(data, size, 0x6d6978ULL);
     memcpy(blob, "MIXB", 4);
     memcpy(blob + 4, &version, 4);
