@@ -570,6 +570,38 @@ static void test_udp_orientations(void **state)
     ss_svc_free(&U);
 }
 
+/* The template drive with several templates blended and the segment
+ * correction (issue 15's options on serve): the vest's key frames come
+ * from iterated solves, none oriented, and the stream goes on with
+ * consecutive frames. */
+static void test_template_drive_blended(void **state)
+{
+    (void)state;
+    ss_svc_t C;
+    const char *extra[] = {"--drive", "template", "--blend", "2", "--segment-correction", "on", NULL};
+    assert_int_equal(ss_svc_start(&C, dir, store, "blend", NULL, extra), 0);
+    ws_client_t w;
+    json_decref(ss_ws_open(&w, C.port, "/ws", 0));
+    size_t n = 0;
+    uint64_t *num = ss_collect_numbers(&w, 1500, &n);
+    assert_true(n > 10);
+    ss_assert_consecutive(num, n, "a blended template drive's stream");
+    free(num);
+    json_t *st = ss_get_status(C.port);
+    assert_string_equal(ss_vest_state(st), "streaming");
+    json_t *vest = json_object_get(st, "vest");
+    assert_string_equal(json_string_value(json_object_get(vest, "drive")), "template");
+    assert_int_equal(json_integer_value(json_object_get(vest, "oriented_keys")), 0);
+    assert_true(json_real_value(json_object_get(vest, "iterations_per_key")) >= 1.0);
+    assert_true(json_integer_value(json_object_get(vest, "last_template")) > 0);
+    json_decref(st);
+    assert_true(ss_metric(C.port, "mimic_key_frames_total") > 0);
+    ws_close(&w);
+    ss_svc_term(&C);
+    ss_assert_clean_stderr(C.serr);
+    ss_svc_free(&C);
+}
+
 static void test_demo(void **state)
 {
     (void)state;
@@ -612,6 +644,7 @@ int main(void)
         cmocka_unit_test(test_lost_landmarks_completed),
         cmocka_unit_test(test_lost_landmarks_held_first),
         cmocka_unit_test(test_udp_orientations),
+        cmocka_unit_test(test_template_drive_blended),
         cmocka_unit_test(test_demo),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

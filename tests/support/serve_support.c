@@ -62,6 +62,9 @@ pid_t ss_spawn(const char *const *args, const char *out, const char *err)
 
 pid_t ss_spawn_program(const char *program, const char *const *args, const char *out, const char *err)
 {
+    /* gone before the child starts: a reader waiting for its first line
+     * (ss_wait_line) never sees an earlier process's under the same name */
+    unlink(out), unlink(err);
     pid_t p = fork();
     if (p == 0) {
         int fo = open(out, O_WRONLY | O_CREAT | O_TRUNC, 0644), fe = open(err, O_WRONLY | O_CREAT | O_TRUNC, 0644);
