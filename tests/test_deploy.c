@@ -103,23 +103,27 @@ static void test_two_replicas_behind_haproxy(void **state)
     char *map = ts_path(dir, "sessions.map"), *hout = ts_path(dir, "haproxy.out"), *herr = ts_path(dir, "haproxy.err");
     const char *map_text = "vest1 be_r1\nvest2 be_r2\n";
     ts_write_file(map, map_text, strlen(map_text));
-    int port = free_port();
-    assert_true(port > 0);
-    char listen[64], r1[64], r2[64];
-    snprintf(listen, sizeof listen, "127.0.0.1:%d", port);
+    char listen[64], r1[64], r2[64], who[64];
     snprintf(r1, sizeof r1, "127.0.0.1:%d", rep[0].port);
     snprintf(r2, sizeof r2, "127.0.0.1:%d", rep[1].port);
-    setenv("MIMIC_LISTEN", listen, 1), setenv("MIMIC_R1", r1, 1), setenv("MIMIC_R2", r2, 1);
-    setenv("MIMIC_SESSIONS", map, 1);
+    setenv("MIMIC_R1", r1, 1), setenv("MIMIC_R2", r2, 1), setenv("MIMIC_SESSIONS", map, 1);
     char *cfg = ts_path(MIMIC_SOURCE_DIR, "deploy/haproxy.cfg");
     const char *hargs[] = {"-db", "-f", cfg, NULL};
-    pid_t hp = ss_spawn_program(haproxy, hargs, hout, herr);
-    assert_true(hp > 0);
-    char who[64];
-    int up = 0;
-    for (double end = ss_now_s() + 20; !up && ss_now_s() < end;) {
-        up = get_status_via(port, who, sizeof who) == 200;
-        if (!up) ss_sleep_ms(100);
+    pid_t hp = 0;
+    int up = 0, port = 0;
+    /* a free port can be taken between its release and haproxy's bind: then
+     * haproxy exits, and another port is tried */
+    for (int attempt = 0; attempt < 3 && !up; attempt++) {
+        port = free_port();
+        assert_true(port > 0);
+        snprintf(listen, sizeof listen, "127.0.0.1:%d", port);
+        setenv("MIMIC_LISTEN", listen, 1);
+        hp = ss_spawn_program(haproxy, hargs, hout, herr);
+        assert_true(hp > 0);
+        for (double end = ss_now_s() + 20; !up && ss_now_s() < end && ss_wait_exit(hp, 0) == -1;) {
+            up = get_status_via(port, who, sizeof who) == 200;
+            if (!up) ss_sleep_ms(100);
+        }
     }
     if (!up) {
         char *t = ts_read_file(herr, NULL);
