@@ -577,17 +577,18 @@ static int nearest(mim_session_t *s, const float *u, uint32_t k, mim_session_rep
 }
 
 /* Template id's slot (under s->lock): the one holding it, else the least
- * recently used one, read again. */
-static int cache_template(mim_session_t *s, uint64_t id, template_slot_t **out, mim_error_t *err)
+ * recently used of the first `slots` (the templates the request blends: one
+ * template keeps one slot, as a vest holding a pose needs), read again. */
+static int cache_template(mim_session_t *s, uint64_t id, uint32_t slots, template_slot_t **out, mim_error_t *err)
 {
     template_slot_t *slot = &s->slot[0];
-    for (int k = 0; k < MIM_XFER_BLEND_MAX; k++) {
+    for (uint32_t k = 0; k < MIM_XFER_BLEND_MAX; k++) {
         if (s->slot[k].id == id) {
             s->slot[k].used = ++s->tick;
             *out = &s->slot[k];
             return 0;
         }
-        if (s->slot[k].used < slot->used)
+        if (k < slots && s->slot[k].used < slot->used)
             slot = &s->slot[k];
     }
     const size_t n = s->mesh.n_vertices;
@@ -627,7 +628,7 @@ static int orientation_frames(mim_session_t *s, const mim_session_request_t *req
     if (!unfilled)
         return 0;
     template_slot_t *t;
-    int rc = cache_template(s, r->template_id, &t, err);
+    int rc = cache_template(s, r->template_id, 1, &t, err);
     if (rc)
         return rc;
     for (uint32_t i = 0; i < n; i++)
@@ -651,7 +652,7 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
     int correct = s->skin && u && req->segment_correction;
     for (uint32_t j = 0; j < r->n_templates; j++) {
         template_slot_t *t;
-        int rc = cache_template(s, r->templates[j], &t, err);
+        int rc = cache_template(s, r->templates[j], r->n_templates, &t, err);
         if (rc)
             return rc;
         if (!j)
@@ -696,7 +697,9 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
         return mim_error_set(err, MIM_EINVAL, "transfer: give a template, landmarks, or both");
     if (req->drive < MIM_DRIVE_AUTO || req->drive > MIM_DRIVE_ORIENTATION)
         return mim_error_set(err, MIM_EINVAL, "transfer: unknown drive %d", (int)req->drive);
-    if (req->n_templates > MIM_XFER_BLEND_MAX || req->blend > MIM_XFER_BLEND_MAX || (req->n_templates && !req->template_ids))
+    if (req->n_templates && !req->template_ids)
+        return mim_error_set(err, MIM_EINVAL, "transfer: %u templates to blend, but no ids", req->n_templates);
+    if (req->n_templates > MIM_XFER_BLEND_MAX || req->blend > MIM_XFER_BLEND_MAX)
         return mim_error_set(err, MIM_EINVAL, "transfer: %u templates to blend (at most %d)",
                              req->n_templates > req->blend ? req->n_templates : req->blend, MIM_XFER_BLEND_MAX);
     for (uint32_t j = 0; j < req->n_templates; j++)
@@ -767,7 +770,7 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
             memcpy(u, req->landmarks, 3 * (size_t)nl * sizeof *u);
     } else {
         template_slot_t *t0slot = NULL;
-        rc = cache_template(s, r->templates[0], &t0slot, err);
+        rc = cache_template(s, r->templates[0], r->n_templates, &t0slot, err);
         if (!rc && req->landmarks) /* mode (b): the tracked landmarks, held */
             memcpy(u, req->landmarks, 3 * (size_t)nl * sizeof *u);
         else if (!rc) /* mode (a): the first template's landmarks on the avatar's proportions */

@@ -190,6 +190,26 @@ static void test_bad_requests(void **state)
     assert_int_equal(mim_session_transfer(sess, &a, x, NULL, &err), 0);
     assert_int_equal(mim_session_transfer(sess, &b, y, NULL, &err), 0);
     assert_memory_equal(x, y, 3 * (size_t)n * sizeof *x);
+    /* templates to blend (issue 15): too many, a zero id, a count without ids */
+    uint64_t ids[MIM_XFER_BLEND_MAX + 1];
+    for (int k = 0; k <= MIM_XFER_BLEND_MAX; k++) ids[k] = 1;
+    mim_session_request_t many = {.landmarks = u, .template_ids = ids, .n_templates = MIM_XFER_BLEND_MAX + 1};
+    err = (mim_error_t){0};
+    assert_int_equal(mim_session_transfer(sess, &many, x, NULL, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "17 templates to blend (at most 16)"));
+    mim_session_request_t wide = {.landmarks = u, .blend = MIM_XFER_BLEND_MAX + 1};
+    err = (mim_error_t){0};
+    assert_int_equal(mim_session_transfer(sess, &wide, x, NULL, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "17 templates to blend (at most 16)"));
+    ids[1] = 0;
+    mim_session_request_t zero_id = {.landmarks = u, .template_ids = ids, .n_templates = 2};
+    err = (mim_error_t){0};
+    assert_int_equal(mim_session_transfer(sess, &zero_id, x, NULL, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "template id 0 in the list to blend"));
+    mim_session_request_t no_ids = {.landmarks = u, .n_templates = 2};
+    err = (mim_error_t){0};
+    assert_int_equal(mim_session_transfer(sess, &no_ids, x, NULL, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "2 templates to blend, but no ids"));
     free(x), free(y);
 }
 
