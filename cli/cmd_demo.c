@@ -32,12 +32,14 @@ extern char **environ;
 #define MARKER ".mimic-demo"
 #define GLB_FPS 10.0     /* frames of the served sequence kept for demo.glb */
 #define GLB_MAX_FRAMES 600u
+#define MAX_VESTS 16
+#define SUBJECTS 4
 
 static void help(FILE *out)
 {
     fprintf(out,
             "usage: mimic demo [--dir DIR] [--duration S] [--headless] [--listen HOST:PORT]\n"
-            "                  [--key-rate auto|HZ]\n\n"
+            "                  [--key-rate auto|HZ] [--vests N]\n\n"
             "Runs mimic end to end with data it makes itself: synthetic bodies (4 subjects x\n"
             "12 poses) into a template store, its recognition index, a simulated vest on a\n"
             "pseudo-terminal playing a built-in motion, and mimic serve on that vest. The\n"
@@ -51,8 +53,12 @@ static void help(FILE *out)
             "  --headless           do not try to open a browser\n"
             "  --listen HOST:PORT   where to serve (default %s; port 0: any free port)\n"
             "  --key-rate auto|HZ   as mimic serve (default auto)\n"
+            "  --vests N            N simulated vests (default 1, at most %d), each driving its own\n"
+            "                       avatar (another subject's body) in a session of one mimic serve:\n"
+            "                       default, vest2, vest3, ... (the viewer switches between them);\n"
+            "                       demo.glb records the first\n"
             "  -h, --help           this help\n",
-            GLB_FPS, MIM_SERVE_DEFAULT_LISTEN);
+            GLB_FPS, MIM_SERVE_DEFAULT_LISTEN, MAX_VESTS);
 }
 
 /* ---- the served sequence, kept for demo.glb ---- */
@@ -69,6 +75,8 @@ typedef struct recorder {
 static void record_frame(void *user, const mim_serve_frame_t *f)
 {
     recorder_t *r = user;
+    if (strcmp(f->session, MIM_SERVE_DEFAULT_SESSION)) /* the first vest's avatar only */
+        return;
     pthread_mutex_lock(&r->lock);
     if (!r->started)
         r->t0 = f->t_vest_us, r->started = 1, r->last = f->t_vest_us - (uint64_t)(1e6 / GLB_FPS);
@@ -87,6 +95,8 @@ static void record_frame(void *user, const mim_serve_frame_t *f)
 /* ---- the simulated vest, on its own thread ---- */
 typedef struct vest_thread {
     mim_vest_sim_t *sim;
+    pthread_t thread;
+    int inited, started;
     char out[4300];
     volatile int stop;
     pthread_mutex_t lock;
@@ -115,6 +125,44 @@ static void *sim_main(void *arg)
     pthread_cond_broadcast(&v->ready_cv);
     pthread_mutex_unlock(&v->lock);
     return NULL;
+}
+
+/* A simulated vest playing motion on the pseudo-terminal at pty, on a
+ * thread of its own: 0 once it is ready (vt->started then says the thread
+ * must be stopped), else the error. */
+static int vest_start(vest_thread_t *vt, const mim_vest_motion_t *motion, const char *pty, mim_error_t *err)
+{
+    pthread_mutex_init(&vt->lock, NULL);
+    pthread_cond_init(&vt->ready_cv, NULL);
+    vt->inited = 1;
+    snprintf(vt->out, sizeof vt->out, "pty:%s", pty);
+    mim_vest_sim_options_t so = {.rate_hz = 60, .loop = 1};
+    int rc = mim_vest_sim_open(&vt->sim, motion, &so, err);
+    vt->started = !rc && pthread_create(&vt->thread, NULL, sim_main, vt) == 0;
+    if (!rc && !vt->started)
+        rc = mim_error_set(err, MIM_ENOMEM, "cannot start the simulated vest's thread");
+    if (vt->started) {
+        pthread_mutex_lock(&vt->lock);
+        while (!vt->ready && !vt->done)
+            pthread_cond_wait(&vt->ready_cv, &vt->lock);
+        if (vt->done && vt->rc)
+            rc = vt->rc, *err = vt->err;
+        pthread_mutex_unlock(&vt->lock);
+    }
+    return rc;
+}
+
+static void vest_stop(vest_thread_t *vt)
+{
+    if (vt->started) {
+        vt->stop = 1;
+        pthread_join(vt->thread, NULL);
+    }
+    mim_vest_sim_close(&vt->sim);
+    if (vt->inited) {
+        pthread_cond_destroy(&vt->ready_cv);
+        pthread_mutex_destroy(&vt->lock);
+    }
 }
 
 static int remove_entry(const char *path, const struct stat *sb, int flag, struct FTW *ftw)
@@ -206,15 +254,20 @@ int mim_cmd_demo(int argc, char **argv)
                                               {"headless", no_argument, 0, 'H'},
                                               {"listen", required_argument, 0, 'l'},
                                               {"key-rate", required_argument, 0, 'k'},
+                                              {"vests", required_argument, 0, 'n'},
                                               {"help", no_argument, 0, 'h'},
                                               {0, 0, 0, 0}};
     const char *dir = "mimic-demo", *listen = MIM_SERVE_DEFAULT_LISTEN;
     double duration = 0.0, key_rate = 0.0;
     int headless = 0, c;
+    uint64_t vests = 1;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "d:t:Hl:k:h", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "d:t:Hl:k:n:h", longopts, NULL)) != -1) {
         if (c == 'd') dir = optarg;
+        else if (c == 'n') {
+            if (mim_cli_number("demo", "vests", optarg, 1, MAX_VESTS, &vests)) return 2;
+        }
         else if (c == 'l') listen = optarg;
         else if (c == 'H') headless = 1;
         else if (c == 'k') {
@@ -246,7 +299,7 @@ int mim_cmd_demo(int argc, char **argv)
     snprintf(pty, sizeof pty, "%s/vest", dir);
     snprintf(glb, sizeof glb, "%s/demo.glb", dir);
 
-    char *synth_argv[] = {"synth", "--out", bodies, "--subjects", "4", "--poses", "12", NULL};
+    char *synth_argv[] = {"synth", "--out", bodies, "--subjects", "4", "--poses", "12", NULL}; /* SUBJECTS */
     char *ingest_argv[] = {"ingest", "--store", store, bodies, NULL};
     char *index_argv[] = {"index", "--store", store, NULL};
     if (step("mimic synth: 4 subjects x 12 poses of synthetic bodies", mim_cmd_synth, synth_argv) ||
@@ -263,29 +316,18 @@ int mim_cmd_demo(int argc, char **argv)
     pthread_sigmask(SIG_BLOCK, &stop, NULL);
     signal(SIGPIPE, SIG_IGN);
 
-    printf("== mimic vest simulate: the built-in motion on a pseudo-terminal (%s)\n", pty);
+    printf("== mimic vest simulate: the built-in motion on %s (%s%s)\n",
+           vests > 1 ? "pseudo-terminals" : "a pseudo-terminal", pty, vests > 1 ? ", vest2, ..." : "");
     fflush(stdout);
     mim_error_t err = {0};
     mim_vest_motion_t motion = {0};
-    vest_thread_t vt = {0};
-    pthread_mutex_init(&vt.lock, NULL);
-    pthread_cond_init(&vt.ready_cv, NULL);
-    snprintf(vt.out, sizeof vt.out, "pty:%s", pty);
-    mim_vest_sim_options_t so = {.rate_hz = 60, .loop = 1};
+    vest_thread_t vt[MAX_VESTS] = {{0}};
     int rc = mim_vest_motion_demo(&motion, &err);
-    if (!rc)
-        rc = mim_vest_sim_open(&vt.sim, &motion, &so, &err);
-    pthread_t sim_thread;
-    int sim_started = !rc && pthread_create(&sim_thread, NULL, sim_main, &vt) == 0;
-    if (!rc && !sim_started)
-        rc = mim_error_set(&err, MIM_ENOMEM, "cannot start the simulated vest's thread");
-    if (sim_started) {
-        pthread_mutex_lock(&vt.lock);
-        while (!vt.ready && !vt.done)
-            pthread_cond_wait(&vt.ready_cv, &vt.lock);
-        if (vt.done && vt.rc)
-            rc = vt.rc, err = vt.err;
-        pthread_mutex_unlock(&vt.lock);
+    for (uint64_t i = 0; !rc && i < vests; i++) {
+        char path[4200];
+        if (i)
+            snprintf(path, sizeof path, "%s/vest%llu", dir, (unsigned long long)i + 1);
+        rc = vest_start(&vt[i], &motion, i ? path : pty, &err);
     }
 
     recorder_t rec = {.cap = GLB_MAX_FRAMES};
@@ -295,7 +337,8 @@ int mim_cmd_demo(int argc, char **argv)
     char vest_spec[4300];
     snprintf(vest_spec, sizeof vest_spec, "serial:%s", pty);
     if (!rc) {
-        printf("== mimic serve: the avatar (template 1) driven by the vest\n");
+        printf("== mimic serve: the avatar (template 1) driven by the vest%s\n",
+               vests > 1 ? "; each other vest drives another body in a session of its own" : "");
         fflush(stdout);
         mim_serve_options_t o = {.listen = listen, .vest = vest_spec, .vest_pose = MIM_VEST_POSE_T,
                                  .key_rate = key_rate, .on_frame = record_frame, .user = &rec,
@@ -309,6 +352,16 @@ int mim_cmd_demo(int argc, char **argv)
             rc = mim_session_load_avatar(session, "1", &err);
         if (!rc)
             rc = mim_serve_open(&sv, session, &o, &err);
+        for (uint64_t i = 1; !rc && i < vests; i++) {
+            /* vest N drives pose 1 of subject N (cycling through the 4) */
+            mim_serve_session_spec_t spec = {0};
+            snprintf(spec.name, sizeof spec.name, "vest%llu", (unsigned long long)i + 1);
+            snprintf(spec.avatar, sizeof spec.avatar, "%llu", (unsigned long long)(1 + 12 * (i % SUBJECTS)));
+            snprintf(spec.vest, sizeof spec.vest, "serial:%s/vest%llu", dir, (unsigned long long)i + 1);
+            printf("== session %s: template %s driven by %s\n", spec.name, spec.avatar, spec.vest);
+            fflush(stdout);
+            rc = mim_serve_session_add(sv, &spec, &err);
+        }
     }
     if (!rc) {
         const mim_mesh_t *mesh = mim_serve_avatar_mesh(sv);
@@ -348,14 +401,11 @@ int mim_cmd_demo(int argc, char **argv)
                 t_report += 1.0;
             }
         }
-        mim_serve_close(&sv);
     }
+    mim_serve_close(&sv);
     mim_session_close(&session);
-    if (sim_started) {
-        vt.stop = 1;
-        pthread_join(sim_thread, NULL);
-    }
-    mim_vest_sim_close(&vt.sim);
+    for (uint64_t i = 0; i < vests; i++)
+        vest_stop(&vt[i]);
     mim_vest_motion_free(&motion);
     if (rc) {
         fprintf(stderr, "mimic demo: %s\n", mim_error_text(&err));
@@ -376,7 +426,5 @@ int mim_cmd_demo(int argc, char **argv)
     free(rec.positions);
     free(rec.times);
     pthread_mutex_destroy(&rec.lock);
-    pthread_cond_destroy(&vt.ready_cv);
-    pthread_mutex_destroy(&vt.lock);
     return rc ? 1 : 0;
 }

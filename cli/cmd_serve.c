@@ -10,13 +10,16 @@
 #include <getopt.h>
 #include <signal.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
 
 static void help(FILE *out)
 {
     fprintf(out,
-            "usage: mimic serve --store DIR --avatar (MESH|ID) [--vest SPEC [--vest-pose rest|t|a]]\n"
+            "usage: mimic serve --store DIR [--avatar (MESH|ID) [--vest SPEC]] [--vest-pose rest|t|a]\n"
+            "                   [--session NAME:vest=SPEC,avatar=MESH|ID[,key-rate=HZ] ...]\n"
+            "                   [--sessions FILE.json]\n"
             "                   [--key-rate auto|HZ] [--listen HOST:PORT] [--max-body BYTES]\n"
             "                   [--max-clients N] [--warm-start auto|on|off] [--drive auto|template|orientation]\n"
             "                   [--blend K] [--segment-correction on|off]\n\n"
@@ -24,7 +27,10 @@ static void help(FILE *out)
             "stream at /ws and the JSON API. Prints the viewer's URL on stdout.\n"
             "With --vest, every vest frame becomes landmarks on the avatar and one avatar\n"
             "frame on the stream: a key frame (nearest template, then transfer with the\n"
-            "cached factor) as often as the measured compute time allows, morphs between.\n\n"
+            "cached factor) as often as the measured compute time allows, morphs between.\n"
+            "Many vests in one process: each --session is a vest with its own avatar and\n"
+            "stream (/ws?session=NAME); they share the store, its index and the cores\n"
+            "(--avatar and --vest make the session named default). Give --avatar or a session.\n\n"
             "  --store DIR          the template store (its index, if built, answers /api/query)\n"
             "  --avatar MESH|ID     a mesh file, or a template id; a mesh of another connectivity\n"
             "                       is registered onto the store's once and bound (kept in the store)\n"
@@ -33,12 +39,17 @@ static void help(FILE *out)
             "  --vest SPEC          a recording (played in real time), serial:PATH, hid:VID:PID or\n"
             "                       udp:HOST:PORT (as mimic vest replay takes)\n"
             "  --vest-pose P        the wearer's pose at the tare: rest (as the avatar), t or a\n"
-            "                       (default rest)\n"
+            "                       (default rest; every session's)\n"
+            "  --session NAME:vest=SPEC,avatar=MESH|ID[,key-rate=HZ]  one more vest and avatar\n"
+            "                       (NAME: 1-32 of A-Z a-z 0-9 _ . -; vest may be left out);\n"
+            "                       repeat it for more\n"
+            "  --sessions FILE      sessions from a JSON file: {\"sessions\": [{\"name\", \"avatar\",\n"
+            "                       \"vest\", \"key_rate\"}, ...]} (schemas/serve-sessions.schema.json)\n"
             "  --key-rate auto|HZ   key frames per second; auto (default): one at every vest\n"
             "                       frame the compute time affords, fewer when it cannot\n"
             "  --listen HOST:PORT   where to listen (default %s; port 0: any free port)\n"
             "  --max-body BYTES     request body limit (default %zu; larger bodies get 413)\n"
-            "  --max-clients N      WebSocket clients at once (default %u)\n"
+            "  --max-clients N      WebSocket clients of one session at once (default %u)\n"
             "  --warm-start W       start each key frame's transfer from the previous one (same\n"
             "                       template): faster, less accurate (bench/RESULTS.md); auto\n"
             "                       (default) only when cold key frames do not fit the vest period\n"
@@ -52,16 +63,103 @@ static void help(FILE *out)
             "  -h, --help           this help\n\n"
             "Routes (schemas/serve-*.schema.json, schemas/serve-ws-frame.md):\n"
             "  GET  /               the web viewer\n"
-            "  GET  /ws             WebSocket avatar stream (?format=f32|i16)\n"
-            "  GET  /api/status     store, avatar, index, uptime, frames\n"
-            "  GET  /api/avatar     the avatar's rest mesh\n"
+            "  GET  /ws             WebSocket avatar stream (?format=f32|i16, ?session=NAME)\n"
+            "  GET  /api/status     store, index, uptime, frames, every session\n"
+            "  GET  /api/avatar     the avatar's rest mesh (?session=NAME)\n"
             "  POST /api/query      one landmark frame -> nearest templates (?k=N)\n"
             "  POST /api/transfer   {\"template\": ID} and/or {\"landmarks\": [...]} -> GLB\n"
-            "  GET  /metrics        Prometheus text (mimic_*)\n",
+            "                       (?session=NAME)\n"
+            "  GET  /api/sessions   the sessions; POST one {\"name\", \"avatar\", \"vest\"} to add it\n"
+            "  GET|DELETE /api/sessions/NAME  one session's status; remove it\n"
+            "  GET  /metrics        Prometheus text (mimic_*; per session: session=\"NAME\")\n"
+            "Without ?session= a route means the first session.\n",
             MIM_SERVE_DEFAULT_LISTEN, MIM_SERVE_DEFAULT_MAX_BODY, MIM_SERVE_DEFAULT_MAX_CLIENTS);
 }
 
+/* The sessions of --session and --sessions, in the order given. */
+typedef struct spec_list {
+    mim_serve_session_spec_t *v;
+    size_t n, cap;
+} spec_list_t;
+
+#define MAX_SESSIONS 1024
+
+static mim_serve_session_spec_t *spec_next(spec_list_t *l)
+{
+    if (l->n == MAX_SESSIONS) {
+        fprintf(stderr, "mimic serve: more than %d sessions\n", MAX_SESSIONS);
+        return NULL;
+    }
+    if (l->n == l->cap) {
+        size_t cap = l->cap ? 2 * l->cap : 8;
+        mim_serve_session_spec_t *v = realloc(l->v, cap * sizeof *v);
+        if (!v) {
+            fprintf(stderr, "mimic serve: out of memory for the sessions\n");
+            return NULL;
+        }
+        l->v = v, l->cap = cap;
+    }
+    return &l->v[l->n];
+}
+
+/* --session NAME:vest=SPEC,avatar=MESH|ID[,key-rate=HZ]: 0, or 2 with the
+ * reason on stderr. */
+static int add_spec_text(spec_list_t *l, const char *text)
+{
+    mim_serve_session_spec_t *sp = spec_next(l);
+    mim_error_t err = {0};
+    if (!sp)
+        return 2;
+    if (mim_serve_session_spec_parse(text, sp, &err)) {
+        fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
+        return 2;
+    }
+    l->n++;
+    return 0;
+}
+
+/* --sessions FILE: {"sessions": [spec, ...]} (schemas/serve-sessions.schema.json). */
+static int add_spec_file(spec_list_t *l, const char *path)
+{
+    json_error_t je;
+    json_t *root = json_load_file(path, JSON_REJECT_DUPLICATES, &je), *list = json_object_get(root, "sessions");
+    int rc = 0;
+    if (!root) {
+        fprintf(stderr, "mimic serve: --sessions %s:%d:%d: %s\n", path, je.line, je.column, je.text);
+        rc = 2;
+    } else if (!json_is_object(root) || json_object_size(root) != 1 || !json_is_array(list)) {
+        fprintf(stderr, "mimic serve: --sessions %s: expected {\"sessions\": [{\"name\", \"avatar\", ...}, ...]}\n",
+                path);
+        rc = 2;
+    }
+    for (size_t i = 0; !rc && i < json_array_size(list); i++) {
+        mim_serve_session_spec_t *sp = spec_next(l);
+        char where[4200];
+        snprintf(where, sizeof where, "--sessions %s: sessions[%zu]", path, i);
+        mim_error_t err = {0};
+        if (!sp)
+            rc = 2;
+        else if (mim_serve_session_spec_json(json_array_get(list, i), where, sp, &err)) {
+            fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
+            rc = 2;
+        } else
+            l->n++;
+    }
+    json_decref(root);
+    return rc;
+}
+
+static int run(int argc, char **argv, spec_list_t *specs);
+
 int mim_cmd_serve(int argc, char **argv)
+{
+    spec_list_t specs = {0};
+    int rc = run(argc, argv, &specs);
+    free(specs.v);
+    return rc;
+}
+
+static int run(int argc, char **argv, spec_list_t *specs)
 {
     static const struct option longopts[] = {{"store", required_argument, 0, 's'},
                                               {"avatar", required_argument, 0, 'a'}, {"avatar-landmarks", required_argument, 0, 'A'},
@@ -75,16 +173,20 @@ int mim_cmd_serve(int argc, char **argv)
                                               {"drive", required_argument, 0, 'd'},
                                               {"blend", required_argument, 0, 'B'},
                                               {"segment-correction", required_argument, 0, 'C'},
+                                              {"session", required_argument, 0, 'S'},
+                                              {"sessions", required_argument, 0, 'F'},
                                               {"help", no_argument, 0, 'h'},
                                               {0, 0, 0, 0}};
     const char *store = NULL, *avatar = NULL, *avatar_lm = NULL;
     mim_serve_options_t o = {.log = mim_cli_log};
-    int c;
+    int c, rc = 0;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "s:a:l:b:v:p:k:c:w:d:B:C:h", longopts, NULL)) != -1) {
+    while (!rc && (c = getopt_long(argc, argv, "s:a:l:b:v:p:k:c:w:d:B:C:S:F:h", longopts, NULL)) != -1) {
         uint64_t v;
-        if (c == 's') store = optarg;
+        if (c == 'S') rc = add_spec_text(specs, optarg);
+        else if (c == 'F') rc = add_spec_file(specs, optarg);
+        else if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
         else if (c == 'A') avatar_lm = optarg;
         else if (c == 'l') o.listen = optarg;
@@ -128,13 +230,29 @@ int mim_cmd_serve(int argc, char **argv)
             return 2;
         }
     }
+    if (rc)
+        return rc;
     if (optind < argc) {
         fprintf(stderr, "mimic serve: unexpected argument '%s' (see mimic serve --help)\n", argv[optind]);
         return 2;
     }
-    if (!store || !avatar) {
-        fprintf(stderr, "mimic serve: --store and --avatar are required (see mimic serve --help)\n");
+    if (!store || (!avatar && !specs->n)) {
+        fprintf(stderr, "mimic serve: --store and --avatar or a --session are required (see mimic serve --help)\n");
         return 2;
+    }
+    if (o.vest && !avatar) {
+        fprintf(stderr, "mimic serve: --vest drives --avatar: give it one (or use --session NAME:vest=...,avatar=...)\n");
+        return 2;
+    }
+    for (size_t i = 0; i < specs->n; i++) {
+        int twice = avatar && !strcmp(specs->v[i].name, MIM_SERVE_DEFAULT_SESSION);
+        for (size_t j = 0; j < i; j++)
+            twice |= !strcmp(specs->v[i].name, specs->v[j].name);
+        if (twice) {
+            fprintf(stderr, "mimic serve: session %s is given twice%s\n", specs->v[i].name,
+                    avatar ? " (--avatar makes the session default)" : "");
+            return 2;
+        }
     }
     const char *listen = o.listen ? o.listen : MIM_SERVE_DEFAULT_LISTEN;
     int host_len = mim_cli_listen("serve", listen);
@@ -162,12 +280,12 @@ int mim_cmd_serve(int argc, char **argv)
     mim_session_t *session = NULL;
     mim_session_options_t so;
     mim_cli_session_options(&so, avatar_lm);
-    int rc = mim_session_open(&session, store, &so, &err);
+    rc = mim_session_open(&session, store, &so, &err);
     if (rc) { /* the command cannot run (README: exit status) */
         fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
         return 2;
     }
-    if ((rc = mim_session_load_avatar(session, avatar, &err))) { /* bad input, or no index for a foreign avatar */
+    if (avatar && (rc = mim_session_load_avatar(session, avatar, &err))) { /* bad input, or no index for a foreign avatar */
         fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
         mim_session_close(&session);
         return rc == MIM_ENOINDEX ? 2 : 1;
@@ -178,10 +296,24 @@ int mim_cmd_serve(int argc, char **argv)
         mim_session_close(&session);
         return 1;
     }
+    for (size_t i = 0; i < specs->n; i++) {
+        fprintf(stderr, "mimic serve: session %s: avatar %s%s%s\n", specs->v[i].name, specs->v[i].avatar,
+                specs->v[i].vest[0] ? ", vest " : "", specs->v[i].vest);
+        if ((rc = mim_serve_session_add(sv, &specs->v[i], &err))) {
+            fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
+            mim_serve_close(&sv);
+            mim_session_close(&session);
+            return rc == MIM_ENOINDEX ? 2 : 1;
+        }
+    }
     printf("http://%.*s:%d/\n", host_len, listen, mim_serve_port(sv));
     fflush(stdout);
-    fprintf(stderr, "mimic serve: %s with avatar %s on port %d (Ctrl-C stops)\n", store, avatar,
-            mim_serve_port(sv));
+    if (avatar)
+        fprintf(stderr, "mimic serve: %s with avatar %s on port %d (Ctrl-C stops)\n", store, avatar,
+                mim_serve_port(sv));
+    else
+        fprintf(stderr, "mimic serve: %s with %zu sessions on port %d (Ctrl-C stops)\n", store, specs->n,
+                mim_serve_port(sv));
     int sig = 0;
     sigwait(&stop, &sig);
     fprintf(stderr, "mimic serve: %s: stopping\n", sig == SIGINT ? "SIGINT" : "SIGTERM");

@@ -21,35 +21,71 @@ static int status_of(int rc)
 
 static const char no_index[] = "%s: the store has no index (run mimic index, then restart serve)";
 
+/* The session a request names (?session=NAME; absent: the first one),
+ * with a reference; else NULL and the reply (400 for a malformed name, 404
+ * for none). */
+static mim__vs_t *request_session(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp, int *status)
+{
+    if (rq->session_given < 0 || (rq->session_given > 0 && !mim__session_name_ok(rq->session))) {
+        *status = mim__reply_error(rp, 400, "query string: session must be 1 to %d of A-Z a-z 0-9 _ . -",
+                                   MIM_SERVE_SESSION_NAME_MAX);
+        return NULL;
+    }
+    mim__vs_t *vs = mim__sessions_get(sv, rq->session_given > 0 ? rq->session : NULL);
+    if (!vs && rq->session_given > 0)
+        *status = mim__reply_error(rp, 404, "session %s: no such session (GET /api/sessions lists them)", rq->session);
+    else if (!vs)
+        *status = mim__reply_error(rp, 404, "%s: the service has no session yet (POST /api/sessions adds one)", rq->path);
+    return vs;
+}
+
 int mim__api_status(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 {
     (void)rq;
     const mim_query_status_t *qs = mim_session_index_status(sv->s);
     json_t *index = json_pack("{s:b, s:b, s:I}", "present", qs->has_index, "stale", qs->stale, "templates",
                               (json_int_t)(qs->has_index ? qs->built.templates : 0));
-    json_t *j = json_pack("{s:s, s:s, s:I, s:i, s:i, s:i, s:o, s:f, s:I, s:I, s:I, s:I, s:o, s:o}", "store",
-                          sv->store, "avatar", mim_session_avatar(sv->s), "templates", (json_int_t)qs->templates,
-                          "vertices", (int)sv->out_mesh->n_vertices, "faces", (int)sv->out_mesh->n_faces, "landmarks",
-                          (int)sv->map->count, "index", index, "uptime_s", mim_now() - sv->t_start, "vest_frames",
-                          (json_int_t)mim__metrics_get(&sv->m, MIM__C_VEST_FRAMES), "frames",
-                          (json_int_t)mim__metrics_get(&sv->m, MIM__C_FRAMES), "key_frames",
-                          (json_int_t)mim__metrics_get(&sv->m, MIM__C_KEY_FRAMES), "frames_dropped",
-                          (json_int_t)mim__metrics_get(&sv->m, MIM__C_DROPS), "stream", mim__ws_status(sv->ws),
-                          "vest", mim__loop_status(sv->loop));
+    size_t n = 0;
+    mim__vs_t **all = mim__sessions_all(sv, &n);
+    uint64_t count[MIM__C_COUNT] = {0};
+    json_t *sessions = json_array(), *vest = json_null();
+    for (size_t i = 0; i < n; i++) {
+        for (int c = 0; c < MIM__C_COUNT; c++)
+            count[c] += mim__metrics_get(&all[i]->m, (mim__counter_t)c);
+        json_t *one = mim__vs_status(all[i]);
+        if (i == 0 && one) /* the first session's vest, as before sessions */
+            json_decref(vest), vest = json_incref(json_object_get(one, "vest"));
+        json_array_append_new(sessions, one);
+    }
+    /* the first session's avatar: the one /ws and /api/avatar give without ?session= */
+    const mim_mesh_t *m = n ? all[0]->out_mesh : NULL;
+    json_t *j = json_pack("{s:s, s:o, s:I, s:i, s:i, s:i, s:o, s:f, s:I, s:I, s:I, s:I, s:o, s:o, s:o}", "store",
+                          sv->store, "avatar", n ? json_string(mim_session_avatar(all[0]->s)) : json_null(),
+                          "templates", (json_int_t)qs->templates, "vertices", m ? (int)m->n_vertices : 0, "faces",
+                          m ? (int)m->n_faces : 0, "landmarks", (int)sv->map->count, "index", index, "uptime_s",
+                          mim_now() - sv->t_start, "vest_frames", (json_int_t)count[MIM__C_VEST_FRAMES], "frames",
+                          (json_int_t)count[MIM__C_FRAMES], "key_frames", (json_int_t)count[MIM__C_KEY_FRAMES],
+                          "frames_dropped", (json_int_t)count[MIM__C_DROPS], "stream", mim__ws_status(sv->ws, NULL),
+                          "vest", vest, "sessions", sessions);
+    mim__sessions_release_all(all, n);
     return mim__reply_json(rp, 200, j);
 }
 
 int mim__api_avatar(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 {
-    (void)rq;
-    const mim_mesh_t *m = sv->out_mesh;
+    int status = 0;
+    mim__vs_t *vs = request_session(sv, rq, rp, &status);
+    if (!vs)
+        return status;
+    const mim_mesh_t *m = vs->out_mesh;
     json_t *pos = json_array(), *faces = json_array();
     for (size_t i = 0; pos && i < 3 * (size_t)m->n_vertices; i++)
         json_array_append_new(pos, json_real(m->positions[i]));
     for (size_t i = 0; faces && i < 3 * (size_t)m->n_faces; i++)
         json_array_append_new(faces, json_integer(m->faces[i]));
-    json_t *j = json_pack("{s:s, s:i, s:i, s:o, s:o}", "avatar", mim_session_avatar(sv->s), "vertices", (int)m->n_vertices,
-                          "faces", (int)m->n_faces, "positions", pos, "indices", faces);
+    json_t *j = json_pack("{s:s, s:s, s:i, s:i, s:o, s:o}", "session", vs->name, "avatar", mim_session_avatar(vs->s),
+                          "vertices", (int)m->n_vertices, "faces", (int)m->n_faces, "positions", pos, "indices", faces);
+    mim__vs_release(vs);
     return mim__reply_json(rp, 200, j);
 }
 
@@ -149,25 +185,28 @@ static int parse_transfer(mim_serve_t *sv, const char *body, size_t len, xfer_re
 
 int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 {
+    int status = 0;
+    mim__vs_t *vs = request_session(sv, rq, rp, &status);
+    if (!vs)
+        return status;
     const char *body = rq->body;
     size_t len = rq->len;
     mim_error_t err = {0};
     xfer_req_t *r = calloc(1, sizeof *r);
-    const uint32_t n = sv->mesh->n_vertices, n_own = sv->out_mesh->n_vertices;
+    const uint32_t n = vs->mesh->n_vertices, n_own = vs->out_mesh->n_vertices;
     float *out = malloc(3 * (size_t)n * sizeof *out);
-    float *own = mim_session_maps_output(sv->s) ? malloc(3 * (size_t)n_own * sizeof *own) : out;
+    float *own = mim_session_maps_output(vs->s) ? malloc(3 * (size_t)n_own * sizeof *own) : out;
     int rc = r && out && own ? 0 : mim_error_set(&err, MIM_ENOMEM, "out of memory for %u vertices", n);
     if (!rc)
         rc = parse_transfer(sv, body, len, r, &err);
     mim_session_report_t rep = {0};
-    int status = 0;
     if (!rc && !r->id && !sv->q) {
         /* landmarks alone need the index to find their template: as /api/query */
         status = mim__reply_error(rp, 503, no_index, sv->store);
         rc = MIM_ENOTFOUND;
     } else if (!rc) {
         mim_session_request_t req = {.template_id = r->id, .landmarks = r->has_landmarks ? r->u : NULL};
-        rc = mim_session_transfer(sv->s, &req, out, &rep, &err);
+        rc = mim_session_transfer(vs->s, &req, out, &rep, &err);
         /* the one thing a well-formed request can name that is not there */
         if (rc == MIM_ENOTFOUND)
             status = mim__reply_error(rp, r->id ? 404 : 500, "%s", mim_error_text(&err));
@@ -177,8 +216,8 @@ int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *r
     if (!rc) {
         mim__metrics_observe(&sv->m, MIM__H_TRANSFER, rep.seconds_solve);
         mim__metrics_add(&sv->m, MIM__C_TRANSFERS, 1);
-        mim_session_output(sv->s, out, own); /* in the avatar's own connectivity */
-        mim_mesh_t m = {n_own, sv->out_mesh->n_faces, own, sv->out_mesh->faces};
+        mim_session_output(vs->s, out, own); /* in the avatar's own connectivity */
+        mim_mesh_t m = {n_own, vs->out_mesh->n_faces, own, vs->out_mesh->faces};
         rc = mim_io_encode_glb(&m, "transfer", &glb, &glen, &err);
         if (rc && status_of(rc) == 400)
             rc = MIM_EIO; /* an encoder failure is ours, not the client's */
@@ -198,15 +237,92 @@ int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *r
     }
     if (own != out) free(own);
     free(glb), free(r), free(out);
+    mim__vs_release(vs);
     return status;
 }
 
 int mim__api_metrics(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 {
     (void)rq;
-    mim__metrics_set(&sv->m, MIM__G_WS_CLIENTS, mim__ws_clients(sv->ws));
-    char *txt = mim__metrics_text(&sv->m);
+    size_t n = 0;
+    mim__vs_t **all = mim__sessions_all(sv, &n);
+    mim__metrics_t **m = n ? malloc(n * sizeof *m) : NULL;
+    const char **names = n ? malloc(n * sizeof *names) : NULL;
+    char *txt = NULL;
+    if (!n || (m && names)) {
+        for (size_t i = 0; i < n; i++) {
+            mim__metrics_set(&all[i]->m, MIM__G_WS_CLIENTS, mim__ws_clients(sv->ws, all[i]));
+            m[i] = &all[i]->m, names[i] = all[i]->name;
+        }
+        txt = mim__metrics_text(&sv->m, m, names, n);
+    }
+    free(m), free(names);
+    mim__sessions_release_all(all, n);
     if (!txt)
         return mim__reply_error(rp, 500, "out of memory for the metrics");
     return mim__reply_take(rp, 200, "text/plain; version=0.0.4; charset=utf-8", txt, strlen(txt));
+}
+
+/* ---- sessions ---- */
+int mim__api_sessions(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
+{
+    (void)rq;
+    size_t n = 0;
+    mim__vs_t **all = mim__sessions_all(sv, &n);
+    json_t *list = json_array();
+    for (size_t i = 0; i < n; i++)
+        json_array_append_new(list, mim__vs_status(all[i]));
+    mim__sessions_release_all(all, n);
+    return mim__reply_json(rp, 200, json_pack("{s:o}", "sessions", list));
+}
+
+int mim__api_session_add(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
+{
+    json_error_t je;
+    json_t *j = json_loadb(rq->body, rq->len, JSON_REJECT_DUPLICATES, &je);
+    if (!j)
+        return mim__reply_error(rp, 400, "request body:%d:%d: %s", je.line, je.column, je.text);
+    mim_serve_session_spec_t spec;
+    mim_error_t err = {0};
+    int rc = mim_serve_session_spec_json(j, "request body", &spec, &err);
+    json_decref(j);
+    if (rc)
+        return mim__reply_error(rp, 400, "%s", mim_error_text(&err));
+    if ((rc = mim_serve_session_add(sv, &spec, &err))) {
+        /* a taken name is a conflict; an avatar or a vest that cannot be had is the request's */
+        int taken = rc == MIM_EINVAL && strstr(mim_error_text(&err), "already a session");
+        return mim__reply_error(rp, taken ? 409 : rc == MIM_ENOMEM ? 500 : 400, "%s", mim_error_text(&err));
+    }
+    mim__vs_t *vs = mim__sessions_get(sv, spec.name);
+    json_t *one = vs ? mim__vs_status(vs) : json_pack("{s:s}", "name", spec.name); /* (removed at once) */
+    mim__vs_release(vs);
+    return mim__reply_json(rp, 201, one);
+}
+
+/* The session of /api/sessions/NAME, with a reference; else NULL and a 404. */
+static mim__vs_t *path_session(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp, int *status)
+{
+    mim__vs_t *vs = mim__session_name_ok(rq->name) ? mim__sessions_get(sv, rq->name) : NULL;
+    if (!vs)
+        *status = mim__reply_error(rp, 404, "%s: no such session (GET /api/sessions lists them)", rq->path);
+    return vs;
+}
+
+int mim__api_session(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
+{
+    int status = 0;
+    mim__vs_t *vs = path_session(sv, rq, rp, &status);
+    if (!vs)
+        return status;
+    json_t *j = mim__vs_status(vs);
+    mim__vs_release(vs);
+    return mim__reply_json(rp, 200, j);
+}
+
+int mim__api_session_remove(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
+{
+    mim_error_t err = {0};
+    if (!mim__session_name_ok(rq->name) || mim_serve_session_remove(sv, rq->name, &err))
+        return mim__reply_error(rp, 404, "%s: no such session (GET /api/sessions lists them)", rq->path);
+    return mim__reply_json(rp, 200, json_pack("{s:s, s:b}", "name", rq->name, "removed", 1));
 }

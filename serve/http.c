@@ -51,7 +51,7 @@
 #define HEAD_ROOM (LWS_PRE + 1024u) /* LWS_PRE, then the status line and headers */
 #define BODY_BUDGET ((size_t)64 << 20) /* request bodies held at once, all connections (or 2 x --max-body) */
 
-enum { M_GET, M_HEAD, M_POST, M_OTHER };
+enum { M_GET, M_HEAD, M_POST, M_DELETE, M_OTHER };
 enum { T_NEW, T_BODY, T_WORK, T_SEND, T_SENT, T_LINGER };
 enum { CK_SIZE, CK_EXT, CK_SIZE_LF, CK_DATA, CK_DATA_CR, CK_DATA_LF, CK_LINE, CK_SKIP, CK_END_LF, CK_DONE };
 
@@ -87,14 +87,29 @@ static const struct route {
     int m;
     mim__route_t route;
     mim__handler_t fn;
-    int worker; /* milliseconds of work: on the pool */
+    int worker; /* milliseconds of work: on the pool (adding a session factors an avatar; removing one joins
+                   its loop) */
+    int named;  /* the path is a prefix, and the rest of it a name (rq.name) */
 } routes[] = {
-    {"/api/status", "GET", M_GET, MIM__R_STATUS, mim__api_status, 0},
-    {"/api/avatar", "GET", M_GET, MIM__R_AVATAR, mim__api_avatar, 1},
-    {"/api/query", "POST", M_POST, MIM__R_QUERY, mim__api_query, 1},
-    {"/api/transfer", "POST", M_POST, MIM__R_TRANSFER, mim__api_transfer, 1},
-    {"/metrics", "GET", M_GET, MIM__R_METRICS, mim__api_metrics, 0},
+    {"/api/status", "GET", M_GET, MIM__R_STATUS, mim__api_status, 0, 0},
+    {"/api/avatar", "GET", M_GET, MIM__R_AVATAR, mim__api_avatar, 1, 0},
+    {"/api/query", "POST", M_POST, MIM__R_QUERY, mim__api_query, 1, 0},
+    {"/api/transfer", "POST", M_POST, MIM__R_TRANSFER, mim__api_transfer, 1, 0},
+    {"/metrics", "GET", M_GET, MIM__R_METRICS, mim__api_metrics, 0, 0},
+    {"/api/sessions", "GET", M_GET, MIM__R_SESSIONS, mim__api_sessions, 0, 0},
+    {"/api/sessions", "POST", M_POST, MIM__R_SESSIONS, mim__api_session_add, 1, 0},
+    {"/api/sessions/", "GET", M_GET, MIM__R_SESSIONS, mim__api_session, 0, 1},
+    {"/api/sessions/", "DELETE", M_DELETE, MIM__R_SESSIONS, mim__api_session_remove, 1, 1},
 };
+
+/* Whether request path in is route r's. */
+static int route_matches(const struct route *r, const char *in)
+{
+    size_t n = strlen(r->path);
+    if (!r->named)
+        return !strcmp(r->path, in);
+    return !strncmp(r->path, in, n) && in[n] && !strchr(in + n, '/');
+}
 
 /* ---- replies ---- */
 /* The length of the valid UTF-8 sequence at s (n bytes left), 0 if none:
@@ -249,6 +264,8 @@ static int method_of(struct lws *wsi)
         return M_POST;
     if (lws_hdr_total_length(wsi, WSI_TOKEN_HEAD_URI) > 0)
         return M_HEAD;
+    if (lws_hdr_total_length(wsi, WSI_TOKEN_DELETE_URI) > 0)
+        return M_DELETE;
     return M_OTHER;
 }
 
@@ -433,7 +450,7 @@ static int dispatch(mim_serve_t *sv, struct lws *wsi, mim__http_tx_t *tx)
         return refuse(sv, wsi, tx, 500, "out of memory for the request");
     job->fn = tx->r->fn;
     job->rq = tx->rq;
-    snprintf(job->path, sizeof job->path, "%s", tx->r->path);
+    snprintf(job->path, sizeof job->path, "%s", tx->path);
     job->rq.path = job->path;
     job->body = tx->body; /* handed over */
     sv->body_bytes -= tx->cap;
@@ -650,9 +667,15 @@ static int on_request(mim_serve_t *sv, struct lws *wsi, mim__conn_t *conn, const
 
     if (strlen(in) != len)
         return refuse(sv, wsi, tx, 400, "request path: has a NUL byte (%%00)");
-    size_t i = 0, n = sizeof routes / sizeof routes[0];
-    while (i < n && strcmp(routes[i].path, in))
-        i++;
+    size_t i = 0, n = sizeof routes / sizeof routes[0], any = n;
+    for (; i < n; i++)
+        if (route_matches(&routes[i], in)) {
+            any = any < n ? any : i;
+            if (routes[i].m == tx->method)
+                break;
+        }
+    if (i == n && any < n) /* the path is there, not with this method */
+        i = any;
     if (i == n) {
         if ((tx->method == M_GET || tx->method == M_HEAD) && mim__viewer_reply(in, &tx->rp)) {
             tx->route = MIM__R_VIEWER;
@@ -667,16 +690,24 @@ static int on_request(mim_serve_t *sv, struct lws *wsi, mim__conn_t *conn, const
     tx->route = routes[i].route;
     if (tx->method != routes[i].m) {
         tx->close |= tx->expect_body;
-        char msg[128];
-        int m = snprintf(msg, sizeof msg, "{\"error\":\"%s: use %s\",\"status\":405}", routes[i].path, routes[i].method);
-        char *b = strdup(msg);
+        char allow[64] = "";
+        for (size_t r = 0; r < n; r++)
+            if (route_matches(&routes[r], in))
+                snprintf(allow + strlen(allow), sizeof allow - strlen(allow), "%s%s", allow[0] ? ", " : "",
+                         routes[r].method);
+        char msg[160];
+        int m = snprintf(msg, sizeof msg, "{\"error\":\"%s: use %s\",\"status\":405}", tx->path, allow);
+        char *b = m < (int)sizeof msg ? strdup(msg) : NULL;
         int st = mim__reply_take(&tx->rp, 405, "application/json", b, b ? (size_t)m : 1);
         if (st == 405)
-            snprintf(tx->rp.headers, sizeof tx->rp.headers, "Allow: %s\r\n", routes[i].method);
+            snprintf(tx->rp.headers, sizeof tx->rp.headers, "Allow: %s\r\n", allow);
         return answer(sv, wsi, tx, st);
     }
+    if (routes[i].named) /* printable already, and checked as a name by the handler */
+        snprintf(tx->rq.name, sizeof tx->rq.name, "%.*s", (int)sizeof tx->rq.name - 1, in + strlen(routes[i].path));
     int k = mim__url_arg(wsi, "k", tx->rq.k, sizeof tx->rq.k);
     tx->rq.k_given = k;
+    tx->rq.session_given = mim__url_arg(wsi, "session", tx->rq.session, sizeof tx->rq.session);
     if (tx->method != M_POST)
         return dispatch(sv, wsi, tx);
     if (tx->declared > (long long)sv->max_body)

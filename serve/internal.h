@@ -41,7 +41,8 @@ typedef enum mim__counter {
 } mim__counter_t;
 
 typedef enum mim__route {
-    MIM__R_STATUS, MIM__R_AVATAR, MIM__R_QUERY, MIM__R_TRANSFER, MIM__R_METRICS, MIM__R_VIEWER, MIM__R_OTHER,
+    MIM__R_STATUS, MIM__R_AVATAR, MIM__R_QUERY, MIM__R_TRANSFER, MIM__R_METRICS, MIM__R_SESSIONS, MIM__R_VIEWER,
+    MIM__R_OTHER,
     MIM__R_COUNT
 } mim__route_t;
 
@@ -77,8 +78,11 @@ uint64_t mim__metrics_get(mim__metrics_t *m, mim__counter_t c);
 void mim__metrics_observe(mim__metrics_t *m, mim__hist_t h, double seconds);
 void mim__metrics_set(mim__metrics_t *m, mim__gauge_t g, double v);
 void mim__metrics_request(mim__metrics_t *m, mim__route_t r, int status, double seconds);
-/* Prometheus text exposition format 0.0.4 (malloc'd; NULL when out of memory). */
-char *mim__metrics_text(mim__metrics_t *m);
+/* Prometheus text exposition format 0.0.4 (malloc'd; NULL when out of
+ * memory): the service's own m, and each session's, labelled
+ * session="names[i]"; a family's unlabelled sample is the process's total
+ * (the largest key interval for that gauge). */
+char *mim__metrics_text(mim__metrics_t *m, mim__metrics_t *const *sessions, const char *const *names, size_t n);
 
 /* ---- a request and its reply, as the handlers see them ---- */
 typedef struct mim__request {
@@ -88,6 +92,9 @@ typedef struct mim__request {
     int head;           /* a HEAD request: the reply's headers only */
     int k_given;        /* ?k= : 0 absent, 1 given (in k), -1 too long to be a number */
     char k[32];
+    int session_given;  /* ?session= : 0 absent, 1 given (in session), -1 too long to be a name */
+    char session[MIM_SERVE_SESSION_NAME_MAX + 1];
+    char name[MIM_SERVE_SESSION_NAME_MAX + 2]; /* /api/sessions/NAME: NAME, or "" (one byte more: too long shows) */
 } mim__request_t;
 
 /* Built by a handler on any thread, sent by the service thread. */
@@ -119,6 +126,12 @@ int mim__api_avatar(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 int mim__api_query(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
 int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
 int mim__api_metrics(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
+/* sessions (schemas/serve-session.schema.json): GET and POST /api/sessions,
+ * GET and DELETE /api/sessions/NAME */
+int mim__api_sessions(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
+int mim__api_session_add(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
+int mim__api_session(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
+int mim__api_session_remove(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
 
 /* ---- viewer.c ---- */
 /* The embedded file at path ("/", "/viewer.js", ...) for GET or HEAD: 200,
@@ -134,7 +147,7 @@ typedef struct mim__job {
     mim__handler_t fn;
     mim__request_t rq;
     char *body;             /* malloc'd, the request's (rq.body points here) */
-    char path[64];
+    char path[256];         /* the request's, printable (rq.path points here) */
     mim__reply_t rp;
     int status;
     struct lws *wsi;        /* the connection waiting for it (service thread only) */
@@ -172,24 +185,29 @@ int mim__url_arg(struct lws *wsi, const char *name, char *out, size_t n);
 
 /* ---- ws.c: the WebSocket avatar stream ---- */
 typedef struct mim__ws mim__ws_t;
+typedef struct mim__vs mim__vs_t; /* a session (sessions.c, below) */
 int mim__ws_open(mim__ws_t **out, mim_serve_t *sv, unsigned max_clients, mim_error_t *err);
 /* From now on publish wakes the service thread of ctx (NULL: stop). */
 void mim__ws_attach(mim__ws_t *ws, struct lws_context *ctx);
-/* Queues f for every client (each client's oldest frame is dropped when its
- * queue is full) and wakes the service thread; returns at once whatever the
- * clients do. Any thread (the vest loop's). */
-void mim__ws_publish(mim__ws_t *ws, const mim_serve_frame_t *f);
-/* The upgrade of GET /ws, on the service thread: 0 accepts it; else the
- * HTTP status to refuse it with and its reason in why. */
+/* Queues f for every client of session vs (each client's oldest frame is
+ * dropped when its queue is full) and wakes the service thread; returns at
+ * once whatever the clients do. Any thread (the vest loop's). */
+void mim__ws_publish(mim__ws_t *ws, mim__vs_t *vs, const mim_serve_frame_t *f);
+/* The upgrade of GET /ws[?session=NAME], on the service thread: 0 accepts
+ * it; else the HTTP status to refuse it with and its reason in why. */
 int mim__ws_confirm(mim__ws_t *ws, struct lws *wsi, char *why, size_t why_size);
+/* Session vs is gone: its clients are closed (1001, "session removed")
+ * from the service thread. Any thread. */
+void mim__ws_drop_session(mim__ws_t *ws, mim__vs_t *vs);
 /* The lws protocol callback's WebSocket reasons; returns what lws expects. */
 int mim__ws_callback(mim__ws_t *ws, struct lws *wsi, int reason, void *user, void *in, size_t len);
 /* On the service thread after a wake-up: asks for a writable callback for
  * every client with something queued. */
 void mim__ws_service(mim__ws_t *ws);
 void mim__ws_close(mim__ws_t **ws); /* after the context is destroyed; accepts NULL */
-json_t *mim__ws_status(mim__ws_t *ws);
-unsigned mim__ws_clients(mim__ws_t *ws);
+/* Session vs's stream (NULL: every session's together). */
+json_t *mim__ws_status(mim__ws_t *ws, const mim__vs_t *vs);
+unsigned mim__ws_clients(mim__ws_t *ws, const mim__vs_t *vs);
 /* A client's text message (untrusted): the format it asks for (0 f32, 1
  * i16), or -1 with the reason, one line, in why. */
 int mim__ws_parse_message(const char *data, size_t len, char *why, size_t why_size);
@@ -197,12 +215,69 @@ int mim__ws_parse_message(const char *data, size_t len, char *why, size_t why_si
 
 /* ---- loop.c: the vest thread ---- */
 typedef struct mim__loop mim__loop_t;
-/* Calibrates the avatar's rig for a wearer tared in pose (MIM_VEST_POSE_*),
- * opens the vest (a mim_vest_transport_open spec) and starts the thread. */
-int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t *opt, mim_error_t *err);
+/* Calibrates session vs's avatar rig for a wearer tared in pose
+ * (MIM_VEST_POSE_*), opens its vest (opt->vest, a mim_vest_transport_open
+ * spec) and starts the thread, which publishes to vs's stream. */
+int mim__loop_open(mim__loop_t **out, mim__vs_t *vs, const mim_serve_options_t *opt, mim_error_t *err);
 const char *mim__loop_state(mim__loop_t *l);
 void mim__loop_close(mim__loop_t **l); /* stops and joins; accepts NULL */
 json_t *mim__loop_status(mim__loop_t *l); /* null without a vest */
+
+/* ---- gate.c: the compute slots the sessions' loops share ---- */
+/* At most `slots` key frames or morphs compute at once, and a loop that
+ * waits gets the next free slot in the order it came (a ticket queue):
+ * with more vests than cores, each loop's measured cost grows by its wait,
+ * so every session's adaptive key rate drops alike and none starves
+ * (issue 16). */
+typedef struct mim__gate {
+    pthread_mutex_t lock;
+    pthread_cond_t turn;
+    unsigned slots, busy;
+    uint64_t next_ticket, serving;
+} mim__gate_t;
+void mim__gate_init(mim__gate_t *g, unsigned slots);
+void mim__gate_destroy(mim__gate_t *g);
+void mim__gate_enter(mim__gate_t *g);
+void mim__gate_leave(mim__gate_t *g);
+
+/* ---- sessions.c: the vests a service drives, one avatar each (issue 16) ---- */
+struct mim__vs {
+    char name[MIM_SERVE_SESSION_NAME_MAX + 1];
+    mim_serve_t *sv;
+    mim_session_t *s;          /* its pipeline: a fork of the service's session (owned), or that session */
+    int owned;
+    mim_serve_session_spec_t spec;
+    const mim_mesh_t *mesh;    /* the avatar at rest, the store's faces (a foreign avatar's proxy) */
+    const mim_mesh_t *out_mesh; /* the avatar as given, what its clients see */
+    const mim_landmark_map_t *map;
+    double t_start;
+    mim__metrics_t m;          /* its own counters, labelled session="NAME" in /metrics */
+    pthread_mutex_t lock;      /* guards loop against removal while status reads it */
+    mim__loop_t *loop;         /* NULL without a vest, and once removed */
+    unsigned refs;             /* under sv->sessions_lock: the list's, each lookup's, each stream client's */
+    int removed;               /* under sv->sessions_lock: invisible to lookups, freed at its last reference */
+    struct mim__vs *next;
+};
+/* Session name (NULL or "": the default one, the first of the list) with
+ * a reference the caller releases; NULL when there is no such live one. */
+mim__vs_t *mim__sessions_get(mim_serve_t *sv, const char *name);
+void mim__vs_release(mim__vs_t *vs);
+int mim__vs_removed(mim__vs_t *vs); /* 1 once mim_serve_session_remove has taken it off */
+/* The live sessions, in the order they were added, each with a reference
+ * (mim__sessions_release_all); *n 0 and NULL when none or out of memory. */
+mim__vs_t **mim__sessions_all(mim_serve_t *sv, size_t *n);
+void mim__sessions_release_all(mim__vs_t **v, size_t n);
+/* A session's part of /api/status and /api/sessions (schemas/serve-status.schema.json). */
+json_t *mim__vs_status(mim__vs_t *vs);
+/* At close: every session's loop stopped (before the context goes), then
+ * every session freed (after it, when no client holds one). */
+/* The session MIM_SERVE_DEFAULT_SESSION of the service's own session (its
+ * avatar), with opt's vest and key rate. */
+int mim__sessions_open_default(mim_serve_t *sv, const mim_serve_options_t *opt, mim_error_t *err);
+void mim__sessions_stop_all(mim_serve_t *sv);
+void mim__sessions_free_all(mim_serve_t *sv);
+/* Checks a session name: 1..MIM_SERVE_SESSION_NAME_MAX of [A-Za-z0-9_.-]. */
+int mim__session_name_ok(const char *name);
 
 /* ---- the per-connection data lws keeps for us (protocol user space) ---- */
 typedef struct mim__conn {
@@ -212,10 +287,8 @@ typedef struct mim__conn {
 
 /* ---- the service ---- */
 struct mim_serve {
-    mim_session_t *s;           /* store, index, avatar, factor: the transfer pipeline (borrowed) */
-    /* what the session holds, read-only, for the handlers */
-    const mim_mesh_t *mesh;     /* the avatar at rest, the store's faces (a foreign avatar's proxy) */
-    const mim_mesh_t *out_mesh; /* the avatar as given, what clients see (mim_session_output_mesh) */
+    mim_session_t *s;           /* store and index (and the default session's avatar): borrowed */
+    mim_serve_options_t opt;    /* what every session's loop runs with, but its vest and key rate */
     const mim_landmark_map_t *map;
     const mim_query_t *q;       /* NULL when the store has no index */
     const char *store;          /* the store's path */
@@ -229,9 +302,11 @@ struct mim_serve {
     atomic_int stop;
     int port;
     mim__workers_t *workers;
-    mim__loop_t *loop;          /* NULL without --vest */
-    mim__ws_t *ws;              /* the /ws stream */
-    mim__metrics_t m;
+    pthread_mutex_t sessions_lock;
+    mim__vs_t *sessions;        /* live and removed ones still referenced, in the order added */
+    mim__gate_t gate;
+    mim__ws_t *ws;              /* the /ws streams, every session's */
+    mim__metrics_t m;           /* the service's own (HTTP requests, the API's queries and transfers) */
 };
 
 #endif

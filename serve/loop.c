@@ -69,7 +69,7 @@ typedef struct key {
 } key_pose_t;
 
 struct mim__loop {
-    mim_serve_t *sv;
+    mim__vs_t *vs;      /* the session whose vest this is */
     mim_serve_options_t opt;
     mim_vest_rig_t rig;
     mim_vest_transport_t *t;
@@ -201,9 +201,9 @@ static void morph_ready(mim__loop_t *l, key_pose_t *k)
 {
     if (k->morph_ready)
         return;
-    const mim_xfer_topology_t *t = mim_session_topology(l->sv->s);
+    const mim_xfer_topology_t *t = mim_session_topology(l->vs->s);
     mim_xfer_frames(t, k->pos, l->F);
-    mim_xfer_frames_to_quats(l->sv->mesh->n_vertices, l->F, k->quats);
+    mim_xfer_frames_to_quats(l->vs->mesh->n_vertices, l->F, k->quats);
     mim_xfer_encode(t, k->pos, l->F, k->W);
     k->morph_ready = 1;
 }
@@ -214,8 +214,8 @@ static void morph_ready(mim__loop_t *l, key_pose_t *k)
  * solve with the cached factor). */
 static int make_key(mim__loop_t *l, const float *u, const mim_quat *R, const uint8_t *have, mim_error_t *err)
 {
-    mim_serve_t *sv = l->sv;
-    const uint32_t L = sv->map->count;
+    mim__vs_t *vs = l->vs;
+    const uint32_t L = vs->map->count;
     double t0 = mim_now();
     key_pose_t *prev = &l->keys[l->cur], *k = &l->keys[!l->cur];
     mim_session_request_t req = {.landmarks = u, .orientations = R, .orient_present = have,
@@ -224,9 +224,11 @@ static int make_key(mim__loop_t *l, const float *u, const mim_quat *R, const uin
     if (prev->valid && want_warm(l)) /* warm start: the same template as the last key frame */
         req.xfer.start = prev->pos, req.start_template = prev->template_id;
     mim_session_report_t *rep = &l->report;
-    int rc = mim_session_transfer(sv->s, &req, k->pos, rep, err);
+    mim__gate_enter(&vs->sv->gate); /* its wait counts in the cost: many vests, lower key rates alike */
+    int rc = mim_session_transfer(vs->s, &req, k->pos, rep, err);
+    mim__gate_leave(&vs->sv->gate);
     if (rep->queried)
-        mim__metrics_add(&sv->m, MIM__C_QUERIES, 1);
+        mim__metrics_add(&vs->m, MIM__C_QUERIES, 1);
     if (rc)
         return rc;
     k->valid = 1, k->morph_ready = 0;
@@ -239,9 +241,9 @@ static int make_key(mim__loop_t *l, const float *u, const mim_quat *R, const uin
     double c = mim_now() - t0;
     ewma(&l->c_key, c);
     ewma(rep->warm_started ? &l->c_warm : &l->c_cold, c);
-    mim__metrics_add(&sv->m, MIM__C_TRANSFERS, 1);
-    mim__metrics_add(&sv->m, MIM__C_KEY_FRAMES, 1);
-    mim__metrics_observe(&sv->m, MIM__H_KEY_FRAME, c);
+    mim__metrics_add(&vs->m, MIM__C_TRANSFERS, 1);
+    mim__metrics_add(&vs->m, MIM__C_KEY_FRAMES, 1);
+    mim__metrics_observe(&vs->m, MIM__H_KEY_FRAME, c);
     pthread_mutex_lock(&l->lock);
     l->last_template = rep->template_id;
     snprintf(l->last_label, sizeof l->last_label, "%s", k->label);
@@ -256,28 +258,32 @@ static int make_key(mim__loop_t *l, const float *u, const mim_quat *R, const uin
 /* The frame between keys a and b at t in (0, 1), into l->out. */
 static int make_morph(mim__loop_t *l, key_pose_t *a, key_pose_t *b, double t, mim_error_t *err)
 {
-    mim_serve_t *sv = l->sv;
+    mim__vs_t *vs = l->vs;
     double t0 = mim_now();
     if (a->oriented && b->oriented && !l->linear) {
         mim_session_oriented_key_t ka = {a->R, a->have_R, a->u, a->template_id}, kb = {b->R, b->have_R, b->u, b->template_id};
-        int rc = mim_session_morph_oriented(sv->s, &ka, &kb, t, l->out, err);
+        mim__gate_enter(&vs->sv->gate);
+        int rc = mim_session_morph_oriented(vs->s, &ka, &kb, t, l->out, err);
+        mim__gate_leave(&vs->sv->gate);
         if (!rc) {
             ewma(&l->c_morph, mim_now() - t0);
-            mim__metrics_add(&sv->m, MIM__C_MORPH_FRAMES, 1);
-            mim__metrics_observe(&sv->m, MIM__H_MORPH_FRAME, mim_now() - t0);
+            mim__metrics_add(&vs->m, MIM__C_MORPH_FRAMES, 1);
+            mim__metrics_observe(&vs->m, MIM__H_MORPH_FRAME, mim_now() - t0);
         }
         return rc;
     }
+    mim__gate_enter(&vs->sv->gate);
     if (!l->linear)
         morph_ready(l, a), morph_ready(l, b);
     mim_xfer_key_t ka = {a->pos, a->quats, a->W, a->u}, kb = {b->pos, b->quats, b->W, b->u};
-    int rc = mim_session_morph(sv->s, l->linear ? MIM_XFER_MORPH_LINEAR : MIM_XFER_MORPH_FRAMES, &ka, &kb, t,
+    int rc = mim_session_morph(vs->s, l->linear ? MIM_XFER_MORPH_LINEAR : MIM_XFER_MORPH_FRAMES, &ka, &kb, t,
                                l->out, err);
+    mim__gate_leave(&vs->sv->gate);
     if (!rc) {
         double c = mim_now() - t0;
         ewma(l->linear ? &l->c_linear : &l->c_morph, c);
-        mim__metrics_add(&sv->m, MIM__C_MORPH_FRAMES, 1);
-        mim__metrics_observe(&sv->m, MIM__H_MORPH_FRAME, c);
+        mim__metrics_add(&vs->m, MIM__C_MORPH_FRAMES, 1);
+        mim__metrics_observe(&vs->m, MIM__H_MORPH_FRAME, c);
     }
     return rc;
 }
@@ -295,8 +301,8 @@ static void count_rates(mim__loop_t *l, int key)
     pthread_mutex_lock(&l->lock);
     l->key_rate_hz = l->window_keys / dt, l->frame_rate_hz = l->window_frames / dt;
     pthread_mutex_unlock(&l->lock);
-    mim__metrics_set(&l->sv->m, MIM__G_KEY_RATE, l->window_keys / dt);
-    mim__metrics_set(&l->sv->m, MIM__G_FRAME_RATE, l->window_frames / dt);
+    mim__metrics_set(&l->vs->m, MIM__G_KEY_RATE, l->window_keys / dt);
+    mim__metrics_set(&l->vs->m, MIM__G_FRAME_RATE, l->window_frames / dt);
     l->window_start = now, l->window_frames = l->window_keys = 0;
 }
 
@@ -313,9 +319,9 @@ static int held(const mim__loop_t *l, uint32_t i, uint64_t t)
 static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *present, const mim_quat *R,
                             const uint8_t *have, uint64_t t_vest)
 {
-    mim_serve_t *sv = l->sv;
-    const uint32_t L = sv->map->count;
-    mim__metrics_add(&sv->m, MIM__C_VEST_FRAMES, 1);
+    mim__vs_t *vs = l->vs;
+    const uint32_t L = vs->map->count;
+    mim__metrics_add(&vs->m, MIM__C_VEST_FRAMES, 1);
     float u[3 * MIM_LANDMARKS_MAX], shown[3 * MIM_LANDMARKS_MAX];
     int complete = 1, lost = 0;
     for (uint32_t i = 0; i < L; i++) {
@@ -334,7 +340,7 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
     for (uint32_t i = 0; i < L; i++)
         to_complete |= !present[i] && !held(l, i, t_vest);
     if (lost)
-        mim__metrics_add(&sv->m, MIM__C_INCOMPLETE, 1);
+        mim__metrics_add(&vs->m, MIM__C_INCOMPLETE, 1);
     if (to_complete) {
         /* Lost landmarks are completed from the store's templates (seed
          * 002's completion by retrieval) when enough are seen; else held.
@@ -343,18 +349,18 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
         float filled[3 * MIM_LANDMARKS_MAX];
         uint8_t done[MIM_LANDMARKS_MAX];
         mim_error_t cerr = {0};
-        if (mim_session_complete(sv->s, xyz, present, NULL, filled, done, &cerr) == 0) {
+        if (mim_session_complete(vs->s, xyz, present, NULL, filled, done, &cerr) == 0) {
             uint32_t n_done = 0;
             for (uint32_t i = 0; i < L; i++)
                 if (done[i] && !held(l, i, t_vest)) memcpy(u + 3 * i, filled + 3 * i, 3 * sizeof *u), n_done++;
             complete = 1;
-            mim__metrics_add(&sv->m, MIM__C_COMPLETED, n_done);
+            mim__metrics_add(&vs->m, MIM__C_COMPLETED, n_done);
             pthread_mutex_lock(&l->lock);
             l->completed += n_done;
             pthread_mutex_unlock(&l->lock);
         }
     }
-    if (!complete || !sv->q)
+    if (!complete || !vs->sv->q)
         return; /* the transfer holds every landmark: it needs them all, and an index */
 
     mim_error_t err = {0};
@@ -365,7 +371,7 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
             choose_interval(l), l->since_key = 0, key = 1;
     }
     if (rc) {
-        mim__metrics_add(&sv->m, MIM__C_VEST_ERRORS, 1);
+        mim__metrics_add(&vs->m, MIM__C_VEST_ERRORS, 1);
         set_error(l, mim_error_text(&err));
         return;
     }
@@ -374,7 +380,7 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
     double t = (double)(l->since_key + 1) / l->k;
     if (a->valid && t < 1.0) {
         if ((rc = make_morph(l, a, b, t, &err))) {
-            mim__metrics_add(&sv->m, MIM__C_VEST_ERRORS, 1);
+            mim__metrics_add(&vs->m, MIM__C_VEST_ERRORS, 1);
             set_error(l, mim_error_text(&err));
             return;
         }
@@ -383,7 +389,7 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
     l->since_key++;
     const int shows_key = pos == b->pos;
     if (l->own) { /* a foreign avatar: the pose on its own vertices */
-        mim_session_output(sv->s, pos, l->own);
+        mim_session_output(vs->s, pos, l->own);
         pos = l->own;
     }
     double now = mim_now();
@@ -394,18 +400,19 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
                            .compute_us = (uint32_t)((now - l->arrival) * 1e6),
                            .key_interval = l->k,
                            .key = shows_key,
-                           .n_vertices = sv->out_mesh->n_vertices,
+                           .n_vertices = vs->out_mesh->n_vertices,
                            .n_landmarks = L,
                            .positions = pos,
-                           .landmarks = shown};
+                           .landmarks = shown,
+                           .session = vs->name};
     /* the stream's header holds 31 bytes of label (schemas/serve-ws-frame.md) */
     snprintf(f.label, sizeof f.label, "%.*s", (int)sizeof f.label - 1, b->label);
-    mim__ws_publish(sv->ws, &f);
+    mim__ws_publish(vs->sv->ws, vs, &f);
     if (l->opt.on_frame)
         l->opt.on_frame(l->opt.user, &f);
-    mim__metrics_add(&sv->m, MIM__C_FRAMES, 1);
-    mim__metrics_observe(&sv->m, MIM__H_FRAME, mim_now() - l->arrival);
-    mim__metrics_set(&sv->m, MIM__G_KEY_INTERVAL, l->k);
+    mim__metrics_add(&vs->m, MIM__C_FRAMES, 1);
+    mim__metrics_observe(&vs->m, MIM__H_FRAME, mim_now() - l->arrival);
+    mim__metrics_set(&vs->m, MIM__G_KEY_INTERVAL, l->k);
     count_rates(l, key);
 }
 
@@ -441,7 +448,7 @@ static void frame_done(mim__loop_t *l, uint64_t t)
 {
     vest_period(l, t);
     if (l->pending)
-        mim__metrics_add(&l->sv->m, MIM__C_SKIPPED, 1);
+        mim__metrics_add(&l->vs->m, MIM__C_SKIPPED, 1);
     mim_vest_fk(&l->rig, &l->st, t, 0, l->pending_xyz, l->pending_present);
     mim_vest_fresh(&l->st, t, 0, l->pending_have);
     mim_vest_segment_rotations(&l->rig, l->st.q, l->pending_have, l->pending_R); /* the decoder took unit readings only */
@@ -490,14 +497,14 @@ static void link_state(mim__loop_t *l, int up, const char *why)
             l->error[0] = 0, l->outage = 0;
         pthread_mutex_unlock(&l->lock);
     }
-    mim__metrics_add(&l->sv->m, up ? MIM__C_VEST_RECONNECTS : MIM__C_VEST_DISCONNECTS, 1);
-    mim__metrics_set(&l->sv->m, MIM__G_VEST_UP, up);
+    mim__metrics_add(&l->vs->m, up ? MIM__C_VEST_RECONNECTS : MIM__C_VEST_DISCONNECTS, 1);
+    mim__metrics_set(&l->vs->m, MIM__G_VEST_UP, up);
     if (!up) { /* no frames while it is away: the rates say so, not their last values */
         pthread_mutex_lock(&l->lock);
         l->key_rate_hz = l->frame_rate_hz = 0.0;
         pthread_mutex_unlock(&l->lock);
-        mim__metrics_set(&l->sv->m, MIM__G_KEY_RATE, 0.0);
-        mim__metrics_set(&l->sv->m, MIM__G_FRAME_RATE, 0.0);
+        mim__metrics_set(&l->vs->m, MIM__G_KEY_RATE, 0.0);
+        mim__metrics_set(&l->vs->m, MIM__G_FRAME_RATE, 0.0);
         l->window_start = 0.0, l->window_frames = l->window_keys = 0;
     }
     mim_log_emit(l->opt.log, l->opt.log_ctx, up ? MIM_LOG_INFO : MIM_LOG_WARN, "vest %s: %s", l->spec,
@@ -507,7 +514,7 @@ static void link_state(mim__loop_t *l, int up, const char *why)
 static void *run(void *arg)
 {
     mim__loop_t *l = arg;
-    mim_serve_t *sv = l->sv;
+    mim__vs_t *vs = l->vs;
     while (!atomic_load(&l->stop)) {
         mim_vest_chunk_t ch;
         mim_error_t err = {0};
@@ -533,12 +540,12 @@ static void *run(void *arg)
                 flush_frames(l);
             }
             set_state(l, "ended", NULL);
-            mim__metrics_set(&sv->m, MIM__G_VEST_UP, 0);
+            mim__metrics_set(&vs->m, MIM__G_VEST_UP, 0);
             return NULL;
         }
         if (r < 0) {
-            mim__metrics_add(&sv->m, MIM__C_VEST_ERRORS, 1);
-            mim__metrics_set(&sv->m, MIM__G_VEST_UP, 0);
+            mim__metrics_add(&vs->m, MIM__C_VEST_ERRORS, 1);
+            mim__metrics_set(&vs->m, MIM__G_VEST_UP, 0);
             set_state(l, "failed", mim_error_text(&err));
             return NULL;
         }
@@ -563,10 +570,10 @@ static void *run(void *arg)
         int oriented = 0;
         if (mim_vest_udp_parse_orient((const char *)ch.data, ch.len, &tu, xyz, present, MIM_LANDMARKS_MAX, &n, R, have,
                                       &oriented, &err) ||
-            n != sv->map->count) {
+            n != vs->map->count) {
             if (!err.code)
-                mim_error_set(&err, MIM_EFORMAT, "udp frame: %u landmarks, the avatar has %u", n, sv->map->count);
-            mim__metrics_add(&sv->m, MIM__C_VEST_ERRORS, 1);
+                mim_error_set(&err, MIM_EFORMAT, "udp frame: %u landmarks, the avatar has %u", n, vs->map->count);
+            mim__metrics_add(&vs->m, MIM__C_VEST_ERRORS, 1);
             set_error(l, mim_error_text(&err));
             continue;
         }
@@ -577,17 +584,17 @@ static void *run(void *arg)
     return NULL;
 }
 
-int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t *opt, mim_error_t *err)
+int mim__loop_open(mim__loop_t **out, mim__vs_t *vs, const mim_serve_options_t *opt, mim_error_t *err)
 {
     *out = NULL;
     mim__loop_t *l = calloc(1, sizeof *l);
     mim_vest_skeleton_t *sk = malloc(sizeof *sk);
-    const size_t n = sv->mesh->n_vertices;
+    const size_t n = vs->mesh->n_vertices;
     int rc = 0, ok = l && sk;
     if (l) {
         l->out = malloc(3 * n * sizeof *l->out);
-        if (mim_session_maps_output(sv->s))
-            ok = ok && (l->own = malloc(3 * (size_t)sv->out_mesh->n_vertices * sizeof *l->own));
+        if (mim_session_maps_output(vs->s))
+            ok = ok && (l->own = malloc(3 * (size_t)vs->out_mesh->n_vertices * sizeof *l->own));
         l->F = malloc(9 * n * sizeof *l->F);
         ok = ok && l->out && l->F;
         for (int i = 0; i < 2; i++) {
@@ -601,14 +608,10 @@ int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t
     if (!ok)
         rc = mim_error_set(err, MIM_ENOMEM, "out of memory for the vest loop");
     const mim_error_t *why = NULL;
-    if (!rc && (opt->drive < MIM_DRIVE_AUTO || opt->drive > MIM_DRIVE_ORIENTATION))
-        rc = mim_error_set(err, MIM_EINVAL, "serve: unknown drive %d", opt->drive);
-    else if (!rc && opt->blend > MIM_XFER_BLEND_MAX)
-        rc = mim_error_set(err, MIM_EINVAL, "serve: --blend %u: at most %d templates", opt->blend, MIM_XFER_BLEND_MAX);
-    else if (!rc && opt->drive == MIM_DRIVE_ORIENTATION && !mim_session_skin(sv->s, &why, NULL))
+    if (!rc && opt->drive == MIM_DRIVE_ORIENTATION && !mim_session_skin(vs->s, &why, NULL))
         rc = mim_error_set(err, why->code, "--drive orientation: %s", mim_error_text(why));
     if (l) {
-        l->sv = sv;
+        l->vs = vs;
         l->opt = *opt;
         l->k = 1;
         pthread_mutex_init(&l->lock, NULL);
@@ -618,7 +621,7 @@ int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t
     if (!rc) {
         mim_vest_state_reset(&l->st);
         mim_vest_calib_options_t co = {opt->vest_pose};
-        rc = mim_vest_skeleton_estimate(sk, sv->mesh, sv->map, err);
+        rc = mim_vest_skeleton_estimate(sk, vs->mesh, vs->map, err);
         if (!rc)
             rc = mim_vest_calibrate(&l->rig, sk, &co, NULL, err);
         /* a service waits for its vest to come back, however long it is away */
@@ -631,7 +634,7 @@ int mim__loop_open(mim__loop_t **out, mim_serve_t *sv, const mim_serve_options_t
             rc = mim_error_set(err, MIM_ENOMEM, "out of memory for the vest decoder");
     }
     if (!rc) {
-        mim__metrics_set(&sv->m, MIM__G_VEST_UP, 1);
+        mim__metrics_set(&vs->m, MIM__G_VEST_UP, 1);
         l->t_data = mim_now();
     }
     if (!rc && (rc = -pthread_create(&l->thread, NULL, run, l)) != 0)
@@ -658,7 +661,7 @@ void mim__loop_close(mim__loop_t **pl)
     }
     mim_vest_decoder_close(&l->dec);
     mim_vest_transport_close(&l->t);
-    if (l->sv)
+    if (l->vs)
         pthread_mutex_destroy(&l->lock);
     free(l->out), free(l->F), free(l->own);
     for (int i = 0; i < 2; i++)

@@ -12,8 +12,8 @@
 static const double bounds[MIM__BUCKETS] = {0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.0075, 0.01,
                                             0.025,   0.05,   0.1,   0.25,   0.5,   1.0,    2.5};
 static const int statuses[MIM__STATUSES - 1] = {200, 400, 404, 405, 413, 500, 503};
-static const char *const route_names[MIM__R_COUNT] = {"status", "avatar", "query", "transfer", "metrics", "viewer",
-                                                           "other"};
+static const char *const route_names[MIM__R_COUNT] = {"status",   "avatar", "query", "transfer", "metrics",
+                                                      "sessions", "viewer", "other"};
 static const struct {
     const char *name, *help;
 } counter_info[MIM__C_COUNT] = {
@@ -166,20 +166,57 @@ static void put_hist(buf_t *b, const char *name, const char *labels, const mim__
         (unsigned long long)h->n);
 }
 
-char *mim__metrics_text(mim__metrics_t *m)
+/* A consistent snapshot of m; the copied mutex is never used. */
+static void snapshot(mim__metrics_t *m, mim__metrics_t *out)
 {
-    mim__metrics_t c;
     pthread_mutex_lock(&m->lock);
-    memcpy(&c, m, sizeof c); /* a consistent snapshot; the copied mutex is never used */
+    memcpy(out, m, sizeof *out);
     pthread_mutex_unlock(&m->lock);
+}
+
+static void merge_hist(mim__histogram_t *into, const mim__histogram_t *h)
+{
+    for (int i = 0; i <= MIM__BUCKETS; i++)
+        into->counts[i] += h->counts[i];
+    into->n += h->n;
+    into->sum += h->sum;
+}
+
+char *mim__metrics_text(mim__metrics_t *m, mim__metrics_t *const *sessions, const char *const *names, size_t n)
+{
+    mim__metrics_t c, *each = n ? malloc(n * sizeof *each) : NULL;
+    if (n && !each)
+        return NULL;
+    snapshot(m, &c);
+    for (size_t k = 0; k < n; k++)
+        snapshot(sessions[k], &each[k]);
+    /* the process's totals: the service's own plus every session's */
+    mim__metrics_t total = c;
+    for (size_t k = 0; k < n; k++) {
+        for (int i = 0; i < MIM__C_COUNT; i++)
+            total.counters[i] += each[k].counters[i];
+        for (int h = 0; h < MIM__H_COUNT; h++)
+            merge_hist(&total.hist[h], &each[k].hist[h]);
+        for (int g = 0; g < MIM__G_COUNT; g++)
+            total.gauges[g] = g == MIM__G_KEY_INTERVAL ? (each[k].gauges[g] > total.gauges[g] ? each[k].gauges[g]
+                                                                                              : total.gauges[g])
+                                                       : total.gauges[g] + each[k].gauges[g];
+    }
 
     buf_t b = {0};
-    for (int i = 0; i < MIM__C_COUNT; i++)
+    for (int i = 0; i < MIM__C_COUNT; i++) {
         put(&b, "# HELP %s %s\n# TYPE %s counter\n%s %llu\n", counter_info[i].name, counter_info[i].help,
-            counter_info[i].name, counter_info[i].name, (unsigned long long)c.counters[i]);
-    for (int i = 0; i < MIM__G_COUNT; i++)
+            counter_info[i].name, counter_info[i].name, (unsigned long long)total.counters[i]);
+        for (size_t k = 0; k < n; k++)
+            put(&b, "%s{session=\"%s\"} %llu\n", counter_info[i].name, names[k],
+                (unsigned long long)each[k].counters[i]);
+    }
+    for (int i = 0; i < MIM__G_COUNT; i++) {
         put(&b, "# HELP %s %s\n# TYPE %s gauge\n%s %.6g\n", gauge_info[i].name, gauge_info[i].help,
-            gauge_info[i].name, gauge_info[i].name, c.gauges[i]);
+            gauge_info[i].name, gauge_info[i].name, total.gauges[i]);
+        for (size_t k = 0; k < n; k++)
+            put(&b, "%s{session=\"%s\"} %.6g\n", gauge_info[i].name, names[k], each[k].gauges[i]);
+    }
     put(&b, "# HELP mimic_http_requests_total HTTP requests by route and status.\n"
             "# TYPE mimic_http_requests_total counter\n");
     for (int r = 0; r < MIM__R_COUNT; r++)
@@ -200,8 +237,14 @@ char *mim__metrics_text(mim__metrics_t *m)
     }
     for (int h = 0; h < MIM__H_COUNT; h++) {
         put(&b, "# HELP %s %s\n# TYPE %s histogram\n", hist_info[h].name, hist_info[h].help, hist_info[h].name);
-        put_hist(&b, hist_info[h].name, "", &c.hist[h]);
+        put_hist(&b, hist_info[h].name, "", &total.hist[h]);
+        for (size_t k = 0; k < n; k++) {
+            char labels[64];
+            snprintf(labels, sizeof labels, "session=\"%s\"", names[k]);
+            put_hist(&b, hist_info[h].name, labels, &each[k].hist[h]);
+        }
     }
+    free(each);
     if (b.failed) {
         free(b.p);
         return NULL;

@@ -5,7 +5,12 @@
  *   GET  /api/avatar     schemas/serve-avatar.schema.json
  *   POST /api/query      one landmark frame -> schemas/query.schema.json
  *   POST /api/transfer   schemas/serve-transfer-request.schema.json -> GLB
+ *   GET  /api/sessions   {"sessions": [schemas/serve-session.schema.json]}
+ *   POST /api/sessions   schemas/serve-session-request.schema.json -> 201
+ *   GET, DELETE /api/sessions/NAME   one session; remove it
  *   GET  /metrics        Prometheus text, names prefixed mimic_
+ * /ws, /api/avatar and /api/transfer take ?session=NAME (absent: the first
+ * session).
  * Errors are JSON, schemas/serve-error.schema.json. With a vest, a thread
  * turns each vest frame into landmarks, makes key frames (query, then
  * transfer with the cached factor, warm-started from the last key frame
@@ -50,6 +55,7 @@ typedef struct mim_serve_frame {
     uint32_t key_interval; /* vest frames per key frame when it was made */
     int key;               /* 1: a key pose itself; 0: morphed between two */
     char label[32];        /* the recognised pose class */
+    const char *session;   /* the session whose vest this is (mim_serve_session_spec_t's name) */
     uint32_t n_vertices, n_landmarks;
     const float *positions; /* 3 * n_vertices */
     const float *landmarks; /* 3 * n_landmarks, NaN where the vest lost one */
@@ -80,9 +86,14 @@ typedef struct mim_serve_options {
      * MIM_SESSION_DEFAULT_BLEND) and segment correction (1: on). */
     uint32_t blend;
     int segment_correction;
-    unsigned max_clients; /* WebSocket clients at once; 0: MIM_SERVE_DEFAULT_MAX_CLIENTS */
-    /* Called on the loop thread for every published frame (may be NULL),
-     * e.g. to record the served sequence; it must return quickly. */
+    unsigned max_clients; /* WebSocket clients of one session at once; 0: MIM_SERVE_DEFAULT_MAX_CLIENTS */
+    /* Key frames and morphs computed at once, over all sessions (gate.c);
+     * 0: the cores online. */
+    unsigned compute_slots;
+    /* Called on the loop thread for every published frame of every
+     * session (frame->session says whose; may be NULL), e.g. to record the
+     * served sequence; it must return quickly, and be thread-safe with
+     * more than one session. */
     void (*on_frame)(void *user, const mim_serve_frame_t *frame);
     void *user;
     /* The vest loop's notes (the vest lost, streaming again), one line each,
@@ -95,20 +106,60 @@ typedef struct mim_serve_options {
 
 typedef struct mim_serve mim_serve_t;
 
+/* ---- sessions (issue 16): many vests, each with its own avatar ----
+ * A service drives any number of sessions, each a vest, an avatar on the
+ * service's store (mim_session_fork: the store, index and connectivity
+ * are shared, the avatar and its factor are the session's), a vest loop
+ * and a stream at /ws?session=NAME. The session given to mim_serve_open,
+ * when it has an avatar, is the one named MIM_SERVE_DEFAULT_SESSION with
+ * opt->vest and opt->key_rate; /ws and the other routes without
+ * ?session= mean the first session. */
+#define MIM_SERVE_SESSION_NAME_MAX 32
+#define MIM_SERVE_DEFAULT_SESSION "default"
+typedef struct mim_serve_session_spec {
+    char name[MIM_SERVE_SESSION_NAME_MAX + 1]; /* 1..32 of A-Z a-z 0-9 _ . - */
+    char avatar[4096];    /* a mesh file, or a template id */
+    char vest[1024];      /* a vest spec (mim_serve_options_t's vest); "": none */
+    double key_rate;      /* key frames per second; 0: the service's (opt->key_rate) */
+} mim_serve_session_spec_t;
+/* "NAME:vest=SPEC,avatar=MESH|ID[,key-rate=R]" (the order of the fields is
+ * free; a value ends at the next comma) into *out. MIM_EINVAL with the
+ * reason, one line quoting the text. */
+int mim_serve_session_spec_parse(const char *text, mim_serve_session_spec_t *out, mim_error_t *err);
+/* {"name", "avatar", "vest", "key_rate"} (schemas/serve-session.schema.json,
+ * the request of POST /api/sessions; a member of --sessions FILE's
+ * "sessions") into *out; where (e.g. "request body") starts the message.
+ * MIM_EFORMAT with the reason. */
+int mim_serve_session_spec_json(const json_t *j, const char *where, mim_serve_session_spec_t *out, mim_error_t *err);
+
 /* Serves session s: its store, index (without one /api/query answers 503),
- * avatar and factor (mim_session_open, then mim_session_load_avatar). The
- * session is borrowed: the caller closes it after mim_serve_close. Starts
- * the vest loop (opt->vest) and starts listening. Errors name the vest or
- * the address. */
+ * and, when it has one (mim_session_load_avatar), its avatar and factor as
+ * the session MIM_SERVE_DEFAULT_SESSION with the vest loop of opt->vest.
+ * Without an avatar the service starts with no session (add them with
+ * mim_serve_session_add; opt->vest is then refused, MIM_EINVAL). s is
+ * borrowed: the caller closes it after mim_serve_close. Starts listening.
+ * Errors name the vest or the address. */
 int mim_serve_open(mim_serve_t **out, mim_session_t *s, const mim_serve_options_t *opt, mim_error_t *err);
+/* Adds session spec while the service runs: a fork of the service's
+ * session, the avatar loaded and factorised (seconds for a large one), its
+ * vest loop started. Errors, one line: MIM_EINVAL for a bad name or a name
+ * taken (not a duplicate: "already a session"), the avatar's
+ * (mim_session_load_avatar), the vest's. Thread-safe. */
+int mim_serve_session_add(mim_serve_t *sv, const mim_serve_session_spec_t *spec, mim_error_t *err);
+/* Removes session name: its loop stops, its clients' streams close (1001);
+ * a request computing on it finishes first. MIM_ENOTFOUND when there is no
+ * such session. Thread-safe. */
+int mim_serve_session_remove(mim_serve_t *sv, const char *name, mim_error_t *err);
 /* The port actually bound (useful with port 0). */
 int mim_serve_port(const mim_serve_t *s);
-/* The vest loop's state, a static string: "streaming", "reconnecting",
- * "ended", "failed", "stopped", or "none" without a vest. */
+/* The first session's vest loop's state, a static string: "streaming",
+ * "reconnecting", "ended", "failed", "stopped", or "none" without a vest
+ * (or a session). */
 const char *mim_serve_vest_state(mim_serve_t *s);
-/* The avatar mesh as clients see it (mim_session_output_mesh: its own
- * faces and rest positions; the frames are in its vertex order), valid
- * until close, and the number of frames published so far. */
+/* The first session's avatar mesh as clients see it
+ * (mim_session_output_mesh: its own faces and rest positions; the frames
+ * are in its vertex order), valid until close (NULL without a session),
+ * and the number of frames published so far, every session's. */
 const mim_mesh_t *mim_serve_avatar_mesh(const mim_serve_t *s);
 uint64_t mim_serve_frames(mim_serve_t *s);
 /* Stops listening, closes every connection (a request being computed is

@@ -201,23 +201,31 @@ int mim_serve_open(mim_serve_t **out, mim_session_t *s, const mim_serve_options_
     if (!sv)
         return mim_error_set(err, MIM_ENOMEM, "out of memory");
     mim__metrics_init(&sv->m);
+    pthread_mutex_init(&sv->sessions_lock, NULL);
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    mim__gate_init(&sv->gate, o.compute_slots ? o.compute_slots : cores > 0 ? (unsigned)cores : 1u);
     sv->t_start = mim_now();
     sv->max_body = o.max_body ? o.max_body : MIM_SERVE_DEFAULT_MAX_BODY;
+    sv->opt = o;
+    sv->opt.vest = NULL; /* each session's own */
     sv->s = s;
     sv->store = mim_session_store(s);
-    sv->mesh = mim_session_mesh(s);
-    sv->out_mesh = mim_session_output_mesh(s);
     sv->map = mim_session_map(s);
     sv->q = mim_session_query(s);
-    int rc = mim_session_has_avatar(s) ? 0 : mim_error_set(err, MIM_EINVAL, "%s: serve: the session has no avatar",
-                                                             sv->store);
+    int rc = 0;
+    if (o.drive < MIM_DRIVE_AUTO || o.drive > MIM_DRIVE_ORIENTATION)
+        rc = mim_error_set(err, MIM_EINVAL, "serve: unknown drive %d", o.drive);
+    else if (o.blend > MIM_XFER_BLEND_MAX)
+        rc = mim_error_set(err, MIM_EINVAL, "serve: --blend %u: at most %d templates", o.blend, MIM_XFER_BLEND_MAX);
+    else if (o.vest && !mim_session_has_avatar(s))
+        rc = mim_error_set(err, MIM_EINVAL, "%s: serve: a vest needs an avatar (the session has none)", sv->store);
     const unsigned max_clients = o.max_clients ? o.max_clients : MIM_SERVE_DEFAULT_MAX_CLIENTS;
     if (!rc)
         rc = mim__ws_open(&sv->ws, sv, max_clients, err);
     if (!rc)
         rc = mim__workers_open(&sv->workers, sv, o.threads ? o.threads : WORKERS, err);
-    if (!rc && o.vest)
-        rc = mim__loop_open(&sv->loop, sv, &o, err);
+    if (!rc && mim_session_has_avatar(s))
+        rc = mim__sessions_open_default(sv, &o, err);
     if (rc) {
         mim_serve_close(&sv);
         return rc;
@@ -280,17 +288,34 @@ int mim_serve_port(const mim_serve_t *s)
 
 const char *mim_serve_vest_state(mim_serve_t *s)
 {
-    return mim__loop_state(s ? s->loop : NULL);
+    mim__vs_t *vs = s ? mim__sessions_get(s, NULL) : NULL;
+    if (!vs)
+        return "none";
+    pthread_mutex_lock(&vs->lock);
+    const char *state = mim__loop_state(vs->loop);
+    pthread_mutex_unlock(&vs->lock);
+    mim__vs_release(vs);
+    return state;
 }
 
 const mim_mesh_t *mim_serve_avatar_mesh(const mim_serve_t *s)
 {
-    return s ? s->out_mesh : NULL;
+    /* the first session lives until close or its removal */
+    mim__vs_t *vs = s ? mim__sessions_get((mim_serve_t *)s, NULL) : NULL;
+    const mim_mesh_t *m = vs ? vs->out_mesh : NULL;
+    mim__vs_release(vs);
+    return m;
 }
 
 uint64_t mim_serve_frames(mim_serve_t *s)
 {
-    return s ? mim__metrics_get(&s->m, MIM__C_FRAMES) : 0;
+    size_t n = 0;
+    mim__vs_t **all = s ? mim__sessions_all(s, &n) : NULL;
+    uint64_t frames = 0;
+    for (size_t i = 0; i < n; i++)
+        frames += mim__metrics_get(&all[i]->m, MIM__C_FRAMES);
+    mim__sessions_release_all(all, n);
+    return frames;
 }
 
 void mim_serve_close(mim_serve_t **ps)
@@ -308,12 +333,15 @@ void mim_serve_close(mim_serve_t **ps)
         mim__ws_attach(sv->ws, NULL);
     if (sv->workers)
         mim__workers_attach(sv->workers, NULL);
-    mim__loop_close(&sv->loop); /* it publishes to the stream */
+    mim__sessions_stop_all(sv); /* their loops publish to the stream */
     if (sv->ctx)
         lws_context_destroy(sv->ctx); /* closes every connection: their jobs are orphaned, clients freed */
     sv->ctx = NULL;
     mim__workers_close(&sv->workers); /* waits for a running handler, frees what is left */
+    mim__sessions_free_all(sv);
     mim__ws_close(&sv->ws);
+    mim__gate_destroy(&sv->gate);
+    pthread_mutex_destroy(&sv->sessions_lock);
     mim__metrics_destroy(&sv->m);
     free(sv);
     *ps = NULL;

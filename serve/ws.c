@@ -68,6 +68,8 @@ typedef struct item {
 
 typedef struct mim__ws_client {
     mim__ws_t *ws;
+    mim__vs_t *vs;          /* the session it streams (a reference, released when it closes) */
+    int closing;            /* under ws->lock: its session was removed; close it (1001) */
     struct lws *wsi;
     int format;             /* FMT_*, under ws->lock */
     item_t q[RING];         /* under ws->lock: to send, oldest at head */
@@ -84,10 +86,10 @@ struct mim__ws {
     mim_serve_t *sv;
     pthread_mutex_t lock; /* clients, their queues and formats, ctx */
     struct lws_context *ctx; /* woken by publish; NULL before listening and once closing */
-    client_t *clients;
-    unsigned n_clients, max_clients;
-    uint64_t joined, left;
-    struct lws **wake;    /* max_clients: scratch of the service thread */
+    client_t *clients;    /* every session's */
+    unsigned n_clients, max_clients; /* max_clients: of one session */
+    struct lws **wake;    /* wake_cap: scratch of the service thread */
+    unsigned wake_cap;
 };
 
 /* A message of len bytes after LWS_PRE bytes of room for lws's frame
@@ -246,7 +248,7 @@ static item_t pop(client_t *c)
     return it;
 }
 
-void mim__ws_publish(mim__ws_t *ws, const mim_serve_frame_t *f)
+void mim__ws_publish(mim__ws_t *ws, mim__vs_t *vs, const mim_serve_frame_t *f)
 {
     if (!ws)
         return;
@@ -260,7 +262,8 @@ void mim__ws_publish(mim__ws_t *ws, const mim_serve_frame_t *f)
     for (;;) {
         int need[N_FMT] = {0, 0}, missing = 0;
         for (client_t *c = ws->clients; c; c = c->next)
-            need[c->format] = 1;
+            if (c->vs == vs)
+                need[c->format] = 1;
         for (int k = 0; k < N_FMT; k++)
             missing |= need[k] && !m[k];
         if (!missing)
@@ -278,7 +281,7 @@ void mim__ws_publish(mim__ws_t *ws, const mim_serve_frame_t *f)
     }
     int woken = 0;
     for (client_t *c = ws->clients; c; c = c->next) {
-        if (!m[c->format])
+        if (c->vs != vs || c->closing || !m[c->format])
             continue;
         dropped += (uint64_t)push(c, m[c->format], 0);
         woken = 1;
@@ -287,7 +290,7 @@ void mim__ws_publish(mim__ws_t *ws, const mim_serve_frame_t *f)
         lws_cancel_service(ws->ctx); /* under the lock: close detaches ctx before destroying it */
     pthread_mutex_unlock(&ws->lock);
     if (dropped)
-        mim__metrics_add(&ws->sv->m, MIM__C_DROPS, dropped);
+        mim__metrics_add(&vs->m, MIM__C_DROPS, dropped);
     for (int k = 0; k < N_FMT; k++)
         msg_unref(m[k]); /* the queues hold their own references */
 }
@@ -297,8 +300,13 @@ void mim__ws_service(mim__ws_t *ws)
 {
     unsigned n = 0;
     pthread_mutex_lock(&ws->lock);
-    for (client_t *c = ws->clients; c && n < ws->max_clients; c = c->next)
-        if (c->count)
+    if (ws->n_clients > ws->wake_cap) { /* sessions come and go: the scratch grows with the clients */
+        struct lws **w = realloc(ws->wake, ws->n_clients * sizeof *w);
+        if (w)
+            ws->wake = w, ws->wake_cap = ws->n_clients;
+    }
+    for (client_t *c = ws->clients; c && n < ws->wake_cap; c = c->next)
+        if (c->count || c->closing)
             ws->wake[n++] = c->wsi;
     pthread_mutex_unlock(&ws->lock);
     for (unsigned i = 0; i < n; i++)
@@ -357,6 +365,29 @@ static int url_format(struct lws *wsi)
     return -1;
 }
 
+/* ?session=NAME on the URL (absent: the first session): 0 with a
+ * reference in *vs, else the HTTP status with why. */
+static int url_session(mim__ws_t *ws, struct lws *wsi, char *name, size_t n, mim__vs_t **vs, char *why,
+                       size_t why_size)
+{
+    int r = mim__url_arg(wsi, "session", name, n);
+    if (r < 0 || (r > 0 && !mim__session_name_ok(name))) {
+        snprintf(why, why_size, "/ws: ?session= must be 1 to %d of A-Z a-z 0-9 _ . -", MIM_SERVE_SESSION_NAME_MAX);
+        return 400;
+    }
+    if (r == 0)
+        name[0] = 0;
+    if (!(*vs = mim__sessions_get(ws->sv, name))) {
+        if (name[0])
+            snprintf(why, why_size, "/ws?session=%s: no such session (GET /api/sessions lists them)", name);
+        else
+            snprintf(why, why_size, "/ws: the service has no session yet (POST /api/sessions adds one)");
+        return 404;
+    }
+    snprintf(name, n, "%s", (*vs)->name);
+    return 0;
+}
+
 int mim__ws_confirm(mim__ws_t *ws, struct lws *wsi, char *why, size_t why_size)
 {
     char path[64] = "";
@@ -370,11 +401,15 @@ int mim__ws_confirm(mim__ws_t *ws, struct lws *wsi, char *why, size_t why_size)
         snprintf(why, why_size, "/ws: ?format= must be f32 or i16");
         return 400;
     }
-    pthread_mutex_lock(&ws->lock);
-    int full = ws->n_clients >= ws->max_clients;
-    pthread_mutex_unlock(&ws->lock);
-    if (full) {
-        snprintf(why, why_size, "/ws: the stream has its %u clients (--max-clients); try again later",
+    char name[MIM_SERVE_SESSION_NAME_MAX + 1];
+    mim__vs_t *vs = NULL;
+    int status = url_session(ws, wsi, name, sizeof name, &vs, why, why_size);
+    if (status)
+        return status;
+    unsigned have = mim__ws_clients(ws, vs);
+    mim__vs_release(vs);
+    if (have >= ws->max_clients) {
+        snprintf(why, why_size, "/ws: session %s has its %u clients (--max-clients); try again later", name,
                  ws->max_clients);
         return 503;
     }
@@ -384,21 +419,27 @@ int mim__ws_confirm(mim__ws_t *ws, struct lws *wsi, char *why, size_t why_size)
 static int on_established(mim__ws_t *ws, struct lws *wsi, mim__conn_t *conn)
 {
     int fmt = url_format(wsi);
+    char name[MIM_SERVE_SESSION_NAME_MAX + 1], why[160];
+    mim__vs_t *vs = NULL;
+    if (url_session(ws, wsi, name, sizeof name, &vs, why, sizeof why)) /* removed since the upgrade was confirmed */
+        return -1;
     client_t *c = calloc(1, sizeof *c);
-    const mim_serve_t *sv = ws->sv;
     json_t *names = json_array();
-    for (uint32_t i = 0; i < sv->map->count; i++)
-        json_array_append_new(names, json_string(sv->map->names[i]));
-    json_t *j = json_pack("{s:s, s:i, s:i, s:i, s:i, s:o, s:s}", "type", "hello", "version", 1, "vertices",
-                          (int)sv->out_mesh->n_vertices, "faces", (int)sv->out_mesh->n_faces, "landmarks", (int)sv->map->count,
-                          "landmark_names", names, "format", fmt_names[fmt < 0 ? 0 : fmt]);
+    for (uint32_t i = 0; i < vs->map->count; i++)
+        json_array_append_new(names, json_string(vs->map->names[i]));
+    json_t *j = json_pack("{s:s, s:i, s:s, s:i, s:i, s:i, s:o, s:s}", "type", "hello", "version", 1, "session",
+                          vs->name, "vertices", (int)vs->out_mesh->n_vertices, "faces", (int)vs->out_mesh->n_faces,
+                          "landmarks", (int)vs->map->count, "landmark_names", names, "format",
+                          fmt_names[fmt < 0 ? 0 : fmt]);
     msg_t *hello = msg_json(j);
     if (!c || fmt < 0 || !hello) {
         free(c);
         msg_unref(hello);
+        mim__vs_release(vs);
         return -1;
     }
     c->ws = ws;
+    c->vs = vs;
     c->wsi = wsi;
     c->format = fmt;
     /* the hello is queued before the client is on the list that publish
@@ -406,25 +447,32 @@ static int on_established(mim__ws_t *ws, struct lws *wsi, mim__conn_t *conn)
     push(c, hello, 1);
     msg_unref(hello);
     pthread_mutex_lock(&ws->lock);
-    int full = ws->n_clients >= ws->max_clients;
-    if (!full) {
-        c->next = ws->clients, ws->clients = c;
-        ws->n_clients++, ws->joined++;
-    }
+    c->next = ws->clients, ws->clients = c;
+    ws->n_clients++;
     pthread_mutex_unlock(&ws->lock);
-    if (full) { /* confirmed a moment ago; cannot happen on one thread, but cheap to check */
-        msg_unref(pop(c).m);
-        free(c);
-        return -1;
+    /* removed since the lookup: mim_serve_session_remove marks it removed
+     * before it closes the clients it finds, so a client it missed sees
+     * the mark here */
+    if (mim__vs_removed(vs)) {
+        pthread_mutex_lock(&ws->lock);
+        c->closing = 1;
+        pthread_mutex_unlock(&ws->lock);
     }
     conn->client = c;
-    mim__metrics_add(&ws->sv->m, MIM__C_WS_JOINED, 1);
+    mim__metrics_add(&vs->m, MIM__C_WS_JOINED, 1);
     lws_callback_on_writable(wsi);
     return 0;
 }
 
+static int refuse_close(struct lws *wsi, enum lws_close_status status, const char *why);
+
 static int on_writable(mim__ws_t *ws, client_t *c)
 {
+    pthread_mutex_lock(&ws->lock);
+    int closing = c->closing;
+    pthread_mutex_unlock(&ws->lock);
+    if (closing)
+        return refuse_close(c->wsi, LWS_CLOSE_STATUS_GOINGAWAY, "session removed");
     pthread_mutex_lock(&ws->lock);
     if (!c->count) {
         pthread_mutex_unlock(&ws->lock);
@@ -439,7 +487,7 @@ static int on_writable(mim__ws_t *ws, client_t *c)
     if (w < 0)
         return -1; /* the peer is gone */
     if (!it.text)
-        mim__metrics_add(&ws->sv->m, MIM__C_WS_SENT, 1);
+        mim__metrics_add(&c->vs->m, MIM__C_WS_SENT, 1);
     if (c->paused && texts < TEXT_PAUSE / 2) {
         lws_rx_flow_control(c->wsi, 1);
         c->paused = 0;
@@ -451,18 +499,18 @@ static int on_writable(mim__ws_t *ws, client_t *c)
 
 /* A whole client message: {"format": "f32"|"i16"}; anything else gets an
  * error reply and changes nothing. */
-static int on_message(mim__ws_t *ws, client_t *c)
+static int on_message(client_t *c)
 {
-    mim__metrics_add(&ws->sv->m, MIM__C_WS_MESSAGES, 1);
+    mim__metrics_add(&c->vs->m, MIM__C_WS_MESSAGES, 1);
     if (c->msg_binary) {
-        mim__metrics_add(&ws->sv->m, MIM__C_WS_BAD, 1);
+        mim__metrics_add(&c->vs->m, MIM__C_WS_BAD, 1);
         return send_error(c, "binary message of %zu bytes: the stream takes JSON text ({\"format\": \"f32\"|\"i16\"})",
                           c->msg_len);
     }
     char why[256];
     int fmt = mim__ws_parse_message(c->msg, c->msg_len, why, sizeof why);
     if (fmt < 0) {
-        mim__metrics_add(&ws->sv->m, MIM__C_WS_BAD, 1);
+        mim__metrics_add(&c->vs->m, MIM__C_WS_BAD, 1);
         return send_error(c, "%s", why);
     }
     return queue_text(c, json_pack("{s:s, s:s}", "type", "format", "format", fmt_names[fmt]), fmt);
@@ -476,10 +524,10 @@ static int refuse_close(struct lws *wsi, enum lws_close_status status, const cha
 
 /* A piece of a client message: joined with the others of its message,
  * which must stay within MIM__WS_MESSAGE_MAX. */
-static int on_receive(mim__ws_t *ws, struct lws *wsi, client_t *c, const void *in, size_t len)
+static int on_receive(struct lws *wsi, client_t *c, const void *in, size_t len)
 {
     if (lws_get_reserved_bits(wsi)) { /* no extension was agreed: RFC 6455 5.2 fails the connection */
-        mim__metrics_add(&ws->sv->m, MIM__C_WS_BAD, 1);
+        mim__metrics_add(&c->vs->m, MIM__C_WS_BAD, 1);
         return refuse_close(wsi, LWS_CLOSE_STATUS_PROTOCOL_ERR, "reserved bits set");
     }
     if (!c->in_msg) {
@@ -489,7 +537,7 @@ static int on_receive(mim__ws_t *ws, struct lws *wsi, client_t *c, const void *i
     }
     size_t rest = lws_remaining_packet_payload(wsi);
     if (len > MIM__WS_MESSAGE_MAX - c->msg_len || rest > MIM__WS_MESSAGE_MAX - c->msg_len - len) {
-        mim__metrics_add(&ws->sv->m, MIM__C_WS_BAD, 1);
+        mim__metrics_add(&c->vs->m, MIM__C_WS_BAD, 1);
         return refuse_close(wsi, LWS_CLOSE_STATUS_MESSAGE_TOO_LARGE, "message over 4096 bytes");
     }
     memcpy(c->msg + c->msg_len, in, len);
@@ -498,7 +546,7 @@ static int on_receive(mim__ws_t *ws, struct lws *wsi, client_t *c, const void *i
         return 0;
     c->in_msg = 0;
     c->msg[c->msg_len] = 0;
-    if (on_message(ws, c))
+    if (on_message(c))
         return refuse_close(wsi, LWS_CLOSE_STATUS_POLICY_VIOLATION, "too many replies unread");
     return 0;
 }
@@ -511,11 +559,12 @@ static void on_closed(mim__ws_t *ws, client_t *c)
             *p = c->next;
             break;
         }
-    ws->n_clients--, ws->left++;
+    ws->n_clients--;
     while (c->count)
         msg_unref(pop(c).m);
     pthread_mutex_unlock(&ws->lock);
-    mim__metrics_add(&ws->sv->m, MIM__C_WS_LEFT, 1);
+    mim__metrics_add(&c->vs->m, MIM__C_WS_LEFT, 1);
+    mim__vs_release(c->vs);
     free(c);
 }
 
@@ -529,7 +578,7 @@ int mim__ws_callback(mim__ws_t *ws, struct lws *wsi, int reason, void *user, voi
     case LWS_CALLBACK_SERVER_WRITEABLE:
         return c ? on_writable(ws, c) : 0;
     case LWS_CALLBACK_RECEIVE:
-        return c ? on_receive(ws, wsi, c, in, len) : -1;
+        return c ? on_receive(wsi, c, in, len) : -1;
     case LWS_CALLBACK_CLOSED:
         if (c) {
             on_closed(ws, c);
@@ -592,6 +641,8 @@ int mim__ws_open(mim__ws_t **out, mim_serve_t *sv, unsigned max_clients, mim_err
         free(ws);
         ws = NULL;
     }
+    if (ws)
+        ws->wake_cap = max_clients ? max_clients : 1;
     if (!ws)
         return mim_error_set(err, MIM_ENOMEM, "out of memory for the WebSocket stream");
     ws->sv = sv;
@@ -621,25 +672,53 @@ void mim__ws_close(mim__ws_t **pws)
     *pws = NULL;
 }
 
-json_t *mim__ws_status(mim__ws_t *ws)
+void mim__ws_drop_session(mim__ws_t *ws, mim__vs_t *vs)
 {
     pthread_mutex_lock(&ws->lock);
+    int any = 0;
+    for (client_t *c = ws->clients; c; c = c->next)
+        if (c->vs == vs)
+            c->closing = any = 1;
+    if (any && ws->ctx)
+        lws_cancel_service(ws->ctx); /* mim__ws_service asks for their writable callbacks, which close them */
+    pthread_mutex_unlock(&ws->lock);
+}
+
+json_t *mim__ws_status(mim__ws_t *ws, const mim__vs_t *vs)
+{
+    /* joined and left are the session's counters (the process's: summed) */
+    uint64_t joined = 0, left = 0;
+    size_t n = 0;
+    mim__vs_t **all = vs ? NULL : mim__sessions_all(ws->sv, &n);
+    for (size_t i = 0; i < (vs ? 1 : n); i++) {
+        mim__vs_t *v = vs ? (mim__vs_t *)vs : all[i];
+        joined += mim__metrics_get(&v->m, MIM__C_WS_JOINED);
+        left += mim__metrics_get(&v->m, MIM__C_WS_LEFT);
+    }
+    mim__sessions_release_all(all, n);
+    pthread_mutex_lock(&ws->lock);
     uint64_t drops = 0, worst = 0;
+    unsigned clients = 0;
     for (client_t *c = ws->clients; c; c = c->next) {
+        if (vs && c->vs != vs)
+            continue;
+        clients++;
         drops += c->drops;
         worst = c->drops > worst ? c->drops : worst;
     }
-    json_t *j = json_pack("{s:i, s:i, s:I, s:I, s:I, s:I}", "clients", (int)ws->n_clients, "max_clients",
-                          (int)ws->max_clients, "joined", (json_int_t)ws->joined, "left", (json_int_t)ws->left,
+    json_t *j = json_pack("{s:i, s:i, s:I, s:I, s:I, s:I}", "clients", (int)clients, "max_clients",
+                          (int)ws->max_clients, "joined", (json_int_t)joined, "left", (json_int_t)left,
                           "dropped_now", (json_int_t)drops, "dropped_worst_client", (json_int_t)worst);
     pthread_mutex_unlock(&ws->lock);
     return j;
 }
 
-unsigned mim__ws_clients(mim__ws_t *ws)
+unsigned mim__ws_clients(mim__ws_t *ws, const mim__vs_t *vs)
 {
     pthread_mutex_lock(&ws->lock);
-    unsigned n = ws->n_clients;
+    unsigned n = 0;
+    for (client_t *c = ws->clients; c; c = c->next)
+        n += !vs || c->vs == vs;
     pthread_mutex_unlock(&ws->lock);
     return n;
 }

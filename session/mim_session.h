@@ -61,6 +61,16 @@ int mim_session_open(mim_session_t **out, const char *store, const mim_session_o
  * session has one avatar, and one attempt at it: a second call is
  * MIM_EINVAL. */
 int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err);
+/* Another session on base's store (issue 16: many vests, each with its
+ * own avatar, in one process): it shares base's store, index,
+ * connectivity and completion table, and has its own avatar, factor and
+ * template cache (mim_session_load_avatar next). LMDB allows a store to be
+ * open once per process, hence the sharing. base must have loaded its own
+ * avatar first, if it ever will (a foreign avatar's binding reopens the
+ * store), and must be closed after every fork; a fork of a fork shares
+ * the same base. A fork does not keep a foreign avatar's binding in the
+ * store (a warning says so). opt NULL: base's. Errors: MIM_ENOMEM. */
+int mim_session_fork(mim_session_t **out, mim_session_t *base, const mim_session_options_t *opt, mim_error_t *err);
 void mim_session_close(mim_session_t **s); /* accepts NULL; nulls the pointer */
 
 /* ---- what the session holds (read-only, valid until close; the avatar's

@@ -28,6 +28,9 @@ typedef struct template_slot {
 } template_slot_t;
 
 struct mim_session {
+    /* A fork (mim_session_fork) shares its base's store, index, connectivity
+     * and landmark table: these fields are then the base's, not closed here. */
+    mim_session_t *base;
     mim_db_t *db;
     mim_query_t *query;         /* NULL when the store has no index */
     mim_query_status_t index;   /* at open */
@@ -120,6 +123,13 @@ static uint64_t binding_key(const mim_session_t *s, const mim_mesh_t *m, const f
  * that cannot be written keeps nothing, with a warning. */
 static int cache_binding(mim_session_t *s, uint64_t key, mim_error_t *err)
 {
+    if (s->base) { /* the store is shared and in use: it cannot be closed for writing now */
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN,
+                     "%s: the avatar's binding is not kept in %s: the store is shared by other sessions (mimic "
+                     "transfer --avatar with this avatar keeps it, and later sessions find it)",
+                     s->avatar, s->store);
+        return 0;
+    }
     /* Opening an older store for writing would migrate it (mim_db.h): a
      * command that only reads the store must not, so its binding is not
      * kept there. */
@@ -404,17 +414,25 @@ static void segment_avatar(mim_session_t *s)
     }
 }
 
-int mim_session_open(mim_session_t **out, const char *store, const mim_session_options_t *opt, mim_error_t *err)
+static mim_session_t *session_new(const char *store, const mim_session_options_t *opt)
 {
-    *out = NULL;
     mim_session_t *s = calloc(1, sizeof *s);
     if (!s)
-        return mim_error_set(err, MIM_ENOMEM, "out of memory");
+        return NULL;
     s->opt = opt ? *opt : (mim_session_options_t){0};
     pthread_mutex_init(&s->lock, NULL);
     pthread_mutex_init(&s->out_lock, NULL);
     pthread_mutex_init(&s->table_lock, NULL);
     snprintf(s->store, sizeof s->store, "%s", store);
+    return s;
+}
+
+int mim_session_open(mim_session_t **out, const char *store, const mim_session_options_t *opt, mim_error_t *err)
+{
+    *out = NULL;
+    mim_session_t *s = session_new(store, opt);
+    if (!s)
+        return mim_error_set(err, MIM_ENOMEM, "out of memory");
     int rc = load_store(s, store, s->opt.map_size, err);
     if (!rc)
         rc = mim_query_status(s->db, &s->index, err);
@@ -424,6 +442,24 @@ int mim_session_open(mim_session_t **out, const char *store, const mim_session_o
         mim_session_close(&s);
         return rc;
     }
+    *out = s;
+    return 0;
+}
+
+int mim_session_fork(mim_session_t **out, mim_session_t *base, const mim_session_options_t *opt, mim_error_t *err)
+{
+    *out = NULL;
+    if (base->base)
+        base = base->base; /* a fork of a fork shares the one store */
+    mim_session_t *s = session_new(base->store, opt ? opt : &base->opt);
+    if (!s || mim_mesh_alloc(&s->mesh, base->mesh.n_vertices, base->mesh.n_faces)) {
+        mim_session_close(&s);
+        return mim_error_set(err, MIM_ENOMEM, "%s: out of memory for another session", base->store);
+    }
+    s->base = base;
+    s->db = base->db, s->query = base->query, s->topo = base->topo;
+    s->index = base->index, s->map = base->map;
+    memcpy(s->mesh.faces, base->mesh.faces, 3 * (size_t)base->mesh.n_faces * sizeof *s->mesh.faces);
     *out = s;
     return 0;
 }
@@ -461,8 +497,11 @@ void mim_session_close(mim_session_t **ps)
     if (!s)
         return;
     mim_xfer_solver_close(&s->solver);
-    mim_query_close(&s->query);
-    mim_xfer_topology_close(&s->topo);
+    if (!s->base) { /* a fork's are its base's */
+        mim_query_close(&s->query);
+        mim_xfer_topology_close(&s->topo);
+        mim_db_close(&s->db);
+    }
     mim_mesh_free(&s->mesh);
     mim_mesh_free(&s->own);
     mim_reg_binding_free(&s->binding);
@@ -470,7 +509,6 @@ void mim_session_close(mim_session_t **ps)
     for (int k = 0; k < MIM_XFER_BLEND_MAX; k++)
         free(s->slot[k].pos), free(s->slot[k].F), free(s->slot[k].cF);
     free(s->W), free(s->bF), free(s->oF), free(s->restF), free(s->skin);
-    mim_db_close(&s->db);
     pthread_mutex_destroy(&s->lock);
     pthread_mutex_destroy(&s->out_lock);
     pthread_mutex_destroy(&s->table_lock);
@@ -869,6 +907,8 @@ static int table_add(const mim_template_view_t *v, void *user)
 int mim__session_landmark_table(mim_session_t *s, const float **lm, char *const **subjects, uint32_t *count,
                                 mim_error_t *err)
 {
+    if (s->base) /* one table for every session of a store */
+        s = s->base;
     pthread_mutex_lock(&s->table_lock);
     int rc = 0;
     if (s->table_failed.code) {

@@ -96,9 +96,18 @@ static void test_two_replicas_behind_haproxy(void **state)
         if (ts_run_mimic(&o, &e, args)) fail_msg("store copy: %s", e);
         free(o), free(e);
     }
-    ss_svc_t rep[2];
-    assert_int_equal(ss_svc_start(&rep[0], dir, copy[0], "r1", NULL, NULL), 0);
-    assert_int_equal(ss_svc_start(&rep[1], dir, copy[1], "r2", NULL, NULL), 0);
+    /* each replica serves its vest as a session of that name, the name
+     * the balancer's map pins to it */
+    ss_svc_t rep[2] = {{0}};
+    for (int r = 0; r < 2; r++) {
+        char tag[8], session[4300];
+        snprintf(tag, sizeof tag, "r%d", r + 1);
+        assert_int_equal(ss_vest_start(&rep[r], dir, tag, NULL), 0);
+        snprintf(session, sizeof session, "vest%d:vest=serial:%s,avatar=1", r + 1, rep[r].link);
+        const char *args[] = {"serve", "--store", copy[r], "--session", session, "--vest-pose", "t",
+                              "--listen", "127.0.0.1:0", NULL};
+        assert_int_equal(ss_serve_start(&rep[r], dir, tag, args), 0);
+    }
     /* the balancer, configured by deploy/haproxy.cfg through its environment */
     char *map = ts_path(dir, "sessions.map"), *hout = ts_path(dir, "haproxy.out"), *herr = ts_path(dir, "haproxy.err");
     const char *map_text = "vest1 be_r1\nvest2 be_r2\n";

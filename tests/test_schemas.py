@@ -28,7 +28,8 @@ SCHEMAS = {s["$id"]: s for s in map(load, ["info.schema.json", "list.schema.json
                                             "store-check.schema.json", "pair-annotations.schema.json", "pair-cameras.schema.json",
                                             "pairs-coverage.schema.json", "complete.schema.json", "register.schema.json",
                                             "pairs-templates.schema.json", "pairs-sample.schema.json",
-                                            "store-copy.schema.json"])}
+                                            "store-copy.schema.json", "serve-session.schema.json",
+                                            "serve-session-request.schema.json", "serve-sessions.schema.json"])}
 
 
 def validator(schema_id):
@@ -312,6 +313,20 @@ def serve_cases(store, one, vest_rec):
                  ("/mimic/schemas/serve-error.schema.json", fetch("/nothing"), "serve error (unknown route)"),
                  ("/mimic/schemas/serve-transfer-request.schema.json", dict(one, template=4),
                   "serve transfer request")]
+        add = {"name": "second", "avatar": "2", "key_rate": 30}
+        cases += [("/mimic/schemas/serve-session-request.schema.json", add, "serve session request"),
+                  ("/mimic/schemas/serve-sessions.schema.json", {"sessions": [add, {"name": "v", "avatar": "3",
+                                                                                   "vest": vest_rec}]},
+                   "serve --sessions file"),
+                  ("/mimic/schemas/serve-session.schema.json", fetch("/api/sessions", json.dumps(add)),
+                   "serve POST /api/sessions"),
+                  ("/mimic/schemas/serve-session.schema.json", fetch("/api/sessions/second"),
+                   "serve /api/sessions/NAME"),
+                  ("/mimic/schemas/serve-status.schema.json", fetch("/api/status"), "serve /api/status (2 sessions)"),
+                  ("/mimic/schemas/serve-error.schema.json", fetch("/api/sessions", json.dumps(add)),
+                   "serve error (a session name taken)")]
+        cases += [("/mimic/schemas/serve-session.schema.json", item, "serve /api/sessions item")
+                  for item in fetch("/api/sessions")["sessions"]]
         url = v.stdout.readline().strip().rstrip("/")
         for _ in range(600):
             status = fetch("/api/status")

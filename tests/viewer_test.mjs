@@ -186,7 +186,8 @@ let code = 1;
 try {
   // ---- 1. the demo ----------------------------------------------------------
   const demoDir = path.join(tmp, 'demo');
-  const demo = start('mimic demo', ['demo', '--headless', '--duration', '60', '--listen', '127.0.0.1:0', '--dir', demoDir]);
+  const demo = start('mimic demo', ['demo', '--headless', '--duration', '90', '--listen', '127.0.0.1:0', '--dir', demoDir,
+    '--vests', '2']);
   const url = await viewerUrl(demo, 120000);
   console.log(`viewer_test: demo at ${url}`);
 
@@ -213,6 +214,21 @@ try {
   fs.writeFileSync(file3, await d.page.screenshot());
   check(true, `demo: int16 frames decoded after the toggle (screenshot ${file3})`);
   noErrors('demo', await d.v(), d.errors);
+
+  // Two vests, two sessions: the picker lists both, and choosing the other
+  // one loads the page for it, whose avatar then streams.
+  await d.page.waitForFunction(() => window.mimicViewer.sessions.length === 2, null, { timeout: 20000 }).catch(() => {});
+  const listed = await d.page.evaluate(() => [...document.querySelectorAll('#o-session option')].map((o) => o.value));
+  check(listed.join(',') === 'default,vest2', `demo --vests 2: the picker lists the sessions (${listed.join(', ')})`);
+  check((await d.v()).session === 'default', 'demo --vests 2: the page streams the first session by default');
+  await Promise.all([d.page.waitForNavigation({ timeout: 20000 }), d.page.locator('#o-session').selectOption('vest2')]);
+  await d.page.waitForFunction(() => window.mimicViewer.session === 'vest2' && window.mimicViewer.frames > 3, null, { timeout: 60000 });
+  const file4 = path.join(tmp, 'demo-4-vest2.png');
+  await d.page.waitForTimeout(300);
+  fs.writeFileSync(file4, await d.page.screenshot());
+  check(new URL(d.page.url()).searchParams.get('session') === 'vest2',
+    `demo --vests 2: the viewer switched to session vest2 (screenshot ${file4})`);
+  noErrors('demo vest2', await d.v(), d.errors);
   // the page first: a closing socket is no error of the page's
   await d.page.close();
   const de = await stop(demo);

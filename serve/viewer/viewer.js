@@ -5,11 +5,15 @@
 // the service's real-time loop publishes (schemas/serve-ws-frame.md). This
 // page draws the mesh with three.js (embedded in the mimic binary), updates
 // its positions in place for each binary frame, draws the tracked landmarks
-// and shows the stream's state in an overlay.
+// and shows the stream's state in an overlay. A service drives many vests,
+// each a session with its own avatar: ?session=NAME on the page's URL picks
+// one (the list comes from GET /api/sessions), else the service's first.
 
 // What the page has seen, for people (the overlay) and for tests
 // (tests/viewer_test.mjs reads window.mimicViewer). Always the same object.
 const state = {
+  session: '',        // the session streamed (its hello says), and the ones the service has:
+  sessions: [],       // names, from GET /api/sessions
   connected: false,   // the socket is open
   frames: 0,          // binary frames decoded since the page loaded
   lastFrameNumber: 0, // the header's frame number of the latest frame
@@ -32,6 +36,8 @@ window.mimicViewer = state;
 const HEADER = 112; // bytes before the positions
 const LITTLE_ENDIAN = new Uint8Array(new Uint16Array([1]).buffer)[0] === 1; // as the wire
 const $ = (id) => document.getElementById(id);
+const asked = new URLSearchParams(location.search).get('session') || '';
+const sessionQuery = asked ? `?session=${encodeURIComponent(asked)}` : '';
 
 function report(msg) {
   state.errors.push(msg);
@@ -243,6 +249,8 @@ function onText(text) {
   }
   if (m.type === 'hello') {
     state.format = m.format;
+    state.session = m.session || '';
+    showSessions();
     if (vertexCount && m.vertices !== vertexCount) report(`the stream has ${m.vertices} vertices, the avatar ${vertexCount}`);
   } else if (m.type === 'format') {
     state.format = m.format;
@@ -258,7 +266,7 @@ const i16Box = $('o-i16');
 const wanted = () => (i16Box.checked ? 'i16' : 'f32');
 
 function connect() {
-  const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws`;
+  const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws${sessionQuery}`;
   setConnection('connecting');
   ws = new WebSocket(url);
   ws.binaryType = 'arraybuffer';
@@ -281,6 +289,27 @@ function connect() {
 i16Box.addEventListener('change', () => {
   if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify({ format: wanted() }));
 });
+
+// ---- the session picker: choosing one loads the page for it ---------------
+const picker = $('o-session');
+function showSessions() {
+  const names = state.sessions.length ? state.sessions : [state.session];
+  picker.replaceChildren(...names.filter((n) => n).map((n) => new Option(n, n, false, n === state.session)));
+}
+async function listSessions() {
+  try {
+    const r = await fetch('/api/sessions');
+    if (!r.ok) return;
+    state.sessions = (await r.json()).sessions.map((s) => s.name);
+    showSessions();
+  } catch {
+    // the socket's own retry says the service is away
+  }
+}
+picker.addEventListener('change', () => {
+  location.search = `?session=${encodeURIComponent(picker.value)}`;
+});
+setInterval(listSessions, 5000); // sessions come and go while the page is open
 
 function setConnection(text) {
   const el = $('o-conn');
@@ -323,7 +352,7 @@ function render() {
 async function loadAvatar() {
   for (let wait = 500; ; wait = Math.min(wait * 2, 10000)) {
     try {
-      const r = await fetch('/api/avatar');
+      const r = await fetch('/api/avatar' + sessionQuery);
       if (!r.ok) throw new Error(`GET /api/avatar: HTTP ${r.status}`);
       return await r.json();
     } catch (e) {
@@ -335,4 +364,5 @@ async function loadAvatar() {
 
 buildAvatar(await loadAvatar());
 requestAnimationFrame(render);
+listSessions();
 connect();

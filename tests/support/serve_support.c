@@ -139,16 +139,12 @@ void ss_assert_clean_stderr(const char *path)
 
 /* extra: more serve arguments (NULL-terminated, may be NULL); faults: the
  * vest's --faults (may be NULL). */
-int ss_svc_start(ss_svc_t *s, const char *dir, const char *store, const char *tag, const char *faults,
-                 const char *const *extra)
+int ss_vest_start(ss_svc_t *s, const char *dir, const char *tag, const char *faults)
 {
-    memset(s, 0, sizeof *s);
     char name[64];
     snprintf(name, sizeof name, "%s.vest", tag), s->link = ts_path(dir, name);
     snprintf(name, sizeof name, "%s.vest.out", tag), s->vout = ts_path(dir, name);
     snprintf(name, sizeof name, "%s.vest.err", tag), s->verr = ts_path(dir, name);
-    snprintf(name, sizeof name, "%s.serve.out", tag), s->sout = ts_path(dir, name);
-    snprintf(name, sizeof name, "%s.serve.err", tag), s->serr = ts_path(dir, name);
     char out[4200];
     snprintf(out, sizeof out, "pty:%s", s->link);
     const char *vargs[] = {"vest", "simulate", "--motion", "demo", "--out", out, "--loop",
@@ -162,16 +158,16 @@ int ss_svc_start(ss_svc_t *s, const char *dir, const char *store, const char *ta
         return -1;
     }
     free(t);
-    char vest[4200];
-    snprintf(vest, sizeof vest, "serial:%s", s->link);
-    const char *sargs[32] = {"serve", "--store", store, "--avatar", "1", "--vest", vest, "--vest-pose", "t",
-                             "--listen", "127.0.0.1:0"};
-    int n = 11;
-    for (int i = 0; extra && extra[i] && n < 31; i++)
-        sargs[n++] = extra[i];
-    sargs[n] = NULL;
-    s->server = ss_spawn(sargs, s->sout, s->serr);
-    t = ss_wait_line(s->sout, "http://127.0.0.1:", s->server, 120);
+    return 0;
+}
+
+int ss_serve_start(ss_svc_t *s, const char *dir, const char *tag, const char *const *args)
+{
+    char name[64];
+    snprintf(name, sizeof name, "%s.serve.out", tag), s->sout = ts_path(dir, name);
+    snprintf(name, sizeof name, "%s.serve.err", tag), s->serr = ts_path(dir, name);
+    s->server = ss_spawn(args, s->sout, s->serr);
+    char *t = ss_wait_line(s->sout, "http://127.0.0.1:", s->server, 120);
     if (!t) {
         char *e = ts_read_file(s->serr, NULL);
         fprintf(stderr, "mimic serve did not print its URL: %s\n", e ? e : "");
@@ -181,6 +177,23 @@ int ss_svc_start(ss_svc_t *s, const char *dir, const char *store, const char *ta
     s->port = atoi(strrchr(t, ':') + 1);
     free(t);
     return s->port > 0 ? 0 : -1;
+}
+
+int ss_svc_start(ss_svc_t *s, const char *dir, const char *store, const char *tag, const char *faults,
+                 const char *const *extra)
+{
+    memset(s, 0, sizeof *s);
+    if (ss_vest_start(s, dir, tag, faults))
+        return -1;
+    char vest[4200];
+    snprintf(vest, sizeof vest, "serial:%s", s->link);
+    const char *sargs[32] = {"serve", "--store", store, "--avatar", "1", "--vest", vest, "--vest-pose", "t",
+                             "--listen", "127.0.0.1:0"};
+    int n = 11;
+    for (int i = 0; extra && extra[i] && n < 31; i++)
+        sargs[n++] = extra[i];
+    sargs[n] = NULL;
+    return ss_serve_start(s, dir, tag, sargs);
 }
 
 void ss_svc_free(ss_svc_t *s)

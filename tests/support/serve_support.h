@@ -39,6 +39,15 @@ int ss_wait_exit(pid_t p, double timeout_s);
 char *ss_wait_line(const char *path, const char *prefix, pid_t p, double timeout_s);
 /* No sanitizer report in a server's stderr (the ASan build runs an ASan mimic). */
 void ss_assert_clean_stderr(const char *path);
+/* The simulated vest alone (the demo motion on a pty at DIR/TAG.vest, looping,
+ * with faults if not NULL): s's vest, link, vout and verr. 0 once it has
+ * started, or -1 with the reason on stderr. */
+int ss_vest_start(ss_svc_t *s, const char *dir, const char *tag, const char *faults);
+/* mimic serve with args (NULL-terminated, "serve" first, listening on
+ * 127.0.0.1:0), its output in DIR/TAG.serve.out and .err: s's server,
+ * sout, serr and port. 0 once it has printed its URL, or -1 with the
+ * reason on stderr. */
+int ss_serve_start(ss_svc_t *s, const char *dir, const char *tag, const char *const *args);
 /* extra: more serve arguments (NULL-terminated, may be NULL); faults: the
  * vest's --faults (may be NULL). */
 int ss_svc_start(ss_svc_t *s, const char *dir, const char *store, const char *tag, const char *faults,

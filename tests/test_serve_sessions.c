@@ -1,0 +1,287 @@
+/* Many vests in one mimic serve (issue 16, item 1), end to end: the real
+ * binary, real simulated vests on ptys, real sockets. Two sessions from
+ * --session, each with its own avatar and stream; one added and removed
+ * through the API with a client connected; one session's vest killed while
+ * the other streams on; bad specs and requests. Every wait has a deadline;
+ * every child is killed in teardown. */
+#include "serve_support.h"
+
+#include <jansson.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#define SUBJECTS 3
+#define AVATAR_B "13" /* subject 2's first template: another body than session a's */
+
+static char *dir, *store;
+static ss_svc_t va, vb; /* the two vests; va.server is mimic serve */
+
+static int setup(void **state)
+{
+    (void)state;
+    signal(SIGPIPE, SIG_IGN);
+    dir = ts_tempdir("serve-sessions");
+    int have[SUBJECTS * 12 + 1];
+    if (!dir || ss_make_store(dir, SUBJECTS, &store, have, SUBJECTS * 12) != SUBJECTS * 12)
+        return -1;
+    if (ss_vest_start(&va, dir, "sa", NULL) || ss_vest_start(&vb, dir, "sb", NULL))
+        return -1;
+    char a[4300], b[4300];
+    snprintf(a, sizeof a, "a:vest=serial:%s,avatar=1", va.link);
+    snprintf(b, sizeof b, "b:avatar=" AVATAR_B ",vest=serial:%s,key-rate=30", vb.link);
+    const char *args[] = {"serve", "--store", store, "--session", a, "--session", b, "--vest-pose", "t",
+                          "--listen", "127.0.0.1:0", NULL};
+    return ss_serve_start(&va, dir, "sessions", args);
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    if (va.serr)
+        ss_assert_clean_stderr(va.serr);
+    ss_svc_free(&va);
+    ss_svc_free(&vb);
+    ss_kill_children();
+    if (dir)
+        ts_rmtree(dir);
+    free(dir), free(store);
+    return 0;
+}
+
+static int request(const char *method, const char *path, const char *body, json_t **json)
+{
+    hc_reply_t r;
+    assert_int_equal(hc_request(&r, va.port, method, path, NULL, body, body ? strlen(body) : 0, 120000), HC_OK);
+    if (json)
+        *json = ss_json_body(&r);
+    int status = r.status;
+    if (status >= 400) /* every error is one JSON line naming what is wrong */
+        print_message("%s %s: %d %s\n", method, path, status, r.body ? r.body : "");
+    hc_reply_free(&r);
+    return status;
+}
+
+/* The session's object in /api/status, a new reference (NULL: not there). */
+static json_t *status_of(const char *name)
+{
+    json_t *st = ss_get_status(va.port), *found = NULL, *one;
+    size_t i;
+    json_array_foreach(json_object_get(st, "sessions"), i, one) if (!strcmp(
+        json_string_value(json_object_get(one, "name")), name)) found = json_incref(one);
+    json_decref(st);
+    return found;
+}
+
+/* Waits until session name has made key frames with its vest streaming. */
+static void wait_streaming(const char *name)
+{
+    double until = ss_now_s() + 60;
+    for (;;) {
+        json_t *s = status_of(name);
+        assert_non_null(s);
+        json_t *vest = json_object_get(s, "vest");
+        int ok = json_integer_value(json_object_get(s, "key_frames")) > 0 &&
+                 !strcmp(json_string_value(json_object_get(vest, "state")), "streaming");
+        json_decref(s);
+        if (ok)
+            return;
+        if (ss_now_s() > until)
+            fail_msg("session %s: no key frames within 60 s", name);
+        ss_sleep_ms(100);
+    }
+}
+
+/* The session's stream: its hello names it, and it carries consecutive
+ * frames of the avatar's vertex count for ms milliseconds. */
+static void assert_streams(const char *name, int ms)
+{
+    char path[96];
+    snprintf(path, sizeof path, "/ws?session=%s&format=i16", name);
+    ws_client_t w;
+    json_t *hello = ss_ws_open(&w, va.port, path, 0);
+    assert_string_equal(json_string_value(json_object_get(hello, "session")), name);
+    json_t *s = status_of(name);
+    assert_int_equal(json_integer_value(json_object_get(hello, "vertices")),
+                     json_integer_value(json_object_get(s, "vertices")));
+    json_decref(s);
+    json_decref(hello);
+    size_t n = 0;
+    uint64_t *num = ss_collect_numbers(&w, ms, &n);
+    print_message("session %s: %zu frames in %d ms\n", name, n, ms);
+    assert_true(n >= 10); /* a 60 Hz vest: dozens */
+    ss_assert_consecutive(num, n, name);
+    free(num);
+    ws_close(&w);
+}
+
+static void test_each_session_streams(void **state)
+{
+    (void)state;
+    wait_streaming("a");
+    wait_streaming("b");
+    assert_streams("a", 1500);
+    assert_streams("b", 1500);
+
+    /* without ?session=: the first session */
+    ws_client_t w;
+    json_t *hello = ss_ws_open(&w, va.port, "/ws", 0);
+    assert_string_equal(json_string_value(json_object_get(hello, "session")), "a");
+    json_decref(hello);
+    ws_close(&w);
+
+    json_t *j = NULL;
+    assert_int_equal(request("GET", "/api/avatar?session=b", NULL, &j), 200);
+    assert_string_equal(json_string_value(json_object_get(j, "avatar")), "template " AVATAR_B);
+    json_decref(j);
+    assert_int_equal(request("GET", "/api/sessions/b", NULL, &j), 200);
+    assert_string_equal(json_string_value(json_object_get(j, "name")), "b");
+    assert_string_equal(json_string_value(json_object_get(json_object_get(j, "vest"), "key_rate_mode")), "fixed");
+    json_decref(j);
+    assert_int_equal(request("GET", "/api/sessions", NULL, &j), 200);
+    assert_int_equal(json_array_size(json_object_get(j, "sessions")), 2);
+    json_decref(j);
+
+    /* the totals are the sessions' sums; metrics are labelled per session */
+    double fa = ss_metric(va.port, "mimic_frames_total{session=\"a\"}");
+    double fb = ss_metric(va.port, "mimic_frames_total{session=\"b\"}");
+    double all = ss_metric(va.port, "mimic_frames_total");
+    assert_true(fa > 0 && fb > 0);
+    assert_true(all >= fa + fb);
+
+    /* what does not exist, or is not a name */
+    assert_int_equal(request("GET", "/api/sessions/zz", NULL, NULL), 404);
+    assert_int_equal(request("GET", "/api/avatar?session=zz", NULL, NULL), 404);
+    assert_int_equal(request("GET", "/api/avatar?session=a%20b", NULL, NULL), 400);
+    assert_int_equal(request("PUT", "/api/sessions/a", NULL, NULL), 405);
+    assert_int_equal(request("POST", "/api/sessions/a", "{}", NULL), 405);
+    assert_int_equal(ws_connect(&w, va.port, "/ws?session=zz", 0), -1);
+    assert_int_equal(w.http_status, 404);
+    assert_int_equal(ws_connect(&w, va.port, "/ws?session=bad%21", 0), -1);
+    assert_int_equal(w.http_status, 400);
+}
+
+static void test_add_and_remove(void **state)
+{
+    (void)state;
+    ss_svc_t vc = {0};
+    assert_int_equal(ss_vest_start(&vc, dir, "sc", NULL), 0);
+    char body[4400];
+    snprintf(body, sizeof body, "{\"name\": \"c\", \"avatar\": \"25\", \"vest\": \"serial:%s\"}", vc.link);
+    json_t *j = NULL;
+    assert_int_equal(request("POST", "/api/sessions", body, &j), 201);
+    assert_string_equal(json_string_value(json_object_get(j, "name")), "c");
+    assert_string_equal(json_string_value(json_object_get(j, "avatar")), "template 25");
+    json_decref(j);
+    assert_int_equal(request("POST", "/api/sessions", body, NULL), 409); /* the name is taken */
+
+    /* bad requests: 400 each, and nothing added */
+    const char *bad[] = {"{\"name\": \"c2\", \"avatar\": ", "[1]", "{\"avatar\": \"1\"}", "{\"name\": \"c2\"}",
+                         "{\"name\": \"x y\", \"avatar\": \"1\"}", "{\"name\": \"c2\", \"avatar\": \"99999\"}",
+                         "{\"name\": \"c2\", \"avatar\": \"1\", \"extra\": 1}",
+                         "{\"name\": \"c2\", \"avatar\": \"1\", \"key_rate\": 0}",
+                         "{\"name\": \"c2\", \"avatar\": \"/nonexistent/body.ply\"}",
+                         "{\"name\": \"aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa\", \"avatar\": \"1\"}"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++)
+        assert_int_equal(request("POST", "/api/sessions", bad[i], NULL), 400);
+    assert_int_equal(request("GET", "/api/sessions/c2", NULL, NULL), 404);
+
+    wait_streaming("c");
+    ws_client_t w;
+    json_t *hello = ss_ws_open(&w, va.port, "/ws?session=c", 0);
+    json_decref(hello);
+    ws_msg_t m;
+    assert_int_equal(ss_next_frame(&w, &m, 10000, NULL), 1);
+    ws_msg_free(&m);
+
+    /* removed with a client connected: its stream closes cleanly (1001) */
+    assert_int_equal(request("DELETE", "/api/sessions/c", NULL, &j), 200);
+    json_decref(j);
+    assert_int_equal(ws_wait_close_frame(&w, 10000), 1001);
+    ws_close(&w);
+    assert_int_equal(request("GET", "/api/sessions/c", NULL, NULL), 404);
+    assert_int_equal(request("DELETE", "/api/sessions/c", NULL, NULL), 404);
+    assert_null(status_of("c"));
+    assert_int_equal(ws_connect(&w, va.port, "/ws?session=c", 0), -1);
+    assert_int_equal(w.http_status, 404);
+
+    /* the others did not notice; the name can be taken again */
+    assert_streams("a", 1000);
+    assert_int_equal(request("POST", "/api/sessions", "{\"name\": \"c\", \"avatar\": \"2\"}", NULL), 201);
+    assert_int_equal(request("DELETE", "/api/sessions/c", NULL, NULL), 200);
+    ss_svc_free(&vc);
+}
+
+/* One session's vest failing never disturbs another. */
+static void test_vest_failure_isolated(void **state)
+{
+    (void)state;
+    wait_streaming("b");
+    ss_child_kill(va.vest); /* session a's simulator dies: its pty goes */
+    va.vest = 0;
+    double until = ss_now_s() + 30;
+    for (;;) {
+        json_t *s = status_of("a");
+        const char *st = json_string_value(json_object_get(json_object_get(s, "vest"), "state"));
+        int away = st && strcmp(st, "streaming");
+        json_decref(s);
+        if (away)
+            break;
+        if (ss_now_s() > until)
+            fail_msg("session a: its vest is gone, and status still says streaming after 30 s");
+        ss_sleep_ms(100);
+    }
+    assert_streams("b", 2000);
+    json_t *s = status_of("b");
+    assert_string_equal(json_string_value(json_object_get(json_object_get(s, "vest"), "state")), "streaming");
+    json_decref(s);
+}
+
+/* Bad specs on the command line: exit 2 with one line each. */
+static void test_cli_errors(void **state)
+{
+    (void)state;
+    char *file = ts_path(dir, "sessions.json");
+    const char *no_avatar = "{\"sessions\": [{\"name\": \"a\"}]}";
+    assert_int_equal(ts_write_file(file, no_avatar, strlen(no_avatar)), 0);
+    struct {
+        const char *args[10];
+        const char *says;
+    } cases[] = {
+        {{"serve", "--store", store, "--session", "nocolon", NULL}, "not NAME:vest="},
+        {{"serve", "--store", store, "--session", "a:avatar=1,colour=red", NULL}, "unknown field 'colour'"},
+        {{"serve", "--store", store, "--session", "a:vest=x", NULL}, "give avatar="},
+        {{"serve", "--store", store, "--session", "a!:avatar=1", NULL}, "the name must be"},
+        {{"serve", "--store", store, "--session", "a:avatar=1,key-rate=-3", NULL}, "key-rate must be"},
+        {{"serve", "--store", store, "--session", "a:avatar=1", "--session", "a:avatar=2", NULL}, "given twice"},
+        {{"serve", "--store", store, "--avatar", "1", "--session", "default:avatar=2", NULL}, "given twice"},
+        {{"serve", "--store", store, "--sessions", file, NULL}, "\"avatar\" must be"},
+        {{"serve", "--store", store, "--vest", "x.rec", "--session", "a:avatar=1", NULL}, "--vest drives --avatar"},
+        {{"serve", "--store", store, NULL}, "--avatar or a --session"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        char *out = NULL, *err = NULL;
+        int rc = ts_run_mimic(&out, &err, cases[i].args);
+        print_message("%s", err ? err : "");
+        assert_int_equal(rc, 2);
+        assert_non_null(strstr(err, cases[i].says));
+        assert_non_null(strchr(err, '\n'));
+        assert_null(strchr(err, '\n') + 1 < err + strlen(err) ? strchr(strchr(err, '\n') + 1, '\n') : NULL);
+        free(out), free(err);
+    }
+    free(file);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_each_session_streams),
+        cmocka_unit_test(test_add_and_remove),
+        cmocka_unit_test(test_cli_errors),
+        cmocka_unit_test(test_vest_failure_isolated), /* last: it kills session a's vest */
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
