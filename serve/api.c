@@ -8,6 +8,7 @@
 #include "internal.h"
 #include "mim_io.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -289,9 +290,10 @@ int mim__api_session_add(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t
     if (rc)
         return mim__reply_error(rp, 400, "%s", mim_error_text(&err));
     if ((rc = mim_serve_session_add(sv, &spec, &err))) {
-        /* a taken name is a conflict; an avatar or a vest that cannot be had is the request's */
-        int taken = rc == MIM_EINVAL && strstr(mim_error_text(&err), "already a session");
-        return mim__reply_error(rp, taken ? 409 : rc == MIM_ENOMEM ? 500 : 400, "%s", mim_error_text(&err));
+        /* a taken name is a conflict, a full service busy; an avatar or a vest that cannot be had is the
+         * request's */
+        int status = rc == -EEXIST ? 409 : rc == -ENOSPC ? 503 : rc == MIM_ENOMEM ? 500 : 400;
+        return mim__reply_error(rp, status, "%s", mim_error_text(&err));
     }
     mim__vs_t *vs = mim__sessions_get(sv, spec.name);
     json_t *one = vs ? mim__vs_status(vs) : json_pack("{s:s}", "name", spec.name); /* (removed at once) */

@@ -86,6 +86,10 @@ typedef struct mim_serve_options {
      * MIM_SESSION_DEFAULT_BLEND) and segment correction (1: on). */
     uint32_t blend;
     int segment_correction;
+    /* The template drive's relative transfer (mim_session_request_t's
+     * relative): 0 default (on), 1 on, -1 off; other values: MIM_EINVAL
+     * when the vest loop opens. */
+    int relative;
     unsigned max_clients; /* WebSocket clients of one session at once; 0: MIM_SERVE_DEFAULT_MAX_CLIENTS */
     /* Key frames and morphs computed at once, over all sessions (gate.c);
      * 0: the cores online. */
@@ -116,6 +120,7 @@ typedef struct mim_serve mim_serve_t;
  * ?session= mean the first session. */
 #define MIM_SERVE_SESSION_NAME_MAX 32
 #define MIM_SERVE_DEFAULT_SESSION "default"
+#define MIM_SERVE_MAX_SESSIONS 256 /* live at once: each holds an avatar, its factor and a vest thread */
 typedef struct mim_serve_session_spec {
     char name[MIM_SERVE_SESSION_NAME_MAX + 1]; /* 1..32 of A-Z a-z 0-9 _ . - */
     char avatar[4096];    /* a mesh file, or a template id */
@@ -142,8 +147,8 @@ int mim_serve_session_spec_json(const json_t *j, const char *where, mim_serve_se
 int mim_serve_open(mim_serve_t **out, mim_session_t *s, const mim_serve_options_t *opt, mim_error_t *err);
 /* Adds session spec while the service runs: a fork of the service's
  * session, the avatar loaded and factorised (seconds for a large one), its
- * vest loop started. Errors, one line: MIM_EINVAL for a bad name or a name
- * taken (not a duplicate: "already a session"), the avatar's
+ * vest loop started. Errors, one line: MIM_EINVAL for a bad name, -EEXIST
+ * for a name taken, -ENOSPC past MIM_SERVE_MAX_SESSIONS, the avatar's
  * (mim_session_load_avatar), the vest's. Thread-safe. */
 int mim_serve_session_add(mim_serve_t *sv, const mim_serve_session_spec_t *spec, mim_error_t *err);
 /* Removes session name: its loop stops, its clients' streams close (1001);

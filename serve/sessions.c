@@ -12,6 +12,7 @@
  * last reference goes, wherever that is. */
 #include "internal.h"
 
+#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -270,7 +271,7 @@ static int vs_insert(mim_serve_t *sv, mim__vs_t *vs, mim_error_t *err)
     }
     pthread_mutex_unlock(&sv->sessions_lock);
     if (taken)
-        return mim_error_set(err, MIM_EINVAL, "session %s: already a session of that name", vs->name);
+        return mim_error_set(err, -EEXIST, "session %s: already a session of that name", vs->name);
     return 0;
 }
 
@@ -296,9 +297,15 @@ int mim_serve_session_add(mim_serve_t *sv, const mim_serve_session_spec_t *spec,
         return mim_error_set(err, MIM_EINVAL, "session %s: give an avatar (a mesh file or a template id)", spec->name);
     pthread_mutex_lock(&sv->sessions_lock);
     int taken = find_live(sv, spec->name) != NULL;
+    unsigned live = 0;
+    for (mim__vs_t *v = sv->sessions; v; v = v->next)
+        live += !v->removed;
     pthread_mutex_unlock(&sv->sessions_lock);
     if (taken) /* before the avatar's seconds of work; vs_insert checks again */
-        return mim_error_set(err, MIM_EINVAL, "session %s: already a session of that name", spec->name);
+        return mim_error_set(err, -EEXIST, "session %s: already a session of that name", spec->name);
+    if (live >= MIM_SERVE_MAX_SESSIONS) /* each holds an avatar, its factor and a thread */
+        return mim_error_set(err, -ENOSPC, "session %s: the service has its %d sessions; remove one first",
+                             spec->name, MIM_SERVE_MAX_SESSIONS);
     mim_session_t *s = NULL;
     mim_error_t e = {0};
     int rc = mim_session_fork(&s, sv->s, NULL, &e);

@@ -208,6 +208,23 @@ static void test_add_and_remove(void **state)
     assert_int_equal(ws_connect(&w, va.port, "/ws?session=c", 0), -1);
     assert_int_equal(w.http_status, 404);
 
+    /* at most MIM_SERVE_MAX_SESSIONS (256) live: then 503, and the service goes on */
+    json_t *st = ss_get_status(va.port);
+    size_t live = json_array_size(json_object_get(st, "sessions")), added = 0;
+    json_decref(st);
+    for (int status = 201; status == 201; added += status == 201) {
+        snprintf(body, sizeof body, "{\"name\": \"n%zu\", \"avatar\": \"2\"}", added);
+        status = request("POST", "/api/sessions", body, NULL);
+        assert_true(status == 201 || status == 503);
+        assert_true(added <= 256);
+    }
+    assert_int_equal(live + added, 256);
+    for (size_t i = 0; i < added; i++) {
+        char path[64];
+        snprintf(path, sizeof path, "/api/sessions/n%zu", i);
+        assert_int_equal(request("DELETE", path, NULL, NULL), 200);
+    }
+
     /* the others did not notice; the name can be taken again */
     assert_streams("a", 1000);
     assert_int_equal(request("POST", "/api/sessions", "{\"name\": \"c\", \"avatar\": \"2\"}", NULL), 201);
