@@ -48,16 +48,21 @@ int sb_spawn(sb_child_t *c, const char *name, char *const args[], int want_stdou
     int p[2] = {-1, -1};
     if (want_stdout && pipe2(p, O_CLOEXEC))
         return -1;
-    char *argv[32];
+    int n_args = 0;
+    while (args[n_args])
+        n_args++;
+    char **argv = calloc((size_t)n_args + 2, sizeof *argv); /* freed by exec, or below */
+    if (!argv)
+        return -1;
     int n = 0;
     argv[n++] = (char *)sb_bin;
-    for (int i = 0; args[i] && n < 31; i++)
+    for (int i = 0; i < n_args; i++)
         argv[n++] = args[i];
     argv[n] = NULL;
     pid_t parent = getpid();
     pid_t pid = fork();
     if (pid < 0)
-        return -1;
+        return free(argv), -1;
     if (pid == 0) {
         prctl(PR_SET_PDEATHSIG, SIGKILL);
         if (getppid() != parent)
@@ -72,6 +77,7 @@ int sb_spawn(sb_child_t *c, const char *name, char *const args[], int want_stdou
         fprintf(stderr, "bench_serve: cannot run %s: %s\n", argv[0], strerror(errno));
         _exit(127);
     }
+    free(argv);
     c->pid = pid;
     if (want_stdout) {
         close(p[1]);
@@ -291,3 +297,16 @@ double sb_metric(const char *text, const char *name)
     return -1;
 }
 
+
+/* The same, of one session: name{session="session"}; -1 if absent. */
+double sb_metric_session(const char *text, const char *name, const char *session)
+{
+    char key[256];
+    int kl = snprintf(key, sizeof key, "%s{session=\"%s\"} ", name, session);
+    if (kl <= 0 || (size_t)kl >= sizeof key)
+        return -1;
+    for (const char *p = text; p && *p; p = strchr(p, '\n') ? strchr(p, '\n') + 1 : NULL)
+        if (!strncmp(p, key, (size_t)kl))
+            return atof(p + kl);
+    return -1;
+}

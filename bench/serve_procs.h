@@ -52,5 +52,8 @@ double sb_loadavg1(void);
 char *sb_http_get(const char *path);
 /* A counter or gauge without labels from Prometheus text; -1 if absent. */
 double sb_metric(const char *text, const char *name);
+/* The same, of one session: name{session="session"} (serve's per-session
+ * lines, issue 16); -1 if absent. */
+double sb_metric_session(const char *text, const char *name, const char *session);
 
 #endif
