@@ -12,7 +12,11 @@
  * 1.5 cm per coordinate, so every template is distinct; query frames are
  * fresh jitters of the same bodies.
  *
- *   bench_query [--sizes 100,10000,1000000] [--queries N]
+ *   bench_query [--sizes 100,10000,1000000] [--queries N] [--vote-below P]
+ *
+ * --vote-below P sets the k-NN vote's threshold of mim_index_query
+ * (issue 15): 2 makes every frame vote (the vote's worst case), -1 none;
+ * by default the index's (0.5).
  * Prints a Markdown table. */
 #include "bench_data.h"
 #include "mim_index.h"
@@ -24,6 +28,7 @@
 #include <string.h>
 
 static uint64_t rng_state = 777;
+static double vote_below; /* --vote-below: the k-NN vote's threshold (0: the index default) */
 static double uniform(void)
 {
     rng_state = rng_state * 6364136223846793005ULL + 1442695040888963407ULL;
@@ -50,7 +55,7 @@ static lat_t measure(const mim_index_t *ix, const float *frames, uint32_t nq, ui
 {
     double *t = malloc(sizeof(double) * nq);
     uint8_t present[64];
-    mim_index_query_options_t qo = {.k = 1, .checks = checks};
+    mim_index_query_options_t qo = {.k = 1, .checks = checks, .vote_below = vote_below};
     mim_index_answer_t a;
     mim_index_hit_t h, he;
     uint32_t agree = 0;
@@ -104,8 +109,10 @@ int main(int argc, char **argv)
             for (char *p = strtok(argv[++i], ","); p && n_sizes < 8; p = strtok(NULL, ",")) sizes[n_sizes++] = (uint32_t)atol(p);
         } else if (!strcmp(argv[i], "--queries") && i + 1 < argc) {
             nq = (uint32_t)atol(argv[++i]);
+        } else if (!strcmp(argv[i], "--vote-below") && i + 1 < argc) {
+            vote_below = atof(argv[++i]);
         } else {
-            fprintf(stderr, "usage: bench_query [--sizes 100,10000,1000000] [--queries N]\n");
+            fprintf(stderr, "usage: bench_query [--sizes 100,10000,1000000] [--queries N] [--vote-below P]\n");
             return 2;
         }
     }

@@ -12,12 +12,18 @@
  * Issue 15 adds the hard set (hard_set.c: 8 synth subjects x 40 poses, 5
  * designed poses each with 7 variants that turn one or two joints by 12-20
  * degrees, every body with its own +-3 degree jitter) at 0, 1, 2 and 3 cm
- * of noise and 1-3 missing landmarks, columns: mimic's default index and
- * the index without noise augmentation (issue 4's), the 1-NN baseline;
- * --sweep 1 / --sweep 2 run the other settings measured for the choice.
+ * of noise and 1-3 missing landmarks, columns: mimic's default index
+ * (noise augmentation, angle weighting, k-NN vote), the same without the
+ * vote, the index of item 1 (augmentation only) and the index without
+ * noise augmentation (issue 4's), the 1-NN baseline; --sweep 1 / 2 (item
+ * 1: augmentation, d) and 3 / 4 (item 2: the vote, the weighting) run the
+ * other settings measured for the choices. Columns with the same build
+ * options share one index per fold; every run draws the same frames, so
+ * columns of different runs compare. Per fold, stderr gets each index's
+ * C, gamma, cross-validation accuracy and build time.
  * The issue-4 sets run with the default index at d = 20, 40, 60, 70.
  *
- *   bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1|2]
+ *   bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1|2|3|4]
  *                        [--hard-subjects S] [--hard-poses P]
  * Prints a Markdown table per dataset. */
 #include "bench_data.h"
@@ -29,7 +35,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum { MAX_COND = 8, MAX_METHOD = 16 };
+enum { MAX_COND = 8, MAX_METHOD = 24 };
 
 /* A condition: Gaussian noise of sigma (metres, per coordinate) or some
  * missing landmarks. */
@@ -48,25 +54,57 @@ static const cond_t cond_hard[] = {{"no noise", 0, 0},   {"noise 1 cm", 0.01, 0}
 typedef struct {
     const char *label;
     mim_index_options_t o;
+    mim_index_query_options_t q; /* k is always 1; a column whose build options equal an earlier column's
+                                    queries that column's index */
 } method_t;
-static const method_t methods_issue4[] = {
-    {"d = 20", {.features = 20}}, {"d = 40", {.features = 40}}, {"d = 60", {.features = 60}}, {"d = 70", {.features = 70}}};
-/* The hard set: the default index, the issue-4 index (no augmentation),
- * and with --sweep the other settings measured for issue 15. */
-static const method_t methods_hard[] = {{"default (d = 60, noise 0.025 x4)", {0}},
-                                        {"no augmentation (issue 4)", {.noise = -1}}};
+static const method_t methods_issue4[] = {{"d = 20", {.features = 20}, {0}},
+                                          {"d = 40", {.features = 40}, {0}},
+                                          {"d = 60", {.features = 60}, {0}},
+                                          {"d = 70", {.features = 70}, {0}}};
+/* The hard set: the default index (with and without the k-NN vote), the
+ * index of issue 15's item 1 (augmentation, no angle weighting, no vote),
+ * the issue-4 index (no augmentation), and with --sweep the other settings
+ * measured for issue 15. Sweeps 1 and 2 (item 1: the augmentation, d) run
+ * without the weighting and the vote, as they were measured. */
+#define NOVOTE {.vote_below = -1}
+#define VOTE(b, k, t) {.vote_below = b, .vote_k = k, .vote_classes = t}
+static const method_t methods_hard[] = {
+    {"default (d = 60, noise 0.025 x4, weight 0.5, vote < 0.5)", {0}, {0}},
+    {"default without the vote", {0}, NOVOTE},
+    {"no weighting, no vote (item 1)", {.weight = -1}, NOVOTE},
+    {"no augmentation (issue 4)", {.noise = -1}, NOVOTE}};
 static const method_t methods_sweep1[] = {
-    {"default (d = 60, noise 0.025 x4)", {0}},
-    {"no augmentation (issue 4)", {.noise = -1}},
-    {"noise 0.05 x4", {.noise = 0.05, .augment = 4}},
-    {"noise 0.075 x4", {.noise = 0.075, .augment = 4}},
-    {"noise 0.05 x2", {.noise = 0.05, .augment = 2}},
+    {"default (d = 60, noise 0.025 x4)", {.weight = -1}, NOVOTE},
+    {"no augmentation (issue 4)", {.noise = -1}, NOVOTE},
+    {"noise 0.05 x4", {.noise = 0.05, .augment = 4, .weight = -1}, NOVOTE},
+    {"noise 0.075 x4", {.noise = 0.075, .augment = 4, .weight = -1}, NOVOTE},
+    {"noise 0.05 x2", {.noise = 0.05, .augment = 2, .weight = -1}, NOVOTE},
 };
 static const method_t methods_sweep2[] = {
-    {"d = 40 augmented", {.features = 40}},
-    {"d = 100 augmented", {.features = 100}},
-    {"d = 100, no augmentation", {.features = 100, .noise = -1}},
-    {"d = 20 augmented", {.features = 20}},
+    {"d = 40 augmented", {.features = 40, .weight = -1}, NOVOTE},
+    {"d = 100 augmented", {.features = 100, .weight = -1}, NOVOTE},
+    {"d = 100, no augmentation", {.features = 100, .noise = -1}, NOVOTE},
+    {"d = 20 augmented", {.features = 20, .weight = -1}, NOVOTE},
+};
+/* issue 15, item 2: the k-NN vote's settings, on the index without weighting */
+static const method_t methods_sweep3[] = {
+    {"no vote", {.weight = -1}, NOVOTE},
+    {"vote < 0.5 k5 T3", {.weight = -1}, VOTE(0.5, 5, 3)},
+    {"vote < 0.5 k1 T3", {.weight = -1}, VOTE(0.5, 1, 3)},
+    {"vote < 0.3 k5 T3", {.weight = -1}, VOTE(0.3, 5, 3)},
+    {"vote < 0.7 k5 T3", {.weight = -1}, VOTE(0.7, 5, 3)},
+    {"vote always k5 T3", {.weight = -1}, VOTE(2, 5, 3)},
+    {"vote < 0.5 k9 T5", {.weight = -1}, VOTE(0.5, 9, 5)},
+};
+/* issue 15, item 2: the angle weighting's power, with and without the vote */
+static const method_t methods_sweep4[] = {
+    {"no weighting, no vote", {.weight = -1}, NOVOTE},
+    {"weight 0.5, no vote", {.weight = 0.5}, NOVOTE},
+    {"weight 0.75, no vote", {.weight = 0.75}, NOVOTE},
+    {"weight 1, no vote", {.weight = 1}, NOVOTE},
+    {"no weighting, vote < 0.5 k5 T3", {.weight = -1}, VOTE(0.5, 5, 3)},
+    {"weight 0.5, vote < 0.5 k5 T3 (default)", {.weight = 0.5}, VOTE(0.5, 5, 3)},
+    {"weight 0.75, vote < 0.5 k5 T3", {.weight = 0.75}, VOTE(0.5, 5, 3)},
 };
 
 static uint64_t rng_state = 12345;
@@ -151,7 +189,7 @@ static void run_set(const set_t *set, int draws)
             S, P, L, ymax - ymin);
     /* hits[method][cond] (the last method is the 1-NN), tests[cond] */
     double hits[MAX_METHOD + 1][MAX_COND] = {{0}}, tests[MAX_COND] = {0}, cv[MAX_METHOD] = {0}, lc[MAX_METHOD] = {0};
-    double build_s[MAX_METHOD] = {0};
+    double build_s[MAX_METHOD] = {0}, qtime[MAX_METHOD] = {0}, nq[MAX_METHOD] = {0};
     float *frame = malloc(sizeof(float) * 3 * L), *qa = malloc(sizeof(float) * nf);
     uint8_t *present = malloc(L);
     for (uint32_t s = 0; s < S; s++) {
@@ -167,7 +205,16 @@ static void run_set(const set_t *set, int draws)
             tsp[i] = sp[train[i]], tpp[i] = pp[train[i]], tid[i] = ids[train[i]];
         }
         mim_index_t *ix[MAX_METHOD] = {0};
+        int same[MAX_METHOD];
         for (int mi = 0; mi < NM; mi++) {
+            same[mi] = mi;
+            for (int mj = 0; mj < mi; mj++)
+                if (same[mi] == mi && !memcmp(&set->method[mi].o, &set->method[mj].o, sizeof set->method[mi].o))
+                    same[mi] = mj;
+            if (same[mi] != mi) {
+                build_s[mi] = build_s[same[mi]], cv[mi] = cv[same[mi]], lc[mi] = lc[same[mi]];
+                continue;
+            }
             mim_index_input_t in = {ntrain, L, tlm, tid, tsp, tpp, set->mirror};
             mim_index_report_t rep;
             mim_error_t err = {0};
@@ -175,6 +222,8 @@ static void run_set(const set_t *set, int draws)
                 fprintf(stderr, "%s: build failed: %s\n", set->name, mim_error_text(&err));
                 exit(2);
             }
+            fprintf(stderr, "fold %u: %s: C %g gamma %.4g cv %.3f, %.1f s\n", s, set->method[mi].label, rep.C, rep.gamma,
+                    rep.cv_accuracy, rep.seconds);
             build_s[mi] += rep.seconds / S;
             cv[mi] += rep.cv_accuracy / S;
             lc[mi] += log10(rep.C) / S;
@@ -187,11 +236,15 @@ static void run_set(const set_t *set, int draws)
                     make_frame(lm + 3 * L * t, L, &set->cond[c], frame, present);
                     tests[c]++;
                     for (int mi = 0; mi < NM; mi++) {
-                        mim_index_query_options_t qo = {.k = 1};
+                        mim_index_query_options_t qo = set->method[mi].q;
+                        qo.k = 1;
                         mim_index_answer_t a;
                         mim_index_hit_t h;
                         mim_error_t err = {0};
-                        if (mim_index_query(ix[mi], frame, present, &qo, &a, &h, &err) == 0 && a.n_hits)
+                        double tq = mim_now();
+                        int qrc = mim_index_query(ix[same[mi]], frame, present, &qo, &a, &h, &err);
+                        qtime[mi] += mim_now() - tq, nq[mi]++;
+                        if (qrc == 0 && a.n_hits)
                             hits[mi][c] += !strcmp(h.pose, pose[t]);
                     }
                     mim_index_angles(frame, present, L, qa);
@@ -219,6 +272,8 @@ static void run_set(const set_t *set, int draws)
            "build (s):");
     for (int mi = 0; mi < NM; mi++)
         printf("%s %s %.3f / %.2f / %.3f", mi ? ";" : "", set->method[mi].label, cv[mi], lc[mi], build_s[mi]);
+    printf(".\n\nMean query (us, all conditions):");
+    for (int mi = 0; mi < NM; mi++) printf("%s %s %.1f", mi ? ";" : "", set->method[mi].label, 1e6 * qtime[mi] / nq[mi]);
     printf(".\n");
     fflush(stdout);
     free(angles), free(subj), free(pose), free(sp), free(pp), free(ids), free(train), free(frame), free(qa);
@@ -255,6 +310,8 @@ static int run_hard(uint32_t S, uint32_t P, int sweep, int draws)
                  methods_hard, (int)(sizeof methods_hard / sizeof *methods_hard)};
     if (sweep == 1) set.method = methods_sweep1, set.n_method = sizeof methods_sweep1 / sizeof *methods_sweep1;
     if (sweep == 2) set.method = methods_sweep2, set.n_method = sizeof methods_sweep2 / sizeof *methods_sweep2;
+    if (sweep == 3) set.method = methods_sweep3, set.n_method = sizeof methods_sweep3 / sizeof *methods_sweep3;
+    if (sweep == 4) set.method = methods_sweep4, set.n_method = sizeof methods_sweep4 / sizeof *methods_sweep4;
     run_set(&set, draws);
     bench_hard_free(&h);
     return 0;
@@ -273,7 +330,7 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--hard-subjects") && i + 1 < argc) hs = (uint32_t)atoi(argv[++i]);
         else if (!strcmp(argv[i], "--hard-poses") && i + 1 < argc) hp = (uint32_t)atoi(argv[++i]);
         else {
-            fprintf(stderr, "usage: bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1|2] "
+            fprintf(stderr, "usage: bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1|2|3|4] "
                             "[--hard-subjects S] [--hard-poses P]\n");
             return 2;
         }

@@ -1,11 +1,13 @@
 /* The recognition index as one blob (what the store keeps):
  *
- *   0  "MIXB"   4 u32 version (2)   8 u64 payload bytes   16 u64 checksum
+ *   0  "MIXB"   4 u32 version (4)   8 u64 payload bytes   16 u64 checksum
  *  24  u32 0x01020304 (byte order)  28 u32 0
  *  32  payload, little-endian, unaligned:
  *      u32 n_landmarks, d, n_templates, n_classes, n_strings, class_source,
- *          exact_max, checks, d2, augment; f64 C, gamma, cv_accuracy, noise
+ *          exact_max, checks, d2, augment; f64 C, gamma, cv_accuracy, noise,
+ *          weight
  *      u32 selected[d2]                         ranked angles, the descriptor first
+ *      f32 w[d2]                                the angles' weights (issue 15)
  *      n_strings x (u32 length, bytes)          label strings, [0] = ""
  *      u32 class_name[n_classes], u32 class_start[n_classes + 1]
  *      u64 ids[n], u32 subject[n], u32 pose[n]  templates grouped by class
@@ -26,7 +28,9 @@
  * Version 1 (before noise augmentation, issue 15) lacks augment and noise;
  * it is still read, as an index built without augmentation. Version 2
  * (before saved forests, issue 16) lacks the forests: they are built at
- * load, as they always were then. */
+ * load, as they always were then. Version 3 (before the angle weights,
+ * issue 15) lacks weight and w: it is read as an index without weighting
+ * (every weight 1). */
 #include "internal.h"
 
 #include <math.h>
@@ -34,7 +38,7 @@
 #include <string.h>
 
 #define BLOB_MAGIC "MIXB"
-#define BLOB_VERSION 3
+#define BLOB_VERSION 4
 #define BLOB_HEADER 32
 
 typedef struct {
@@ -72,8 +76,9 @@ int mim_index_save(const mim_index_t *ix, void **blob, size_t *len, mim_error_t 
     uint32_t head[10] = {ix->n_landmarks, d, n, nc, ix->n_strings, ix->class_source, ix->exact_max, ix->checks, ix->d2,
                          ix->augment};
     put(&b, head, sizeof head);
-    putf64(&b, ix->C), putf64(&b, ix->gamma), putf64(&b, ix->cv_accuracy), putf64(&b, ix->noise);
+    putf64(&b, ix->C), putf64(&b, ix->gamma), putf64(&b, ix->cv_accuracy), putf64(&b, ix->noise), putf64(&b, ix->weight);
     put(&b, ix->selected, sizeof(uint32_t) * ix->d2);
+    put(&b, ix->w, sizeof(float) * ix->d2);
     for (uint32_t i = 0; i < ix->n_strings; i++) {
         uint32_t l = (uint32_t)strlen(ix->strings[i]);
         put32(&b, l);
@@ -193,7 +198,9 @@ int mim_index_load(mim_index_t **out, const void *blob, size_t len, mim_error_t 
     get(&r, head, sizeof(uint32_t) * (ver == 1 ? 9 : 10));
     get(&r, &ix->C, 8), get(&r, &ix->gamma, 8), get(&r, &ix->cv_accuracy, 8);
     if (ver >= 2) get(&r, &ix->noise, 8);
+    if (ver >= 4) get(&r, &ix->weight, 8);
     if (r.bad) BAD("index blob: truncated header");
+    if (!(ix->weight >= 0 && ix->weight <= 4)) BAD("index blob: angle weighting out of range (%g)", ix->weight);
     ix->augment = head[9];
     if (!(ix->noise >= 0 && ix->noise <= 1) || ix->augment > 64 || (ix->augment == 0) != (ix->noise == 0))
         BAD("index blob: noise augmentation out of range (%u copies, noise %g)", ix->augment, ix->noise);
@@ -206,6 +213,14 @@ int mim_index_load(mim_index_t **out, const void *blob, size_t len, mim_error_t 
     if (!(ix->selected = get_array(&r, d2, 4))) goto trunc;
     for (uint32_t s = 0; s < d2; s++)
         if (ix->selected[s] >= mim_index_angle_count(L)) BAD("index blob: selected angle %u out of range", s);
+    if (ver >= 4) {
+        if (!(ix->w = get_array(&r, d2, 4))) goto trunc;
+        for (uint32_t s = 0; s < d2; s++)
+            if (!(ix->w[s] > 0) || !isfinite(ix->w[s])) BAD("index blob: weight of angle %u is not a positive number", s);
+    } else {
+        if (!(ix->w = malloc(sizeof(float) * d2))) goto trunc;
+        for (uint32_t s = 0; s < d2; s++) ix->w[s] = 1;
+    }
     if (ns > r.len / 4 || !(ix->strings = calloc(ns, sizeof(char *)))) goto trunc;
     for (uint32_t i = 0; i < ns; i++) {
         uint32_t l = 0;

@@ -23,6 +23,8 @@ struct mim_index {
     uint32_t exact_max, checks;
     uint32_t augment;      /* noisy copies per template in the build (0: none) */
     double noise;          /* their sigma / the bodies' scale (0: none) */
+    double weight;         /* the weighting's power (0: none) */
+    float *w;              /* d2 angle weights (all 1 without weighting) */
     uint32_t d2;           /* d plus the extra angles kept for frames with missing landmarks */
     uint32_t *selected;    /* d2 candidate angles, ranked: the descriptor is the first d */
     char **strings;        /* label strings; strings[0] = "" */

@@ -91,6 +91,14 @@ int mim_index_select(const float *x, const uint32_t *labels, uint32_t n_samples,
  * The class of a frame is the SVM with the highest probability; its
  * probability is reported normalised over the classes.
  *
+ * Noise (issue 15, bench/RESULTS.md "Recognition under landmark noise"):
+ * the tree and the SVMs also learn from noisy copies of the templates
+ * (mim_index_options_t noise, augment); the SVMs see each angle weighted by
+ * its spread under that noise to the power -weight (default 0.5: angles
+ * between short segments, which noise moves most, count less); and when
+ * the class's probability is below vote_below (default 0.5), a k-NN vote
+ * among the most probable classes decides (mim_index_query_options_t).
+ *
  * k-NN. FLANN inside each class over the descriptors, squared L2 (reported
  * distances are square-rooted: radians). Classes up to exact_max templates
  * use FLANN's exact linear scan; larger ones a randomised kd-forest (4
@@ -143,11 +151,20 @@ typedef struct mim_index_options {
      * input gives the same index. */
     double noise;             /* 0 means MIM_INDEX_NOISE_DEFAULT; < 0: no augmentation */
     uint32_t augment;         /* copies per template; 0 means MIM_INDEX_AUGMENT_DEFAULT */
+    /* Angle weighting by noise sensitivity (issue 15): the SVMs (and the
+     * k-NN vote of mim_index_query) see each kept angle a multiplied by
+     * s_a^-weight, s_a = the RMS change of a over the augmentation's noisy
+     * copies (an angle between short segments moves more), the factors
+     * normalised to RMS 1 over the d descriptor angles. Stored in the index
+     * (blob version 4). Needs the augmentation (none without it). The k-NN
+     * inside a class, and the distances it reports, stay in radians. */
+    double weight;            /* 0 means MIM_INDEX_WEIGHT_DEFAULT; < 0: none; at most 4 */
     mim_progress_t *progress; /* fn and ctx set by the caller, run by the build; NULL: quiet */
 } mim_index_options_t;
 
 #define MIM_INDEX_NOISE_DEFAULT 0.025
 #define MIM_INDEX_AUGMENT_DEFAULT 4u
+#define MIM_INDEX_WEIGHT_DEFAULT 0.5
 
 enum { MIM_CLASSES_LABELS = 0, MIM_CLASSES_KMEANS = 1 };
 
@@ -158,6 +175,7 @@ typedef struct mim_index_report {
     uint32_t exact_classes;              /* classes with an exact k-NN */
     uint32_t augment;                    /* noisy copies per template learnt from (0: none) */
     double noise;                        /* their sigma / the bodies' scale (0: none) */
+    double weight;                       /* the angle weighting's power (0: none) */
     mim_select_report_t select;
     double seconds;
 } mim_index_report_t;
@@ -178,6 +196,7 @@ typedef struct mim_index_info {
     double C, gamma, cv_accuracy;
     uint32_t augment; /* noisy copies per template the build learnt from (0: none) */
     double noise;     /* their sigma, a fraction of the bodies' scale (0: none) */
+    double weight;    /* the angle weighting's power (0: none) */
     /* kd-forests (classes above the exact scan's size) read from the blob
      * and built when it was made or loaded (a blob before version 3, or a
      * forest that would not load, builds them again) */
@@ -191,7 +210,20 @@ typedef struct mim_index_query_options {
     uint32_t k;                  /* 0 means 1 */
     const char *exclude_subject; /* leave this subject's templates out; NULL: none */
     uint32_t checks;             /* kd-forest checks for this query; 0 means the index's */
+    /* k-NN vote (issue 15): when the top SVM probability (normalised over
+     * the classes) is below vote_below, the vote_k nearest templates (over
+     * the weighted descriptor angles; all available kept angles when
+     * landmarks are missing) among the vote_classes most probable classes
+     * vote, and the class with the largest P(class) x (votes + 1) wins.
+     * Defaults chosen on the hard set (bench/RESULTS.md, issue 15). */
+    double vote_below;           /* 0 means MIM_INDEX_VOTE_BELOW_DEFAULT; < 0: never */
+    uint32_t vote_k;             /* 0 means MIM_INDEX_VOTE_K_DEFAULT; at most 32 */
+    uint32_t vote_classes;       /* 0 means MIM_INDEX_VOTE_CLASSES_DEFAULT; at most 8 */
 } mim_index_query_options_t;
+
+#define MIM_INDEX_VOTE_BELOW_DEFAULT 0.5
+#define MIM_INDEX_VOTE_K_DEFAULT 5u
+#define MIM_INDEX_VOTE_CLASSES_DEFAULT 3u
 
 typedef struct mim_index_hit {
     uint64_t id;

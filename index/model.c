@@ -121,7 +121,7 @@ void mim_index_close(mim_index_t **pix)
     if (ix->strings)
         for (uint32_t i = 0; i < ix->n_strings; i++) free(ix->strings[i]);
     free(ix->strings), free(ix->selected), free(ix->class_name), free(ix->class_start), free(ix->ids);
-    free(ix->subject), free(ix->pose), free(ix->desc), free(ix->extra), free(ix->svm), free(ix->flann), free(ix->flann_exact);
+    free(ix->subject), free(ix->pose), free(ix->desc), free(ix->extra), free(ix->svm), free(ix->flann), free(ix->flann_exact), free(ix->w);
     free(ix);
     *pix = NULL;
 }
@@ -366,10 +366,13 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
     if (!(opt.noise <= 1) || (opt.augment > 64 && opt.noise >= 0))
         return mim_error_set(err, MIM_EINVAL, "noise augmentation: noise %g (at most 1) and %u copies (at most 64)",
                              opt.noise, opt.augment);
+    if (!(opt.weight <= 4)) return mim_error_set(err, MIM_EINVAL, "angle weighting: power %g (at most 4)", opt.weight);
     double noise = opt.noise < 0 ? 0 : opt.noise > 0 ? opt.noise : MIM_INDEX_NOISE_DEFAULT;
     uint32_t A = noise > 0 ? (opt.augment ? opt.augment : MIM_INDEX_AUGMENT_DEFAULT) : 0;
     double sigma = A ? noise * body_scale(in) : 0;
     if (!A) noise = 0;
+    double wpow = opt.weight < 0 ? 0 : opt.weight > 0 ? opt.weight : MIM_INDEX_WEIGHT_DEFAULT;
+    if (!(wpow > 0) || !A) wpow = 0;
     mim_index_t *ix = calloc(1, sizeof *ix);
     strtab_t st = {0};
     uint32_t *cls = malloc(sizeof(uint32_t) * n), *names = NULL, nc = 0, source = 0;
@@ -383,7 +386,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
         goto out;
     }
     ix->n_landmarks = L, ix->d = d, ix->d2 = d2, ix->n_templates = n;
-    ix->augment = A, ix->noise = noise;
+    ix->augment = A, ix->noise = noise, ix->weight = wpow;
     ix->exact_max = opt.exact_max ? opt.exact_max : 8192;
     ix->checks = opt.checks ? opt.checks : 128;
     if ((rc = assign_classes(in, &st, cls, &names, &nc, &source, err))) goto out;
@@ -406,12 +409,14 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
     y = malloc(sizeof(uint32_t) * (ycap > n ? ycap : n));
     noisy = malloc(sizeof(float) * 3 * L);
     ix->selected = malloc(sizeof(uint32_t) * d2);
+    ix->w = malloc(sizeof(float) * d2);
     if (in->mirror) mmap = malloc(sizeof(uint32_t) * nf);
-    if (!rows || !x || !y || !noisy || !ix->selected || (in->mirror && !mmap)) {
+    if (!rows || !x || !y || !noisy || !ix->selected || !ix->w || (in->mirror && !mmap)) {
         rc = MIM_ENOMEM;
         goto out;
     }
     for (uint32_t i = 0; i < n; i++) rows[i] = i;
+    for (uint32_t f = 0; f < d2; f++) ix->w[f] = 1;
     mim_rng_t rng;
     mim_rng_seed(&rng, MIM__INDEX_SEED, 0x73656cULL);
     for (uint32_t i = 0; i < m && n > m; i++) {
@@ -533,16 +538,40 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
         }
         free(gmap);
         mim_rng_seed(&rng, MIM__INDEX_SEED, 0x6e6f6974ULL);
+        double *ss = calloc(2 * (size_t)d2, sizeof(double)); /* per angle: sum of squared changes, count */
+        if (!ss) {
+            rc = MIM_ENOMEM;
+            goto out;
+        }
         for (uint32_t i = 0; i < sm; i++)
             for (uint32_t a = 0; a < A; a++) {
                 size_t row = sm + (size_t)i * A + a;
                 uint32_t r = rows[i];
                 noisy_landmarks(in, order[r], sigma, &rng, noisy);
-                mim_index_descriptor(noisy, NULL, L, ix->selected, d, desc);
+                mim_index_descriptor(noisy, NULL, L, ix->selected, d2, desc);
                 y[row] = y[i], grp[row] = grp[i];
                 for (uint32_t f = 0; f < d; f++) /* an undefined angle: the template's own */
                     sx[row * d + f] = isnan(desc[f]) ? ix->desc[(size_t)r * d + f] : desc[f];
+                for (uint32_t f = 0; f < d2 && wpow > 0; f++) { /* each angle's change, for its weight */
+                    float c = f < d ? ix->desc[(size_t)r * d + f] : ix->extra[(size_t)r * (d2 - d) + f - d];
+                    if (isnan(desc[f])) continue;
+                    ss[f] += (double)(desc[f] - c) * (desc[f] - c), ss[d2 + f]++;
+                }
             }
+        if (wpow > 0) { /* weights s^-wpow, RMS 1 over the descriptor */
+            double sq = 0;
+            for (uint32_t f = 0; f < d2; f++) {
+                double sd = ss[d2 + f] > 0 ? sqrt(ss[f] / ss[d2 + f]) : 0;
+                if (sd < 1e-4) sd = 1e-4;
+                ix->w[f] = (float)pow(sd, -wpow);
+                if (f < d) sq += (double)ix->w[f] * ix->w[f];
+            }
+            double norm = sqrt(sq / d);
+            for (uint32_t f = 0; f < d2; f++) ix->w[f] = (float)(ix->w[f] / norm);
+            for (size_t row = 0; row < (size_t)sm * (1 + A); row++)
+                for (uint32_t f = 0; f < d; f++) sx[row * d + f] *= ix->w[f];
+        }
+        free(ss);
     }
     mim__svm_data_t sd = {sx, y, grp, sm * (1 + A), d, nc, n_groups};
     if ((rc = mim__svm_train_all(&sd, &opt, ix->svm, &ix->C, &ix->gamma, &ix->cv_accuracy, err))) goto out;
@@ -558,7 +587,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
             report->exact_classes += ix->flann_exact[c] != 0;
         }
         report->select = srep;
-        report->augment = A, report->noise = noise;
+        report->augment = A, report->noise = noise, report->weight = wpow;
         report->seconds = mim_now() - t0;
     }
     *out = ix;
@@ -579,7 +608,7 @@ void mim_index_get_info(const mim_index_t *ix, mim_index_info_t *o)
     o->n_templates = ix->n_templates, o->n_landmarks = ix->n_landmarks, o->d = ix->d, o->d2 = ix->d2;
     o->n_classes = ix->n_classes, o->class_source = ix->class_source;
     o->C = ix->C, o->gamma = ix->gamma, o->cv_accuracy = ix->cv_accuracy;
-    o->augment = ix->augment, o->noise = ix->noise;
+    o->augment = ix->augment, o->noise = ix->noise, o->weight = ix->weight;
     o->forests_loaded = ix->forests_loaded, o->forests_built = ix->forests_built;
 }
 
@@ -623,6 +652,69 @@ static float masked_d2(const float *desc, const float *extra, const float *q, co
     for (uint32_t f = 0; f < d; f++) s += w[f] * (q[f] - desc[f]) * (q[f] - desc[f]);
     for (uint32_t f = 0; f < de; f++) t += w[d + f] * (q[d + f] - extra[f]) * (q[d + f] - extra[f]);
     return s + t;
+}
+
+/* The k-NN vote (issue 15): among the vote_classes classes of highest SVM
+ * probability pr, the vote_k nearest templates (the subject left out
+ * excluded), by the squared distance over the descriptor's angles (all
+ * available kept angles when landmarks are missing) with the index's angle
+ * weights; the class with the largest pr * (votes + 1) wins (a vote counts
+ * 1 + 0.001 x its rank from the last, so that ties go to the nearer
+ * templates). Each class is scanned, a class of more than SCAN_PER_CLASS
+ * templates at an even stride (at most SCAN_PER_CLASS of them), so a vote
+ * costs at most vote_classes x SCAN_PER_CLASS distances (measured at
+ * 10 000 templates: bench/RESULTS.md). Returns the class chosen. */
+static uint32_t vote(const mim_index_t *ix, const mim_index_query_options_t *opt, const float *q, const float *w,
+                     int masked, int64_t ex, const double *pr, uint32_t top)
+{
+    enum { MAXC = 8, MAXK = 32 };
+    uint32_t T = opt && opt->vote_classes ? opt->vote_classes : MIM_INDEX_VOTE_CLASSES_DEFAULT;
+    uint32_t K = opt && opt->vote_k ? opt->vote_k : MIM_INDEX_VOTE_K_DEFAULT;
+    uint32_t d = ix->d, d2 = ix->d2, de = d2 - d, nc = ix->n_classes;
+    if (T > MAXC) T = MAXC;
+    if (K > MAXK) K = MAXK;
+    if (T > nc) T = nc;
+    /* the T most probable classes */
+    uint32_t cl[MAXC];
+    uint32_t nt = 0;
+    for (uint32_t c = 0; c < nc; c++) {
+        if (nt < T) cl[nt++] = c;
+        else if (pr[c] > pr[cl[T - 1]]) cl[T - 1] = c;
+        else continue;
+        for (uint32_t i = nt - 1; i > 0 && pr[cl[i - 1]] < pr[cl[i]]; i--) {
+            uint32_t tt = cl[i];
+            cl[i] = cl[i - 1], cl[i - 1] = tt;
+        }
+    }
+    /* squared weights over the available angles: the descriptor's only
+     * when no landmark is missing (as the k-NN), else all d2 kept */
+    float w2[512];
+    int wide = masked;
+    uint32_t nw = wide ? d2 : d;
+    if (nw > 512) return top;
+    for (uint32_t f = 0; f < nw; f++) w2[f] = w[f] * ix->w[f] * ix->w[f];
+    cand_t best[MAXK];
+    uint32_t nb = 0;
+    for (uint32_t t = 0; t < nt; t++) { /* at most SCAN_PER_CLASS templates a class, evenly spread */
+        uint32_t c = cl[t], lo = ix->class_start[c], hi = ix->class_start[c + 1];
+        uint32_t step = (hi - lo + SCAN_PER_CLASS - 1) / SCAN_PER_CLASS;
+        for (uint32_t r = lo; r < hi; r += step) {
+            if (ex >= 0 && ix->subject[r] == (uint32_t)ex) continue;
+            keep(best, &nb, K, masked_d2(ix->desc + (size_t)r * d, ix->extra + (size_t)r * de, q, w2, d, wide ? de : 0), r);
+        }
+    }
+    if (!nb) return top;
+    double score[MAXC] = {0};
+    for (uint32_t i = 0; i < nb; i++)
+        for (uint32_t t = 0; t < nt; t++)
+            if (best[i].row >= ix->class_start[cl[t]] && best[i].row < ix->class_start[cl[t] + 1])
+                score[t] += 1 + 1e-3 * (nb - i);
+    uint32_t arg = 0;
+    for (uint32_t t = 0; t < nt; t++) {
+        score[t] = pr[cl[t]] * (score[t] + 1);
+        if (score[t] > score[arg]) arg = t;
+    }
+    return cl[arg];
 }
 
 int mim_index_query(const mim_index_t *ix, const float *positions, const uint8_t *present,
@@ -673,7 +765,7 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
         w[f] = mask[f];
         avail2 += mask[f];
         if (f < d) avail += mask[f];
-        if (f < d) xd[f] = mask[f] ? q[f] : 0;
+        if (f < d) xd[f] = mask[f] ? q[f] * ix->w[f] : 0;
         if (!mask[f]) q[f] = 0;
     }
     if (!avail2)
@@ -707,19 +799,25 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
             }
         }
         for (uint32_t f = 0; f < d; f++)
-            if (!mask[f]) q[f] = ix->desc[(size_t)br * d + f], xd[f] = q[f];
+            if (!mask[f]) q[f] = ix->desc[(size_t)br * d + f], xd[f] = q[f] * ix->w[f];
     }
     /* the class: the SVM with the highest probability */
     uint32_t cls = 0;
     double prob = 1;
     if (ix->n_classes > 1) {
         double sum = 0, best = -1;
+        double vb = opt && opt->vote_below ? opt->vote_below : MIM_INDEX_VOTE_BELOW_DEFAULT;
+        double pr_st[256], *pr = ix->n_classes <= 256 || !(vb > 0) ? pr_st : malloc(sizeof(double) * ix->n_classes);
+        if (!pr) return MIM_ENOMEM;
         for (uint32_t c = 0; c < ix->n_classes; c++) {
             double p = mim__svm_probability(&ix->svm[c], mim__svm_decision(&ix->svm[c], ix->gamma, xd, NULL, d));
+            if (c < 256 || pr != pr_st) pr[c] = p;
             sum += p;
             if (p > best) best = p, cls = c;
         }
         prob = sum > 0 ? best / sum : 0;
+        if (vb > 0 && prob < vb) cls = vote(ix, opt, q, w, masked, ex, pr, cls);
+        if (pr != pr_st) free(pr);
     }
     ans->cls = cls, ans->probability = prob;
     /* k nearest inside the class */

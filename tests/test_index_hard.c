@@ -4,8 +4,9 @@
  * two joints), the index built from 4 subjects and queried with the fifth
  * (leave one subject out, one fold). Seeded throughout: the same figures on
  * every run. The full run is bench/query_accuracy (bench/RESULTS.md). Also:
- * the noise-augmentation options are stored with the index, and an index
- * blob of version 1 (before augmentation) still loads. */
+ * the noise-augmentation and weighting options are stored with the index,
+ * and index blobs of versions 1 (before augmentation) and 3 (before the
+ * weighting) still load. */
 #include "hard_set.h"
 #include "mim_index.h"
 #include "test_support.h"
@@ -50,7 +51,7 @@ static mim_index_t *build(const set_t *s, const mim_index_options_t *o)
 
 /* Accuracy on the held-out subject's frames with Gaussian noise of sigma
  * metres per coordinate (DRAWS draws each when sigma > 0), seeded. */
-static double accuracy(const set_t *s, const mim_index_t *ix, double sigma)
+static double accuracy(const set_t *s, const mim_index_t *ix, double sigma, const mim_index_query_options_t *qo)
 {
     uint32_t L = s->h.n_landmarks, hits = 0, tests = 0;
     mim_rng_t rng;
@@ -63,7 +64,7 @@ static double accuracy(const set_t *s, const mim_index_t *ix, double sigma)
                 frame[i] = (float)(s->h.landmarks[(size_t)t * L * 3 + i] + sigma * mim_rng_gauss(&rng));
             mim_index_answer_t a;
             mim_index_hit_t hit;
-            assert_int_equal(mim_index_query(ix, frame, NULL, NULL, &a, &hit, NULL), 0);
+            assert_int_equal(mim_index_query(ix, frame, NULL, qo, &a, &hit, NULL), 0);
             hits += a.n_hits && !strcmp(hit.pose, s->pose[t]);
             tests++;
         }
@@ -72,90 +73,139 @@ static double accuracy(const set_t *s, const mim_index_t *ix, double sigma)
 }
 
 /* mimic's default recognition on the hard set: clean frames of an unseen
- * subject are recognised well, and the default (noise-augmented) index
- * beats the index without augmentation at 3 cm of noise. */
+ * subject are recognised well, and at 3 cm of noise the default (noise
+ * augmentation, angle weighting, k-NN vote) beats both the index without
+ * augmentation (issue 4) and the one with augmentation only (issue 15,
+ * item 1). */
 static void test_hard_set_accuracy(void **state)
 {
     (void)state;
     set_t *s = calloc(1, sizeof *s);
     set_make(s);
-    mim_index_options_t def = {0}, plain = {.noise = -1};
-    mim_index_t *a = build(s, &def), *b = build(s, &plain);
+    mim_index_options_t def = {0}, plain = {.noise = -1}, item1 = {.weight = -1};
+    mim_index_t *a = build(s, &def), *b = build(s, &plain), *c = build(s, &item1);
     mim_index_info_t info;
     mim_index_get_info(a, &info);
     assert_int_equal(info.augment, MIM_INDEX_AUGMENT_DEFAULT);
     assert_true(info.noise == MIM_INDEX_NOISE_DEFAULT);
+    assert_true(info.weight == MIM_INDEX_WEIGHT_DEFAULT);
     mim_index_get_info(b, &info);
     assert_int_equal(info.augment, 0);
-    double clean = accuracy(s, a, 0), robust = accuracy(s, a, 0.03), plain3 = accuracy(s, b, 0.03);
-    fprintf(stderr, "hard set (%d x %d, one fold): default clean %.3f, 3 cm %.3f; without augmentation 3 cm %.3f\n", S,
-            P, clean, robust, plain3);
+    assert_true(info.weight == 0); /* no weighting without augmentation */
+    mim_index_query_options_t novote = {.vote_below = -1};
+    double clean = accuracy(s, a, 0, NULL), robust = accuracy(s, a, 0.03, NULL), plain3 = accuracy(s, b, 0.03, &novote);
+    double item1_3 = accuracy(s, c, 0.03, &novote);
+    fprintf(stderr,
+            "hard set (%d x %d, one fold): default clean %.3f, 3 cm %.3f; augmentation only (no weighting, no vote) "
+            "3 cm %.3f; without augmentation 3 cm %.3f\n",
+            S, P, clean, robust, item1_3, plain3);
     assert_true(clean >= 0.8);
     assert_true(robust >= plain3 + 0.025);
-    mim_index_close(&a), mim_index_close(&b);
+    assert_true(robust >= item1_3 + 0.025);
+    mim_index_close(&a), mim_index_close(&b), mim_index_close(&c);
     bench_hard_free(&s->h);
     free(s);
 }
 
-/* The augmentation is stored with the index (blob version 2 on); a version 1
- * blob (no augmentation fields, no forests) still loads, as an index without
- * augmentation that answers as before; options out of range are refused. */
+/* A blob of this version (4) rewritten in an older layout: version 3 has
+ * no angle weighting (the f64 weight and the f32 w[d2] after the selected
+ * angles); version 1 also has no augmentation (the header's u32 augment and
+ * f64 noise) and no forest count at the end (every class here is scanned
+ * exactly, so the count is 0). Header and checksum made right. */
+static unsigned char *downgrade(const unsigned char *p, size_t len, uint32_t ver, size_t *out_len)
+{
+    uint32_t d2;
+    memcpy(&d2, p + 32 + 32, 4);
+    unsigned char *v = malloc(len);
+    size_t o = 32, sel = 112, w = sel + 4 * (size_t)d2, rest = w + 4 * (size_t)d2;
+    memcpy(v, p, 32);
+    if (ver == 1) {
+        memcpy(v + o, p + 32, 36), o += 36;      /* n_landmarks .. d2 */
+        memcpy(v + o, p + 72, 24), o += 24;      /* C, gamma, cv_accuracy */
+    } else {
+        memcpy(v + o, p + 32, 72), o += 72;      /* n_landmarks .. augment, C .. noise */
+    }
+    memcpy(v + o, p + sel, 4 * (size_t)d2), o += 4 * (size_t)d2; /* selected */
+    size_t tail = len - rest - (ver == 1 ? 4 : 0);
+    memcpy(v + o, p + rest, tail), o += tail;
+    uint64_t plen = o - 32, sum = mim_hash64(v + 32, plen, 0x6d6978ULL);
+    memcpy(v + 4, &ver, 4), memcpy(v + 8, &plen, 8), memcpy(v + 16, &sum, 8);
+    *out_len = o;
+    return v;
+}
+
+/* The augmentation and the angle weighting are stored with the index (blob
+ * versions 2 and 4 on); blobs of versions 1 and 3 (no augmentation fields
+ * and no forests; no weighting) still load, as indexes without them, and
+ * answer as before; options out of range are refused. */
 static void test_blob_versions(void **state)
 {
     (void)state;
     set_t *s = calloc(1, sizeof *s);
     set_make(s);
-    mim_index_options_t o = {.noise = 0.03, .augment = 2, .C = 100, .gamma = 1};
-    mim_index_t *ix = build(s, &o), *back = NULL;
+    const float *frame = s->h.landmarks + (size_t)(S - 1) * P * s->h.n_landmarks * 3;
+    mim_index_answer_t a1, a2;
+    mim_index_hit_t h1, h2;
+    mim_index_info_t info;
+    /* a weighted index: the weights round-trip and it answers the same */
+    mim_index_options_t ow = {.noise = 0.03, .augment = 2, .weight = 0.5, .C = 100, .gamma = 1};
+    mim_index_t *ix = build(s, &ow), *back = NULL;
     void *blob = NULL;
     size_t len = 0;
     assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
     uint32_t ver;
     memcpy(&ver, (char *)blob + 4, 4);
-    assert_int_equal(ver, 3);
+    assert_int_equal(ver, 4);
     assert_int_equal(mim_index_load(&back, blob, len, NULL), 0);
-    mim_index_info_t info;
     mim_index_get_info(back, &info);
     assert_int_equal(info.augment, 2);
     assert_true(info.noise == 0.03);
-    mim_index_close(&back);
-    /* version 1: the header's 9 u32 (augment gone) and 3 f64 (noise gone),
-     * and no forest count at the end (every class here is scanned exactly,
-     * so version 3's count is 0) */
+    assert_true(info.weight == 0.5);
+    for (uint32_t p = 0; p < P; p++) {
+        const float *f = s->h.landmarks + ((size_t)(S - 1) * P + p) * s->h.n_landmarks * 3;
+        assert_int_equal(mim_index_query(ix, f, NULL, NULL, &a1, &h1, NULL), 0);
+        assert_int_equal(mim_index_query(back, f, NULL, NULL, &a2, &h2, NULL), 0);
+        assert_int_equal(a1.cls, a2.cls);
+        assert_true(h1.id == h2.id);
+        assert_true(a1.probability == a2.probability);
+    }
+    mim_index_close(&back), mim_index_close(&ix);
+    free(blob);
+    /* an unweighted index, as versions 3 and 1 */
+    mim_index_options_t o = {.noise = 0.03, .augment = 2, .weight = -1, .C = 100, .gamma = 1};
+    ix = build(s, &o);
+    mim_index_get_info(ix, &info);
+    assert_true(info.weight == 0);
+    assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
     uint32_t n_forests;
     memcpy(&n_forests, (char *)blob + len - 4, 4);
     assert_int_equal(n_forests, 0);
-    unsigned char *v1 = malloc(len);
-    const unsigned char *p = blob;
-    size_t o1 = 0;
-    memcpy(v1, p, 32), o1 = 32;
-    memcpy(v1 + o1, p + 32, 36), o1 += 36;            /* n_landmarks .. d2 */
-    memcpy(v1 + o1, p + 32 + 40, 24), o1 += 24;       /* C, gamma, cv_accuracy */
-    memcpy(v1 + o1, p + 32 + 72, len - 108), o1 += len - 108; /* the rest, without the forest count */
-    uint32_t one = 1;
-    uint64_t plen = o1 - 32, sum = mim_hash64(v1 + 32, plen, 0x6d6978ULL);
-    memcpy(v1 + 4, &one, 4), memcpy(v1 + 8, &plen, 8), memcpy(v1 + 16, &sum, 8);
-    mim_error_t err = {0};
-    int rc = mim_index_load(&back, v1, o1, &err);
-    if (rc) fprintf(stderr, "v1: %s\n", mim_error_text(&err));
-    assert_int_equal(rc, 0);
-    mim_index_get_info(back, &info);
-    assert_int_equal(info.augment, 0);
-    assert_true(info.noise == 0);
-    const float *frame = s->h.landmarks + (size_t)(S - 1) * P * s->h.n_landmarks * 3;
-    mim_index_answer_t a1, a2;
-    mim_index_hit_t h1, h2;
-    assert_int_equal(mim_index_query(ix, frame, NULL, NULL, &a1, &h1, NULL), 0);
-    assert_int_equal(mim_index_query(back, frame, NULL, NULL, &a2, &h2, NULL), 0);
-    assert_int_equal(a1.cls, a2.cls);
-    assert_true(h1.id == h2.id);
-    mim_index_close(&back), mim_index_close(&ix);
-    free(v1), free(blob);
+    for (uint32_t old = 1; old <= 3; old += 2) {
+        size_t olen = 0;
+        unsigned char *v = downgrade(blob, len, old, &olen);
+        mim_error_t err = {0};
+        int rc = mim_index_load(&back, v, olen, &err);
+        if (rc) fprintf(stderr, "v%u: %s\n", old, mim_error_text(&err));
+        assert_int_equal(rc, 0);
+        mim_index_get_info(back, &info);
+        assert_int_equal(info.augment, old == 1 ? 0 : 2);
+        assert_true(info.noise == (old == 1 ? 0 : 0.03));
+        assert_true(info.weight == 0);
+        assert_int_equal(mim_index_query(ix, frame, NULL, NULL, &a1, &h1, NULL), 0);
+        assert_int_equal(mim_index_query(back, frame, NULL, NULL, &a2, &h2, NULL), 0);
+        assert_int_equal(a1.cls, a2.cls);
+        assert_true(h1.id == h2.id);
+        mim_index_close(&back);
+        free(v);
+    }
+    mim_index_close(&ix);
+    free(blob);
     /* out of range */
     mim_index_input_t in = {P, s->h.n_landmarks, s->h.landmarks, s->ids, s->subj, s->pose, s->h.mirror};
-    mim_index_options_t bad1 = {.noise = 2}, bad2 = {.augment = 65};
+    mim_index_options_t bad1 = {.noise = 2}, bad2 = {.augment = 65}, bad3 = {.weight = 5};
     assert_int_equal(mim_index_build(&ix, &in, &bad1, NULL, NULL), MIM_EINVAL);
     assert_int_equal(mim_index_build(&ix, &in, &bad2, NULL, NULL), MIM_EINVAL);
+    assert_int_equal(mim_index_build(&ix, &in, &bad3, NULL, NULL), MIM_EINVAL);
     assert_null(ix);
     bench_hard_free(&s->h);
     free(s);
