@@ -20,8 +20,20 @@
  * templates' own frames are computed once, as the session caches them)
  * and the whole key frame, median over the runs.
  *
+ * Relative rows (h2): each template's change from its subject's reference
+ * (that subject's template in A's rest pose, found by querying the index
+ * with A's rest landmarks) applied to A: the frames' turn
+ * (mim_xfer_frames_relative) and the encoding's change
+ * (mim_xfer_encoding_relative, scaled by mim_xfer_encoding_scale); and the
+ * bounds with A's own frames and encoding in the pose. The references and
+ * their scales are per avatar and subject, computed outside the timing.
+ *
  * usage: bench_blend_accuracy [--vertices N] [--mh DIR | --no-mh] [--iterations N]
- *   --iterations N: N solves, no early stop (default: mimic's iteration) */
+ *                             [--new-only] [--other-pose] [--no-rest-ref]
+ *   --iterations N: N solves, no early stop (default: mimic's iteration)
+ *   --new-only: of the plain rows only the nearest and 2 nearest by 1/distance
+ *   --other-pose: templates from poses other than the query's (all-angle 1-NN)
+ *   --no-rest-ref: references from poses other than A's rest */
 #include "bench_data.h"
 #include "mim_core.h"
 #include "mim_index.h"
@@ -43,6 +55,130 @@ static const char *const extra_names[N_EXTRA] = {
     "avatar's rest frames turned by the landmark skeleton's segment rotations",
     "those, blended with the nearest template's (equal weights)"};
 #define MAX_RUNS 4096
+/* Deformation transfer of the frames (mim_xfer_frames_relative): each
+ * template's turn from its subject's reference template (the index's hit
+ * of that subject for A's rest landmarks) to the pose, on A's rest frames. */
+/* frames: the templates' own; relative (mim_xfer_frames_relative); relative
+ * on A's rest frames first turned by the segment rotations from A's rest
+ * landmark skeleton onto the reference's (for a reference in another pose);
+ * the truth's */
+enum { FR_TEMPLATE, FR_RELATIVE, FR_RELATIVE_Q, FR_GATED, FR_TRUTH };
+/* FR_GATED: relative frames when the reference's pose is within GATE_DEG
+ * (rms over all angles) of A's rest, else the template's own frames: a
+ * reference in another pose carries that pose into relative frames. */
+#define GATE_DEG 8.0
+enum { EN_REST, EN_DELTA, EN_DELTA_SCALED, EN_DELTA_ROT, EN_TRUTH }; /* A's encoding */
+enum { ORD_INDEX, ORD_SHAPE }; /* the hits in the index's order, or by rest build nearest A's */
+typedef struct {
+    uint32_t k;
+    int weighting, frames, enc;
+    const char *name;
+    int order;
+} rel_method_t;
+static const rel_method_t rel_methods[] = {
+    {1, W_EQUAL, FR_RELATIVE, EN_REST, "relative frames, nearest template", ORD_INDEX},
+    {2, W_INVERSE, FR_RELATIVE, EN_REST, "relative frames, 2 nearest, 1/distance", ORD_INDEX},
+    {K_ASK, W_EQUAL, FR_RELATIVE, EN_REST, "relative frames, all hits, equal", ORD_INDEX},
+    {1, W_EQUAL, FR_TRUTH, EN_REST, "bound: A's own frames in the pose (the truth's)", ORD_INDEX},
+    {1, W_EQUAL, FR_TRUTH, EN_TRUTH, "bound: A's own frames and encoding in the pose", ORD_INDEX},
+    {1, W_EQUAL, FR_TEMPLATE, EN_TRUTH, "bound: nearest template's frames, A's own encoding in the pose", ORD_INDEX},
+    {1, W_EQUAL, FR_TEMPLATE, EN_DELTA, "encoding change, nearest template (its frames)", ORD_INDEX},
+    {1, W_EQUAL, FR_RELATIVE, EN_DELTA, "encoding change + relative frames, nearest", ORD_INDEX},
+    {1, W_EQUAL, FR_RELATIVE, EN_DELTA_SCALED, "encoding change scaled + relative frames, nearest", ORD_INDEX},
+    {2, W_INVERSE, FR_RELATIVE, EN_DELTA, "encoding change + relative frames, 2 nearest, 1/distance", ORD_INDEX},
+    {3, W_INVERSE, FR_RELATIVE, EN_DELTA, "encoding change + relative frames, 3 nearest, 1/distance", ORD_INDEX},
+    {K_ASK, W_EQUAL, FR_RELATIVE, EN_DELTA, "encoding change + relative frames, all hits, equal", ORD_INDEX},
+    {K_ASK, W_INVERSE, FR_RELATIVE, EN_DELTA, "encoding change + relative frames, all hits, 1/distance", ORD_INDEX},
+    {K_ASK, W_EQUAL, FR_RELATIVE, EN_DELTA_SCALED, "encoding change scaled + relative frames, all hits, equal", ORD_INDEX},
+    {2, W_INVERSE, FR_RELATIVE, EN_DELTA_SCALED, "encoding change scaled + relative frames, 2 nearest, 1/distance", ORD_INDEX},
+    {3, W_INVERSE, FR_RELATIVE, EN_DELTA_SCALED, "encoding change scaled + relative frames, 3 nearest, 1/distance", ORD_INDEX},
+    {1, W_EQUAL, FR_RELATIVE, EN_DELTA_ROT, "encoding change scaled, in A's frames + relative frames, nearest", ORD_INDEX},
+    {2, W_INVERSE, FR_RELATIVE, EN_DELTA_ROT, "encoding change scaled, in A's frames + relative frames, 2 nearest", ORD_INDEX},
+    {1, W_EQUAL, FR_RELATIVE, EN_DELTA_SCALED, "encoding change scaled + relative frames, nearest build", ORD_SHAPE},
+    {2, W_INVERSE, FR_RELATIVE, EN_DELTA_SCALED, "encoding change scaled + relative frames, 2 nearest builds", ORD_SHAPE},
+    {1, W_EQUAL, FR_TEMPLATE, EN_REST, "nearest build's template (plain)", ORD_SHAPE},
+    {1, W_EQUAL, FR_TEMPLATE, EN_DELTA_SCALED, "encoding change scaled, nearest template (its frames)", ORD_INDEX},
+    {2, W_INVERSE, FR_TEMPLATE, EN_DELTA_SCALED, "encoding change scaled, 2 nearest, 1/distance (their frames)", ORD_INDEX},
+    {1, W_EQUAL, FR_RELATIVE_Q, EN_DELTA_SCALED, "encoding change scaled + relative frames via the reference's skeleton, nearest", ORD_INDEX},
+    {2, W_INVERSE, FR_RELATIVE_Q, EN_DELTA_SCALED, "encoding change scaled + relative frames via the reference's skeleton, 2 nearest", ORD_INDEX},
+    {1, W_EQUAL, FR_GATED, EN_DELTA_SCALED, "encoding change scaled + relative frames if the reference is within 8 deg rms of A's rest, nearest", ORD_INDEX},
+};
+static int new_only;
+/* Robustness (both off by default):
+ * other_pose: the templates are the other subjects' nearest over all
+ * angles whose pose is NOT the query's (a store without the exact pose);
+ * no_rest_ref: each subject's reference is its nearest template to A's rest
+ * over all angles among poses other than A's rest pose (a store without
+ * the avatar's rest pose). */
+static int other_pose, no_rest_ref;
+
+static double angle_distance(const float *x, const float *y, uint32_t na)
+{
+    double d = 0;
+    for (uint32_t i = 0; i < na; i++)
+        if (isfinite(x[i]) && isfinite(y[i]))
+            d += (x[i] - y[i]) * (x[i] - y[i]);
+    return sqrt(d);
+}
+
+/* The k templates nearest over all angles to query qa among subjects other
+ * than a, skipping pose skip_pose; per_subject: the nearest of each
+ * subject only. Returns how many (sorted, nearest first). */
+static uint32_t nearest_by_angles(const float *ang, uint32_t na, const float *qa, uint32_t S, uint32_t P, uint32_t a,
+                                  uint32_t skip_pose, mim_index_hit_t *hits, uint32_t k)
+{
+    uint32_t got = 0;
+    for (uint32_t t = 0; t < S * P; t++) {
+        if (t / P == a || t % P == skip_pose)
+            continue;
+        double dt = angle_distance(ang + (size_t)na * t, qa, na);
+        if (got == k && dt >= hits[k - 1].distance)
+            continue;
+        uint32_t at = got < k ? got++ : k - 1;
+        while (at > 0 && hits[at - 1].distance > dt)
+            hits[at] = hits[at - 1], at--;
+        hits[at].id = t + 1, hits[at].distance = (float)dt, hits[at].subject = hits[at].pose = "";
+    }
+    return got;
+}
+
+/* How unlike two bodies' builds are: their rest landmarks' pairwise
+ * distances, each set divided by its mean, compared (scale-free). */
+static double build_distance(const float *a, const float *b, uint32_t L)
+{
+    double sa = 0, sb = 0, d = 0;
+    for (int pass = 0; pass < 2; pass++)
+        for (uint32_t i = 0; i < L; i++)
+            for (uint32_t j = i + 1; j < L; j++) {
+                double da = 0, db = 0;
+                for (int c = 0; c < 3; c++)
+                    da += (a[3 * i + c] - a[3 * j + c]) * (a[3 * i + c] - a[3 * j + c]),
+                        db += (b[3 * i + c] - b[3 * j + c]) * (b[3 * i + c] - b[3 * j + c]);
+                da = sqrt(da), db = sqrt(db);
+                if (!pass)
+                    sa += da, sb += db;
+                else
+                    d += (da / sa - db / sb) * (da / sa - db / sb);
+            }
+    return sqrt(d);
+}
+
+/* delta W of template j in A's frames: C^T (W_pose - W_ref), C = R^T A, times s. */
+static void add_rotated(uint32_t n, const double *Wp, const double *Wr, const double *R, const double *A, double c,
+                        double *out)
+{
+    for (size_t i = 0; i < n; i++) {
+        const double *r = R + 9 * i, *av = A + 9 * i;
+        double dw[3] = {Wp[3 * i] - Wr[3 * i], Wp[3 * i + 1] - Wr[3 * i + 1], Wp[3 * i + 2] - Wr[3 * i + 2]};
+        double g[3]; /* R dw: the change in rest-pose world axes */
+        for (int k = 0; k < 3; k++)
+            g[k] = r[k] * dw[0] + r[3 + k] * dw[1] + r[6 + k] * dw[2];
+        for (int k = 0; k < 3; k++) /* A^T g */
+            out[3 * i + k] += c * (av[3 * k] * g[0] + av[3 * k + 1] * g[1] + av[3 * k + 2] * g[2]);
+    }
+}
+#define N_REL (sizeof rel_methods / sizeof rel_methods[0])
+#define N_ROWS (N_METHOD + N_EXTRA + N_REL)
 
 typedef struct row {
     bench_err_t e;
@@ -116,21 +252,32 @@ static int run_set(const bench_dataset_t *d, void *user)
     /* every body's landmarks and frames, once */
     const uint32_t T = S * P;
     float *lm = malloc(sizeof(float) * 3 * L * T);
-    double **F = calloc(T, sizeof *F);
+    double **F = calloc(T, sizeof *F), **WT = calloc(T, sizeof *WT);
     for (uint32_t t = 0; t < T; t++) {
         for (uint32_t l = 0; l < L; l++)
             memcpy(lm + 3 * (L * t + l), d->pos[t] + 3 * (size_t)d->map.vertex[l], 3 * sizeof(float));
         F[t] = malloc(9 * sizeof(double) * n);
         mim_xfer_frames(topo, d->pos[t], F[t]);
+        WT[t] = malloc(3 * sizeof(double) * n);
+        mim_xfer_encode(topo, d->pos[t], F[t], WT[t]);
     }
-    row_t rows[N_METHOD + N_EXTRA];
+    const uint32_t na = mim_index_angle_count(L);
+    float *ang = malloc(sizeof(float) * na * T);
+    for (uint32_t t = 0; t < T; t++)
+        mim_index_angles(lm + 3 * L * t, NULL, L, ang + (size_t)na * t);
+    uint32_t wrong_refs = 0, n_refd = 0;
+    double refd[64 * 64];
+    row_t rows[N_ROWS];
     memset(rows, 0, sizeof rows);
-    for (uint32_t m = 0; m < N_METHOD + N_EXTRA; m++) {
+    for (uint32_t m = 0; m < N_ROWS; m++) {
         bench_err_init(&rows[m].e);
         rows[m].t_prep = malloc(MAX_RUNS * sizeof(double));
         rows[m].t_key = malloc(MAX_RUNS * sizeof(double));
     }
-    double *W = malloc(3 * sizeof(double) * n), *Fa = malloc(9 * sizeof(double) * n);
+    double *W = malloc(3 * sizeof(double) * n), *Wx = malloc(3 * sizeof(double) * n), *Fa = malloc(9 * sizeof(double) * n);
+    int near_of[64];     /* per subject: its reference's pose is near A's rest (FR_GATED) */
+    double scale_of[64]; /* per subject, as a session caches it with the reference */
+    uint32_t ref_of[64], ref_misses = 0, rest_right = 0;
     double *Fc[K_ASK], *Fb = malloc(9 * sizeof(double) * n);
     for (int j = 0; j < K_ASK; j++)
         Fc[j] = malloc(9 * sizeof(double) * n);
@@ -176,6 +323,43 @@ static int run_set(const bench_dataset_t *d, void *user)
         free(tlm), free(tsp), free(tpp), free(tid);
         if (brc)
             goto fail;
+        { /* each other subject's reference: its hit for A's rest landmarks */
+            mim_index_query_options_t qo = {.k = K_ASK};
+            mim_index_answer_t ans;
+            mim_index_hit_t hits[K_ASK];
+            if (mim_index_query(ix, lm + 3 * L * (a * P), NULL, &qo, &ans, hits, &err)) {
+                mim_index_close(&ix);
+                goto fail;
+            }
+            for (uint32_t s = 0; s < S && s < 64; s++)
+                ref_of[s] = UINT32_MAX;
+            for (uint32_t h = 0; h < ans.n_hits; h++) {
+                uint32_t t = (uint32_t)hits[h].id - 1;
+                rest_right += t % P == 0;
+                if (t / P < 64 && ref_of[t / P] == UINT32_MAX)
+                    ref_of[t / P] = t;
+            }
+            for (uint32_t s = 0; s < S && s < 64; s++)
+                if (s != a && ref_of[s] == UINT32_MAX)
+                    ref_of[s] = s * P, ref_misses++; /* not among the hits: its pose 0 */
+            if (no_rest_ref)
+                for (uint32_t s = 0; s < S && s < 64; s++) {
+                    if (s == a)
+                        continue;
+                    float best = INFINITY;
+                    for (uint32_t pp2 = 1; pp2 < P; pp2++) {
+                        float dt = (float)angle_distance(ang + (size_t)na * (s * P + pp2), ang + (size_t)na * (a * P), na);
+                        if (dt < best)
+                            best = dt, ref_of[s] = s * P + pp2;
+                    }
+                    wrong_refs++;
+                }
+            for (uint32_t s = 0; s < S && s < 64; s++)
+                scale_of[s] = s == a ? 1.0 : mim_xfer_encoding_scale(n, WT[a * P], WT[ref_of[s]]);
+            for (uint32_t s = 0; s < S && s < 64; s++)
+                near_of[s] = s != a && angle_distance(ang + (size_t)na * ref_of[s], ang + (size_t)na * (a * P), na) /
+                                               sqrt((double)na) < GATE_DEG * M_PI / 180;
+        }
         for (uint32_t p = 1; p < P; p++) {
             const uint32_t q = a * P + p;
             const float *truth = d->pos[q], *u = lm + 3 * L * q;
@@ -186,6 +370,8 @@ static int run_set(const bench_dataset_t *d, void *user)
                 mim_index_close(&ix);
                 goto fail;
             }
+            if (other_pose)
+                ans.n_hits = nearest_by_angles(ang, na, ang + (size_t)na * q, S, P, a, p, hits, K_ASK);
             queries++;
             right_class += !strcmp(hits[0].pose, pose[q]);
             for (uint32_t h = 0; h < ans.n_hits; h++)
@@ -194,6 +380,8 @@ static int run_set(const bench_dataset_t *d, void *user)
                 for (int wt = 0; wt < N_WEIGHTING; wt++)
                     for (int corrected = 0; corrected < 2; corrected++) {
                         if (ks[ki] == 1 && wt != W_EQUAL)
+                            continue;
+                        if (new_only && (corrected || !(ks[ki] == 1 || (ks[ki] == 2 && wt == W_INVERSE))))
                             continue;
                         row_t *r = &rows[method_index(ki, wt, corrected)];
                         uint32_t k = ks[ki] < ans.n_hits ? ks[ki] : ans.n_hits;
@@ -228,7 +416,7 @@ static int run_set(const bench_dataset_t *d, void *user)
                     }
             /* the avatar's own frames, turned as its landmark skeleton
              * onto the targets (no template); then blended with the nearest */
-            for (int x = 0; x < N_EXTRA; x++) {
+            for (int x = 0; x < N_EXTRA && !new_only; x++) {
                 double t0 = mim_now();
                 mim_quat R[MIM_SEGMENTS];
                 if (mim_xfer_segment_correction(&d->map, lm + 3 * L * (a * P), u, R, &err)) {
@@ -248,6 +436,71 @@ static int run_set(const bench_dataset_t *d, void *user)
                     goto fail;
                 }
                 record(&rows[N_METHOD + x], out, truth, region, n, t0, t1, mim_now());
+            }
+            /* the hits by build, nearest A's first (the reference's rest landmarks) */
+            mim_index_hit_t by_build[K_ASK];
+            double bd[K_ASK];
+            for (uint32_t h = 0; h < ans.n_hits; h++) {
+                double dh = build_distance(lm + 3 * L * (a * P), lm + 3 * L * ref_of[(hits[h].id - 1) / P], L);
+                uint32_t at = h;
+                while (at > 0 && bd[at - 1] > dh)
+                    bd[at] = bd[at - 1], by_build[at] = by_build[at - 1], at--;
+                bd[at] = dh, by_build[at] = hits[h];
+            }
+            if (p == 1) /* how far each reference's pose is from A's rest (all angles) */
+                for (uint32_t s2 = 0; s2 < S && s2 < 64; s2++)
+                    if (s2 != a && n_refd < 64 * 64)
+                        refd[n_refd++] = angle_distance(ang + (size_t)na * ref_of[s2], ang + (size_t)na * (a * P), na);
+            for (uint32_t m = 0; m < N_REL; m++) {
+                const rel_method_t *rm = &rel_methods[m];
+                uint32_t k = rm->k < ans.n_hits ? rm->k : ans.n_hits;
+                const mim_index_hit_t *hh = rm->order == ORD_SHAPE ? by_build : hits;
+                double w[K_ASK], sc[K_ASK];
+                const double *src[K_ASK], *wp[K_ASK], *wr[K_ASK];
+                double t0 = mim_now();
+                for (uint32_t j = 0; j < k; j++) {
+                    const uint32_t t = (uint32_t)hh[j].id - 1, r = ref_of[t / P];
+                    w[j] = rm->weighting == W_EQUAL ? 1.0 : 1.0 / (hh[j].distance + 1e-3);
+                    src[j] = F[t];
+                    if (rm->frames == FR_RELATIVE || (rm->frames == FR_GATED && near_of[t / P])) {
+                        mim_xfer_frames_relative(n, F[t], F[r], Fa, Fc[j]);
+                        src[j] = Fc[j];
+                    } else if (rm->frames == FR_RELATIVE_Q) {
+                        mim_quat Q[MIM_SEGMENTS];
+                        if (mim_xfer_segment_correction(&d->map, lm + 3 * L * (a * P), lm + 3 * L * r, Q, &err)) {
+                            mim_index_close(&ix);
+                            goto fail;
+                        }
+                        mim_xfer_skin_frames(n, skin, Fa, Q, Fc[j]);
+                        mim_xfer_frames_relative(n, F[t], F[r], Fc[j], Fc[j]);
+                        src[j] = Fc[j];
+                    }
+                    wp[j] = WT[t], wr[j] = WT[r], sc[j] = scale_of[t / P];
+                }
+                const double *frames = rm->frames == FR_TRUTH ? F[q] : src[0];
+                if (k > 1 && rm->frames != FR_TRUTH) {
+                    mim_xfer_frames_blend(n, k, src, w, Fb);
+                    frames = Fb;
+                }
+                const double *Wq = rm->enc == EN_TRUTH ? WT[q] : W;
+                if (rm->enc == EN_DELTA || rm->enc == EN_DELTA_SCALED) {
+                    mim_xfer_encoding_relative(n, k, wp, wr, w, rm->enc == EN_DELTA_SCALED ? sc : NULL, W, Wx);
+                    Wq = Wx;
+                } else if (rm->enc == EN_DELTA_ROT) {
+                    double tw = 0;
+                    for (uint32_t j = 0; j < k; j++)
+                        tw += w[j];
+                    memcpy(Wx, W, 3 * sizeof(double) * n);
+                    for (uint32_t j = 0; j < k; j++)
+                        add_rotated(n, wp[j], wr[j], F[ref_of[(hh[j].id - 1) / P]], Fa, w[j] / tw * sc[j], Wx);
+                    Wq = Wx;
+                }
+                double t1 = mim_now();
+                if (mim_xfer_transfer(ls, Wq, n, frames, u, L, xo, out, NULL, &err)) {
+                    mim_index_close(&ix);
+                    goto fail;
+                }
+                record(&rows[N_METHOD + N_EXTRA + m], out, truth, region, n, t0, t1, mim_now());
             }
         }
         mim_index_close(&ix);
@@ -274,16 +527,30 @@ static int run_set(const bench_dataset_t *d, void *user)
                 method_name(ki, wt, corrected, name, sizeof name);
                 print_row(r, name);
             }
-    for (int x = 0; x < N_EXTRA; x++)
+    for (int x = 0; x < N_EXTRA && !new_only; x++)
         print_row(&rows[N_METHOD + x], extra_names[x]);
+    for (uint32_t m = 0; m < N_REL; m++)
+        print_row(&rows[N_METHOD + N_EXTRA + m], rel_methods[m].name);
+    if (other_pose)
+        printf("\n(--other-pose: the templates are the nearest over all angles in poses other than the query's.)\n");
+    if (no_rest_ref)
+        printf("\n(--no-rest-ref: %u references taken among poses other than A's rest.)\n", wrong_refs);
+    if (n_refd) {
+        double med = bench_median(refd, (int)n_refd);
+        printf("\nReference to A's rest, all-angle distance (rad): min %.3f median %.3f max %.3f\n", refd[0], med,
+               refd[n_refd - 1]);
+    }
+    printf("\nReferences: %u of A's rest queries' hits had pose 0; %u subjects missing from them took their pose 0.\n",
+           rest_right, ref_misses);
     rc = 0;
 fail:
     if (rc)
         fprintf(stderr, "bench: %s\n", mim_error_text(&err));
-    for (uint32_t m = 0; m < N_METHOD + N_EXTRA; m++)
+    for (uint32_t m = 0; m < N_ROWS; m++)
         bench_err_free(&rows[m].e), free(rows[m].t_prep), free(rows[m].t_key);
     for (uint32_t t = 0; t < T; t++)
-        free(F[t]);
+        free(F[t]), free(WT[t]);
+    free(WT), free(Wx), free(ang);
     for (int j = 0; j < K_ASK; j++)
         free(Fc[j]);
     free(F), free(lm), free(W), free(Fa), free(Fb), free(out), free(skin), free(region), free(ids), free(subj),
@@ -301,11 +568,17 @@ int main(int argc, char **argv)
     for (int i = 1; i < argc; i++) {
         if (bench_sets_arg(&sets, argc, argv, &i))
             continue;
-        if (!strcmp(argv[i], "--iterations") && i + 1 < argc) {
+        if (!strcmp(argv[i], "--new-only")) {
+            new_only = 1;
+        } else if (!strcmp(argv[i], "--other-pose")) {
+            other_pose = 1;
+        } else if (!strcmp(argv[i], "--no-rest-ref")) {
+            no_rest_ref = 1;
+        } else if (!strcmp(argv[i], "--iterations") && i + 1 < argc) {
             xo.max_iterations = (uint32_t)strtoul(argv[++i], NULL, 10);
             xo.tol = -1, xo.no_early_stop = 1;
         } else {
-            fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--iterations N]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--iterations N] [--new-only] [--other-pose] [--no-rest-ref]\n", argv[0]);
             return 2;
         }
     }

@@ -16,7 +16,10 @@
  * landmark skeleton to the frame's (mim_xfer_segment_correction: what a
  * vest's sensors would give, without the twist).
  *
- *   bench_keyframe [--vertices N] [--keys K]
+ * --relative off: the template drive without relative transfer (issue 15;
+ * the default is on, as mimic's).
+ *
+ *   bench_keyframe [--vertices N] [--keys K] [--relative on|off]
  * Prints a Markdown table of medians; never passes or fails. */
 #include "bench_data.h"
 #include "mim_db.h"
@@ -44,11 +47,14 @@ static double med(double *v, uint32_t n) { return bench_median(v, (int)n) * 1e3;
 int main(int argc, char **argv)
 {
     uint32_t vertices = 7000, keys = 600;
+    int relative = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--vertices") && i + 1 < argc) vertices = (uint32_t)atol(argv[++i]);
         else if (!strcmp(argv[i], "--keys") && i + 1 < argc) keys = (uint32_t)atol(argv[++i]);
+        else if (!strcmp(argv[i], "--relative") && i + 1 < argc && (!strcmp(argv[i + 1], "on") || !strcmp(argv[i + 1], "off")))
+            relative = strcmp(argv[++i], "on") ? -1 : 1;
         else {
-            fprintf(stderr, "usage: bench_keyframe [--vertices N] [--keys K]\n");
+            fprintf(stderr, "usage: bench_keyframe [--vertices N] [--keys K] [--relative on|off]\n");
             return 2;
         }
     }
@@ -104,7 +110,8 @@ int main(int argc, char **argv)
         for (int d = 0; d < 2; d++) {
             mim_session_request_t req = {.landmarks = u,
                                          .drive = d ? MIM_DRIVE_ORIENTATION : MIM_DRIVE_TEMPLATE,
-                                         .orientations = d ? R : NULL};
+                                         .orientations = d ? R : NULL,
+                                         .relative = relative};
             mim_session_report_t rep;
             double t0 = mim_now();
             if (mim_session_transfer(s, &req, out, &rep, &err)) {

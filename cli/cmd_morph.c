@@ -18,7 +18,7 @@ static void help(FILE *out)
     fprintf(out,
             "usage: mimic morph --store DIR --avatar (MESH|ID) --keys K1,K2,... --frames-between N\n"
             "                   [--method linear|frames] [--landmarks FILE.json] [--drive auto|template|orientation]\n"
-            "                   [--fps F] [--json] -o OUT.glb\n\n"
+            "                   [--relative on|off] [--fps F] [--json] -o OUT.glb\n\n"
             "Transfers the avatar into the pose of each key template, fills N poses between\n"
             "consecutive keys, and writes the sequence as a GLB animation (morph targets).\n\n"
             "  --store DIR          the template store\n"
@@ -36,6 +36,8 @@ static void help(FILE *out)
             "                       keys are the avatar's own frames turned per segment, one solve,\n"
             "                       and in-betweens slerp the rotations and solve again), template,\n"
             "                       or orientation (every frame needs orientations)\n"
+            "  --relative on|off    template-driven keys by relative transfer (the template's change from\n"
+            "                       its subject's template nearest the avatar's rest; default on)\n"
             "  --fps F              playback rate of the animation (default 30)\n"
             "  -o, --output OUT     a .glb file\n"
             "  --json               a JSON report on stdout (schemas/morph.schema.json)\n"
@@ -71,15 +73,15 @@ int mim_cmd_morph(int argc, char **argv)
         {"method", required_argument, 0, 'm'}, {"landmarks", required_argument, 0, 'l'},
         {"fps", required_argument, 0, 'r'},    {"output", required_argument, 0, 'o'},
         {"json", no_argument, 0, 'j'},         {"help", no_argument, 0, 'h'}, {"drive", required_argument, 0, 'd'},
-        {0, 0, 0, 0}};
+        {"relative", required_argument, 0, 'R'}, {0, 0, 0, 0}};
     const char *store = NULL, *avatar = NULL, *avatar_lm = NULL, *keys_arg = NULL, *lm_path = NULL, *outp = NULL;
     uint64_t between = 0, fps = 30, keys[KEYS_MAX];
     uint32_t n_keys = 0;
-    int have_between = 0, as_json = 0, c, drive = MIM_DRIVE_AUTO;
+    int have_between = 0, as_json = 0, c, drive = MIM_DRIVE_AUTO, relative = 1;
     mim_xfer_morph_method_t method = MIM_XFER_MORPH_FRAMES;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "s:a:k:n:m:l:r:o:jhd:", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "s:a:k:n:m:l:r:o:jhd:R:", longopts, NULL)) != -1) {
         if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
         else if (c == 'A') avatar_lm = optarg;
@@ -101,6 +103,8 @@ int mim_cmd_morph(int argc, char **argv)
             }
         } else if (c == 'd') {
             if (mim_cli_drive("morph", optarg, &drive)) return 2;
+        } else if (c == 'R') {
+            if (mim_cli_on_off("morph", "relative", optarg, &relative)) return 2;
         } else if (c == 'h') return help(stdout), 0;
         else {
             fprintf(stderr, "mimic morph: unknown or incomplete option '%s' (see mimic morph --help)\n",
@@ -163,14 +167,14 @@ int mim_cmd_morph(int argc, char **argv)
             rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for %zu frames of %u vertices", n_frames, n);
     }
     double t0 = mim_now();
-    uint32_t iterations = 0, oriented_keys = 0;
+    uint32_t iterations = 0, oriented_keys = 0, relative_keys = 0;
     uint8_t *oriented = calloc(n_keys, 1);
     if (!rc && !oriented) rc = mim_error_set(&err, MIM_ENOMEM, "out of memory");
     for (uint32_t k = 0; k < n_keys && !rc; k++) {
         float *u = klm + (size_t)k * 3 * nl, *x = kpos + (size_t)k * 3 * n;
         mim_session_request_t req = {.template_id = keys[k],
                                      .landmarks = lm_path ? lmf.positions + (size_t)k * 3 * nl : NULL,
-                                     .drive = (mim_session_drive_t)drive};
+                                     .drive = (mim_session_drive_t)drive, .relative = relative ? 1 : -1};
         if (lmf.orientations) { /* a frame without any: none present, the template drive (auto) */
             req.orientations = (const mim_quat *)lmf.orientations + (size_t)k * MIM_SEGMENTS;
             req.orient_present = lmf.orient_present + (size_t)k * MIM_SEGMENTS;
@@ -183,6 +187,7 @@ int mim_cmd_morph(int argc, char **argv)
             iterations += rep.xfer.iterations;
             oriented[k] = rep.drive == MIM_DRIVE_ORIENTATION;
             oriented_keys += oriented[k];
+            relative_keys += rep.relative;
             /* the key pose's landmarks, own frames and W, for the frames method */
             memcpy(u, rep.landmarks, 3 * (size_t)nl * sizeof *u);
             mim_xfer_frames(topo, x, F);
@@ -229,9 +234,9 @@ int mim_cmd_morph(int argc, char **argv)
     if (rc) {
         fprintf(stderr, "mimic morph: %s\n", mim_error_text(&err));
     } else if (as_json) {
-        json_t *j = json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:i, s:i, s:f}", "output", outp, "avatar", mim_session_avatar(s), "method",
+        json_t *j = json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:i, s:i, s:i, s:f}", "output", outp, "avatar", mim_session_avatar(s), "method",
                               method == MIM_XFER_MORPH_LINEAR ? "linear" : "frames", "keys", (int)n_keys,
-                              "oriented_keys", (int)oriented_keys,
+                              "oriented_keys", (int)oriented_keys, "relative_keys", (int)relative_keys,
                               "frames_between", (int)between, "frames", (int)n_frames, "key_iterations",
                               (int)iterations, "seconds", t_compute);
         char *txt = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;

@@ -22,7 +22,7 @@ static void help(FILE *out)
             "                   [--sessions FILE.json]\n"
             "                   [--key-rate auto|HZ] [--listen HOST:PORT] [--max-body BYTES]\n"
             "                   [--max-clients N] [--warm-start auto|on|off] [--drive auto|template|orientation]\n"
-            "                   [--blend K] [--segment-correction on|off]\n\n"
+            "                   [--blend K] [--segment-correction on|off] [--relative on|off]\n\n"
             "Serves pose transfer until Ctrl-C or SIGTERM: the web viewer at /, the avatar\n"
             "stream at /ws and the JSON API. Prints the viewer's URL on stdout.\n"
             "With --vest, every vest frame becomes landmarks on the avatar and one avatar\n"
@@ -60,6 +60,8 @@ static void help(FILE *out)
             "                       (default 1; mimic transfer --help)\n"
             "  --segment-correction on|off  each template's frames turned onto the landmarks first\n"
             "                       (default off)\n"
+            "  --relative on|off    the template drive by relative transfer (default on; mimic\n"
+            "                       transfer --help)\n"
             "  -h, --help           this help\n\n"
             "Routes (schemas/serve-*.schema.json, schemas/serve-ws-frame.md):\n"
             "  GET  /               the web viewer\n"
@@ -173,6 +175,7 @@ static int run(int argc, char **argv, spec_list_t *specs)
                                               {"drive", required_argument, 0, 'd'},
                                               {"blend", required_argument, 0, 'B'},
                                               {"segment-correction", required_argument, 0, 'C'},
+                                              {"relative", required_argument, 0, 'R'},
                                               {"session", required_argument, 0, 'S'},
                                               {"sessions", required_argument, 0, 'F'},
                                               {"help", no_argument, 0, 'h'},
@@ -182,7 +185,7 @@ static int run(int argc, char **argv, spec_list_t *specs)
     int c, rc = 0;
     optind = 0;
     opterr = 0;
-    while (!rc && (c = getopt_long(argc, argv, "s:a:l:b:v:p:k:c:w:d:B:C:S:F:h", longopts, NULL)) != -1) {
+    while (!rc && (c = getopt_long(argc, argv, "s:a:l:b:v:p:k:c:w:d:B:C:R:S:F:h", longopts, NULL)) != -1) {
         uint64_t v;
         if (c == 'S') rc = add_spec_text(specs, optarg);
         else if (c == 'F') rc = add_spec_file(specs, optarg);
@@ -215,6 +218,11 @@ static int run(int argc, char **argv, spec_list_t *specs)
         }
         else if (c == 'C') {
             if (mim_cli_on_off("serve", "segment-correction", optarg, &o.segment_correction)) return 2;
+        }
+        else if (c == 'R') {
+            int on;
+            if (mim_cli_on_off("serve", "relative", optarg, &on)) return 2;
+            o.relative = on ? 1 : -1;
         }
         else if (c == 'c') {
             if (mim_cli_number("serve", "max-clients", optarg, 1, 1000, &v)) return 2;

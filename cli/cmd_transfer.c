@@ -17,6 +17,7 @@ static void help(FILE *out)
     fprintf(out,
             "usage: mimic transfer --store DIR --avatar (MESH|ID) (--template ID[,ID...] | --landmarks FILE.json | both)\n"
             "                      [--drive auto|template|orientation] [--blend K] [--segment-correction on|off]\n"
+            "                      [--relative on|off]\n"
             "                      [--iterations N] [--tol T]\n"
             "                      [--formulation least-squares|square] [--json]\n"
             "                      -o OUT.(ply|obj|off|glb)\n\n"
@@ -42,6 +43,9 @@ static void help(FILE *out)
             "                       weighted by query distance (default %d; 1: the nearest alone)\n"
             "  --segment-correction on|off  turn each template's frames so that its landmark skeleton\n"
             "                       lies along the landmarks' before the solve (default off)\n"
+            "  --relative on|off    the template drive: the avatar's W plus the template's change from its\n"
+            "                       subject's template nearest the avatar's rest, and its turn on the\n"
+            "                       avatar's own frames (default on; off: the template's frames, rest W)\n"
             "  --iterations N       at most N solves (default %u)\n"
             "  --tol T              stop when no vertex moves more than T metres (default %g)\n"
             "  --formulation F      least-squares (default: the landmark rows stay in the objective)\n"
@@ -61,18 +65,19 @@ int mim_cmd_transfer(int argc, char **argv)
         {"formulation", required_argument, 0, 'f'}, {"output", required_argument, 0, 'o'},
         {"json", no_argument, 0, 'j'},             {"help", no_argument, 0, 'h'}, {"drive", required_argument, 0, 'd'},
         {"blend", required_argument, 0, 'b'},      {"segment-correction", required_argument, 0, 'C'},
+        {"relative", required_argument, 0, 'R'},
         {0, 0, 0, 0}};
     const char *store = NULL, *avatar = NULL, *avatar_lm = NULL, *tmpl_arg = NULL, *lm_path = NULL, *outp = NULL;
     uint64_t iterations = 0, blend = 0, tmpl_ids[MIM_XFER_BLEND_MAX];
     uint32_t n_tmpl = 0;
-    int correction = 0;
+    int correction = 0, relative = 1;
     double tol = 0.0;
     int as_json = 0, c;
     mim_xfer_formulation_t form = MIM_XFER_LEAST_SQUARES;
     optind = 0;
     opterr = 0;
     int drive = MIM_DRIVE_AUTO;
-    while ((c = getopt_long(argc, argv, "s:a:t:l:i:T:f:o:jhd:b:C:", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "s:a:t:l:i:T:f:o:jhd:b:C:R:", longopts, NULL)) != -1) {
         if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
         else if (c == 'A') avatar_lm = optarg;
@@ -84,6 +89,8 @@ int mim_cmd_transfer(int argc, char **argv)
             if (mim_cli_number("transfer", "blend", optarg, 1, MIM_XFER_BLEND_MAX, &blend)) return 2;
         } else if (c == 'C') {
             if (mim_cli_on_off("transfer", "segment-correction", optarg, &correction)) return 2;
+        } else if (c == 'R') {
+            if (mim_cli_on_off("transfer", "relative", optarg, &relative)) return 2;
         } else if (c == 'i') {
             if (mim_cli_number("transfer", "iterations", optarg, 1, 1000, &iterations)) return 2;
         } else if (c == 'T') {
@@ -155,7 +162,7 @@ int mim_cmd_transfer(int argc, char **argv)
     mim_session_report_t rep = {0};
     if (!rc) {
         mim_session_request_t req = {.template_ids = tmpl_ids, .n_templates = n_tmpl, .blend = (uint32_t)blend,
-                                     .segment_correction = correction,
+                                     .segment_correction = correction, .relative = relative ? 1 : -1,
                                      .landmarks = lm_path ? frames.positions : NULL,
                                      .xfer = {.max_iterations = (uint32_t)iterations, .tol = tol},
                                      .orientations = (const mim_quat *)frames.orientations,
@@ -193,6 +200,14 @@ int mim_cmd_transfer(int argc, char **argv)
         if (j) {
             json_object_set_new(j, "templates", ids);
             json_object_set_new(j, "segment_correction", json_boolean(rep.corrected));
+            json_t *refs = json_array();
+            for (uint32_t k = 0; rep.relative && k < rep.n_templates; k++)
+                json_array_append_new(refs, json_integer((json_int_t)rep.references[k]));
+            json_object_set_new(j, "relative", json_boolean(rep.relative));
+            json_object_set_new(j, "frames_turned", json_integer(rep.frames_turned));
+            json_object_set_new(j, "reference",
+                                rep.relative ? json_integer((json_int_t)rep.reference_id) : json_null());
+            json_object_set_new(j, "references", refs);
         } else {
             json_decref(ids);
         }
@@ -205,9 +220,13 @@ int mim_cmd_transfer(int argc, char **argv)
         char more[48] = "";
         if (rep.n_templates > 1)
             snprintf(more, sizeof more, " and %u more, blended", rep.n_templates - 1);
-        fprintf(stderr, "mimic transfer: %s -> %s in the pose of template %llu (%s)%s: %s drive, %u iterations (%s), %.2f ms\n",
+        char rel[96] = "";
+        if (rep.relative)
+            snprintf(rel, sizeof rel, ", relative to template %llu (frames %s)", (unsigned long long)rep.reference_id,
+                     rep.frames_turned == rep.n_templates ? "turned" : rep.frames_turned ? "partly turned" : "the template's");
+        fprintf(stderr, "mimic transfer: %s -> %s in the pose of template %llu (%s)%s%s: %s drive, %u iterations (%s), %.2f ms\n",
                 mim_session_avatar(s), outp, (unsigned long long)rep.template_id, rep.label,
-                more,
+                more, rel,
                 mim_session_drive_names[rep.drive], rep.xfer.iterations,
                 rep.drive == MIM_DRIVE_ORIENTATION ? "one solve"
                 : rep.xfer.converged     ? "converged"

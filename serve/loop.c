@@ -220,7 +220,7 @@ static int make_key(mim__loop_t *l, const float *u, const mim_quat *R, const uin
     key_pose_t *prev = &l->keys[l->cur], *k = &l->keys[!l->cur];
     mim_session_request_t req = {.landmarks = u, .orientations = R, .orient_present = have,
                                  .drive = (mim_session_drive_t)l->opt.drive, .blend = l->opt.blend,
-                                 .segment_correction = l->opt.segment_correction};
+                                 .segment_correction = l->opt.segment_correction, .relative = l->opt.relative};
     if (prev->valid && want_warm(l)) /* warm start: the same template as the last key frame */
         req.xfer.start = prev->pos, req.start_template = prev->template_id;
     mim_session_report_t *rep = &l->report;
@@ -608,6 +608,8 @@ int mim__loop_open(mim__loop_t **out, mim__vs_t *vs, const mim_serve_options_t *
     if (!ok)
         rc = mim_error_set(err, MIM_ENOMEM, "out of memory for the vest loop");
     const mim_error_t *why = NULL;
+    if (!rc && (opt->relative < -1 || opt->relative > 1))
+        rc = mim_error_set(err, MIM_EINVAL, "serve: relative %d (0 default, 1 on, -1 off)", opt->relative);
     if (!rc && opt->drive == MIM_DRIVE_ORIENTATION && !mim_session_skin(vs->s, &why, NULL))
         rc = mim_error_set(err, why->code, "--drive orientation: %s", mim_error_text(why));
     if (l) {

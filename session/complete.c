@@ -47,7 +47,7 @@ int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t
     const float *table;
     char *const *subjects;
     uint32_t n;
-    int rc = mim__session_landmark_table(s, &table, &subjects, &n, err);
+    int rc = mim__session_landmark_table(s, &table, &subjects, NULL, &n, err);
     if (rc) return rc;
     /* the seen landmarks, packed */
     float obs[3 * MIM_LANDMARKS_MAX], tl[3 * MIM_LANDMARKS_MAX], moved[3 * MIM_LANDMARKS_MAX];

@@ -129,6 +129,24 @@ extern const char *const mim_session_drive_names[3];
  * (bench/blend_accuracy.c, bench/RESULTS.md). */
 #define MIM_SESSION_DEFAULT_BLEND 1
 #define MIM_SESSION_BLEND_DISTANCE_FLOOR 1e-3 /* radians: two equal descriptors do not weigh infinitely */
+
+/* Relative transfer (issue 15; mim_xfer_encoding_relative): the template
+ * drive adds each template's change of encoding from its subject's
+ * reference (that subject's template nearest, over all index angles, to
+ * the avatar's rest landmarks), scaled by rms(W_avatar) / rms(W_ref), to
+ * the avatar's W, and turns the avatar's rest frames by the template's
+ * turn from its reference (mim_xfer_frames_relative) when the reference's
+ * pose is within MIM_SESSION_RELATIVE_GATE_DEG rms of the avatar's rest
+ * (a reference in another pose would carry that pose into the frames).
+ * W is only nearly pose-invariant: the avatar's rest W leaves about 20 mm
+ * even with perfect frames. Leave one subject out: 19.9 -> 0.7 mm (synth),
+ * 22.5 -> 2.5 mm (mh-bodies); without a rest-pose reference, the W change
+ * alone: 4.7 / 13.2 mm (bench/blend_accuracy.c). Hence on by default. A
+ * template without a subject label, or whose subject has no template of
+ * the store's connectivity, takes the plain path; so does a blend in
+ * which any template does. */
+#define MIM_SESSION_DEFAULT_RELATIVE 1
+#define MIM_SESSION_RELATIVE_GATE_DEG 8.0
 typedef struct mim_session_request {
     uint64_t template_id;    /* the pose's template; 0: the nearest one to landmarks, through the index */
     /* Templates to blend, given (n_templates, 1..MIM_XFER_BLEND_MAX; equal
@@ -150,6 +168,11 @@ typedef struct mim_session_request {
     const mim_quat *orientations;
     const uint8_t *orient_present;
     mim_session_drive_t drive;
+    /* The template drive's relative transfer: 0 default
+     * (MIM_SESSION_DEFAULT_RELATIVE: on), 1 on, -1 off (the template's
+     * frames and the avatar's rest W, as before issue 15). Other values:
+     * MIM_EINVAL. The orientation drive does not read it. */
+    int relative;
 } mim_session_request_t;
 
 #define MIM_SESSION_LABEL_MAX 160
@@ -169,6 +192,11 @@ typedef struct mim_session_report {
     mim_session_drive_t drive;        /* the drive used: MIM_DRIVE_TEMPLATE or MIM_DRIVE_ORIENTATION */
     uint32_t orient_filled;           /* lost segments that took a neighbour's rotation */
     uint32_t orient_from_template;    /* vertices whose frames came from the template (no neighbour) */
+    int relative;                     /* 1: relative transfer (the templates' change of W from their references) */
+    uint32_t frames_turned;           /* with relative: templates whose frames were the avatar's rest frames
+                                         turned (reference within the gate); the others gave their own */
+    uint64_t reference_id;            /* with relative: the first template's reference; else 0 */
+    uint64_t references[MIM_XFER_BLEND_MAX]; /* each template's (n_templates) */
 } mim_session_report_t;
 
 /* Transfers the avatar into one pose and writes its 3 * n positions to out:
@@ -176,6 +204,11 @@ typedef struct mim_session_report {
  * blended: template_ids, blend), its frames (the last templates' are kept
  * between calls), the landmarks (given, or mode (a) from the first
  * template), then the iterated solve with the cached factor (seed 000, eq. 3).
+ * By default relative (req->relative; MIM_SESSION_DEFAULT_RELATIVE says
+ * what): the solve takes the avatar's W plus the templates' change from
+ * their references, and the frames turned from the avatar's own; each
+ * subject's reference is found on the first transfer that needs it (the
+ * first call also reads every template's landmarks, as completion does).
  * The orientation drive (req->drive, req->orientations) still finds the
  * template (the pose's label and id), but the frames are the avatar's own
  * rest frames turned per segment, and one solve with the landmarks gives
@@ -185,7 +218,7 @@ typedef struct mim_session_report {
  * and, asked for explicitly, a segmented avatar (the reason, MIM_ENOLANDMARKS
  * or the skeleton's code).
  * report may be NULL. Errors: MIM_EINVAL with neither a template nor
- * landmarks, or before mim_session_load_avatar; MIM_ENOTFOUND for an unknown template, or for landmarks
+ * landmarks, a relative other than -1, 0 or 1, or before mim_session_load_avatar; MIM_ENOTFOUND for an unknown template, or for landmarks
  * alone when the store has no index ("store has no index (run mimic
  * index)"); the query's and the solver's own (MIM_ENONFINITE, ...). */
 int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, float *out,

@@ -6,6 +6,7 @@
 
 #include "mim_schema_version.h"
 
+#include "mim_index.h"
 #include "mim_ingest.h"
 #include "mim_io.h"
 #include "mim_register.h"
@@ -18,14 +19,33 @@
 #include <string.h>
 
 /* A template read for transfers: its positions and frames, and its frames
- * turned by the segment correction (allocated on first use). */
+ * turned by the segment correction (allocated on first use). For relative
+ * transfer also its W and its turn on the avatar's rest frames, made on
+ * first use and kept with the slot (they depend only on the template, its
+ * reference and the avatar: a held pose pays for them once). */
 typedef struct template_slot {
     uint64_t id;                /* 0: empty */
     uint64_t used;              /* the session's tick when last used */
     float *pos;                 /* 3 * n */
     double *F, *cF;             /* 9 * n each */
+    double *W;                  /* 3 * n, valid when has_W */
+    double *rF;                 /* 9 * n, valid when has_rF */
+    int has_W, has_rF;
     char label[MIM_SESSION_LABEL_MAX];
 } template_slot_t;
+
+/* A template subject's reference for relative transfer: its template
+ * nearest to the avatar's rest landmarks (over all index angles). Per
+ * session, as it depends on the avatar; found on first need. id 0: none
+ * (the subject's templates have no usable landmarks): the plain path. */
+typedef struct subject_ref {
+    char *subject;
+    uint64_t id;
+    int near;                   /* its pose within MIM_SESSION_RELATIVE_GATE_DEG rms of the avatar's rest */
+    double scale;               /* mim_xfer_encoding_scale (NaN: the blend takes 1) */
+    double *W;                  /* its encoding, 3 * n */
+    double *F;                  /* its frames, 9 * n; only when near (nothing else reads them) */
+} subject_ref_t;
 
 struct mim_session {
     /* A fork (mim_session_fork) shares its base's store, index, connectivity
@@ -53,6 +73,7 @@ struct mim_session {
     uint32_t table_count, table_cap;
     float *table_lm;
     char **table_subject;
+    uint64_t *table_id;         /* ascending (the store's id order) */
     double *W;                  /* the avatar's encoding, 3 * n */
     double *restF;              /* the avatar's rest frames, 9 * n (the orientation drive turns them) */
     mim_xfer_skin_t *skin;      /* its segmentation over the 17 vest segments; NULL: skin_failed says why */
@@ -70,6 +91,10 @@ struct mim_session {
     uint64_t tick;              /* the slots' clock (least recently used goes first) */
     double *bF;                 /* 9 * n: the blended templates' frames */
     double *oF;                 /* 9 * n: the orientation drive's frames */
+    double *rW;                 /* 3 * n: relative transfer's W */
+    subject_ref_t *refs;        /* the template subjects' references met so far */
+    uint32_t n_refs, cap_refs;
+    float *rest_angles;         /* the avatar's rest landmarks' angles (mim_index_angle_count), on first need */
     uint64_t label_id;          /* 0, or the template whose "subject/pose" label holds */
     char label[MIM_SESSION_LABEL_MAX];
 };
@@ -476,7 +501,8 @@ int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *e
         s->W = malloc(3 * (size_t)n * sizeof *s->W);
         s->bF = malloc(9 * (size_t)n * sizeof *s->bF);
         s->oF = malloc(9 * (size_t)n * sizeof *s->oF);
-        if (!s->W || !s->bF || !s->oF)
+        s->rW = malloc(3 * (size_t)n * sizeof *s->rW);
+        if (!s->W || !s->bF || !s->oF || !s->rW)
             return mim_error_set(err, MIM_ENOMEM, "out of memory for %u vertices", n);
     }
     int rc = load_avatar(s, avatar, err);
@@ -507,13 +533,16 @@ void mim_session_close(mim_session_t **ps)
     mim_reg_binding_free(&s->binding);
     free(s->out_work);
     for (int k = 0; k < MIM_XFER_BLEND_MAX; k++)
-        free(s->slot[k].pos), free(s->slot[k].F), free(s->slot[k].cF);
+        free(s->slot[k].pos), free(s->slot[k].F), free(s->slot[k].cF), free(s->slot[k].W), free(s->slot[k].rF);
+    for (uint32_t i = 0; i < s->n_refs; i++)
+        free(s->refs[i].subject), free(s->refs[i].W), free(s->refs[i].F);
+    free(s->refs), free(s->rest_angles), free(s->rW);
     free(s->W), free(s->bF), free(s->oF), free(s->restF), free(s->skin);
     pthread_mutex_destroy(&s->lock);
     pthread_mutex_destroy(&s->out_lock);
     pthread_mutex_destroy(&s->table_lock);
     for (uint32_t i = 0; i < s->table_count; i++) free(s->table_subject[i]);
-    free(s->table_subject), free(s->table_lm);
+    free(s->table_subject), free(s->table_lm), free(s->table_id);
     free(s);
     *ps = NULL;
 }
@@ -630,7 +659,7 @@ static int cache_template(mim_session_t *s, uint64_t id, uint32_t slots, templat
             slot = &s->slot[k];
     }
     const size_t n = s->mesh.n_vertices;
-    slot->id = 0;
+    slot->id = 0, slot->has_W = slot->has_rF = 0;
     if (!slot->pos && !(slot->pos = malloc(3 * n * sizeof *slot->pos)))
         return mim_error_set(err, MIM_ENOMEM, "out of memory for a template of %zu vertices", n);
     if (!slot->F && !(slot->F = malloc(9 * n * sizeof *slot->F)))
@@ -641,6 +670,111 @@ static int cache_template(mim_session_t *s, uint64_t id, uint32_t slots, templat
     slot->id = id, slot->used = ++s->tick;
     *out = slot;
     return 0;
+}
+
+/* The rms difference (radians) of two angle descriptors over the angles
+ * both have (a degenerate landmark triple is NaN); NaN when none. */
+static double angles_rms(const float *a, const float *b, uint32_t na)
+{
+    double d = 0;
+    uint32_t m = 0;
+    for (uint32_t i = 0; i < na; i++)
+        if (isfinite(a[i]) && isfinite(b[i]))
+            d += ((double)a[i] - b[i]) * ((double)a[i] - b[i]), m++;
+    return m ? sqrt(d / m) : NAN;
+}
+
+/* The reference of subject `subject` (under s->lock): its template of the
+ * store's connectivity nearest to the avatar's rest landmarks, its W and
+ * scale, and its frames when within the gate. Appended to s->refs. */
+static int make_reference(mim_session_t *s, const char *subject, const float *table, char *const *subjects,
+                          const uint64_t *ids, uint32_t count, subject_ref_t **out, mim_error_t *err)
+{
+    const uint32_t n = s->mesh.n_vertices, L = s->map.count, na = mim_index_angle_count(L);
+    if (s->n_refs == s->cap_refs) {
+        uint32_t cap = s->cap_refs ? 2 * s->cap_refs : 8;
+        subject_ref_t *r = realloc(s->refs, cap * sizeof *r);
+        if (!r) return mim_error_set(err, MIM_ENOMEM, "out of memory for a reference");
+        s->refs = r, s->cap_refs = cap;
+    }
+    subject_ref_t *ref = &s->refs[s->n_refs];
+    *ref = (subject_ref_t){.subject = strdup(subject), .scale = NAN};
+    float *ang = malloc(na * sizeof *ang);
+    if (!s->rest_angles && (s->rest_angles = malloc(na * sizeof *s->rest_angles))) {
+        float lm[3 * MIM_LANDMARKS_MAX];
+        for (uint32_t l = 0; l < L; l++)
+            memcpy(lm + 3 * l, s->mesh.positions + 3 * (size_t)s->map.vertex[l], 3 * sizeof *lm);
+        mim_index_angles(lm, NULL, L, s->rest_angles);
+    }
+    if (!ref->subject || !ang || !s->rest_angles) {
+        free(ref->subject), free(ang);
+        return mim_error_set(err, MIM_ENOMEM, "out of memory for a reference");
+    }
+    double best = INFINITY;
+    for (uint32_t i = 0; i < count; i++) {
+        if (strcmp(subjects[i], subject))
+            continue;
+        mim_index_angles(table + 3 * (size_t)L * i, NULL, L, ang);
+        double d = angles_rms(ang, s->rest_angles, na);
+        if (d < best)
+            best = d, ref->id = ids[i];
+    }
+    free(ang);
+    int rc = 0;
+    if (ref->id) {
+        ref->near = best < MIM_SESSION_RELATIVE_GATE_DEG * M_PI / 180;
+        float *pos = malloc(3 * (size_t)n * sizeof *pos);
+        double *F = malloc(9 * (size_t)n * sizeof *F);
+        ref->W = malloc(3 * (size_t)n * sizeof *ref->W);
+        rc = pos && F && ref->W ? 0 : mim_error_set(err, MIM_ENOMEM, "out of memory for a reference");
+        if (!rc) /* W as the avatar's own is made, so that a reference that is the avatar changes nothing */
+            rc = mim_session_template(s, ref->id, pos, F, NULL, 0, err);
+        if (!rc) {
+            mim_xfer_encode(s->topo, pos, F, ref->W);
+            ref->scale = mim_xfer_encoding_scale(n, s->W, ref->W);
+        }
+        free(pos);
+        if (!rc && ref->near)
+            ref->F = F, F = NULL;
+        free(F);
+    }
+    if (rc) {
+        free(ref->subject), free(ref->W), free(ref->F);
+        return rc;
+    }
+    s->n_refs++;
+    *out = ref->id ? ref : NULL;
+    return 0;
+}
+
+/* Template id's reference (under s->lock), found on first need; *out NULL
+ * when it has none: no subject label, not in the store's landmark table
+ * (another connectivity), or the table cannot be read (a damaged template
+ * elsewhere in the store must not stop transfers: the plain path). */
+static int reference_of(mim_session_t *s, uint64_t id, subject_ref_t **out, mim_error_t *err)
+{
+    *out = NULL;
+    const float *table;
+    char *const *subjects;
+    const uint64_t *ids;
+    uint32_t count;
+    mim_error_t terr = {0};
+    if (mim__session_landmark_table(s, &table, &subjects, &ids, &count, &terr))
+        return 0;
+    uint32_t lo = 0, hi = count; /* ids ascend */
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (ids[mid] < id) lo = mid + 1;
+        else hi = mid;
+    }
+    if (lo == count || ids[lo] != id || !subjects[lo][0])
+        return 0;
+    for (uint32_t i = 0; i < s->n_refs; i++)
+        if (!strcmp(s->refs[i].subject, subjects[lo])) {
+            *out = s->refs[i].id ? &s->refs[i] : NULL;
+            return 0;
+        }
+    return make_reference(s, subjects[lo], table, subjects, ids, count, out, err);
 }
 
 /* The orientation drive's frames into s->oF (under s->lock): lost
@@ -677,17 +811,30 @@ static int orientation_frames(mim_session_t *s, const mim_session_request_t *req
     return 0;
 }
 
-/* The template drive's frames (under s->lock): each template's, turned by
- * the segment correction from its landmark skeleton onto the targets u when
- * the avatar is segmented, then blended with these weights (issue 15).
- * *frames points at them; the first template's slot in *first. */
+/* The template drive's frames and W (under s->lock): each template's
+ * frames, or with relative transfer the avatar's rest frames turned by the
+ * template's turn from its reference (within the gate); then turned by the
+ * segment correction from its landmark skeleton onto the targets u when
+ * the avatar is segmented; then blended with these weights (issue 15).
+ * *frames points at them, *W at the avatar's W or, relative, its W plus
+ * the templates' change; the first template's slot in *first. */
 static int template_frames(mim_session_t *s, const mim_session_request_t *req, mim_session_report_t *r,
-                           const double *weights, const float *u, const double **frames, template_slot_t **first,
-                           mim_error_t *err)
+                           const double *weights, const float *u, const double **frames, const double **W,
+                           template_slot_t **first, mim_error_t *err)
 {
     const uint32_t n = s->mesh.n_vertices, nl = s->map.count;
-    const double *src[MIM_XFER_BLEND_MAX];
+    const double *src[MIM_XFER_BLEND_MAX], *wp[MIM_XFER_BLEND_MAX], *wr[MIM_XFER_BLEND_MAX];
+    double scale[MIM_XFER_BLEND_MAX];
+    subject_ref_t *ref[MIM_XFER_BLEND_MAX];
     int correct = s->skin && u && req->segment_correction;
+    int relative = (req->relative ? req->relative : MIM_SESSION_DEFAULT_RELATIVE) > 0;
+    for (uint32_t j = 0; relative && j < r->n_templates; j++) {
+        int rc = reference_of(s, r->templates[j], &ref[j], err);
+        if (rc)
+            return rc;
+        relative = ref[j] != NULL; /* all or none: a blend of changes and shapes would mix two meanings */
+    }
+    *W = s->W;
     for (uint32_t j = 0; j < r->n_templates; j++) {
         template_slot_t *t;
         int rc = cache_template(s, r->templates[j], r->n_templates, &t, err);
@@ -696,6 +843,24 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
         if (!j)
             *first = t;
         src[j] = t->F;
+        if (relative) {
+            if (!t->has_W) {
+                if (!t->W && !(t->W = malloc(3 * (size_t)n * sizeof *t->W)))
+                    return mim_error_set(err, MIM_ENOMEM, "out of memory for a template of %u vertices", n);
+                mim_xfer_encode(s->topo, t->pos, t->F, t->W);
+                t->has_W = 1;
+            }
+            if (ref[j]->near && !t->has_rF) {
+                if (!t->rF && !(t->rF = malloc(9 * (size_t)n * sizeof *t->rF)))
+                    return mim_error_set(err, MIM_ENOMEM, "out of memory for a template of %u vertices", n);
+                mim_xfer_frames_relative(n, t->F, ref[j]->F, s->restF, t->rF);
+                t->has_rF = 1;
+            }
+            if (ref[j]->near)
+                src[j] = t->rF, r->frames_turned++;
+            wp[j] = t->W, wr[j] = ref[j]->W, scale[j] = ref[j]->scale;
+            r->references[j] = ref[j]->id;
+        }
         if (!correct)
             continue;
         if (!t->cF && !(t->cF = malloc(9 * (size_t)n * sizeof *t->cF)))
@@ -711,10 +876,15 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
         }
         if (rc)
             return mim_error_set(err, rc, "%s", mim_error_text(&cerr));
-        mim_xfer_skin_frames(n, s->skin, t->F, R, t->cF);
+        mim_xfer_skin_frames(n, s->skin, src[j], R, t->cF);
         src[j] = t->cF;
     }
     r->corrected = correct;
+    if (relative) {
+        mim_xfer_encoding_relative(n, r->n_templates, wp, wr, weights, scale, s->W, s->rW);
+        *W = s->rW;
+        r->relative = 1, r->reference_id = r->references[0];
+    }
     if (r->n_templates == 1) {
         *frames = src[0];
         return 0;
@@ -735,6 +905,8 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
         return mim_error_set(err, MIM_EINVAL, "transfer: give a template, landmarks, or both");
     if (req->drive < MIM_DRIVE_AUTO || req->drive > MIM_DRIVE_ORIENTATION)
         return mim_error_set(err, MIM_EINVAL, "transfer: unknown drive %d", (int)req->drive);
+    if (req->relative < -1 || req->relative > 1)
+        return mim_error_set(err, MIM_EINVAL, "transfer: relative %d (0 default, 1 on, -1 off)", req->relative);
     if (req->n_templates && !req->template_ids)
         return mim_error_set(err, MIM_EINVAL, "transfer: %u templates to blend, but no ids", req->n_templates);
     if (req->n_templates > MIM_XFER_BLEND_MAX || req->blend > MIM_XFER_BLEND_MAX)
@@ -785,7 +957,7 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
     const uint32_t n = s->mesh.n_vertices, nl = s->map.count;
     float *u = r->landmarks;
     pthread_mutex_lock(&s->lock);
-    const double *frames = NULL;
+    const double *frames = NULL, *W = s->W;
     template_slot_t *first = NULL;
     if (r->drive == MIM_DRIVE_ORIENTATION) {
         r->n_templates = 1;
@@ -814,7 +986,7 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
         else if (!rc) /* mode (a): the first template's landmarks on the avatar's proportions */
             rc = mim_xfer_retarget_landmarks(&s->map, s->mesh.positions, t0slot->pos, u, err);
         if (!rc)
-            rc = template_frames(s, req, r, weights, u, &frames, &first, err);
+            rc = template_frames(s, req, r, weights, u, &frames, &W, &first, err);
         if (!rc)
             snprintf(r->label, sizeof r->label, "%s", first->label);
     }
@@ -827,7 +999,7 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
         xo.max_iterations = 1, xo.start = NULL;
     r->warm_started = xo.start != NULL;
     if (!rc)
-        rc = mim_xfer_transfer(s->solver, s->W, n, frames, u, nl, &xo, out, &r->xfer, err);
+        rc = mim_xfer_transfer(s->solver, W, n, frames, u, nl, &xo, out, &r->xfer, err);
     pthread_mutex_unlock(&s->lock);
     r->seconds_solve = mim_now() - t2;
     return rc;
@@ -892,7 +1064,9 @@ static int table_add(const mim_template_view_t *v, void *user)
         if (lm) s->table_lm = lm;
         char **sub = realloc(s->table_subject, cap * sizeof *sub);
         if (sub) s->table_subject = sub;
-        if (!lm || !sub) return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
+        uint64_t *id = realloc(s->table_id, cap * sizeof *id);
+        if (id) s->table_id = id;
+        if (!lm || !sub || !id) return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
         s->table_cap = cap;
     }
     for (uint32_t l = 0; l < L; l++)
@@ -900,12 +1074,13 @@ static int table_add(const mim_template_view_t *v, void *user)
                3 * sizeof(float));
     if (!(s->table_subject[s->table_count] = strdup(v->subject)))
         return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
+    s->table_id[s->table_count] = v->id;
     s->table_count++;
     return 0;
 }
 
-int mim__session_landmark_table(mim_session_t *s, const float **lm, char *const **subjects, uint32_t *count,
-                                mim_error_t *err)
+int mim__session_landmark_table(mim_session_t *s, const float **lm, char *const **subjects, const uint64_t **ids,
+                                uint32_t *count, mim_error_t *err)
 {
     if (s->base) /* one table for every session of a store */
         s = s->base;
@@ -929,6 +1104,7 @@ int mim__session_landmark_table(mim_session_t *s, const float **lm, char *const 
         }
     }
     *lm = s->table_lm, *subjects = s->table_subject, *count = s->table_count;
+    if (ids) *ids = s->table_id;
     pthread_mutex_unlock(&s->table_lock);
     return rc;
 }

@@ -81,6 +81,119 @@ static void test_blend_rotations(void **state)
     assert_true(angle_between(mim_quat_from_matrix(C + 9 * (NV - 1)), mim_quat_axis_angle(axis, 0.5)) < 1e-9);
 }
 
+static void frame_of_quat(mim_quat q, double *F) { mim_quat_to_matrix(q, F); }
+
+/* out_i = P_i R_i^T A_i: a template turned by G_i from its reference turns
+ * the avatar's frames by G_i, whatever the three bodies' own frames are.
+ * Angles to 1e-6: acos near 1 turns 1e-16 of rounding into 3e-8 rad. */
+static void test_frames_relative(void **state)
+{
+    (void)state;
+    double P[9 * NV], R[9 * NV], A[9 * NV], out[9 * NV];
+    mim_quat G[NV], a[NV];
+    for (int i = 0; i < NV; i++) {
+        mim_quat r = mim_quat_axis_angle(mim_v3(1, i, 0.5), 0.3 + 0.4 * i);
+        G[i] = mim_quat_axis_angle(mim_v3(-0.2, 1, i), 0.2 * (i + 1));
+        a[i] = mim_quat_axis_angle(mim_v3(0, 0.3, 1), -0.7 + 0.1 * i);
+        frame_of_quat(r, R + 9 * i);
+        frame_of_quat(mim_quat_mul(G[i], r), P + 9 * i);
+        frame_of_quat(a[i], A + 9 * i);
+    }
+    mim_xfer_frames_relative(NV, P, R, A, out);
+    for (int i = 0; i < NV; i++)
+        assert_true(angle_between(mim_quat_from_matrix(out + 9 * i), mim_quat_mul(G[i], a[i])) < 1e-6);
+    /* not turned (pose = reference): the avatar's own frames */
+    mim_xfer_frames_relative(NV, R, R, A, out);
+    for (int i = 0; i < 9 * NV; i++) assert_true(fabs(out[i] - A[i]) < 1e-12);
+    /* in place over the avatar's */
+    mim_xfer_frames_relative(NV, P, R, A, A);
+    for (int i = 0; i < NV; i++)
+        assert_true(angle_between(mim_quat_from_matrix(A + 9 * i), mim_quat_mul(G[i], a[i])) < 1e-6);
+}
+
+/* An octahedron: the frames of a mesh turned rigidly are its frames turned,
+ * and its encoding W does not change, so the relative frames of a turned
+ * template carry the turn to another body and its encoding change is 0. */
+static void test_relative_on_meshes(void **state)
+{
+    (void)state;
+    static const uint32_t faces[24] = {0, 2, 4, 2, 1, 4, 1, 3, 4, 3, 0, 4, 2, 0, 5, 1, 2, 5, 3, 1, 5, 0, 3, 5};
+    static const float X[18] = {1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1};
+    float Y[18], GX[18];
+    mim_quat g = mim_quat_axis_angle(mim_v3(0.3, 1, 0.2), 0.9);
+    for (int i = 0; i < 6; i++) {
+        mim_vec3 r = mim_quat_rotate(g, mim_v3(X[3 * i], X[3 * i + 1], X[3 * i + 2]));
+        GX[3 * i] = (float)r.x, GX[3 * i + 1] = (float)r.y, GX[3 * i + 2] = (float)r.z;
+        Y[3 * i] = 1.3f * X[3 * i], Y[3 * i + 1] = 0.8f * X[3 * i + 1], Y[3 * i + 2] = X[3 * i + 2] + 0.1f * (float)i;
+    }
+    mim_xfer_topology_t *t = NULL;
+    mim_error_t err = {0};
+    assert_int_equal(mim_xfer_topology_open(&t, 6, faces, 8, &err), 0);
+    double FX[54], FGX[54], FY[54], out[54], WX[18], WGX[18], WY[18], Wout[18];
+    mim_xfer_frames(t, X, FX);
+    mim_xfer_frames(t, GX, FGX);
+    mim_xfer_frames(t, Y, FY);
+    mim_xfer_frames_relative(6, FGX, FX, FY, out);
+    for (int i = 0; i < 6; i++) {
+        mim_quat want = mim_quat_mul(g, mim_quat_from_matrix(FY + 9 * i));
+        assert_true(angle_between(mim_quat_from_matrix(out + 9 * i), want) < 1e-6);
+    }
+    mim_xfer_encode(t, X, FX, WX);
+    mim_xfer_encode(t, GX, FGX, WGX);
+    mim_xfer_encode(t, Y, FY, WY);
+    const double *wp[1] = {WGX}, *wr[1] = {WX};
+    mim_xfer_encoding_relative(6, 1, wp, wr, NULL, NULL, WY, Wout);
+    for (int i = 0; i < 18; i++) assert_true(fabs(Wout[i] - WY[i]) < 1e-6);
+    mim_xfer_topology_close(&t);
+}
+
+static void test_encoding_relative(void **state)
+{
+    (void)state;
+    enum { N = 4 };
+    double Wa[3 * N], P1[3 * N], R1[3 * N], P2[3 * N], R2[3 * N], out[3 * N];
+    for (int i = 0; i < 3 * N; i++) {
+        Wa[i] = 0.1 * i, R1[i] = -0.5 * i, P1[i] = R1[i] + 1, R2[i] = 2.0 + i, P2[i] = R2[i] + 3;
+    }
+    const double *wp[2] = {P1, P2}, *wr[2] = {R1, R2};
+    /* equal weights: the mean change, 2 */
+    mim_xfer_encoding_relative(N, 2, wp, wr, NULL, NULL, Wa, out);
+    for (int i = 0; i < 3 * N; i++) assert_true(fabs(out[i] - (Wa[i] + 2)) < 1e-12);
+    /* weights 1:3: 2.5 */
+    const double w13[2] = {1, 3};
+    mim_xfer_encoding_relative(N, 2, wp, wr, w13, NULL, Wa, out);
+    for (int i = 0; i < 3 * N; i++) assert_true(fabs(out[i] - (Wa[i] + 2.5)) < 1e-12);
+    /* scales: (2 * 1 + 3) / 2, a NaN scale counting 1 */
+    const double sc[2] = {2, NAN};
+    mim_xfer_encoding_relative(N, 2, wp, wr, NULL, sc, Wa, out);
+    for (int i = 0; i < 3 * N; i++) assert_true(fabs(out[i] - (Wa[i] + 2.5)) < 1e-12);
+    /* a zero or NaN weight counts nothing; none positive, or k = 0: W_avatar */
+    const double w0[2] = {0, 1}, wbad[2] = {NAN, -1};
+    mim_xfer_encoding_relative(N, 2, wp, wr, w0, NULL, Wa, out);
+    for (int i = 0; i < 3 * N; i++) assert_true(fabs(out[i] - (Wa[i] + 3)) < 1e-12);
+    memset(out, 0, sizeof out);
+    mim_xfer_encoding_relative(N, 2, wp, wr, wbad, NULL, Wa, out);
+    assert_memory_equal(out, Wa, sizeof Wa);
+    memset(out, 0, sizeof out);
+    mim_xfer_encoding_relative(N, 0, wp, wr, NULL, NULL, Wa, out);
+    assert_memory_equal(out, Wa, sizeof Wa);
+    /* in place over the avatar's */
+    double Wb[3 * N];
+    memcpy(Wb, Wa, sizeof Wa);
+    mim_xfer_encoding_relative(N, 1, wp, wr, NULL, NULL, Wb, Wb);
+    for (int i = 0; i < 3 * N; i++) assert_true(fabs(Wb[i] - (Wa[i] + 1)) < 1e-12);
+    /* the scale: rms ratio; NaN when it cannot tell */
+    double half[3 * N], zero[3 * N] = {0};
+    for (int i = 0; i < 3 * N; i++) half[i] = -0.5 * Wa[i];
+    assert_true(fabs(mim_xfer_encoding_scale(N, Wa, half) - 2) < 1e-12);
+    assert_true(fabs(mim_xfer_encoding_scale(N, half, Wa) - 0.5) < 1e-12);
+    assert_true(isnan(mim_xfer_encoding_scale(N, Wa, zero)));
+    half[5] = INFINITY;
+    assert_true(isnan(mim_xfer_encoding_scale(N, Wa, half)));
+    half[5] = 0, Wb[0] = NAN;
+    assert_true(isnan(mim_xfer_encoding_scale(N, Wb, half)));
+}
+
 /* A landmark skeleton (the 16 default names, default order) standing in
  * an A-pose: x is the body's left, y up. */
 static void skeleton(float *lm)
@@ -148,6 +261,9 @@ int main(void)
         cmocka_unit_test(test_quat_between),
         cmocka_unit_test(test_blend_rotations),
         cmocka_unit_test(test_segment_correction),
+        cmocka_unit_test(test_frames_relative),
+        cmocka_unit_test(test_relative_on_meshes),
+        cmocka_unit_test(test_encoding_relative),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -18,7 +18,16 @@
  * shortest arc from the parent-turned bone to the target's bone, so a
  * bone's twist, which landmarks cannot see, is the parent's. A hand and a
  * foot have no landmark beyond the wrist or the ankle: they take the
- * forearm's and the shin's. */
+ * forearm's and the shin's.
+ *
+ * Relative transfer (deformation transfer): what a template's subject did
+ * from its reference (itself in the avatar's rest pose) to the pose, done
+ * to the avatar: its frames' turn P R^T on the avatar's rest frames, and
+ * its encoding's change W_pose - W_ref added to the avatar's W. Unlike the
+ * template's own frames this carries no foreign build, and the change of
+ * W (folds at bent joints) is what one template cannot give at all: with
+ * the avatar's rest W even its own true frames leave about 20 mm
+ * (bench/blend_accuracy.c). */
 #include "internal.h"
 
 #include <math.h>
@@ -133,4 +142,52 @@ int mim_xfer_segment_correction(const mim_landmark_map_t *map, const float *from
         }
     }
     return 0;
+}
+
+void mim_xfer_frames_relative(uint32_t n_vertices, const double *pose, const double *ref, const double *avatar_rest,
+                              double *out)
+{
+    for (size_t i = 0; i < n_vertices; i++) {
+        const double *P = pose + 9 * i, *R = ref + 9 * i, *A = avatar_rest + 9 * i;
+        double C[9], o[9]; /* C = R^T A, o = P C; column-major, M[r][c] = M[3c + r] */
+        for (int c = 0; c < 3; c++)
+            for (int r = 0; r < 3; r++)
+                C[3 * c + r] = R[3 * r] * A[3 * c] + R[3 * r + 1] * A[3 * c + 1] + R[3 * r + 2] * A[3 * c + 2];
+        for (int c = 0; c < 3; c++)
+            for (int r = 0; r < 3; r++)
+                o[3 * c + r] = P[r] * C[3 * c] + P[3 + r] * C[3 * c + 1] + P[6 + r] * C[3 * c + 2];
+        memcpy(out + 9 * i, o, sizeof o);
+    }
+}
+
+void mim_xfer_encoding_relative(uint32_t n_vertices, uint32_t k, const double *const *W_pose,
+                                const double *const *W_ref, const double *weights, const double *scale,
+                                const double *W_avatar, double *out)
+{
+    double w[MIM_XFER_BLEND_MAX], total = 0;
+    k = k > MIM_XFER_BLEND_MAX ? MIM_XFER_BLEND_MAX : k;
+    for (uint32_t j = 0; j < k; j++)
+        total += w[j] = weights && weights[j] > 0 && isfinite(weights[j]) ? weights[j] : weights ? 0.0 : 1.0;
+    if (out != W_avatar)
+        memcpy(out, W_avatar, 3 * (size_t)n_vertices * sizeof *out);
+    if (!(total > 0))
+        return;
+    for (uint32_t j = 0; j < k; j++) {
+        const double c = w[j] / total * (scale && isfinite(scale[j]) ? scale[j] : 1.0);
+        if (c == 0)
+            continue;
+        const double *a = W_pose[j], *b = W_ref[j];
+        for (size_t i = 0; i < 3 * (size_t)n_vertices; i++)
+            out[i] += c * (a[i] - b[i]);
+    }
+}
+
+double mim_xfer_encoding_scale(uint32_t n_vertices, const double *W_avatar, const double *W_ref)
+{
+    double a = 0, r = 0;
+    for (size_t i = 0; i < 3 * (size_t)n_vertices; i++)
+        a += W_avatar[i] * W_avatar[i], r += W_ref[i] * W_ref[i];
+    if (!isfinite(a) || !isfinite(r) || !(r > 0))
+        return NAN;
+    return sqrt(a / r);
 }

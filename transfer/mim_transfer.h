@@ -241,6 +241,31 @@ void mim_xfer_frames_blend(uint32_t n_vertices, uint32_t k, const double *const 
  * missing from map), MIM_ENONFINITE. */
 int mim_xfer_segment_correction(const mim_landmark_map_t *map, const float *from, const float *to,
                                 mim_quat R[MIM_SEGMENTS], mim_error_t *err);
+/* The template's turn on the avatar's own frames (deformation transfer of
+ * the frames): out_i = P_i R_i^T A_i, where P are the template's frames in
+ * the pose, R the same subject's frames in the avatar's rest pose (its
+ * reference template) and A the avatar's rest frames (each 9 * n). The
+ * template's frames carry its body's surface (a thicker arm tilts its
+ * normals); P R^T keeps only how its surface turned from rest to pose.
+ * out may be any of the inputs. */
+void mim_xfer_frames_relative(uint32_t n_vertices, const double *pose, const double *ref, const double *avatar_rest,
+                              double *out);
+/* The avatar's encoding in the templates' pose: W_avatar (3 * n) plus the
+ * weighted mean over k templates of how each one's encoding changed from
+ * its reference (W_ref[j], the same subject in the avatar's rest pose) to
+ * the pose (W_pose[j]), the change times scale[j] (NULL: 1). W is only
+ * nearly pose-invariant: a bent joint folds the surface, and the folds of
+ * bodies in one pose are alike. weights as mim_xfer_frames_blend's; none
+ * positive (or k = 0): out = W_avatar. out may be W_avatar. */
+void mim_xfer_encoding_relative(uint32_t n_vertices, uint32_t k, const double *const *W_pose,
+                                const double *const *W_ref, const double *weights, const double *scale,
+                                const double *W_avatar, double *out);
+/* The scale for mim_xfer_encoding_relative: rms(W_avatar) / rms(W_ref)
+ * over n vertices (3 * n each). W is a Laplacian in local frames, so it
+ * grows with the body's size; a smaller body folds less in millimetres.
+ * NaN when W_ref is all zero or an entry of either is not finite (the
+ * blend then takes 1). */
+double mim_xfer_encoding_scale(uint32_t n_vertices, const double *W_avatar, const double *W_ref);
 /* ---- mode (a): landmarks from the template alone (retarget.c) ---- */
 /* Landmark positions (3 * map->count floats) in the template's pose with
  * the avatar's proportions: from the template's pelvis, each segment of the
