@@ -84,7 +84,7 @@ typedef struct spec_list {
     size_t n, cap;
 } spec_list_t;
 
-#define MAX_SESSIONS 1024
+#define MAX_SESSIONS MIM_SERVE_MAX_SESSIONS
 
 static mim_serve_session_spec_t *spec_next(spec_list_t *l)
 {

@@ -279,6 +279,11 @@ int mim__api_sessions(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *r
 
 int mim__api_session_add(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 {
+    /* the service reads the avatar's file and opens the vest: a browser must
+     * not be able to make another site's page do it with a "simple" request
+     * (text/plain needs no preflight; application/json does) */
+    if (!rq->json)
+        return mim__reply_error(rp, 415, "%s: send the session as Content-Type: application/json", rq->path);
     json_error_t je;
     json_t *j = json_loadb(rq->body, rq->len, JSON_REJECT_DUPLICATES, &je);
     if (!j)

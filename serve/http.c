@@ -695,10 +695,7 @@ static int on_request(mim_serve_t *sv, struct lws *wsi, mim__conn_t *conn, const
             if (route_matches(&routes[r], in))
                 snprintf(allow + strlen(allow), sizeof allow - strlen(allow), "%s%s", allow[0] ? ", " : "",
                          routes[r].method);
-        char msg[160];
-        int m = snprintf(msg, sizeof msg, "{\"error\":\"%s: use %s\",\"status\":405}", tx->path, allow);
-        char *b = m < (int)sizeof msg ? strdup(msg) : NULL;
-        int st = mim__reply_take(&tx->rp, 405, "application/json", b, b ? (size_t)m : 1);
+        int st = mim__reply_error(&tx->rp, 405, "%s: use %s", tx->path, allow);
         if (st == 405)
             snprintf(tx->rp.headers, sizeof tx->rp.headers, "Allow: %s\r\n", allow);
         return answer(sv, wsi, tx, st);
@@ -708,6 +705,9 @@ static int on_request(mim_serve_t *sv, struct lws *wsi, mim__conn_t *conn, const
     int k = mim__url_arg(wsi, "k", tx->rq.k, sizeof tx->rq.k);
     tx->rq.k_given = k;
     tx->rq.session_given = mim__url_arg(wsi, "session", tx->rq.session, sizeof tx->rq.session);
+    char type[32] = "";
+    if (lws_hdr_copy(wsi, type, sizeof type, WSI_TOKEN_HTTP_CONTENT_TYPE) > 0)
+        tx->rq.json = !strncasecmp(type, "application/json", 16) && (!type[16] || type[16] == ';' || type[16] == ' ');
     if (tx->method != M_POST)
         return dispatch(sv, wsi, tx);
     if (tx->declared > (long long)sv->max_body)

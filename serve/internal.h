@@ -95,6 +95,7 @@ typedef struct mim__request {
     int session_given;  /* ?session= : 0 absent, 1 given (in session), -1 too long to be a name */
     char session[MIM_SERVE_SESSION_NAME_MAX + 1];
     char name[MIM_SERVE_SESSION_NAME_MAX + 2]; /* /api/sessions/NAME: NAME, or "" (one byte more: too long shows) */
+    int json;           /* Content-Type: application/json */
 } mim__request_t;
 
 /* Built by a handler on any thread, sent by the service thread. */

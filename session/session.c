@@ -692,7 +692,7 @@ static int make_reference(mim_session_t *s, const char *subject, const float *ta
 {
     const uint32_t n = s->mesh.n_vertices, L = s->map.count, na = mim_index_angle_count(L);
     if (s->n_refs == s->cap_refs) {
-        uint32_t cap = s->cap_refs ? 2 * s->cap_refs : 8;
+        uint32_t cap = s->cap_refs ? 2 * s->cap_refs : 1; /* from 1: a blend meets a move of the array early (tests) */
         subject_ref_t *r = realloc(s->refs, cap * sizeof *r);
         if (!r) return mim_error_set(err, MIM_ENOMEM, "out of memory for a reference");
         s->refs = r, s->cap_refs = cap;
@@ -727,14 +727,20 @@ static int make_reference(mim_session_t *s, const char *subject, const float *ta
         double *F = malloc(9 * (size_t)n * sizeof *F);
         ref->W = malloc(3 * (size_t)n * sizeof *ref->W);
         rc = pos && F && ref->W ? 0 : mim_error_set(err, MIM_ENOMEM, "out of memory for a reference");
-        if (!rc) /* W as the avatar's own is made, so that a reference that is the avatar changes nothing */
-            rc = mim_session_template(s, ref->id, pos, F, NULL, 0, err);
-        if (!rc) {
+        mim_error_t terr = {0};
+        /* W as the avatar's own is made, so that a reference that is the
+         * avatar changes nothing; a reference that cannot be read (a damaged
+         * record) leaves the subject on the plain path, once and for all */
+        if (!rc && mim_session_template(s, ref->id, pos, F, NULL, 0, &terr)) {
+            free(ref->W), ref->W = NULL;
+            ref->id = 0;
+        }
+        if (!rc && ref->id) {
             mim_xfer_encode(s->topo, pos, F, ref->W);
             ref->scale = mim_xfer_encoding_scale(n, s->W, ref->W);
         }
         free(pos);
-        if (!rc && ref->near)
+        if (!rc && ref->id && ref->near)
             ref->F = F, F = NULL;
         free(F);
     }
@@ -826,14 +832,20 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
     const double *src[MIM_XFER_BLEND_MAX], *wp[MIM_XFER_BLEND_MAX], *wr[MIM_XFER_BLEND_MAX];
     double scale[MIM_XFER_BLEND_MAX];
     subject_ref_t *ref[MIM_XFER_BLEND_MAX];
+    size_t at[MIM_XFER_BLEND_MAX];
     int correct = s->skin && u && req->segment_correction;
     int relative = (req->relative ? req->relative : MIM_SESSION_DEFAULT_RELATIVE) > 0;
     for (uint32_t j = 0; relative && j < r->n_templates; j++) {
-        int rc = reference_of(s, r->templates[j], &ref[j], err);
+        subject_ref_t *found;
+        int rc = reference_of(s, r->templates[j], &found, err);
         if (rc)
             return rc;
-        relative = ref[j] != NULL; /* all or none: a blend of changes and shapes would mix two meanings */
+        relative = found != NULL; /* all or none: a blend of changes and shapes would mix two meanings */
+        if (found) /* an index: a later template's new reference may move s->refs */
+            at[j] = (size_t)(found - s->refs);
     }
+    for (uint32_t j = 0; relative && j < r->n_templates; j++)
+        ref[j] = &s->refs[at[j]];
     *W = s->W;
     for (uint32_t j = 0; j < r->n_templates; j++) {
         template_slot_t *t;

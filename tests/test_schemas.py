@@ -300,8 +300,10 @@ def serve_cases(store, one, vest_rec):
 
         def fetch(path, body=None):
             data = None if body is None else body.encode()
+            headers = {} if body is None else {"Content-Type": "application/json"}
             try:
-                with urllib.request.urlopen(urllib.request.Request(url + path, data=data), timeout=60) as r:
+                with urllib.request.urlopen(urllib.request.Request(url + path, data=data, headers=headers),
+                                            timeout=60) as r:
                     return json.loads(r.read())
             except urllib.error.HTTPError as e:
                 return json.loads(e.read())

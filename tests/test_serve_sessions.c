@@ -52,10 +52,13 @@ static int teardown(void **state)
     return 0;
 }
 
-static int request(const char *method, const char *path, const char *body, json_t **json)
+static int request_as(const char *type, const char *method, const char *path, const char *body, json_t **json)
 {
     hc_reply_t r;
-    assert_int_equal(hc_request(&r, va.port, method, path, NULL, body, body ? strlen(body) : 0, 120000), HC_OK);
+    char headers[96] = "";
+    if (type)
+        snprintf(headers, sizeof headers, "Content-Type: %s\r\n", type);
+    assert_int_equal(hc_request(&r, va.port, method, path, headers, body, body ? strlen(body) : 0, 120000), HC_OK);
     if (json)
         *json = ss_json_body(&r);
     int status = r.status;
@@ -63,6 +66,12 @@ static int request(const char *method, const char *path, const char *body, json_
         print_message("%s %s: %d %s\n", method, path, status, r.body ? r.body : "");
     hc_reply_free(&r);
     return status;
+}
+
+/* A request with a JSON body, as a client of the API sends it. */
+static int request(const char *method, const char *path, const char *body, json_t **json)
+{
+    return request_as(body ? "application/json" : NULL, method, path, body, json);
 }
 
 /* The session's object in /api/status, a new reference (NULL: not there). */
@@ -157,6 +166,10 @@ static void test_each_session_streams(void **state)
     assert_int_equal(request("GET", "/api/avatar?session=zz", NULL, NULL), 404);
     assert_int_equal(request("GET", "/api/avatar?session=a%20b", NULL, NULL), 400);
     assert_int_equal(request("PUT", "/api/sessions/a", NULL, NULL), 405);
+    json_t *e = NULL; /* a 405's reason is JSON, whatever the path holds */
+    assert_int_equal(request("PUT", "/api/sessions/a%22b", NULL, &e), 405);
+    assert_non_null(strstr(json_string_value(json_object_get(e, "error")), "a\"b"));
+    json_decref(e);
     assert_int_equal(request("POST", "/api/sessions/a", "{}", NULL), 405);
     assert_int_equal(ws_connect(&w, va.port, "/ws?session=zz", 0), -1);
     assert_int_equal(w.http_status, 404);
@@ -177,6 +190,10 @@ static void test_add_and_remove(void **state)
     assert_string_equal(json_string_value(json_object_get(j, "avatar")), "template 25");
     json_decref(j);
     assert_int_equal(request("POST", "/api/sessions", body, NULL), 409); /* the name is taken */
+    /* what a page of another site can send without a preflight is refused */
+    assert_int_equal(request_as("text/plain", "POST", "/api/sessions", "{\"name\": \"x\", \"avatar\": \"2\"}", NULL), 415);
+    assert_int_equal(request_as(NULL, "POST", "/api/sessions", "{\"name\": \"x\", \"avatar\": \"2\"}", NULL), 415);
+    assert_int_equal(request_as("application/jsonx", "POST", "/api/sessions", "{\"name\": \"x\", \"avatar\": \"2\"}", NULL), 415);
 
     /* bad requests: 400 each, and nothing added */
     const char *bad[] = {"{\"name\": \"c2\", \"avatar\": ", "[1]", "{\"avatar\": \"1\"}", "{\"name\": \"c2\"}",
