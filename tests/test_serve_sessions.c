@@ -163,8 +163,13 @@ static void test_each_session_streams(void **state)
 
     /* what does not exist, or is not a name */
     assert_int_equal(request("GET", "/api/sessions/zz", NULL, NULL), 404);
-    assert_int_equal(request("GET", "/api/avatar?session=zz", NULL, NULL), 404);
-    assert_int_equal(request("GET", "/api/avatar?session=a%20b", NULL, NULL), 400);
+    json_t *why = NULL;
+    assert_int_equal(request("GET", "/api/avatar?session=a%20b", NULL, &why), 400);
+    assert_non_null(strstr(json_string_value(json_object_get(why, "error")), "session must be 1 to 32 of"));
+    json_decref(why);
+    assert_int_equal(request("GET", "/api/avatar?session=zz", NULL, &why), 404);
+    assert_non_null(strstr(json_string_value(json_object_get(why, "error")), "session zz: no such session"));
+    json_decref(why);
     assert_int_equal(request("PUT", "/api/sessions/a", NULL, NULL), 405);
     json_t *e = NULL; /* a 405's reason is JSON, whatever the path holds */
     assert_int_equal(request("PUT", "/api/sessions/a%22b", NULL, &e), 405);
@@ -196,14 +201,29 @@ static void test_add_and_remove(void **state)
     assert_int_equal(request_as("application/jsonx", "POST", "/api/sessions", "{\"name\": \"x\", \"avatar\": \"2\"}", NULL), 415);
 
     /* bad requests: 400 each, and nothing added */
-    const char *bad[] = {"{\"name\": \"c2\", \"avatar\": ", "[1]", "{\"avatar\": \"1\"}", "{\"name\": \"c2\"}",
-                         "{\"name\": \"x y\", \"avatar\": \"1\"}", "{\"name\": \"c2\", \"avatar\": \"99999\"}",
-                         "{\"name\": \"c2\", \"avatar\": \"1\", \"extra\": 1}",
-                         "{\"name\": \"c2\", \"avatar\": \"1\", \"key_rate\": 0}",
-                         "{\"name\": \"c2\", \"avatar\": \"/nonexistent/body.ply\"}",
-                         "{\"name\": \"aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa\", \"avatar\": \"1\"}"};
-    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++)
-        assert_int_equal(request("POST", "/api/sessions", bad[i], NULL), 400);
+    /* bad requests: 400 each with its reason, and nothing added */
+    const struct {
+        const char *body, *says;
+    } bad[] = {
+        {"{\"name\": \"c2\", \"avatar\": ", "request body:1:"},
+        {"[1]", "a session is an object"},
+        {"{\"avatar\": \"1\"}", "\"name\" must be a string"},
+        {"{\"name\": \"c2\"}", "\"avatar\" must be a string"},
+        {"{\"name\": \"x y\", \"avatar\": \"1\"}", "\"name\" must be 1 to 32 of"},
+        {"{\"name\": \"c2\", \"avatar\": \"99999\"}", "no template 99999"},
+        {"{\"name\": \"c2\", \"avatar\": \"1\", \"extra\": 1}", "unknown member \"extra\""},
+        {"{\"name\": \"c2\", \"avatar\": \"1\", \"key_rate\": 0}", "\"key_rate\" must be a rate"},
+        {"{\"name\": \"c2\", \"avatar\": \"/nonexistent/body.ply\"}", "/nonexistent/body.ply: cannot read"},
+        {"{\"name\": \"aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa\", \"avatar\": \"1\"}", "\"name\" must be a string"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        json_t *e = NULL;
+        assert_int_equal(request("POST", "/api/sessions", bad[i].body, &e), 400);
+        const char *msg = json_string_value(json_object_get(e, "error"));
+        if (!msg || !strstr(msg, bad[i].says))
+            fail_msg("POST %s: the error \"%s\" does not say \"%s\"", bad[i].body, msg ? msg : "", bad[i].says);
+        json_decref(e);
+    }
     assert_int_equal(request("GET", "/api/sessions/c2", NULL, NULL), 404);
 
     wait_streaming("c");
