@@ -136,10 +136,12 @@ int mim__api_query(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
     return status;
 }
 
-/* The request of /api/transfer: {"template": ID} and/or {"landmarks": [...]}. */
+/* The request of /api/transfer: {"template": ID} and/or {"landmarks": [...]},
+ * and "relative": true|false (absent: the service's --relative). */
 typedef struct xfer_req {
     uint64_t id;                       /* 0: the nearest template of the landmarks */
     int has_landmarks;
+    int relative;                      /* mim_session_request_t's: 0 the service's, 1 on, -1 off */
     float u[3 * MIM_LANDMARKS_MAX];
 } xfer_req_t;
 
@@ -156,8 +158,15 @@ static int parse_transfer(mim_serve_t *sv, const char *body, size_t len, xfer_re
         rc = mim_error_set(err, MIM_EFORMAT, "request body: expected an object with \"template\" and/or "
                                              "\"landmarks\"");
     else
-        json_object_foreach(root, key, v) if (!rc && strcmp(key, "template") && strcmp(key, "landmarks")) rc =
-            mim_error_set(err, MIM_EFORMAT, "request body: unknown member \"%s\" (use template, landmarks)", key);
+        json_object_foreach(root, key, v) if (!rc && strcmp(key, "template") && strcmp(key, "landmarks") &&
+                                              strcmp(key, "relative")) rc =
+            mim_error_set(err, MIM_EFORMAT, "request body: unknown member \"%s\" (use template, landmarks, relative)",
+                          key);
+    json_t *rel = rc ? NULL : json_object_get(root, "relative");
+    if (rel && !json_is_boolean(rel))
+        rc = mim_error_set(err, MIM_EFORMAT, "request body: \"relative\" must be true or false");
+    else if (rel)
+        r->relative = json_is_true(rel) ? 1 : -1;
     json_t *t = rc ? NULL : json_object_get(root, "template");
     if (t && (!json_is_integer(t) || json_integer_value(t) < 1))
         rc = mim_error_set(err, MIM_EFORMAT, "request body: \"template\" must be a template id (an integer >= 1)");
@@ -206,7 +215,14 @@ int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *r
         status = mim__reply_error(rp, 503, no_index, sv->store);
         rc = MIM_ENOTFOUND;
     } else if (!rc) {
-        mim_session_request_t req = {.template_id = r->id, .landmarks = r->has_landmarks ? r->u : NULL};
+        /* the template drive as the service's vests have it (--blend,
+         * --segment-correction, --relative), unless the request says relative */
+        mim_session_request_t req = {.template_id = r->id,
+                                     .landmarks = r->has_landmarks ? r->u : NULL,
+                                     .drive = MIM_DRIVE_TEMPLATE,
+                                     .blend = r->id ? 0 : sv->opt.blend,
+                                     .segment_correction = sv->opt.segment_correction,
+                                     .relative = r->relative ? r->relative : sv->opt.relative};
         rc = mim_session_transfer(vs->s, &req, out, &rep, &err);
         /* the one thing a well-formed request can name that is not there */
         if (rc == MIM_ENOTFOUND)
@@ -233,8 +249,9 @@ int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *r
         glb = NULL;
         if (status == 200)
             snprintf(rp->headers, sizeof rp->headers,
-                     "X-Mimic-Template: %llu\r\nX-Mimic-Template-Label: %s\r\nX-Mimic-Iterations: %u\r\n",
-                     (unsigned long long)rep.template_id, rep.label, rep.xfer.iterations);
+                     "X-Mimic-Template: %llu\r\nX-Mimic-Template-Label: %s\r\nX-Mimic-Iterations: %u\r\n"
+                     "X-Mimic-Relative: %d\r\n",
+                     (unsigned long long)rep.template_id, rep.label, rep.xfer.iterations, rep.relative);
     }
     if (own != out) free(own);
     free(glb), free(r), free(out);

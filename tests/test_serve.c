@@ -267,8 +267,20 @@ static void test_transfer(void **state)
     r = http("POST", "/api/transfer", NULL, body, strlen(body));
     assert_glb(&r);
     assert_non_null(strstr(r.head, "X-Mimic-Template: 9\r\n"));
+    /* serve's default: relative transfer (issue 15) */
+    assert_non_null(strstr(r.head, "X-Mimic-Relative: 1")); /* the last header: head ends before its \r\n */
     hc_reply_free(&r);
     free(body);
+    /* "relative": false asks for the plain transfer: another pose, said so */
+    const char *rel[] = {"{\"template\": 9, \"relative\": true}", "{\"template\": 9, \"relative\": false}"};
+    hc_reply_t on = http("POST", "/api/transfer", NULL, rel[0], strlen(rel[0]));
+    hc_reply_t off = http("POST", "/api/transfer", NULL, rel[1], strlen(rel[1]));
+    assert_glb(&on), assert_glb(&off);
+    assert_non_null(strstr(on.head, "X-Mimic-Relative: 1"));
+    assert_non_null(strstr(off.head, "X-Mimic-Relative: 0"));
+    assert_int_equal(on.len, off.len);
+    assert_true(memcmp(on.body, off.body, on.len) != 0);
+    hc_reply_free(&on), hc_reply_free(&off);
 }
 
 static void test_metrics(void **state)
@@ -277,8 +289,8 @@ static void test_metrics(void **state)
     hc_reply_t r = http("GET", "/metrics", NULL, NULL, 0);
     assert_int_equal(r.status, 200);
     assert_non_null(strstr(r.head, "Content-Type: text/plain; version=0.0.4"));
-    const char *names[] = {"\nmimic_queries_total 3\n", "\nmimic_transfers_total 3\n", "\nmimic_frames_total 0\n",
-                           "# TYPE mimic_query_seconds histogram", "mimic_transfer_seconds_bucket{le=\"+Inf\"} 3",
+    const char *names[] = {"\nmimic_queries_total 3\n", "\nmimic_transfers_total 5\n", "\nmimic_frames_total 0\n",
+                           "# TYPE mimic_query_seconds histogram", "mimic_transfer_seconds_bucket{le=\"+Inf\"} 5",
                            "mimic_http_requests_total{route=\"status\",code=\"200\"} 1", "mimic_vest_errors_total"};
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
         if (!strstr(r.body, names[i]))
@@ -317,6 +329,10 @@ static void test_errors(void **state)
     const char *unknown = "{\"template\": 999}";
     r = http("POST", "/api/transfer", NULL, unknown, strlen(unknown));
     assert_error(&r, 404, "no template 999");
+    hc_reply_free(&r);
+    const char *not_bool = "{\"template\": 5, \"relative\": 1}";
+    r = http("POST", "/api/transfer", NULL, not_bool, strlen(not_bool));
+    assert_error(&r, 400, "\"relative\" must be true or false");
     hc_reply_free(&r);
     const char *few = "{\"landmarks\": [[0, 1, 2]]}";
     r = http("POST", "/api/query", NULL, few, strlen(few));
