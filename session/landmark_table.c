@@ -1,0 +1,69 @@
+/* Every template's landmarks, subjects and ids, read from the store once
+ * per store (a fork uses its base's): completion (complete.c) scans them,
+ * relative transfer (relative.c) finds its references in them. */
+#include "internal.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct {
+    mim_session_t *s;
+    mim_error_t *err;
+} table_fill_t;
+
+static int table_add(const mim_template_view_t *v, void *user)
+{
+    table_fill_t *f = user;
+    mim_session_t *s = f->s;
+    const uint32_t L = s->map.count;
+    if (v->n_vertices != s->mesh.n_vertices) return 0; /* not the store's connectivity: not a body to compare */
+    if (s->table_count == s->table_cap) {
+        uint32_t cap = s->table_cap ? 2 * s->table_cap : 256;
+        float *lm = realloc(s->table_lm, (size_t)cap * L * 3 * sizeof *lm);
+        if (lm) s->table_lm = lm;
+        char **sub = realloc(s->table_subject, cap * sizeof *sub);
+        if (sub) s->table_subject = sub;
+        uint64_t *id = realloc(s->table_id, cap * sizeof *id);
+        if (id) s->table_id = id;
+        if (!lm || !sub || !id) return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
+        s->table_cap = cap;
+    }
+    for (uint32_t l = 0; l < L; l++)
+        memcpy(s->table_lm + ((size_t)s->table_count * L + l) * 3, v->positions + 3 * (size_t)s->map.vertex[l],
+               3 * sizeof(float));
+    if (!(s->table_subject[s->table_count] = strdup(v->subject)))
+        return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
+    s->table_id[s->table_count] = v->id;
+    s->table_count++;
+    return 0;
+}
+
+int mim__session_landmark_table(mim_session_t *s, const float **lm, char *const **subjects, const uint64_t **ids,
+                                uint32_t *count, mim_error_t *err)
+{
+    if (s->base) /* one table for every session of a store */
+        s = s->base;
+    pthread_mutex_lock(&s->table_lock);
+    int rc = 0;
+    if (s->table_failed.code) {
+        /* a store that failed once is not read again on every frame */
+        rc = mim_error_set(err, s->table_failed.code, "%s", s->table_failed.msg);
+    } else if (!s->table_built) {
+        mim_db_txn_t *t = NULL;
+        table_fill_t f = {s, &s->table_failed};
+        if (!(rc = mim_db_begin(s->db, 0, &t, &s->table_failed)))
+            rc = mim_db_template_each(t, table_add, &f, &s->table_failed);
+        mim_db_abort(&t);
+        s->table_built = !rc;
+        if (rc) {
+            if (!s->table_failed.code) mim_error_set(&s->table_failed, rc, "completion: %s", mim_strerror(rc));
+            rc = mim_error_set(err, rc, "%s", s->table_failed.msg);
+            for (uint32_t i = 0; i < s->table_count; i++) free(s->table_subject[i]);
+            s->table_count = 0;
+        }
+    }
+    *lm = s->table_lm, *subjects = s->table_subject, *count = s->table_count;
+    if (ids) *ids = s->table_id;
+    pthread_mutex_unlock(&s->table_lock);
+    return rc;
+}
