@@ -45,7 +45,7 @@ void bench_hard_free(bench_hard_t *h)
 }
 
 int bench_hard_make(bench_hard_t *h, uint32_t subjects, uint32_t poses, uint32_t vertices, uint64_t seed,
-                    mim_error_t *err)
+                    double spread, mim_error_t *err)
 {
     memset(h, 0, sizeof *h);
     mim_synth_options_t o = {.subjects = subjects, .poses = 1, .vertices = vertices, .seed = seed};
@@ -81,7 +81,7 @@ int bench_hard_make(bench_hard_t *h, uint32_t subjects, uint32_t poses, uint32_t
             for (int t = 0; t < 2; t++) {
                 const turn_t *v = &variants[p % BENCH_HARD_VARIANTS][t];
                 if (v->j < 0) continue;
-                deg[v->j][v->k] += deg[v->j][v->k] > 60 ? -v->deg : v->deg;
+                deg[v->j][v->k] += (deg[v->j][v->k] > 60 ? -v->deg : v->deg) * spread;
             }
             mim_rng_t r;
             mim_rng_seed(&r, seed, 0x68617264ULL + (uint64_t)sj * 100003 + p);

@@ -16,7 +16,9 @@
  * +-3 degree jitter on every free joint axis (nobody takes a pose twice
  * the same way), seeded. Landmarks are the synth map's 16 vertices, posed
  * by the synth skinning (metres; not stood on the ground, which the angles
- * do not see). */
+ * do not see). spread scales every variant's turn (1: the 12-20 degrees
+ * above; 2: 24-40 degrees), for a set whose neighbouring poses lie
+ * further apart than the noise; the jitter stays +-3 degrees. */
 #define BENCH_HARD_VARIANTS 8u
 
 typedef struct bench_hard {
@@ -28,7 +30,7 @@ typedef struct bench_hard {
 
 /* 0, or a negative MIM_E* code (err says why). */
 int bench_hard_make(bench_hard_t *h, uint32_t subjects, uint32_t poses, uint32_t vertices, uint64_t seed,
-                    mim_error_t *err);
+                    double spread, mim_error_t *err);
 void bench_hard_free(bench_hard_t *h);
 
 #endif

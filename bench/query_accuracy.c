@@ -23,8 +23,13 @@
  * C, gamma, cross-validation accuracy and build time.
  * The issue-4 sets run with the default index at d = 20, 40, 60, 70.
  *
- *   bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1|2|3|4]
- *                        [--hard-subjects S] [--hard-poses P]
+ * Every row also gets the Bayes bound (own_nearest): what a classifier
+ * that knew the query subject's own bodies and the noise would score, the
+ * ceiling no method can pass. --hard-spread F scales the variants' turns
+ * (F = 2: 24-40 degrees apart); --sweep 5 runs the default index alone.
+ *
+ *   bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1|2|3|4|5]
+ *                        [--hard-subjects S] [--hard-poses P] [--hard-spread F]
  * Prints a Markdown table per dataset. */
 #include "bench_data.h"
 #include "hard_set.h"
@@ -152,6 +157,29 @@ static uint32_t nn_all(const float *angles, const uint32_t *train, uint32_t ntra
     return arg;
 }
 
+/* The Bayes bound: the pose of the query subject's own body (of the P it
+ * was drawn from, noiseless) nearest the frame in landmark space, over the
+ * present landmarks. With Gaussian noise of one sigma on every coordinate
+ * and the poses equally likely, this is the maximum-likelihood decision
+ * with everything known (the subject's exact bodies, the noise model), so
+ * no classifier of single frames beats it in expectation: its accuracy is
+ * the ceiling of a row. */
+static uint32_t own_nearest(const float *lm, uint32_t s, uint32_t P, uint32_t L, const float *frame,
+                            const uint8_t *present)
+{
+    double best = INFINITY;
+    uint32_t arg = 0;
+    for (uint32_t p = 0; p < P; p++) {
+        const float *b = lm + 3 * (size_t)L * (s * P + p);
+        double d2 = 0;
+        for (uint32_t l = 0; l < L; l++)
+            if (present[l])
+                for (int c = 0; c < 3; c++) d2 += (double)(frame[3 * l + c] - b[3 * l + c]) * (frame[3 * l + c] - b[3 * l + c]);
+        if (d2 < best) best = d2, arg = p;
+    }
+    return arg;
+}
+
 /* One set: S subjects x P poses of L landmarks (lm, [(s * P + p) * L * 3]). */
 typedef struct {
     const char *name;
@@ -187,8 +215,8 @@ static void run_set(const set_t *set, int draws)
     }
     fprintf(stderr, "%s: %u subjects x %u poses, %u landmarks, landmark height span %.2f (units: metres)\n", set->name,
             S, P, L, ymax - ymin);
-    /* hits[method][cond] (the last method is the 1-NN), tests[cond] */
-    double hits[MAX_METHOD + 1][MAX_COND] = {{0}}, tests[MAX_COND] = {0}, cv[MAX_METHOD] = {0}, lc[MAX_METHOD] = {0};
+    /* hits[method][cond] (then the 1-NN and the Bayes bound), tests[cond] */
+    double hits[MAX_METHOD + 2][MAX_COND] = {{0}}, tests[MAX_COND] = {0}, cv[MAX_METHOD] = {0}, lc[MAX_METHOD] = {0};
     double build_s[MAX_METHOD] = {0}, qtime[MAX_METHOD] = {0}, nq[MAX_METHOD] = {0};
     float *frame = malloc(sizeof(float) * 3 * L), *qa = malloc(sizeof(float) * nf);
     uint8_t *present = malloc(L);
@@ -250,6 +278,7 @@ static void run_set(const set_t *set, int draws)
                     mim_index_angles(frame, present, L, qa);
                     uint32_t arg = nn_all(angles, train, ntrain, nf, qa);
                     hits[NM][c] += !strcmp(pose[arg], pose[t]);
+                    hits[NM + 1][c] += own_nearest(lm, s, P, L, frame, present) == p;
                 }
             }
         }
@@ -260,12 +289,12 @@ static void run_set(const set_t *set, int draws)
            S, P, draws);
     printf("| condition |");
     for (int mi = 0; mi < NM; mi++) printf(" %s |", set->method[mi].label);
-    printf(" 1-NN, all %u angles |\n|---|", nf);
-    for (int mi = 0; mi <= NM; mi++) printf("---|");
+    printf(" 1-NN, all %u angles | Bayes bound (own bodies known) |\n|---|", nf);
+    for (int mi = 0; mi <= NM + 1; mi++) printf("---|");
     printf("\n");
     for (int c = 0; c < NC; c++) {
         printf("| %s |", set->cond[c].name);
-        for (int m = 0; m <= NM; m++) printf(" %.3f |", hits[m][c] / tests[c]);
+        for (int m = 0; m <= NM + 1; m++) printf(" %.3f |", hits[m][c] / tests[c]);
         printf("\n");
     }
     printf("\nPer column: mean cross-validation accuracy of the SVMs on the training subjects; mean log10(C); mean "
@@ -298,16 +327,20 @@ static void run_dataset(const char *name, bench_dataset_t *d, int draws)
     free(lm);
 }
 
-static int run_hard(uint32_t S, uint32_t P, int sweep, int draws)
+static int run_hard(uint32_t S, uint32_t P, double spread, int sweep, int draws)
 {
     bench_hard_t h;
     mim_error_t err = {0};
-    if (bench_hard_make(&h, S, P, 3000, 1, &err)) {
+    if (bench_hard_make(&h, S, P, 3000, 1, spread, &err)) {
         fprintf(stderr, "hard set: %s\n", mim_error_text(&err));
         return 2;
     }
-    set_t set = {"hard (synth seed 1, nearby poses)", S, P, h.n_landmarks, h.landmarks, h.mirror, cond_hard, 7,
+    char name[96];
+    snprintf(name, sizeof name, "hard (synth seed 1, nearby poses, variants x%g: %g-%g degrees)", spread, 12 * spread,
+             20 * spread);
+    set_t set = {name, S, P, h.n_landmarks, h.landmarks, h.mirror, cond_hard, 7,
                  methods_hard, (int)(sizeof methods_hard / sizeof *methods_hard)};
+    if (sweep == 5) set.n_method = 1; /* the default alone */
     if (sweep == 1) set.method = methods_sweep1, set.n_method = sizeof methods_sweep1 / sizeof *methods_sweep1;
     if (sweep == 2) set.method = methods_sweep2, set.n_method = sizeof methods_sweep2 / sizeof *methods_sweep2;
     if (sweep == 3) set.method = methods_sweep3, set.n_method = sizeof methods_sweep3 / sizeof *methods_sweep3;
@@ -321,6 +354,7 @@ int main(int argc, char **argv)
 {
     int draws = 5, mh = 1, hard = 1, easy = 1, sweep = 0;
     uint32_t hs = 8, hp = 40;
+    double spread = 1;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--draws") && i + 1 < argc) draws = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--no-mh")) mh = 0;
@@ -329,15 +363,16 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--sweep") && i + 1 < argc) sweep = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--hard-subjects") && i + 1 < argc) hs = (uint32_t)atoi(argv[++i]);
         else if (!strcmp(argv[i], "--hard-poses") && i + 1 < argc) hp = (uint32_t)atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--hard-spread") && i + 1 < argc) spread = atof(argv[++i]);
         else {
-            fprintf(stderr, "usage: bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1|2|3|4] "
-                            "[--hard-subjects S] [--hard-poses P]\n");
+            fprintf(stderr, "usage: bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1|2|3|4|5] "
+                            "[--hard-subjects S] [--hard-poses P] [--hard-spread F]\n");
             return 2;
         }
     }
     if (draws < 1) draws = 1;
-    if (hs < 2 || hp < 2 || hp > 1000) {
-        fprintf(stderr, "bench_query_accuracy: the hard set needs 2+ subjects and 2..1000 poses\n");
+    if (hs < 2 || hp < 2 || hp > 1000 || !(spread > 0 && spread <= 3)) {
+        fprintf(stderr, "bench_query_accuracy: the hard set needs 2+ subjects, 2..1000 poses and a spread in (0, 3]\n");
         return 2;
     }
     bench_dataset_t d;
@@ -359,5 +394,5 @@ int main(int argc, char **argv)
             }
         }
     }
-    return hard ? run_hard(hs, hp, sweep, draws) : 0;
+    return hard ? run_hard(hs, hp, spread, sweep, draws) : 0;
 }

@@ -28,7 +28,7 @@ typedef struct {
 static void set_make(set_t *s)
 {
     mim_error_t err = {0};
-    assert_int_equal(bench_hard_make(&s->h, S, P, 1000, 1, &err), 0);
+    assert_int_equal(bench_hard_make(&s->h, S, P, 1000, 1, 1.0, &err), 0);
     for (uint32_t t = 0; t < S * P; t++) {
         snprintf(s->names[t][0], 16, "s%u", t / P);
         snprintf(s->names[t][1], 16, "p%u", t % P);
