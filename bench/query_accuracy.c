@@ -13,9 +13,10 @@
  * designed poses each with 7 variants that turn one or two joints by 12-20
  * degrees, every body with its own +-3 degree jitter) at 0, 1, 2 and 3 cm
  * of noise and 1-3 missing landmarks, columns: mimic's default index
- * (noise augmentation, angle weighting, k-NN vote), the same without the
- * vote, the index of item 1 (augmentation only) and the index without
- * noise augmentation (issue 4's), the 1-NN baseline; --sweep 1 / 2 (item
+ * (noise augmentation, angle weighting, k-NN vote, linear discriminants
+ * for whole frames), the same answering by its SVMs alone, the index of
+ * item 1 (augmentation only) and the index without noise augmentation
+ * (issue 4's), the 1-NN baseline; --sweep 1 / 2 (item
  * 1: augmentation, d) and 3 / 4 (item 2: the vote, the weighting) run the
  * other settings measured for the choices. Columns with the same build
  * options share one index per fold; every run draws the same frames, so
@@ -26,7 +27,8 @@
  * Every row also gets the Bayes bound (own_nearest): what a classifier
  * that knew the query subject's own bodies and the noise would score, the
  * ceiling no method can pass. --hard-spread F scales the variants' turns
- * (F = 2: 24-40 degrees apart); --sweep 5 runs the default index alone.
+ * (F = 2: 24-40 degrees apart); --sweep 5 runs the default index alone
+ * (its discriminants and its SVMs).
  *
  *   bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1|2|3|4|5]
  *                        [--hard-subjects S] [--hard-poses P] [--hard-spread F]
@@ -74,42 +76,42 @@ static const method_t methods_issue4[] = {{"d = 20", {.features = 20}, {0}},
 #define NOVOTE {.vote_below = -1}
 #define VOTE(b, k, t) {.vote_below = b, .vote_k = k, .vote_classes = t}
 static const method_t methods_hard[] = {
-    {"default (d = 60, noise 0.025 x4, weight 0.5, vote < 0.5)", {0}, {0}},
-    {"default without the vote", {0}, NOVOTE},
-    {"no weighting, no vote (item 1)", {.weight = -1}, NOVOTE},
-    {"no augmentation (issue 4)", {.noise = -1}, NOVOTE}};
+    {"default (d = 60, noise 0.025 x4, weight 0.5, vote < 0.5, discriminants)", {0}, {0}},
+    {"without the discriminants (SVMs, vote < 0.5)", {0}, {.svm_above = -1}},
+    {"no weighting, no vote (item 1)", {.weight = -1, .discriminant_noise = -1}, NOVOTE},
+    {"no augmentation (issue 4)", {.noise = -1, .discriminant_noise = -1}, NOVOTE}};
 static const method_t methods_sweep1[] = {
-    {"default (d = 60, noise 0.025 x4)", {.weight = -1}, NOVOTE},
-    {"no augmentation (issue 4)", {.noise = -1}, NOVOTE},
-    {"noise 0.05 x4", {.noise = 0.05, .augment = 4, .weight = -1}, NOVOTE},
-    {"noise 0.075 x4", {.noise = 0.075, .augment = 4, .weight = -1}, NOVOTE},
-    {"noise 0.05 x2", {.noise = 0.05, .augment = 2, .weight = -1}, NOVOTE},
+    {"default (d = 60, noise 0.025 x4)", {.weight = -1, .discriminant_noise = -1}, NOVOTE},
+    {"no augmentation (issue 4)", {.noise = -1, .discriminant_noise = -1}, NOVOTE},
+    {"noise 0.05 x4", {.noise = 0.05, .augment = 4, .weight = -1, .discriminant_noise = -1}, NOVOTE},
+    {"noise 0.075 x4", {.noise = 0.075, .augment = 4, .weight = -1, .discriminant_noise = -1}, NOVOTE},
+    {"noise 0.05 x2", {.noise = 0.05, .augment = 2, .weight = -1, .discriminant_noise = -1}, NOVOTE},
 };
 static const method_t methods_sweep2[] = {
-    {"d = 40 augmented", {.features = 40, .weight = -1}, NOVOTE},
-    {"d = 100 augmented", {.features = 100, .weight = -1}, NOVOTE},
-    {"d = 100, no augmentation", {.features = 100, .noise = -1}, NOVOTE},
-    {"d = 20 augmented", {.features = 20, .weight = -1}, NOVOTE},
+    {"d = 40 augmented", {.features = 40, .weight = -1, .discriminant_noise = -1}, NOVOTE},
+    {"d = 100 augmented", {.features = 100, .weight = -1, .discriminant_noise = -1}, NOVOTE},
+    {"d = 100, no augmentation", {.features = 100, .noise = -1, .discriminant_noise = -1}, NOVOTE},
+    {"d = 20 augmented", {.features = 20, .weight = -1, .discriminant_noise = -1}, NOVOTE},
 };
 /* issue 15, item 2: the k-NN vote's settings, on the index without weighting */
 static const method_t methods_sweep3[] = {
-    {"no vote", {.weight = -1}, NOVOTE},
-    {"vote < 0.5 k5 T3", {.weight = -1}, VOTE(0.5, 5, 3)},
-    {"vote < 0.5 k1 T3", {.weight = -1}, VOTE(0.5, 1, 3)},
-    {"vote < 0.3 k5 T3", {.weight = -1}, VOTE(0.3, 5, 3)},
-    {"vote < 0.7 k5 T3", {.weight = -1}, VOTE(0.7, 5, 3)},
-    {"vote always k5 T3", {.weight = -1}, VOTE(2, 5, 3)},
-    {"vote < 0.5 k9 T5", {.weight = -1}, VOTE(0.5, 9, 5)},
+    {"no vote", {.weight = -1, .discriminant_noise = -1}, NOVOTE},
+    {"vote < 0.5 k5 T3", {.weight = -1, .discriminant_noise = -1}, VOTE(0.5, 5, 3)},
+    {"vote < 0.5 k1 T3", {.weight = -1, .discriminant_noise = -1}, VOTE(0.5, 1, 3)},
+    {"vote < 0.3 k5 T3", {.weight = -1, .discriminant_noise = -1}, VOTE(0.3, 5, 3)},
+    {"vote < 0.7 k5 T3", {.weight = -1, .discriminant_noise = -1}, VOTE(0.7, 5, 3)},
+    {"vote always k5 T3", {.weight = -1, .discriminant_noise = -1}, VOTE(2, 5, 3)},
+    {"vote < 0.5 k9 T5", {.weight = -1, .discriminant_noise = -1}, VOTE(0.5, 9, 5)},
 };
 /* issue 15, item 2: the angle weighting's power, with and without the vote */
 static const method_t methods_sweep4[] = {
-    {"no weighting, no vote", {.weight = -1}, NOVOTE},
-    {"weight 0.5, no vote", {.weight = 0.5}, NOVOTE},
-    {"weight 0.75, no vote", {.weight = 0.75}, NOVOTE},
-    {"weight 1, no vote", {.weight = 1}, NOVOTE},
-    {"no weighting, vote < 0.5 k5 T3", {.weight = -1}, VOTE(0.5, 5, 3)},
-    {"weight 0.5, vote < 0.5 k5 T3 (default)", {.weight = 0.5}, VOTE(0.5, 5, 3)},
-    {"weight 0.75, vote < 0.5 k5 T3", {.weight = 0.75}, VOTE(0.5, 5, 3)},
+    {"no weighting, no vote", {.weight = -1, .discriminant_noise = -1}, NOVOTE},
+    {"weight 0.5, no vote", {.weight = 0.5, .discriminant_noise = -1}, NOVOTE},
+    {"weight 0.75, no vote", {.weight = 0.75, .discriminant_noise = -1}, NOVOTE},
+    {"weight 1, no vote", {.weight = 1, .discriminant_noise = -1}, NOVOTE},
+    {"no weighting, vote < 0.5 k5 T3", {.weight = -1, .discriminant_noise = -1}, VOTE(0.5, 5, 3)},
+    {"weight 0.5, vote < 0.5 k5 T3 (default)", {.weight = 0.5, .discriminant_noise = -1}, VOTE(0.5, 5, 3)},
+    {"weight 0.75, vote < 0.5 k5 T3", {.weight = 0.75, .discriminant_noise = -1}, VOTE(0.5, 5, 3)},
 };
 
 static uint64_t rng_state = 12345;
@@ -340,7 +342,7 @@ static int run_hard(uint32_t S, uint32_t P, double spread, int sweep, int draws)
              20 * spread);
     set_t set = {name, S, P, h.n_landmarks, h.landmarks, h.mirror, cond_hard, 7,
                  methods_hard, (int)(sizeof methods_hard / sizeof *methods_hard)};
-    if (sweep == 5) set.n_method = 1; /* the default alone */
+    if (sweep == 5) set.n_method = 2; /* the default, and its SVMs alone (one build) */
     if (sweep == 1) set.method = methods_sweep1, set.n_method = sizeof methods_sweep1 / sizeof *methods_sweep1;
     if (sweep == 2) set.method = methods_sweep2, set.n_method = sizeof methods_sweep2 / sizeof *methods_sweep2;
     if (sweep == 3) set.method = methods_sweep3, set.n_method = sizeof methods_sweep3 / sizeof *methods_sweep3;

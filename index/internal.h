@@ -39,6 +39,13 @@ struct mim_index {
     flann_index_t *flann;  /* n_classes */
     int *flann_exact;      /* n_classes */
     uint32_t forests_loaded, forests_built; /* kd-forests read from the blob / built (the rest: exact) */
+    double discriminant_noise; /* the discriminants' training noise / the bodies' scale (0: none) */
+    struct mim__lda {
+        uint32_t nf, n_classes; /* 0: none */
+        float *mean;            /* nf: the mean of the class means */
+        float *g;               /* n_classes * nf: S^-1 mu_c */
+        double *b;              /* n_classes */
+    } lda;
 };
 
 /* Every random choice of an index build (samples, folds, k-means++ seeds,
@@ -46,6 +53,21 @@ struct mim_index {
  * seeded with this and a stream of its own, so the same store always gives
  * the same index. Nothing here touches libc's rand(). */
 #define MIM__INDEX_SEED 0x6d696dULL
+
+/* lda.c: linear discriminants over all angles (issue 15). Build: from in's
+ * templates of classes cls (input order, nc classes) and noisy copies at
+ * sigma; none (nf 0) for one class or constant angles. */
+typedef struct mim__lda mim__lda_t;
+#define MIM__LDA_TEMPLATES 1024u /* templates sampled, over all classes (at least 4 a class) */
+#define MIM__LDA_COPIES 4u       /* noisy copies of each */
+#define MIM__LDA_SHRINK 0.5      /* of the mean variance added to S's diagonal (bench/RESULTS.md) */
+int mim__lda_build(mim__lda_t *out, const mim_index_input_t *in, const uint32_t *cls, uint32_t nc, double sigma,
+                   mim_error_t *err);
+/* The class of a whole frame (positions of n_landmarks), -1 when there
+ * are no discriminants or an angle is undefined; *posterior (may be NULL)
+ * the class's share of the softmax of the scores. */
+int64_t mim__lda_class(const mim__lda_t *m, const float *positions, uint32_t n_landmarks, double *posterior);
+void mim__lda_free(mim__lda_t *m);
 
 /* classes.c: k-means on rows x (n x f, NaN = unknown) into k clusters. */
 int mim__kmeans(const float *x, uint32_t n, uint32_t f, uint32_t k, uint32_t *assign, mim_error_t *err);

@@ -159,12 +159,20 @@ typedef struct mim_index_options {
      * (blob version 4). Needs the augmentation (none without it). The k-NN
      * inside a class, and the distances it reports, stay in radians. */
     double weight;            /* 0 means MIM_INDEX_WEIGHT_DEFAULT; < 0: none; at most 4 */
+    /* Linear discriminants over all angles (issue 15; lda.c says what and
+     * why): the classes as Gaussians of one shared covariance, learnt from
+     * the templates and noisy copies at sigma = discriminant_noise x the
+     * bodies' scale. A whole frame's class is theirs unless the SVMs are
+     * sure (mim_index_query_options_t.svm_above). Stored in the index
+     * (blob version 5). */
+    double discriminant_noise; /* 0 means MIM_INDEX_DISCRIMINANT_NOISE_DEFAULT; < 0: no discriminants */
     mim_progress_t *progress; /* fn and ctx set by the caller, run by the build; NULL: quiet */
 } mim_index_options_t;
 
 #define MIM_INDEX_NOISE_DEFAULT 0.025
 #define MIM_INDEX_AUGMENT_DEFAULT 4u
 #define MIM_INDEX_WEIGHT_DEFAULT 0.5
+#define MIM_INDEX_DISCRIMINANT_NOISE_DEFAULT 0.04
 
 enum { MIM_CLASSES_LABELS = 0, MIM_CLASSES_KMEANS = 1 };
 
@@ -176,6 +184,7 @@ typedef struct mim_index_report {
     uint32_t augment;                    /* noisy copies per template learnt from (0: none) */
     double noise;                        /* their sigma / the bodies' scale (0: none) */
     double weight;                       /* the angle weighting's power (0: none) */
+    double discriminant_noise;           /* the discriminants' training noise / the bodies' scale (0: none) */
     mim_select_report_t select;
     double seconds;
 } mim_index_report_t;
@@ -197,6 +206,7 @@ typedef struct mim_index_info {
     uint32_t augment; /* noisy copies per template the build learnt from (0: none) */
     double noise;     /* their sigma, a fraction of the bodies' scale (0: none) */
     double weight;    /* the angle weighting's power (0: none) */
+    double discriminant_noise; /* the linear discriminants' training noise / the bodies' scale (0: none) */
     /* kd-forests (classes above the exact scan's size) read from the blob
      * and built when it was made or loaded (a blob before version 3, or a
      * forest that would not load, builds them again) */
@@ -219,11 +229,20 @@ typedef struct mim_index_query_options {
     double vote_below;           /* 0 means MIM_INDEX_VOTE_BELOW_DEFAULT; < 0: never */
     uint32_t vote_k;             /* 0 means MIM_INDEX_VOTE_K_DEFAULT; at most 32 */
     uint32_t vote_classes;       /* 0 means MIM_INDEX_VOTE_CLASSES_DEFAULT; at most 8 */
+    /* A whole frame's class (issue 15): the SVMs' when their top
+     * probability is at least svm_above, else the linear discriminants'
+     * (an index without them: the SVMs' and the vote). 0 means
+     * MIM_INDEX_SVM_ABOVE_DEFAULT: above 1, always the discriminants', and
+     * the SVMs are not evaluated (the answer's probability is then the
+     * discriminants' posterior, the softmax of their scores); < 0: never.
+     * A frame with missing landmarks always goes to the SVMs. */
+    double svm_above;
 } mim_index_query_options_t;
 
 #define MIM_INDEX_VOTE_BELOW_DEFAULT 0.5
 #define MIM_INDEX_VOTE_K_DEFAULT 5u
 #define MIM_INDEX_VOTE_CLASSES_DEFAULT 3u
+#define MIM_INDEX_SVM_ABOVE_DEFAULT 2.0
 
 typedef struct mim_index_hit {
     uint64_t id;
@@ -233,7 +252,7 @@ typedef struct mim_index_hit {
 
 typedef struct mim_index_answer {
     uint32_t cls;
-    double probability;
+    double probability; /* the class's: the SVMs' normalised Platt probability, or for a whole frame the discriminants' posterior */
     uint32_t missing;   /* landmarks missing in the frame */
     uint32_t n_hits;    /* <= k */
 } mim_index_answer_t;

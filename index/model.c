@@ -122,6 +122,7 @@ void mim_index_close(mim_index_t **pix)
         for (uint32_t i = 0; i < ix->n_strings; i++) free(ix->strings[i]);
     free(ix->strings), free(ix->selected), free(ix->class_name), free(ix->class_start), free(ix->ids);
     free(ix->subject), free(ix->pose), free(ix->desc), free(ix->extra), free(ix->svm), free(ix->flann), free(ix->flann_exact), free(ix->w);
+    mim__lda_free(&ix->lda);
     free(ix);
     *pix = NULL;
 }
@@ -373,6 +374,10 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
     if (!A) noise = 0;
     double wpow = opt.weight < 0 ? 0 : opt.weight > 0 ? opt.weight : MIM_INDEX_WEIGHT_DEFAULT;
     if (!(wpow > 0) || !A) wpow = 0;
+    if (!(opt.discriminant_noise <= 1))
+        return mim_error_set(err, MIM_EINVAL, "linear discriminants: noise %g (at most 1)", opt.discriminant_noise);
+    double dnoise = opt.discriminant_noise < 0 ? 0 : opt.discriminant_noise > 0 ? opt.discriminant_noise
+                                                                                : MIM_INDEX_DISCRIMINANT_NOISE_DEFAULT;
     mim_index_t *ix = calloc(1, sizeof *ix);
     strtab_t st = {0};
     uint32_t *cls = malloc(sizeof(uint32_t) * n), *names = NULL, nc = 0, source = 0;
@@ -391,6 +396,8 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
     ix->checks = opt.checks ? opt.checks : 128;
     if ((rc = assign_classes(in, &st, cls, &names, &nc, &source, err))) goto out;
     ix->n_classes = nc, ix->class_source = source;
+    if (dnoise > 0 && (rc = mim__lda_build(&ix->lda, in, cls, nc, dnoise * body_scale(in), err))) goto out;
+    ix->discriminant_noise = ix->lda.nf ? dnoise : 0;
     progress = opt.progress;
     if (progress) mim_progress_begin(progress, "index", (nc > 1 && !(opt.C > 0 && opt.gamma > 0) ? 16 : 0) + nc);
 
@@ -588,6 +595,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
         }
         report->select = srep;
         report->augment = A, report->noise = noise, report->weight = wpow;
+        report->discriminant_noise = ix->discriminant_noise;
         report->seconds = mim_now() - t0;
     }
     *out = ix;
@@ -609,6 +617,7 @@ void mim_index_get_info(const mim_index_t *ix, mim_index_info_t *o)
     o->n_classes = ix->n_classes, o->class_source = ix->class_source;
     o->C = ix->C, o->gamma = ix->gamma, o->cv_accuracy = ix->cv_accuracy;
     o->augment = ix->augment, o->noise = ix->noise, o->weight = ix->weight;
+    o->discriminant_noise = ix->discriminant_noise;
     o->forests_loaded = ix->forests_loaded, o->forests_built = ix->forests_built;
 }
 
@@ -801,23 +810,37 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
         for (uint32_t f = 0; f < d; f++)
             if (!mask[f]) q[f] = ix->desc[(size_t)br * d + f], xd[f] = q[f] * ix->w[f];
     }
-    /* the class: the SVM with the highest probability */
+    /* the class: for a whole frame, the linear discriminants' (lda.c),
+     * unless the SVMs are sure (svm_above); else the SVM with the highest
+     * probability, and the k-NN vote when that is low */
     uint32_t cls = 0;
     double prob = 1;
     if (ix->n_classes > 1) {
-        double sum = 0, best = -1;
         double vb = opt && opt->vote_below ? opt->vote_below : MIM_INDEX_VOTE_BELOW_DEFAULT;
-        double pr_st[256], *pr = ix->n_classes <= 256 || !(vb > 0) ? pr_st : malloc(sizeof(double) * ix->n_classes);
-        if (!pr) return MIM_ENOMEM;
-        for (uint32_t c = 0; c < ix->n_classes; c++) {
-            double p = mim__svm_probability(&ix->svm[c], mim__svm_decision(&ix->svm[c], ix->gamma, xd, NULL, d));
-            if (c < 256 || pr != pr_st) pr[c] = p;
-            sum += p;
-            if (p > best) best = p, cls = c;
+        double sa = opt && opt->svm_above ? opt->svm_above : MIM_INDEX_SVM_ABOVE_DEFAULT;
+        int64_t lc = -1;
+        double lp = 0;
+        if (!ans->missing && ix->lda.nf && sa > 1) /* the discriminants alone: no SVM is evaluated */
+            lc = mim__lda_class(&ix->lda, positions, L, &lp);
+        if (lc >= 0) {
+            cls = (uint32_t)lc, prob = lp;
+        } else {
+            double sum = 0, best = -1;
+            double pr_st[256], *pr = ix->n_classes <= 256 ? pr_st : malloc(sizeof(double) * ix->n_classes);
+            if (!pr) return MIM_ENOMEM;
+            for (uint32_t c = 0; c < ix->n_classes; c++) {
+                pr[c] = mim__svm_probability(&ix->svm[c], mim__svm_decision(&ix->svm[c], ix->gamma, xd, NULL, d));
+                sum += pr[c];
+                if (pr[c] > best) best = pr[c], cls = c;
+            }
+            prob = sum > 0 ? best / sum : 0;
+            if (!ans->missing && ix->lda.nf && sa > 0 && sa <= 1 && prob < sa &&
+                (lc = mim__lda_class(&ix->lda, positions, L, &lp)) >= 0)
+                cls = (uint32_t)lc, prob = lp;
+            else if (vb > 0 && prob < vb)
+                cls = vote(ix, opt, q, w, masked, ex, pr, cls);
+            if (pr != pr_st) free(pr);
         }
-        prob = sum > 0 ? best / sum : 0;
-        if (vb > 0 && prob < vb) cls = vote(ix, opt, q, w, masked, ex, pr, cls);
-        if (pr != pr_st) free(pr);
     }
     ans->cls = cls, ans->probability = prob;
     /* k nearest inside the class */
