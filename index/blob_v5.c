@@ -25,8 +25,10 @@
  *   f32 desc[n * d], f32 extra[n * (d2 - d)], and the forests' bytes in
  *   the order of their table (FLANN's own, as forest.c saves them).
  *
- * Checksums (mim_hash64, each with a seed of its own so that a section
- * cannot pass for another): the head's covers everything needed to open,
+ * Checksums (XXH3-64, as the store's records; each with a seed of its own
+ * so that a section cannot pass for another; XXH3 rather than core's
+ * mim_hash64 because a class's first query hashes its 21 MB of templates
+ * at 1 000 000, and XXH3 reads about 1.7x faster here: 14 against 8 GB/s): the head's covers everything needed to open,
  * including the checksums of the rest. A chunk is `rows` templates (256):
  * its base checksum covers their ids, subject, pose and desc, its extra
  * checksum their extra angles; each forest has its own.
@@ -57,6 +59,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <xxhash.h>
 
 #define V5 5
 #define HDR 64
@@ -65,6 +68,9 @@
 #define SEED_BASE 0x6d69785642ULL
 #define SEED_EXTRA 0x6d69785645ULL
 #define SEED_FOREST 0x6d69785646ULL
+
+/* A checksum that chains: hash(data, seed), seeds the next part with it. */
+static uint64_t hash(const void *p, size_t n, uint64_t seed) { return XXH3_64bits_withSeed(p, n, seed); }
 
 static uint64_t up(uint64_t x, uint64_t a) { return (x + a - 1) / a * a; }
 
@@ -87,16 +93,16 @@ static uint64_t bulk_layout(uint64_t start, uint32_t n, uint32_t d, uint32_t d2,
 static uint64_t base_checksum(const mim_index_t *ix, uint32_t j, uint32_t rows)
 {
     uint32_t a = j * rows, b = ix->n_templates - a < rows ? ix->n_templates : a + rows, m = b - a;
-    uint64_t h = mim_hash64(ix->ids + a, 8ull * m, SEED_BASE ^ j);
-    h = mim_hash64(ix->subject + a, 4ull * m, h);
-    h = mim_hash64(ix->pose + a, 4ull * m, h);
-    return mim_hash64(ix->desc + (size_t)a * ix->d, 4ull * m * ix->d, h);
+    uint64_t h = hash(ix->ids + a, 8ull * m, SEED_BASE ^ j);
+    h = hash(ix->subject + a, 4ull * m, h);
+    h = hash(ix->pose + a, 4ull * m, h);
+    return hash(ix->desc + (size_t)a * ix->d, 4ull * m * ix->d, h);
 }
 
 static uint64_t extra_checksum(const mim_index_t *ix, uint32_t j, uint32_t rows)
 {
     uint32_t a = j * rows, b = ix->n_templates - a < rows ? ix->n_templates : a + rows, de = ix->d2 - ix->d;
-    return mim_hash64(ix->extra + (size_t)a * de, 4ull * (b - a) * de, SEED_EXTRA ^ j);
+    return hash(ix->extra + (size_t)a * de, 4ull * (b - a) * de, SEED_EXTRA ^ j);
 }
 
 /* ---- writer ---- */
@@ -151,7 +157,7 @@ int mim__index_save_v5(const mim_index_t *ix, void **blob, size_t *len, mim_erro
     for (uint32_t c = 0; !h.oom && c < nc; c++)
         if (fb[c]) {
             uint32_t cl[2] = {c, 0};
-            uint64_t l = fl[c], ck = mim_hash64(fb[c], fl[c], SEED_FOREST ^ c);
+            uint64_t l = fl[c], ck = hash(fb[c], fl[c], SEED_FOREST ^ c);
             put(&h, cl, 8), put(&h, &l, 8), put(&h, &ck, 8);
         }
     for (uint32_t j = 0; j < n_chunks; j++) {
@@ -203,7 +209,7 @@ int mim__index_save_v5(const mim_index_t *ix, void **blob, size_t *len, mim_erro
         }
     for (uint32_t c = 0; c < nc; c++) free(fb[c]);
     free(fb), free(fl);
-    uint64_t hb = h.len, plen = end - HDR, sum = mim_hash64(p + HDR, hb, SEED_HEAD);
+    uint64_t hb = h.len, plen = end - HDR, sum = hash(p + HDR, hb, SEED_HEAD);
     uint32_t ver = V5, bom = 0x01020304, hdr = HDR;
     free(h.p);
     memcpy(p, "MIXB", 4);
@@ -259,7 +265,7 @@ int mim__index_parse_v5(mim_index_t **out, const unsigned char *p, size_t len, i
     if (hdr != HDR || plen != len - HDR || hb > len - HDR || hb % 64 || !rows || rows > (1u << 24) ||
         memcmp(p + 44, zero, HDR - 44))
         return mim_error_set(err, MIM_EFORMAT, "index blob: header sizes are inconsistent (%zu bytes)", len);
-    if (check_head && mim_hash64(p + HDR, hb, SEED_HEAD) != sum)
+    if (check_head && hash(p + HDR, hb, SEED_HEAD) != sum)
         return mim_error_set(err, MIM_EFORMAT, "index blob: checksum mismatch in its head (damaged; run mimic index)");
     int rc = 0;
     mim_index_t *ix = calloc(1, sizeof *ix);
@@ -454,7 +460,7 @@ int mim__class_ready(const mim_index_t *cix, uint32_t k, mim_error_t *err)
         if (!s) {
             if (mim__rows_ready(ix, ix->class_start[k], ix->class_start[k + 1], 0, NULL)) s = 2;
             else if (lz->forest[k] && !ix->flann_exact[k] &&
-                     mim_hash64(lz->forest[k], lz->forest_len[k], SEED_FOREST ^ k) != lz->forest_ck[k])
+                     hash(lz->forest[k], lz->forest_len[k], SEED_FOREST ^ k) != lz->forest_ck[k])
                 s = 3;
             else if (!(rc = mim__class_knn(ix, k, lz->forest[k], lz->forest_len[k], err)))
                 s = 1;
@@ -545,13 +551,13 @@ void mim__index_seal_v5(unsigned char *p, size_t len)
         for (uint32_t f = 0; f < lz->nf; f++) {
             uint32_t k;
             memcpy(&k, lz->ftab + 24ull * f, 4);
-            uint64_t ck = mim_hash64(lz->forest[k], lz->forest_len[k], SEED_FOREST ^ k);
+            uint64_t ck = hash(lz->forest[k], lz->forest_len[k], SEED_FOREST ^ k);
             memcpy((unsigned char *)lz->ftab + 24ull * f + 16, &ck, 8);
         }
         mim_index_close(&ix);
     }
     if (hb <= len - HDR) {
-        uint64_t sum = mim_hash64(p + HDR, hb, SEED_HEAD);
+        uint64_t sum = hash(p + HDR, hb, SEED_HEAD);
         memcpy(p + 16, &sum, 8);
     }
 }

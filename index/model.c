@@ -91,8 +91,7 @@ struct FLANNParameters mim__flann_params(const mim_index_t *ix, int exact)
  * the blob; FLANN only reads them). */
 int mim__class_knn(mim_index_t *ix, uint32_t c, const void *bytes, size_t len, mim_error_t *err)
 {
-    uint32_t n = ix->class_start[c + 1] - ix->class_start[c];
-    ix->flann_exact[c] = n <= ix->exact_max;
+    uint32_t n = ix->class_start[c + 1] - ix->class_start[c]; /* flann_exact[c] is set: read only here */
     if (!n) return 0;
     struct FLANNParameters p = flann_params(ix, ix->flann_exact[c]);
     float speedup = 0, *points = ix->desc + (size_t)ix->class_start[c] * ix->d;
@@ -112,6 +111,7 @@ int mim__index_build_knn(mim_index_t *ix, const mim__forest_bytes_t *saved, mim_
     ix->flann_exact = calloc(ix->n_classes, sizeof *ix->flann_exact);
     if (!ix->flann || !ix->flann_exact) return MIM_ENOMEM;
     for (uint32_t c = 0; c < ix->n_classes; c++) {
+        ix->flann_exact[c] = ix->class_start[c + 1] - ix->class_start[c] <= ix->exact_max;
         int rc = mim__class_knn(ix, c, saved ? saved[c].bytes : NULL, saved ? saved[c].len : 0, err);
         if (rc) return rc;
     }
