@@ -43,6 +43,7 @@
 
 static uint64_t rng_state = 777;
 static double vote_below; /* --vote-below: the k-NN vote's threshold (0: the index default) */
+static int ab;            /* --ab: the index from the store against the copied load, interleaved */
 static double uniform(void)
 {
     rng_state = rng_state * 6364136223846793005ULL + 1442695040888963407ULL;
@@ -169,8 +170,10 @@ int main(int argc, char **argv)
             nq = (uint32_t)atol(argv[++i]);
         } else if (!strcmp(argv[i], "--vote-below") && i + 1 < argc) {
             vote_below = atof(argv[++i]);
+        } else if (!strcmp(argv[i], "--ab")) {
+            ab = 1;
         } else {
-            fprintf(stderr, "usage: bench_query [--sizes 100,10000,1000000] [--queries N] [--vote-below P]\n");
+            fprintf(stderr, "usage: bench_query [--sizes 100,10000,1000000] [--queries N] [--vote-below P] [--ab]\n");
             return 2;
         }
     }
@@ -229,7 +232,8 @@ int main(int argc, char **argv)
             return 2;
         }
         double open_ms = (mim_now() - t0) * 1e3;
-        mim_index_close(&ix2);
+        mim_index_t *copied = ix2;
+        if (!ab) mim_index_close(&ix2), copied = NULL;
         mim_index_close(&ix);
         char dir[] = "/tmp/bench_query_XXXXXX";
         if (!mkdtemp(dir)) return 2;
@@ -262,6 +266,15 @@ int main(int argc, char **argv)
                n, rep.seconds, (double)len / 1048576.0, open_ms, store_ms, rep.support_vectors, lt.median_us, lt.p99_us,
                lt.max_us, lt.first_max_us, lt.first_mean_us, lt.first_classes, 1e6 / lt.per_frame_us, lm1.median_us,
                lm1.max_us, lin_med, lin_med / lt.median_us, ra0, rf0, ra1, rf1);
+        if (copied) { /* every class warm in both: the same queries, alternating rounds */
+            printf("\n--ab at %u templates, all classes used once before (medians and p99 in us):", n);
+            for (int round = 0; round < 6; round++) {
+                lat_t r = measure(round % 2 ? copied : ix2, frames, nq, L, 0, 0, NULL);
+                printf(" %s %.1f/%.1f;", round % 2 ? "copied" : "from the store", r.median_us, r.p99_us);
+            }
+            printf("\n\n");
+            mim_index_close(&copied);
+        }
         if (info.forests_loaded + info.forests_built)
             printf("\nopen at %u templates: %u kd-forests read from the blob, %u built (the blob holds them since "
                    "issue 16; before, every open built them)\n\n",
