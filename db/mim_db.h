@@ -154,6 +154,13 @@ int mim_db_index_put(mim_db_txn_t *txn, const void *blob, size_t len, const mim_
  * ends. MIM_ENOTFOUND when the store has no index. */
 int mim_db_index_get(mim_db_txn_t *txn, const void **blob, size_t *len, mim_db_index_meta_t *meta,
                      mim_error_t *err);
+/* As mim_db_index_get, lent the same way, but without the XXH3-64 of the
+ * whole blob (the build record's own checksum is still checked, and the
+ * blob is still checked to lie inside the file): for a reader that checks
+ * the blob itself as it uses it (index/: a version 5 blob, by section).
+ * mim_db_check still checks the whole blob. */
+int mim_db_index_lend(mim_db_txn_t *txn, const void **blob, size_t *len, mim_db_index_meta_t *meta,
+                      mim_error_t *err);
 
 /* ---- intrinsic encodings (seed 000 Section 3.1), one per template ----
  * What a transfer needs of a template, stored by ingest so that no query

@@ -6,6 +6,8 @@
 #include "mim_index.h"
 
 #include <flann/flann.h>
+#include <pthread.h>
+#include <stdatomic.h>
 
 /* A trained one-vs-rest SVM in dense form: decision value
  * f(x) = sum_i coef[i] exp(-gamma |x - sv_i|^2) - rho, positive for the
@@ -36,17 +38,65 @@ struct mim_index {
     float *desc;           /* n_templates * d, radians */
     float *extra;          /* n_templates * (d2 - d): the further ranked angles */
     mim__svm_t *svm;       /* n_classes (all n_sv 0 when there is one class) */
-    flann_index_t *flann;  /* n_classes */
+    flann_index_t *flann;  /* n_classes (NULL until its class is first used, in place) */
     int *flann_exact;      /* n_classes */
-    uint32_t forests_loaded, forests_built; /* kd-forests read from the blob / built (the rest: exact) */
+    _Atomic uint32_t forests_loaded, forests_built; /* kd-forests read from the blob / built (the rest: exact) */
     double discriminant_noise; /* the discriminants' training noise / the bodies' scale (0: none) */
     struct mim__lda {
         uint32_t nf, n_classes; /* 0: none */
         float *mean;            /* nf: the mean of the class means */
         float *g;               /* n_classes * nf: S^-1 mu_c */
         double *b;              /* n_classes */
-    } lda;
+    } lda;                      /* in the blob's head when in place (borrowed or own) */
+    /* In place (blob version 5, blob_v5.c): the arrays above, the label
+     * strings and the SVMs' arrays point into the blob, which is not ours
+     * (borrowed) or is our own aligned copy (own); lazy says which sections
+     * are verified and which classes are ready. NULL lazy: all of it is. */
+    int borrowed;
+    void *own;
+    struct mim__lazy *lazy;
 };
+
+/* blob_v5.c: the lazily verified sections of an index used in place.
+ * Per chunk of `rows` templates, "base" covers ids, subject, pose and the
+ * descriptor rows, "extra" the further angles; per class, its rows (base)
+ * verified and its k-NN index (forest or exact scan) made, once. States:
+ * 0 not yet, 1 ready, 2 damaged (sticky). */
+typedef struct mim__lazy {
+    uint32_t rows, n_chunks;
+    const unsigned char *ck;     /* n_chunks x (u64 base, u64 extra) checksums, in the blob's verified head */
+    _Atomic uint8_t *base, *extra; /* n_chunks each */
+    _Atomic uint8_t *cls;          /* n_classes: 0, 1, 2 rows damaged, 3 forest damaged */
+    pthread_mutex_t *lock;         /* n_classes: the one thread that readies a class */
+    uint32_t n_locks;              /* initialised */
+    const unsigned char *ftab;     /* the forests' table in the head, nf entries */
+    uint32_t nf;
+    const unsigned char **forest;  /* n_classes: the saved forest's bytes in the blob (NULL: none) */
+    uint64_t *forest_len, *forest_ck;
+} mim__lazy_t;
+
+/* 0 when templates lo..hi-1 (their base, and extra when asked) are
+ * verified, verifying what is not yet; MIM_EFORMAT (with a message) when
+ * damaged. No-op for an index that is not lazy. */
+int mim__rows_ready(const mim_index_t *ix, uint32_t lo, uint32_t hi, int extra, mim_error_t *err);
+/* 0 when class c's rows are verified and its k-NN index is made (once,
+ * by one thread; the others wait for it). */
+int mim__class_ready(const mim_index_t *ix, uint32_t c, mim_error_t *err);
+/* One class's k-NN index from saved forest bytes (NULL: none) or built
+ * (model.c). */
+int mim__class_knn(mim_index_t *ix, uint32_t c, const void *bytes, size_t len, mim_error_t *err);
+struct FLANNParameters mim__flann_params(const mim_index_t *ix, int exact);
+/* blob_v5.c */
+int mim__index_save_v5(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err);
+/* Parses a version 5 blob in place (p 8-byte aligned and lasting as long
+ * as ix); the head is verified now, the rest lazily. check_head 0: the
+ * head's checksum is not checked (the fuzz harness's sealing). */
+int mim__index_parse_v5(mim_index_t **out, const unsigned char *p, size_t len, int check_head, mim_error_t *err);
+void mim__lazy_free(mim_index_t *ix);
+void mim__index_seal_v5(unsigned char *p, size_t len); /* tests, fuzz: every checksum made right */
+/* blob.c: versions 1 to 4, copied */
+int mim__index_load_legacy(mim_index_t **out, const void *blob, size_t len, mim_error_t *err);
+int mim__index_save_v4(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err); /* tests */
 
 /* Every random choice of an index build (samples, folds, k-means++ seeds,
  * the folds of the Platt fits) draws from core's generator (mim_rng_t),

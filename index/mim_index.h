@@ -193,12 +193,35 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
                     mim_index_report_t *report, mim_error_t *err);
 void mim_index_close(mim_index_t **ix); /* accepts NULL; nulls the pointer */
 
-/* Serialised form: one versioned blob with a checksum (malloc'd; caller
- * frees). Loading checks magic, version, sizes and checksum: a damaged blob is
- * MIM_EFORMAT, never a crash. The FLANN indexes are rebuilt on load (a
- * saved FLANN index does not hold its data; rebuilding is the cheaper copy). */
+/* Serialised form: one versioned blob with checksums (malloc'd; caller
+ * frees), version 5 (layout: blob_v5.c). Saving an index opened in place
+ * first verifies what it had not yet (mim_index_verify), so that a damaged
+ * section is never written out under fresh checksums.
+ *
+ * mim_index_load copies: the index owns everything and the caller may free
+ * blob at once. It checks magic, version, sizes and every checksum, and
+ * loads every saved kd-forest, before it returns: a damaged blob is
+ * MIM_EFORMAT, never a crash. Versions 1 to 4 load too (a version 2 blob
+ * builds its forests).
+ *
+ * mim_index_open_in_place borrows: a version 5 blob at an 8-byte aligned
+ * address is used where it is (the store's memory map), and must stay
+ * valid and unchanged until mim_index_close. Only the small head is read
+ * and verified now (sizes, labels, classes, SVMs, and the checksums of the
+ * rest); the templates' rows are verified by chunk, and a class's kd-forest
+ * verified and loaded, when a query first needs them, once, by one thread
+ * (queries on other threads wait for that class, not for others). A query
+ * that meets a damaged section fails with MIM_EFORMAT, as will every later
+ * query that needs it; it never reads what did not verify. An older or
+ * unaligned blob is copied (mim_index_load). */
 int mim_index_save(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err);
 int mim_index_load(mim_index_t **out, const void *blob, size_t len, mim_error_t *err);
+int mim_index_open_in_place(mim_index_t **out, const void *blob, size_t len, mim_error_t *err);
+/* Verifies every section not verified yet and makes every class's k-NN
+ * index (what an open in place defers to first use): MIM_EFORMAT when some
+ * part is damaged. Thread-safe with queries. 0 at once for an index that
+ * is not in place. */
+int mim_index_verify(const mim_index_t *ix, mim_error_t *err);
 
 typedef struct mim_index_info {
     uint32_t n_templates, n_landmarks, d, d2, n_classes, class_source;
@@ -211,6 +234,8 @@ typedef struct mim_index_info {
      * and built when it was made or loaded (a blob before version 3, or a
      * forest that would not load, builds them again) */
     uint32_t forests_loaded, forests_built;
+    uint32_t in_place;      /* used in place (mim_index_open_in_place of a version 5 blob) */
+    uint32_t classes_ready; /* classes verified and with their k-NN index (in place: those used so far) */
 } mim_index_info_t;
 void mim_index_get_info(const mim_index_t *ix, mim_index_info_t *out);
 const char *mim_index_class_name(const mim_index_t *ix, uint32_t cls);

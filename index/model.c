@@ -72,7 +72,7 @@ static int64_t strtab_add(strtab_t *t, const char *s)
  *   rand() while it is built, without reseeding it.
  * FLANN still sets its logger's level in every call (always the same
  * FLANN_LOG_NONE). */
-static struct FLANNParameters flann_params(const mim_index_t *ix, int exact)
+struct FLANNParameters mim__flann_params(const mim_index_t *ix, int exact)
 {
     struct FLANNParameters p = DEFAULT_FLANN_PARAMETERS;
     p.algorithm = exact ? FLANN_INDEX_LINEAR : FLANN_INDEX_KDTREE;
@@ -83,6 +83,27 @@ static struct FLANNParameters flann_params(const mim_index_t *ix, int exact)
     p.random_seed = 0; /* no srand (see above) */
     return p;
 }
+#define flann_params mim__flann_params
+
+/* Class c's k-NN index: its saved forest where one is given and loads,
+ * else built (an exact class's linear scan costs nothing to build). The
+ * points are the class's rows of desc, used where they are (in place: in
+ * the blob; FLANN only reads them). */
+int mim__class_knn(mim_index_t *ix, uint32_t c, const void *bytes, size_t len, mim_error_t *err)
+{
+    uint32_t n = ix->class_start[c + 1] - ix->class_start[c]; /* flann_exact[c] is set: read only here */
+    if (!n) return 0;
+    struct FLANNParameters p = flann_params(ix, ix->flann_exact[c]);
+    float speedup = 0, *points = ix->desc + (size_t)ix->class_start[c] * ix->d;
+    if (!ix->flann_exact[c] && len && (ix->flann[c] = mim__forest_load(bytes, len, points, n, ix->d))) {
+        ix->forests_loaded++;
+        return 0;
+    }
+    ix->flann[c] = flann_build_index_float(points, (int)n, (int)ix->d, &speedup, &p);
+    if (!ix->flann_exact[c]) ix->forests_built++;
+    if (!ix->flann[c]) return mim_error_set(err, MIM_ENOMEM, "k-NN index of class %u (%u templates) failed", c, n);
+    return 0;
+}
 
 int mim__index_build_knn(mim_index_t *ix, const mim__forest_bytes_t *saved, mim_error_t *err)
 {
@@ -90,19 +111,9 @@ int mim__index_build_knn(mim_index_t *ix, const mim__forest_bytes_t *saved, mim_
     ix->flann_exact = calloc(ix->n_classes, sizeof *ix->flann_exact);
     if (!ix->flann || !ix->flann_exact) return MIM_ENOMEM;
     for (uint32_t c = 0; c < ix->n_classes; c++) {
-        uint32_t n = ix->class_start[c + 1] - ix->class_start[c];
-        ix->flann_exact[c] = n <= ix->exact_max;
-        if (!n) continue;
-        struct FLANNParameters p = flann_params(ix, ix->flann_exact[c]);
-        float speedup = 0, *points = ix->desc + (size_t)ix->class_start[c] * ix->d;
-        if (!ix->flann_exact[c] && saved && saved[c].len &&
-            (ix->flann[c] = mim__forest_load(saved[c].bytes, saved[c].len, points, n, ix->d))) {
-            ix->forests_loaded++;
-            continue;
-        }
-        ix->flann[c] = flann_build_index_float(points, (int)n, (int)ix->d, &speedup, &p);
-        ix->forests_built += !ix->flann_exact[c];
-        if (!ix->flann[c]) return mim_error_set(err, MIM_ENOMEM, "k-NN index of class %u (%u templates) failed", c, n);
+        ix->flann_exact[c] = ix->class_start[c + 1] - ix->class_start[c] <= ix->exact_max;
+        int rc = mim__class_knn(ix, c, saved ? saved[c].bytes : NULL, saved ? saved[c].len : 0, err);
+        if (rc) return rc;
     }
     return 0;
 }
@@ -111,11 +122,18 @@ void mim_index_close(mim_index_t **pix)
 {
     if (!pix || !*pix) return;
     mim_index_t *ix = *pix;
-    if (ix->flann)
+    if (ix->flann && ix->flann_exact)
         for (uint32_t c = 0; c < ix->n_classes; c++) {
             struct FLANNParameters p = flann_params(ix, ix->flann_exact[c]);
             if (ix->flann[c]) flann_free_index_float(ix->flann[c], &p);
         }
+    mim__lazy_free(ix);
+    if (ix->borrowed) { /* the arrays, strings and SVMs' arrays are the blob's */
+        free(ix->strings), free(ix->svm), free(ix->flann), free(ix->flann_exact), free(ix->own);
+        free(ix);
+        *pix = NULL;
+        return;
+    }
     if (ix->svm)
         for (uint32_t c = 0; c < ix->n_classes; c++) mim__svm_free(&ix->svm[c]);
     if (ix->strings)
@@ -619,6 +637,13 @@ void mim_index_get_info(const mim_index_t *ix, mim_index_info_t *o)
     o->augment = ix->augment, o->noise = ix->noise, o->weight = ix->weight;
     o->discriminant_noise = ix->discriminant_noise;
     o->forests_loaded = ix->forests_loaded, o->forests_built = ix->forests_built;
+    o->in_place = ix->borrowed && !ix->own;
+    o->classes_ready = ix->n_classes;
+    if (ix->lazy) {
+        o->classes_ready = 0;
+        for (uint32_t c = 0; c < ix->n_classes; c++)
+            o->classes_ready += atomic_load_explicit(&ix->lazy->cls[c], memory_order_acquire) == 1;
+    }
 }
 
 const char *mim_index_class_name(const mim_index_t *ix, uint32_t c)
@@ -652,6 +677,18 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
                       float *w, mim_index_answer_t *ans, mim_index_hit_t *hits, cand_t *best_st, int *ind_st,
                       float *dist_st, mim_error_t *err);
 
+/* In place (blob version 5), the chunk of rows that holds row r is
+ * verified before r is read (blob_v5.c); *last remembers the chunk
+ * checked last, so a scan checks each chunk once. */
+static inline int row_ready(const mim_index_t *ix, uint32_t r, int extra, uint32_t *last, mim_error_t *err)
+{
+    if (!ix->lazy) return 0;
+    uint32_t j = r / ix->lazy->rows;
+    if (j == *last) return 0;
+    *last = j;
+    return mim__rows_ready(ix, r, r + 1, extra, err);
+}
+
 /* Squared distance over the angles with mask[f] set: the first d from desc,
  * the next de from extra. */
 static float masked_d2(const float *desc, const float *extra, const float *q, const float *w, uint32_t d,
@@ -672,10 +709,12 @@ static float masked_d2(const float *desc, const float *extra, const float *q, co
  * templates). Each class is scanned, a class of more than SCAN_PER_CLASS
  * templates at an even stride (at most SCAN_PER_CLASS of them), so a vote
  * costs at most vote_classes x SCAN_PER_CLASS distances (measured at
- * 10 000 templates: bench/RESULTS.md). Returns the class chosen. */
-static uint32_t vote(const mim_index_t *ix, const mim_index_query_options_t *opt, const float *q, const float *w,
-                     int masked, int64_t ex, const double *pr, uint32_t top)
+ * 10 000 templates: bench/RESULTS.md). *out gets the class chosen; an
+ * error only from rows of an index in place that turn out damaged. */
+static int vote(const mim_index_t *ix, const mim_index_query_options_t *opt, const float *q, const float *w,
+                int masked, int64_t ex, const double *pr, uint32_t top, uint32_t *out, mim_error_t *err)
 {
+    *out = top;
     enum { MAXC = 8, MAXK = 32 };
     uint32_t T = opt && opt->vote_classes ? opt->vote_classes : MIM_INDEX_VOTE_CLASSES_DEFAULT;
     uint32_t K = opt && opt->vote_k ? opt->vote_k : MIM_INDEX_VOTE_K_DEFAULT;
@@ -700,19 +739,21 @@ static uint32_t vote(const mim_index_t *ix, const mim_index_query_options_t *opt
     float w2[512];
     int wide = masked;
     uint32_t nw = wide ? d2 : d;
-    if (nw > 512) return top;
+    if (nw > 512) return 0;
     for (uint32_t f = 0; f < nw; f++) w2[f] = w[f] * ix->w[f] * ix->w[f];
     cand_t best[MAXK];
     uint32_t nb = 0;
     for (uint32_t t = 0; t < nt; t++) { /* at most SCAN_PER_CLASS templates a class, evenly spread */
         uint32_t c = cl[t], lo = ix->class_start[c], hi = ix->class_start[c + 1];
-        uint32_t step = (hi - lo + SCAN_PER_CLASS - 1) / SCAN_PER_CLASS;
+        uint32_t step = (hi - lo + SCAN_PER_CLASS - 1) / SCAN_PER_CLASS, last = UINT32_MAX;
         for (uint32_t r = lo; r < hi; r += step) {
+            int rc = row_ready(ix, r, wide, &last, err);
+            if (rc) return rc;
             if (ex >= 0 && ix->subject[r] == (uint32_t)ex) continue;
             keep(best, &nb, K, masked_d2(ix->desc + (size_t)r * d, ix->extra + (size_t)r * de, q, w2, d, wide ? de : 0), r);
         }
     }
-    if (!nb) return top;
+    if (!nb) return 0;
     double score[MAXC] = {0};
     for (uint32_t i = 0; i < nb; i++)
         for (uint32_t t = 0; t < nt; t++)
@@ -723,7 +764,8 @@ static uint32_t vote(const mim_index_t *ix, const mim_index_query_options_t *opt
         score[t] = pr[cl[t]] * (score[t] + 1);
         if (score[t] > score[arg]) arg = t;
     }
-    return cl[arg];
+    *out = cl[arg];
+    return 0;
 }
 
 int mim_index_query(const mim_index_t *ix, const float *positions, const uint8_t *present,
@@ -801,6 +843,8 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
         for (uint32_t c = 0; c < ix->n_classes; c++) {
             uint32_t lo = ix->class_start[c], hi = ix->class_start[c + 1];
             if (!all && hi - lo > SCAN_PER_CLASS) hi = lo + SCAN_PER_CLASS;
+            int rc = mim__rows_ready(ix, lo, hi, 1, err);
+            if (rc) return rc;
             for (uint32_t r = lo; r < hi; r++) {
                 if (ex >= 0 && ix->subject[r] == (uint32_t)ex) continue;
                 float s2 = masked_d2(ix->desc + (size_t)r * d, ix->extra + (size_t)r * de, q, w, d, de);
@@ -837,14 +881,20 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
             if (!ans->missing && ix->lda.nf && sa > 0 && sa <= 1 && prob < sa &&
                 (lc = mim__lda_class(&ix->lda, positions, L, &lp)) >= 0)
                 cls = (uint32_t)lc, prob = lp;
-            else if (vb > 0 && prob < vb)
-                cls = vote(ix, opt, q, w, masked, ex, pr, cls);
+            int vrc = 0;
+            if (!(lc >= 0) && vb > 0 && prob < vb)
+                vrc = vote(ix, opt, q, w, masked, ex, pr, cls, &cls, err);
             if (pr != pr_st) free(pr);
+            if (vrc) return vrc;
         }
     }
     ans->cls = cls, ans->probability = prob;
-    /* k nearest inside the class */
+    /* k nearest inside the class: in place, its rows are verified and its
+     * k-NN index made when a query first needs them */
     uint32_t lo = ix->class_start[cls], hi = ix->class_start[cls + 1], nc = hi - lo;
+    int rc = mim__class_ready(ix, cls, err);
+    if (!rc && masked && ix->flann_exact[cls]) rc = mim__rows_ready(ix, lo, hi, 1, err);
+    if (rc) return rc;
     uint32_t n_ex = 0;
     if (ex >= 0)
         for (uint32_t r = lo; r < hi; r++) n_ex += ix->subject[r] == (uint32_t)ex;

@@ -512,6 +512,9 @@ static void test_saved_forests(void **s)
  * length past the end or of zero, and bytes after the last forest are each
  * MIM_EFORMAT with the checksum made right (a damaged store fails the
  * checksum first). */
+/* index/'s writer of the old layout (version 4), kept for these tests */
+int mim__index_save_v4(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err);
+
 static void patch_checksum(unsigned char *blob, size_t len)
 {
     uint64_t plen = len - 32, sum = mim_hash64(blob + 32, plen, 0x6d6978ULL);
@@ -531,8 +534,8 @@ static void test_forest_section_hostile(void **s)
     assert_int_equal(mim_index_build(&b, &in, &ex, NULL, NULL), 0);
     void *ka = NULL, *kb = NULL;
     size_t la = 0, lb = 0;
-    assert_int_equal(mim_index_save(a, &ka, &la, NULL), 0);
-    assert_int_equal(mim_index_save(b, &kb, &lb, NULL), 0);
+    assert_int_equal(mim__index_save_v4(a, &ka, &la, NULL), 0); /* this layout is version 4's */
+    assert_int_equal(mim__index_save_v4(b, &kb, &lb, NULL), 0);
     mim_index_info_t info;
     mim_index_get_info(a, &info);
     mim_index_close(&a), mim_index_close(&b);
@@ -595,6 +598,298 @@ static void test_forest_section_hostile(void **s)
     synth_set_free(&ss);
 }
 
+/* ---- version 5: in place (issue 16) ---- */
+void mim__index_seal_v5(unsigned char *p, size_t len);
+
+static uint64_t up64(uint64_t x) { return (x + 63) / 64 * 64; }
+
+/* Offsets of a version 5 blob's bulk sections (blob_v5.c's layout). */
+static void v5_sections(const unsigned char *p, uint32_t n, uint32_t d, uint32_t d2, uint64_t *desc, uint64_t *extra,
+                        uint64_t *forests)
+{
+    uint64_t hb;
+    memcpy(&hb, p + 32, 8);
+    uint64_t ids = up64(64 + hb), sub = up64(ids + 8ull * n), pose = up64(sub + 4ull * n);
+    *desc = up64(pose + 4ull * n);
+    *extra = up64(*desc + 4ull * n * d);
+    *forests = up64(*extra + 4ull * n * (d2 - d));
+}
+
+/* frames: every template perturbed, and every other one with 3 landmarks
+ * missing (the completion scan, the masked exact scan) */
+static void v5_frames(const synth_set_t *ss, float *frames, uint8_t *present)
+{
+    uint64_t seed = 41;
+    for (uint32_t f = 0; f < 2 * ss->n; f++) {
+        uint32_t t = f % ss->n;
+        memset(present + 16 * f, 1, 16);
+        for (int i = 0; i < 48; i++) {
+            seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+            frames[48 * f + i] = ss->lm[48 * t + i] + 0.04f * ((float)(seed >> 40) / 16777216.0f - 0.5f);
+        }
+        if (f >= ss->n) present[16 * f + t % 16] = present[16 * f + (t + 3) % 16] = present[16 * f + (t + 9) % 16] = 0;
+    }
+}
+
+/* An index used in place answers exactly as the index that was saved, as
+ * the same blob copied, and as its version 4 blob (still loaded, copied;
+ * without the discriminants of version 5, so as the others' SVMs),
+ * with kd-forests so coarse (1 check) that the answers depend on the
+ * trees; in place, nothing is verified or loaded before a query needs it. */
+static void test_in_place_answers(void **s)
+{
+    (void)s;
+    synth_set_t ss;
+    synth_set(&ss, 4, 12, 43);
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    for (int variant = 0; variant < 2; variant++) {
+        mim_index_options_t o = {.features = 40, .exact_max = variant ? 2 : 0, .checks = 1};
+        mim_index_t *ix = NULL, *cp = NULL, *ip = NULL, *v4 = NULL;
+        assert_int_equal(mim_index_build(&ix, &in, &o, NULL, NULL), 0);
+        void *blob = NULL, *b4 = NULL;
+        size_t len = 0, l4 = 0;
+        assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
+        assert_int_equal(mim__index_save_v4(ix, &b4, &l4, NULL), 0);
+        uint32_t ver;
+        memcpy(&ver, (unsigned char *)blob + 4, 4);
+        assert_int_equal(ver, 5);
+        memcpy(&ver, (unsigned char *)b4 + 4, 4);
+        assert_int_equal(ver, 4);
+        assert_int_equal((uintptr_t)blob % 64, 0);
+        assert_int_equal(mim_index_load(&cp, blob, len, NULL), 0);
+        assert_int_equal(mim_index_open_in_place(&ip, blob, len, NULL), 0);
+        assert_int_equal(mim_index_open_in_place(&v4, b4, l4, NULL), 0); /* copied: version 4 */
+        mim_index_info_t info;
+        mim_index_get_info(ip, &info);
+        assert_int_equal(info.in_place, 1);
+        assert_int_equal(info.classes_ready, 0);
+        assert_int_equal(info.forests_loaded + info.forests_built, 0);
+        mim_index_get_info(v4, &info);
+        assert_int_equal(info.in_place, 0);
+        assert_int_equal(info.forests_loaded, variant ? info.n_classes : 0);
+        mim_index_get_info(cp, &info);
+        assert_int_equal(info.in_place, 0);
+        assert_int_equal(info.classes_ready, info.n_classes);
+        float *frames = malloc(sizeof(float) * 48 * 2 * ss.n);
+        uint8_t *present = malloc(16 * 2 * ss.n);
+        v5_frames(&ss, frames, present);
+        for (uint32_t f = 0; f < 2 * ss.n; f++) {
+            mim_index_query_options_t qo = {.k = 3};
+            mim_index_answer_t a[4];
+            mim_index_hit_t h[4][3];
+            mim_index_t *each[4] = {ix, cp, ip, v4};
+            for (int k = 0; k < 4; k++)
+                assert_int_equal(mim_index_query(each[k], frames + 48 * f, present + 16 * f, &qo, &a[k], h[k], NULL), 0);
+            for (int k = 1; k < 3; k++)
+                if (!same_answer(&a[0], h[0], &a[k], h[k])) fail_msg("variant %d frame %u: index %d answers otherwise", variant, f, k);
+            /* version 4 holds no discriminants: it answers as the SVMs of the others */
+            mim_index_query_options_t svm_only = {.k = 3, .svm_above = -1};
+            assert_int_equal(mim_index_query(ix, frames + 48 * f, present + 16 * f, &svm_only, &a[0], h[0], NULL), 0);
+            if (!same_answer(&a[0], h[0], &a[3], h[3])) fail_msg("variant %d frame %u: index 3 answers otherwise", variant, f);
+        }
+        mim_index_get_info(ip, &info);
+        assert_true(info.classes_ready > 0);
+        assert_int_equal(info.forests_loaded, variant ? info.classes_ready : 0);
+        /* saving the index used in place gives the same bytes */
+        void *again = NULL;
+        size_t la = 0;
+        assert_int_equal(mim_index_save(ip, &again, &la, NULL), 0);
+        assert_int_equal(la, len);
+        assert_memory_equal(again, blob, len);
+        mim_index_get_info(ip, &info);
+        assert_int_equal(info.classes_ready, info.n_classes);
+        free(again), free(frames), free(present);
+        mim_index_close(&ix), mim_index_close(&cp), mim_index_close(&ip), mim_index_close(&v4);
+        free(blob), free(b4);
+    }
+    synth_set_free(&ss);
+}
+
+/* A damaged bulk section (with its head intact) opens in place; the
+ * queries that need it fail with MIM_EFORMAT, again and again, the others
+ * answer; a copying load refuses the blob. A damaged forest likewise. A
+ * head that does not check, or whose sizes are wrong under a right
+ * checksum, does not open. Under ASan, no read goes astray. */
+static void test_in_place_damage(void **s)
+{
+    (void)s;
+    synth_set_t ss;
+    synth_set(&ss, 4, 12, 47);
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_options_t o = {.features = 40, .exact_max = 2, .C = 10, .gamma = 1};
+    mim_index_t *ix = NULL;
+    assert_int_equal(mim_index_build(&ix, &in, &o, NULL, NULL), 0);
+    mim_index_info_t info;
+    mim_index_get_info(ix, &info);
+    void *blob = NULL;
+    size_t len = 0;
+    assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
+    uint64_t desc, extra, forests;
+    v5_sections(blob, info.n_templates, info.d, info.d2, &desc, &extra, &forests);
+    unsigned char *p = NULL;
+    assert_int_equal(posix_memalign((void **)&p, 64, len), 0);
+    float *frames = malloc(sizeof(float) * 48 * 2 * ss.n);
+    uint8_t *present = malloc(16 * 2 * ss.n);
+    v5_frames(&ss, frames, present);
+    /* 0: the descriptor of the last template, 1: its further angles, 2: a
+     * forest's bytes */
+    uint64_t where[3] = {desc + 4ull * info.n_templates * info.d - 4, extra + 4ull * (info.n_templates - 1) * (info.d2 - info.d) + 4, len - 5};
+    for (int w = 0; w < 3; w++) {
+        memcpy(p, blob, len);
+        p[where[w]] ^= 0x40;
+        mim_index_t *ip = NULL, *cp = NULL;
+        mim_error_t err = {0};
+        assert_int_equal(mim_index_load(&cp, p, len, &err), MIM_EFORMAT);
+        assert_non_null(strstr(err.msg, "damaged"));
+        assert_int_equal(mim_index_open_in_place(&ip, p, len, NULL), 0);
+        uint32_t failed = 0, answered = 0;
+        for (int round = 0; round < 2; round++)
+            for (uint32_t f = 0; f < 2 * ss.n; f++) {
+                mim_index_query_options_t qo = {.k = 3, .vote_below = -1};
+                mim_index_answer_t a, b;
+                mim_index_hit_t h[3], g[3];
+                mim_error_clear(&err);
+                int rc = mim_index_query(ip, frames + 48 * f, present + 16 * f, &qo, &a, h, &err);
+                assert_int_equal(mim_index_query(ix, frames + 48 * f, present + 16 * f, &qo, &b, g, NULL), 0);
+                if (rc) {
+                    assert_int_equal(rc, MIM_EFORMAT);
+                    assert_non_null(strstr(err.msg, "damaged"));
+                    failed++;
+                } else {
+                    assert_true(same_answer(&a, h, &b, g));
+                    answered++;
+                }
+            }
+        /* a chunk is 256 templates, all 48 here: damaged descriptors fail
+         * every query; damaged further angles only those with landmarks
+         * missing; a damaged forest only its class's */
+        assert_true(failed > 0);
+        assert_true(w == 0 ? answered == 0 : answered > 0);
+        assert_int_equal(mim_index_verify(ip, &err), MIM_EFORMAT);
+        void *again = NULL;
+        size_t la = 0;
+        assert_int_equal(mim_index_save(ip, &again, &la, NULL), MIM_EFORMAT); /* never laundered */
+        assert_null(again);
+        mim_index_close(&ip);
+    }
+    /* the head: a flipped byte fails its checksum; sealed again, a forest
+     * table entry for a class out of range, or twice, or of length 0 or
+     * past the end, fails its check */
+    mim_error_t err = {0};
+    mim_index_t *ip = NULL;
+    memcpy(p, blob, len);
+    p[64 + 20] ^= 1;
+    assert_int_equal(mim_index_open_in_place(&ip, p, len, &err), MIM_EFORMAT);
+    assert_non_null(strstr(err.msg, "checksum mismatch in its head"));
+    const uint64_t ftab = 64 + 40 + 40 + 8; /* fields, then the forest count */
+    struct {
+        uint64_t off, value;
+        int width;
+        const char *says;
+    } cases[] = {
+        {ftab, info.n_classes, 4, "is for class"},
+        {ftab + 24, 0, 4, "or a second one"},
+        {ftab + 8, 0, 8, "truncated"},
+        {ftab + 8, 1ULL << 40, 8, "truncated"},
+        {64 + 40 + 40, info.n_classes + 1, 4, "forests for"},
+        {40, 0, 4, "header sizes"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        memcpy(p, blob, len);
+        memcpy(p + cases[k].off, &cases[k].value, (size_t)cases[k].width);
+        mim__index_seal_v5(p, len);
+        mim_error_clear(&err);
+        assert_int_equal(mim_index_open_in_place(&ip, p, len, &err), MIM_EFORMAT);
+        if (!strstr(err.msg, cases[k].says)) fail_msg("case %zu: %s", k, err.msg);
+        assert_null(ip);
+    }
+    /* padding is zero, and the blob ends where its sections do */
+    memcpy(p, blob, len);
+    p[50] = 1;
+    assert_int_equal(mim_index_open_in_place(&ip, p, len, &err), MIM_EFORMAT);
+    memcpy(p, blob, len);
+    mim__index_seal_v5(p, len); /* sealing an intact blob changes nothing */
+    assert_memory_equal(p, blob, len);
+    assert_int_equal(mim_index_open_in_place(&ip, p, len - 8, &err), MIM_EFORMAT);
+    /* an unaligned blob is copied, and answers */
+    unsigned char *u = malloc(len + 1);
+    memcpy(u + 1, blob, len);
+    assert_int_equal(mim_index_open_in_place(&ip, u + 1, len, NULL), 0);
+    mim_index_get_info(ip, &info);
+    assert_int_equal(info.in_place, 0);
+    mim_index_close(&ip);
+    free(u), free(p), free(blob), free(frames), free(present);
+    mim_index_close(&ix);
+    synth_set_free(&ss);
+}
+
+/* Threads that query one class of an index in place for the first time at
+ * once: the class is readied once (one forest load), every thread gets the
+ * saved index's answer. Repeated over fresh opens to meet the race. */
+typedef struct {
+    const mim_index_t *ix;
+    const float *frame;
+    pthread_barrier_t *go;
+    mim_index_answer_t a;
+    mim_index_hit_t h[3];
+    int rc;
+} first_job_t;
+
+static void *first_run(void *arg)
+{
+    first_job_t *j = arg;
+    mim_index_query_options_t qo = {.k = 3};
+    pthread_barrier_wait(j->go);
+    j->rc = mim_index_query(j->ix, j->frame, NULL, &qo, &j->a, j->h, NULL);
+    return NULL;
+}
+
+static void test_in_place_first_use_threads(void **s)
+{
+    (void)s;
+    enum { THREADS = 4 };
+    synth_set_t ss;
+    synth_set(&ss, 4, 12, 53);
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_options_t o = {.features = 40, .exact_max = 2, .checks = 1};
+    mim_index_t *ix = NULL;
+    assert_int_equal(mim_index_build(&ix, &in, &o, NULL, NULL), 0);
+    void *blob = NULL;
+    size_t len = 0;
+    assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
+    for (uint32_t t = 0; t < ss.n; t += 5) {
+        mim_index_query_options_t qo = {.k = 3};
+        mim_index_answer_t want;
+        mim_index_hit_t wh[3];
+        assert_int_equal(mim_index_query(ix, ss.lm + 48 * t, NULL, &qo, &want, wh, NULL), 0);
+        mim_index_t *ip = NULL;
+        assert_int_equal(mim_index_open_in_place(&ip, blob, len, NULL), 0);
+        pthread_barrier_t go;
+        pthread_barrier_init(&go, NULL, THREADS);
+        pthread_t th[THREADS];
+        first_job_t jobs[THREADS];
+        for (int i = 0; i < THREADS; i++) {
+            jobs[i] = (first_job_t){.ix = ip, .frame = ss.lm + 48 * t, .go = &go};
+            assert_int_equal(pthread_create(&th[i], NULL, first_run, &jobs[i]), 0);
+        }
+        for (int i = 0; i < THREADS; i++) {
+            pthread_join(th[i], NULL);
+            assert_int_equal(jobs[i].rc, 0);
+            assert_true(same_answer(&want, wh, &jobs[i].a, jobs[i].h));
+        }
+        pthread_barrier_destroy(&go);
+        mim_index_info_t info;
+        mim_index_get_info(ip, &info);
+        assert_int_equal(info.classes_ready, 1); /* the one class, readied once */
+        assert_int_equal(info.forests_loaded, 1);
+        assert_int_equal(info.forests_built, 0);
+        mim_index_close(&ip);
+    }
+    free(blob);
+    mim_index_close(&ix);
+    synth_set_free(&ss);
+}
+
 /* Without pose labels the store is clustered: k = round(sqrt(n / 2)). */
 static void test_kmeans_classes(void **s)
 {
@@ -645,6 +940,9 @@ int main(void)
         cmocka_unit_test(test_concurrent_queries),
         cmocka_unit_test(test_saved_forests),
         cmocka_unit_test(test_forest_section_hostile),
+        cmocka_unit_test(test_in_place_answers),
+        cmocka_unit_test(test_in_place_damage),
+        cmocka_unit_test(test_in_place_first_use_threads),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

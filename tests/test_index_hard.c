@@ -170,7 +170,10 @@ static void test_discriminants(void **state)
     free(s);
 }
 
-/* A blob of this version (4) rewritten in an older layout: version 3 has
+/* index/'s writer of version 4, kept for the tests of old blobs */
+int mim__index_save_v4(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err);
+
+/* A blob of version 4 rewritten in an older layout: version 3 has
  * no angle weighting (the f64 weight and the f32 w[d2] after the selected
  * angles); version 1 also has no augmentation (the header's u32 augment and
  * f64 noise) and no forest count at the end (every class here is scanned
@@ -218,19 +221,31 @@ static void test_blob_versions(void **state)
     assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
     uint32_t ver;
     memcpy(&ver, (char *)blob + 4, 4);
-    assert_int_equal(ver, 4);
-    assert_int_equal(mim_index_load(&back, blob, len, NULL), 0);
-    mim_index_get_info(back, &info);
-    assert_int_equal(info.augment, 2);
-    assert_true(info.noise == 0.03);
-    assert_true(info.weight == 0.5);
-    for (uint32_t p = 0; p < P; p++) {
-        const float *f = s->h.landmarks + ((size_t)(S - 1) * P + p) * s->h.n_landmarks * 3;
-        assert_int_equal(mim_index_query(ix, f, NULL, NULL, &a1, &h1, NULL), 0);
-        assert_int_equal(mim_index_query(back, f, NULL, NULL, &a2, &h2, NULL), 0);
-        assert_int_equal(a1.cls, a2.cls);
-        assert_true(h1.id == h2.id);
-        assert_true(a1.probability == a2.probability);
+    assert_int_equal(ver, 5);
+    for (int v4 = 0; v4 < 2; v4++) { /* version 5 (mimic's now), and version 4 still */
+        if (v4) {
+            free(blob);
+            assert_int_equal(mim__index_save_v4(ix, &blob, &len, NULL), 0);
+            memcpy(&ver, (char *)blob + 4, 4);
+            assert_int_equal(ver, 4);
+            mim_index_close(&back);
+        }
+        assert_int_equal(mim_index_load(&back, blob, len, NULL), 0);
+        mim_index_get_info(back, &info);
+        assert_int_equal(info.augment, 2);
+        assert_true(info.noise == 0.03);
+        assert_true(info.weight == 0.5);
+        /* the discriminants are in version 5, not in 4: there the index answers by its SVMs */
+        assert_true(info.discriminant_noise == (v4 ? 0 : MIM_INDEX_DISCRIMINANT_NOISE_DEFAULT));
+        mim_index_query_options_t as_saved = {.svm_above = v4 ? -1 : 0};
+        for (uint32_t p = 0; p < P; p++) {
+            const float *f = s->h.landmarks + ((size_t)(S - 1) * P + p) * s->h.n_landmarks * 3;
+            assert_int_equal(mim_index_query(ix, f, NULL, &as_saved, &a1, &h1, NULL), 0);
+            assert_int_equal(mim_index_query(back, f, NULL, NULL, &a2, &h2, NULL), 0);
+            assert_int_equal(a1.cls, a2.cls);
+            assert_true(h1.id == h2.id);
+            assert_true(a1.probability == a2.probability);
+        }
     }
     mim_index_close(&back), mim_index_close(&ix);
     free(blob);
@@ -239,7 +254,7 @@ static void test_blob_versions(void **state)
     ix = build(s, &o);
     mim_index_get_info(ix, &info);
     assert_true(info.weight == 0);
-    assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
+    assert_int_equal(mim__index_save_v4(ix, &blob, &len, NULL), 0);
     uint32_t n_forests;
     memcpy(&n_forests, (char *)blob + len - 4, 4);
     assert_int_equal(n_forests, 0);
@@ -254,7 +269,9 @@ static void test_blob_versions(void **state)
         assert_int_equal(info.augment, old == 1 ? 0 : 2);
         assert_true(info.noise == (old == 1 ? 0 : 0.03));
         assert_true(info.weight == 0);
-        assert_int_equal(mim_index_query(ix, frame, NULL, NULL, &a1, &h1, NULL), 0);
+        assert_true(info.discriminant_noise == 0);
+        mim_index_query_options_t svm_only = {.svm_above = -1};
+        assert_int_equal(mim_index_query(ix, frame, NULL, &svm_only, &a1, &h1, NULL), 0);
         assert_int_equal(mim_index_query(back, frame, NULL, NULL, &a2, &h2, NULL), 0);
         assert_int_equal(a1.cls, a2.cls);
         assert_true(h1.id == h2.id);

@@ -147,11 +147,53 @@ static void test_no_index_then_round_trip(void **st)
     mim_index_answer_t a;
     mim_index_hit_t h;
     assert_int_equal(mim_query_batch(q, &f, NULL, &a, &h, &err), MIM_EINVAL);
+    /* the index is used in place, in the store's map, and answers as the
+     * same blob copied out of the store (mim_index_load) */
+    mim_index_info_t info;
+    mim_index_get_info(mim_query_index(q), &info);
+    assert_int_equal(info.in_place, 1);
+    {
+        mim_db_txn_t *t;
+        const void *blob;
+        size_t len;
+        mim_db_index_meta_t bm;
+        mim_index_t *cp = NULL;
+        assert_int_equal(mim_db_begin(db, 0, &t, NULL), 0);
+        assert_int_equal(mim_db_index_get(t, &blob, &len, &bm, NULL), 0);
+        assert_int_equal(mim_index_load(&cp, blob, len, NULL), 0);
+        mim_db_abort(&t);
+        uint64_t seed = 9;
+        for (uint32_t t2 = 0; t2 < 72; t2++) {
+            float lm[48];
+            uint8_t present[16];
+            memset(present, 1, 16);
+            if (t2 >= 36) present[t2 % 16] = present[(t2 + 7) % 16] = 0;
+            for (int i = 0; i < 48; i++) {
+                seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+                lm[i] = s.lm[t2 % 36][i] + 0.03f * ((float)(seed >> 40) / 16777216.0f - 0.5f);
+            }
+            mim_index_query_options_t qo = {.k = 3};
+            mim_index_answer_t a1, a2;
+            mim_index_hit_t h1[3], h2[3];
+            assert_int_equal(mim_query_frame(q, lm, present, &qo, &a1, h1, NULL), 0);
+            assert_int_equal(mim_index_query(cp, lm, present, &qo, &a2, h2, NULL), 0);
+            assert_int_equal(a1.cls, a2.cls);
+            assert_true(a1.probability == a2.probability);
+            assert_int_equal(a1.n_hits, a2.n_hits);
+            for (uint32_t i = 0; i < a1.n_hits; i++) {
+                assert_int_equal(h1[i].id, h2[i].id);
+                assert_true(h1[i].distance == h2[i].distance);
+                assert_string_equal(h1[i].pose, h2[i].pose);
+            }
+        }
+        mim_index_close(&cp);
+    }
     mim_index_close(&mem);
     mim_query_close(&q);
     mim_query_close(&q);
 
-    /* a damaged blob in the store is an error, not a crash */
+    /* a damaged blob in the store is an error, not a crash: its head fails
+     * at open, a bulk section when it is first used (here: all of it) */
     mim_db_txn_t *t;
     const void *blob;
     size_t len;
@@ -166,8 +208,22 @@ static void test_no_index_then_round_trip(void **st)
     assert_int_equal(mim_db_index_put(t, copy, len, &bm, NULL), 0);
     assert_int_equal(mim_db_commit(&t, NULL), 0);
     mim_error_clear(&err);
+    int orc = mim_query_open(&q, db, &err);
+    if (!orc) orc = mim_index_verify(mim_query_index(q), &err);
+    assert_int_equal(orc, MIM_EFORMAT);
+    assert_true(strstr(err.msg, "checksum") || strstr(err.msg, "damaged"));
+    mim_query_close(&q);
+    /* the head flipped: open fails */
+    copy[len / 2] ^= 1;
+    copy[100] ^= 1;
+    assert_int_equal(mim_db_begin(db, 1, &t, NULL), 0);
+    assert_int_equal(mim_db_index_put(t, copy, len, &bm, NULL), 0);
+    assert_int_equal(mim_db_commit(&t, NULL), 0);
+    mim_error_clear(&err);
     assert_int_equal(mim_query_open(&q, db, &err), MIM_EFORMAT);
     assert_non_null(strstr(err.msg, "checksum"));
+    copy[100] ^= 1;
+    copy[len / 2] ^= 1;
     copy[len / 2] ^= 1; /* put it back */
     assert_int_equal(mim_db_begin(db, 1, &t, NULL), 0);
     assert_int_equal(mim_db_index_put(t, copy, len, &bm, NULL), 0);

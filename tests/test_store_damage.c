@@ -6,6 +6,7 @@
 #include "mim_db.h"
 #include "store_support.h"
 #include "mim_session.h"
+#include "mim_query.h"
 
 #include <lmdb.h>
 #include <stdio.h>
@@ -323,11 +324,70 @@ static void test_flipped_byte(void **s)
     free(pos), free(W), free(faces), free(json);
 }
 
+/* A byte flipped in the index's bulk (a template's descriptor angles,
+ * issue 16): the index opens in place (only its head is read then), the
+ * first query that needs those templates fails with MIM_EFORMAT, and every
+ * later one, never reading them; mimic store check names the index. */
+static void test_index_bulk_damage(void **s)
+{
+    (void)s;
+    mim_db_t *db;
+    mim_db_txn_t *t;
+    mim_error_t err = {0};
+    st_begin_read(st_good, &db, &t);
+    const void *blob;
+    size_t len;
+    mim_db_index_meta_t bm;
+    assert_int_equal(mim_db_index_get(t, &blob, &len, &bm, &err), 0);
+    mim_landmark_map_t map;
+    mim_template_view_t v;
+    assert_int_equal(mim_db_landmarks_get(t, &map, &err), 0);
+    assert_int_equal(mim_db_template_get(t, 2, &v, &err), 0);
+    float frame[3 * MIM_LANDMARKS_MAX];
+    for (uint32_t l = 0; l < map.count; l++) memcpy(frame + 3 * l, v.positions + 3 * (size_t)map.vertex[l], 12);
+    /* the descriptor section (index/blob_v5.c): after the head, ids,
+     * subjects and poses, each 64-byte aligned */
+    uint32_t ver, n;
+    uint64_t hb;
+    memcpy(&ver, (const char *)blob + 4, 4);
+    memcpy(&hb, (const char *)blob + 32, 8);
+    memcpy(&n, (const char *)blob + 64 + 8, 4);
+    assert_int_equal(ver, 5);
+    uint64_t at = (64 + hb + 63) / 64 * 64;
+    at = (at + 8ull * n + 63) / 64 * 64;
+    at = (at + 4ull * n + 63) / 64 * 64;
+    at = (at + 4ull * n + 63) / 64 * 64;
+    unsigned char desc[64];
+    memcpy(desc, (const char *)blob + at, sizeof desc);
+    mim_db_abort(&t);
+    mim_db_close(&db);
+
+    char *store = st_copy_store("flip_index_bulk", (size_t)-1);
+    st_flip_byte(store, st_find_bytes(store, desc, sizeof desc) + 21);
+    mim_db_options_t ro = {.read_only = 1};
+    assert_int_equal(mim_db_open(&db, store, &ro, &err), 0);
+    mim_query_t *q = NULL;
+    assert_int_equal(mim_query_open(&q, db, &err), 0);
+    for (int i = 0; i < 2; i++) {
+        mim_index_answer_t a;
+        mim_index_hit_t h;
+        mim_error_clear(&err);
+        assert_int_equal(mim_query_frame(q, frame, NULL, NULL, &a, &h, &err), MIM_EFORMAT);
+        assert_non_null(strstr(err.msg, "damaged"));
+        assert_int_equal(a.n_hits, 0);
+    }
+    mim_query_close(&q);
+    mim_db_close(&db);
+    st_assert_check_finds(store, "index model: checksum mismatch (run mimic index)", 0, "index");
+    free(store);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_truncated),  cmocka_unit_test(test_garbage),      cmocka_unit_test(test_not_mimic),
         cmocka_unit_test(test_every_page), cmocka_unit_test(test_flipped_byte),
+        cmocka_unit_test(test_index_bulk_damage),
     };
     return cmocka_run_group_tests(tests, st_setup, st_teardown);
 }
