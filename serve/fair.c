@@ -40,22 +40,25 @@
  *    a frame on average, the capacity drops to DROP x the compute's CPU
  *    per second in the last window (all it could get); while they wait
  *    under WAIT_LOW, it climbs back by CLIMB of the way each window. With
- *    24 vests on this shared 2-core machine the compute got about 0.7
- *    cores, not the 1.6 that 2 slots x 0.8 promise: a slot handed over
- *    waits for the woken loop to get a core (the ticket order is strict),
- *    and the service thread's fan-out to 240 clients takes its part.
+ *    24 vests on this shared 2-core machine the whole serve process got
+ *    84-105 % of one core in the bench runs, not the 1.6 cores that 2
+ *    slots x 0.8 promise: the service thread's fan-out to 240 clients
+ *    takes its part, and (likely) a slot handed over waits for the woken
+ *    loop to get a core, as the ticket order is strict.
  *    Tried first, not kept: (a) the share alone: at 24 vests it kept k = 1
- *    (cold key frames, 1.3 cores of demand, fit 1.6 x the share): 45 % of
- *    the vest frames skipped, 32.7-33.4 Hz a session, p99 169 ms (one
- *    run); (b) dropping the capacity when frames were late (vest frames
+ *    (cold key frames, 24 x 60/s at 0.7-0.9 ms: 1.0-1.3 cores, fit the
+ *    capacity): 45 % of the vest frames skipped, 32.7-33.4 Hz a session,
+ *    p99 169 ms (one run); (b) dropping the capacity when frames were late (vest frames
  *    skipped, or published over a period after their bytes came), not
  *    when loops waited for a slot: at 24 vests it went down to 8.7 Hz a
  *    session with frames still 6-16 % late (the fan-out's and the
  *    machine's lateness, not the key frames'); guarded (only while the
  *    compute was half the process's CPU) it held 22 Hz at 24 vests, but at
  *    12 vests on the loaded machine it keyed 48-49 Hz with 5.5 % skipped
- *    where the old loops keyed 57-59 Hz with 2.4 % (one run each, load
- *    average 5.4-6.9): fewer key frames did not put late frames on time;
+ *    where the old loops keyed 56.8-58.8 Hz with 2.4 % (one run each,
+ *    load average 5.4-6.9): fewer key frames did not put late frames on
+ *    time; (c) as now, but dropping when loops waited over half a vest
+ *    period: 12 vests keyed 39-54 Hz (2.3-5.7 % skipped);
  *  - loop.c counts the interval in vest frames (skipped ones too), not in
  *    frames it published, so a loop that skipped a frame makes its next
  *    key on time: with one k, every session keys at the vest rate / k.
@@ -77,6 +80,7 @@
 #define DROP 0.9        /* the capacity then: this times the compute's CPU per second */
 #define CLIMB 0.05      /* while it is not: this much of the way back up, each window */
 #define CAP_MIN 0.01    /* cores: the capacity never goes below this (unless given lower) */
+#define STALE_S 2.0     /* a session with no frame for this long (its vest away) is not counted */
 #define HYSTERESIS 0.9 /* a dearer choice than the current one must fit in this much of the capacity */
 
 static int known(double c)
@@ -166,7 +170,9 @@ void mim__fair_init(mim__fair_t *f, unsigned slots, double cores)
 void mim__fair_destroy(mim__fair_t *f)
 {
     free(f->d);
+    free(f->packed);
     free(f->used);
+    free(f->seen);
     pthread_mutex_destroy(&f->lock);
 }
 
@@ -177,7 +183,7 @@ static uint32_t cheapness(mim__fair_choice_t c)
     return (uint32_t)c.linear * 4 * MIM__FAIR_K_MAX + (uint32_t)c.warm * 2 * MIM__FAIR_K_MAX + c.k;
 }
 
-/* The live entries packed (under the lock) and the choice for them: a
+/* The entries with a recent frame packed (under the lock) and the choice for them: a
  * dearer one than now only when it fits with room (HYSTERESIS), so that
  * the interval does not flip at each window where demand and capacity
  * meet. */
@@ -185,7 +191,7 @@ static void rechoose(mim__fair_t *f)
 {
     size_t m = 0;
     for (size_t i = 0; i < f->n; i++)
-        if (f->used[i])
+        if (f->used[i] && f->seen[i] > 0.0 && f->now - f->seen[i] <= STALE_S)
             f->packed[m++] = f->d[i];
     mim__fair_choice_t c = mim__fair_choose(f->packed, m, f->capacity);
     if (m && cheapness(c) < cheapness(f->choice)) {
@@ -216,12 +222,16 @@ int mim__fair_join(mim__fair_t *f)
         unsigned char *u = realloc(f->used, n);
         if (u)
             f->used = u;
-        if (d && p && u)
+        double *t = realloc(f->seen, n * sizeof *t);
+        if (t)
+            f->seen = t;
+        if (d && p && u && t)
             id = (int)f->n, f->n = n;
     }
     if (id >= 0) {
         memset(&f->d[id], 0, sizeof f->d[id]);
         f->used[id] = 1;
+        f->seen[id] = 0.0; /* counted from its first frame */
         rechoose(f);
     }
     pthread_mutex_unlock(&f->lock);
@@ -244,7 +254,8 @@ mim__fair_choice_t mim__fair_frame(mim__fair_t *f, int id, const mim__fair_deman
 {
     pthread_mutex_lock(&f->lock);
     if (id >= 0 && (size_t)id < f->n && f->used[id])
-        f->d[id] = *d;
+        f->d[id] = *d, f->seen[id] = now;
+    f->now = now;
     if (f->window_start == 0.0 || now < f->window_start)
         f->window_start = now, f->w_cpu = f->w_wall = f->w_wait = 0.0, f->w_frames = 0;
     if (known(t->cpu) && known(t->wall))

@@ -266,6 +266,7 @@ typedef struct mim__fair {
     pthread_mutex_t lock;
     mim__fair_demand_t *d, *packed; /* per entry (an id), and the used ones packed */
     unsigned char *used;
+    double *seen, now;              /* per entry: mim_now() of its latest frame; the latest of all */
     size_t n;
     double capacity_max, capacity; /* cores for compute: slots x budget (or given), and the estimate now */
     double share;                  /* of a core a compute slot yields (smoothed; 0: not measured yet) */

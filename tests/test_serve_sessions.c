@@ -2,7 +2,8 @@
  * binary, real simulated vests on ptys, real sockets. Two sessions from
  * --session, each with its own avatar and stream; one added and removed
  * through the API with a client connected; one session's vest killed while
- * the other streams on; bad specs and requests. Every wait has a deadline;
+ * the other streams on; bad specs and requests; a forced overload
+ * (--compute-cores) where the auto sessions share one key interval. Every wait has a deadline;
  * every child is killed in teardown. */
 #include "serve_support.h"
 
