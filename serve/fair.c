@@ -29,7 +29,8 @@
  *    A session with a fixed key rate (--key-rate) keeps its own k; its
  *    demand is counted first, and the auto sessions share what is left.
  *    Sessions with equal costs get equal k; each loop uses the larger of
- *    its own k and the common one;
+ *    its own k and the common one. A session counts from its first frame
+ *    until its vest goes away, ends or fails (mim__fair_idle);
  *  - the capacity (cores the compute may take) is at most slots x 0.8
  *    (the loops' budget fraction; or --compute-cores) times the share of
  *    a core that a compute slot yields (the compute's CPU time over its
@@ -80,7 +81,6 @@
 #define DROP 0.9        /* the capacity then: this times the compute's CPU per second */
 #define CLIMB 0.05      /* while it is not: this much of the way back up, each window */
 #define CAP_MIN 0.01    /* cores: the capacity never goes below this (unless given lower) */
-#define STALE_S 2.0     /* a session with no frame for this long (its vest away) is not counted */
 #define HYSTERESIS 0.9 /* a dearer choice than the current one must fit in this much of the capacity */
 
 static int known(double c)
@@ -172,7 +172,7 @@ void mim__fair_destroy(mim__fair_t *f)
     free(f->d);
     free(f->packed);
     free(f->used);
-    free(f->seen);
+    free(f->active);
     pthread_mutex_destroy(&f->lock);
 }
 
@@ -183,7 +183,7 @@ static uint32_t cheapness(mim__fair_choice_t c)
     return (uint32_t)c.linear * 4 * MIM__FAIR_K_MAX + (uint32_t)c.warm * 2 * MIM__FAIR_K_MAX + c.k;
 }
 
-/* The entries with a recent frame packed (under the lock) and the choice for them: a
+/* The active entries packed (under the lock) and the choice for them: a
  * dearer one than now only when it fits with room (HYSTERESIS), so that
  * the interval does not flip at each window where demand and capacity
  * meet. */
@@ -191,7 +191,7 @@ static void rechoose(mim__fair_t *f)
 {
     size_t m = 0;
     for (size_t i = 0; i < f->n; i++)
-        if (f->used[i] && f->seen[i] > 0.0 && f->now - f->seen[i] <= STALE_S)
+        if (f->used[i] && f->active[i])
             f->packed[m++] = f->d[i];
     mim__fair_choice_t c = mim__fair_choose(f->packed, m, f->capacity);
     if (m && cheapness(c) < cheapness(f->choice)) {
@@ -222,20 +222,32 @@ int mim__fair_join(mim__fair_t *f)
         unsigned char *u = realloc(f->used, n);
         if (u)
             f->used = u;
-        double *t = realloc(f->seen, n * sizeof *t);
+        unsigned char *t = realloc(f->active, n);
         if (t)
-            f->seen = t;
+            f->active = t;
         if (d && p && u && t)
             id = (int)f->n, f->n = n;
     }
     if (id >= 0) {
         memset(&f->d[id], 0, sizeof f->d[id]);
         f->used[id] = 1;
-        f->seen[id] = 0.0; /* counted from its first frame */
+        f->active[id] = 0; /* counted from its first frame */
         rechoose(f);
     }
     pthread_mutex_unlock(&f->lock);
     return id;
+}
+
+void mim__fair_idle(mim__fair_t *f, int id)
+{
+    if (id < 0)
+        return;
+    pthread_mutex_lock(&f->lock);
+    if ((size_t)id < f->n && f->used[id] && f->active[id]) {
+        f->active[id] = 0;
+        rechoose(f);
+    }
+    pthread_mutex_unlock(&f->lock);
 }
 
 void mim__fair_leave(mim__fair_t *f, int id)
@@ -254,8 +266,7 @@ mim__fair_choice_t mim__fair_frame(mim__fair_t *f, int id, const mim__fair_deman
 {
     pthread_mutex_lock(&f->lock);
     if (id >= 0 && (size_t)id < f->n && f->used[id])
-        f->d[id] = *d, f->seen[id] = now;
-    f->now = now;
+        f->d[id] = *d, f->active[id] = 1;
     if (f->window_start == 0.0 || now < f->window_start)
         f->window_start = now, f->w_cpu = f->w_wall = f->w_wait = 0.0, f->w_frames = 0;
     if (known(t->cpu) && known(t->wall))

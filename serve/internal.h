@@ -266,7 +266,7 @@ typedef struct mim__fair {
     pthread_mutex_t lock;
     mim__fair_demand_t *d, *packed; /* per entry (an id), and the used ones packed */
     unsigned char *used;
-    double *seen, now;              /* per entry: mim_now() of its latest frame; the latest of all */
+    unsigned char *active;         /* per entry: sending frames (counted), from its first until idle */
     size_t n;
     double capacity_max, capacity; /* cores for compute: slots x budget (or given), and the estimate now */
     double share;                  /* of a core a compute slot yields (smoothed; 0: not measured yet) */
@@ -281,6 +281,9 @@ void mim__fair_destroy(mim__fair_t *f);
 /* A loop's entry (-1 when out of memory: the loop keeps its own k). */
 int mim__fair_join(mim__fair_t *f);
 void mim__fair_leave(mim__fair_t *f, int id); /* accepts -1 */
+/* Its vest is away, ended or failed: not counted until its next frame
+ * (accepts -1). */
+void mim__fair_idle(mim__fair_t *f, int id);
 /* A frame's compute, seconds: CPU time and wall time holding a compute
  * slot, and wall time waiting for one. */
 typedef struct mim__fair_times {

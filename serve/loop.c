@@ -575,6 +575,7 @@ static void link_state(mim__loop_t *l, int up, const char *why)
     mim__metrics_add(&l->vs->m, up ? MIM__C_VEST_RECONNECTS : MIM__C_VEST_DISCONNECTS, 1);
     mim__metrics_set(&l->vs->m, MIM__G_VEST_UP, up);
     if (!up) { /* no frames while it is away: the rates say so, not their last values */
+        mim__fair_idle(&l->vs->sv->fair, l->fair_id); /* nor is it demand */
         pthread_mutex_lock(&l->lock);
         l->key_rate_hz = l->frame_rate_hz = 0.0;
         pthread_mutex_unlock(&l->lock);
@@ -615,6 +616,7 @@ static void *run(void *arg)
                 flush_frames(l);
             }
             set_state(l, "ended", NULL);
+            mim__fair_idle(&vs->sv->fair, l->fair_id);
             mim__metrics_set(&vs->m, MIM__G_VEST_UP, 0);
             return NULL;
         }
@@ -622,6 +624,7 @@ static void *run(void *arg)
             mim__metrics_add(&vs->m, MIM__C_VEST_ERRORS, 1);
             mim__metrics_set(&vs->m, MIM__G_VEST_UP, 0);
             set_state(l, "failed", mim_error_text(&err));
+            mim__fair_idle(&vs->sv->fair, l->fair_id);
             return NULL;
         }
         l->t_data = l->arrival;

@@ -211,7 +211,8 @@ static mim__fair_choice_t feed(mim__fair_t *f, const int *id, const mim__fair_de
     return c;
 }
 
-/* The registry: entries join and leave, and count while they send frames; the capacity is at most the
+/* The registry: entries join and leave, and count from their first frame
+ * until they idle; the capacity is at most the
  * cores' budget times the share of a core a compute slot yields (CPU over
  * wall time while it is held), falls to what the compute got when loops
  * wait long for a slot two windows running (not one: a passing stall),
@@ -306,13 +307,18 @@ static void test_registry_capacity(void **state)
         id[i] = mim__fair_join(&f);
     c = feed(&f, id, &d, 0.9e-3, 0.9e-3, 0.0, 1.0, &t);
     assert_true(c.k > 1);
-    /* 20 of them stop sending frames (their vests away) without leaving:
-     * after 2 s they are not counted, and the 4 left fit at every frame */
+    /* 20 of them idle (their vests away) without leaving: not counted,
+     * and the 4 left fit at every frame; a frame makes one count again */
+    for (int i = 4; i < 24; i++)
+        mim__fair_idle(&f, id[i]);
+    mim__fair_idle(&f, -1);
     mim__fair_times_t tm4 = {0.9e-3, 0.9e-3, 0.0};
-    for (double end = t + 3.0; t < end; t += P)
+    for (double end = t + 1.0; t < end; t += P)
         for (int i = 0; i < 4; i++)
             c = mim__fair_frame(&f, id[i], &d, &tm4, t);
     assert_int_equal(c.k, 1);
+    c = feed(&f, id, &d, 0.9e-3, 0.9e-3, 0.0, 1.0, &t);
+    assert_true(c.k > 1);
     mim__fair_destroy(&f);
 }
 
