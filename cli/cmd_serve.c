@@ -21,7 +21,8 @@ static void help(FILE *out)
             "                   [--session NAME:vest=SPEC,avatar=MESH|ID[,key-rate=HZ] ...]\n"
             "                   [--sessions FILE.json]\n"
             "                   [--key-rate auto|HZ] [--listen HOST:PORT] [--max-body BYTES]\n"
-            "                   [--max-clients N] [--warm-start auto|on|off] [--drive auto|template|orientation]\n"
+            "                   [--max-clients N] [--compute-cores C] [--warm-start auto|on|off]\n"
+            "                   [--drive auto|template|orientation]\n"
             "                   [--blend K] [--segment-correction on|off] [--relative on|off]\n\n"
             "Serves pose transfer until Ctrl-C or SIGTERM: the web viewer at /, the avatar\n"
             "stream at /ws and the JSON API. Prints the viewer's URL on stdout.\n"
@@ -50,6 +51,9 @@ static void help(FILE *out)
             "  --listen HOST:PORT   where to listen (default %s; port 0: any free port)\n"
             "  --max-body BYTES     request body limit (default %zu; larger bodies get 413)\n"
             "  --max-clients N      WebSocket clients of one session at once (default %u)\n"
+            "  --compute-cores C    cores the key frames of every session may take together\n"
+            "                       (default 0.8 x the cores online; a share of a busy machine):\n"
+            "                       past it, every auto session's key rate drops alike\n"
             "  --warm-start W       start each key frame's transfer from the previous one (same\n"
             "                       template): faster, less accurate (bench/RESULTS.md); auto\n"
             "                       (default) only when cold key frames do not fit the vest period\n"
@@ -171,6 +175,7 @@ static int run(int argc, char **argv, spec_list_t *specs)
                                               {"vest-pose", required_argument, 0, 'p'},
                                               {"key-rate", required_argument, 0, 'k'},
                                               {"max-clients", required_argument, 0, 'c'},
+                                              {"compute-cores", required_argument, 0, 'P'},
                                               {"warm-start", required_argument, 0, 'w'},
                                               {"drive", required_argument, 0, 'd'},
                                               {"blend", required_argument, 0, 'B'},
@@ -185,7 +190,7 @@ static int run(int argc, char **argv, spec_list_t *specs)
     int c, rc = 0;
     optind = 0;
     opterr = 0;
-    while (!rc && (c = getopt_long(argc, argv, "s:a:l:b:v:p:k:c:w:d:B:C:R:S:F:h", longopts, NULL)) != -1) {
+    while (!rc && (c = getopt_long(argc, argv, "s:a:l:b:v:p:k:c:P:w:d:B:C:R:S:F:h", longopts, NULL)) != -1) {
         uint64_t v;
         if (c == 'S') rc = add_spec_text(specs, optarg);
         else if (c == 'F') rc = add_spec_file(specs, optarg);
@@ -223,6 +228,9 @@ static int run(int argc, char **argv, spec_list_t *specs)
             int on;
             if (mim_cli_on_off("serve", "relative", optarg, &on)) return 2;
             o.relative = on ? 1 : -1;
+        }
+        else if (c == 'P') {
+            if (mim_cli_real("serve", "compute-cores", optarg, 0.0, 1024.0, 1, NULL, &o.compute_cores)) return 2;
         }
         else if (c == 'c') {
             if (mim_cli_number("serve", "max-clients", optarg, 1, 1000, &v)) return 2;

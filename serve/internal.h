@@ -226,10 +226,9 @@ json_t *mim__loop_status(mim__loop_t *l); /* null without a vest */
 
 /* ---- gate.c: the compute slots the sessions' loops share ---- */
 /* At most `slots` key frames or morphs compute at once, and a loop that
- * waits gets the next free slot in the order it came (a ticket queue):
- * with more vests than cores, each loop's measured cost grows by its wait,
- * so every session's adaptive key rate drops alike and none starves
- * (issue 16). */
+ * waits gets the next free slot in the order it came (a ticket queue), so
+ * no loop overtakes another forever. How often each loop computes a key
+ * frame is fair.c's. */
 typedef struct mim__gate {
     pthread_mutex_t lock;
     pthread_cond_t turn;
@@ -240,6 +239,61 @@ void mim__gate_init(mim__gate_t *g, unsigned slots);
 void mim__gate_destroy(mim__gate_t *g);
 void mim__gate_enter(mim__gate_t *g);
 void mim__gate_leave(mim__gate_t *g);
+
+/* ---- fair.c: the common key interval of the sessions (fair.c says why) ---- */
+#define MIM__FAIR_K_MAX 30u    /* as loop.c: never fewer key frames than one every 30 vest frames */
+#define MIM__FAIR_BUDGET 0.8   /* as loop.c: the fraction of a core (or of a vest period) compute may take */
+/* A session's costs, CPU seconds (0 or NaN: not measured yet). */
+typedef struct mim__fair_demand {
+    double key_cold, key_warm; /* a key frame, cold and warm-started */
+    double morph, linear;      /* a frames morph, a linear one */
+    double period;             /* its vest's period, seconds (0: 1/60) */
+    uint32_t fixed_k;          /* a fixed key rate's interval (--key-rate); 0: auto */
+    int warm_ok;               /* its warm start is auto (the rule may turn it on) */
+} mim__fair_demand_t;
+typedef struct mim__fair_choice {
+    uint32_t k;  /* the common key interval, 1..MIM__FAIR_K_MAX */
+    int warm;    /* warm-start key frames (where a session's warm start is auto) */
+    int linear;  /* linear morphs */
+} mim__fair_choice_t;
+/* The rule alone: the smallest common k for the auto sessions of d[0..n)
+ * whose total CPU demand fits capacity (cores), after the fixed-rate
+ * sessions' demand; cold key frames only at k = 1, then warm ones with
+ * frames morphs, then linear morphs; {1, 0, 0} when nothing is measured
+ * or no session is auto; {K_MAX, 1, 1} when nothing fits. */
+mim__fair_choice_t mim__fair_choose(const mim__fair_demand_t *d, size_t n, double capacity);
+typedef struct mim__fair {
+    pthread_mutex_t lock;
+    mim__fair_demand_t *d, *packed; /* per entry (an id), and the used ones packed */
+    unsigned char *used;
+    unsigned char *active;         /* per entry: sending frames (counted), from its first until idle */
+    size_t n;
+    double capacity_max, capacity; /* cores for compute: slots x budget (or given), and the estimate now */
+    double share;                  /* of a core a compute slot yields (smoothed; 0: not measured yet) */
+    double window_start, w_cpu, w_wall, w_wait; /* the window: its start, the compute's CPU, wall and wait seconds */
+    uint64_t w_frames;
+    int busy_before;               /* the previous window's loops waited long for a slot */
+    mim__fair_choice_t choice;
+} mim__fair_t;
+/* cores: the capacity at most (0: slots x MIM__FAIR_BUDGET). */
+void mim__fair_init(mim__fair_t *f, unsigned slots, double cores);
+void mim__fair_destroy(mim__fair_t *f);
+/* A loop's entry (-1 when out of memory: the loop keeps its own k). */
+int mim__fair_join(mim__fair_t *f);
+void mim__fair_leave(mim__fair_t *f, int id); /* accepts -1 */
+/* Its vest is away, ended or failed: not counted until its next frame
+ * (accepts -1). */
+void mim__fair_idle(mim__fair_t *f, int id);
+/* A frame's compute, seconds: CPU time and wall time holding a compute
+ * slot, and wall time waiting for one. */
+typedef struct mim__fair_times {
+    double cpu, wall, wait;
+} mim__fair_times_t;
+/* A loop's published frame: its costs now (d) and the frame's times, at
+ * now (mim_now()); returns the common choice. */
+mim__fair_choice_t mim__fair_frame(mim__fair_t *f, int id, const mim__fair_demand_t *d, const mim__fair_times_t *t,
+                                   double now);
+void mim__fair_state(mim__fair_t *f, mim__fair_choice_t *choice, double *capacity);
 
 /* ---- sessions.c: the vests a service drives, one avatar each (issue 16) ---- */
 struct mim__vs {
@@ -306,6 +360,7 @@ struct mim_serve {
     pthread_mutex_t sessions_lock;
     mim__vs_t *sessions;        /* live and removed ones still referenced, in the order added */
     mim__gate_t gate;
+    mim__fair_t fair;           /* the sessions' common key interval */
     mim__ws_t *ws;              /* the /ws streams, every session's */
     mim__metrics_t m;           /* the service's own (HTTP requests, the API's queries and transfers) */
 };

@@ -16,12 +16,17 @@
  *
  * The paper fixed k by hand and left an adaptive k as future work. Here k
  * follows the loop's own measured costs: with vest period P, key-frame
- * cost c_k and morph cost c_m (moving averages), k = 1 while c_k fits in
- * 80 % of P, else the smallest k with c_k + (k - 1) c_m <= 0.8 k P (c_k
- * is then the warm-started cost if auto has switched to it). When frames
- * morphs cost too much for any k up to 30 (at this size a morph's solve
- * costs about what a warm key frame does), the morphs become the paper's
- * linear ones, which cost next to nothing; and when even that is not
+ * cost c_k and morph cost c_m (moving averages of the CPU time the
+ * compute took on this thread, so that waiting for a core or for the gate
+ * does not count), k = 1 while c_k fits in 80 % of P, else the smallest k
+ * with c_k + (k - 1) c_m <= 0.8 k P (c_k is then the warm-started cost if
+ * auto has switched to it). When frames morphs cost too much for any k up
+ * to 30 (at this size a morph's solve costs about what a warm key frame
+ * does), the morphs become the paper's linear ones, which cost next to
+ * nothing. With many sessions, the loop uses the larger of its own k and
+ * the one all sessions share (fair.c: what the whole process's demand
+ * fits in the cores), and counts k in vest frames, skipped ones too, so
+ * that every session keys at the same rate; and when even that is not
  * enough, the loop skips to the newest vest frame instead of falling
  * behind (flush_frames). A fixed key rate (--key-rate) overrides the
  * choice of k. A lost landmark is held at its last position for up to
@@ -49,8 +54,8 @@
 
 #define HOLD_US 1000000 /* a lost landmark is held this long before it is completed */
 
-#define BUDGET_FRACTION 0.8 /* of the vest period, for one frame's compute */
-#define K_MAX 30u           /* never fewer key frames than one every 30 vest frames */
+#define BUDGET_FRACTION MIM__FAIR_BUDGET /* of the vest period, for one frame's compute */
+#define K_MAX MIM__FAIR_K_MAX /* never fewer key frames than one every 30 vest frames */
 #define PERIOD_SAMPLES 15 /* vest intervals the period is the median of */
 #define EWMA 0.2            /* weight of a new cost sample */
 #define SILENCE_S 1.0       /* a vest silent this long has gone away */
@@ -87,7 +92,12 @@ struct mim__loop {
     key_pose_t keys[2];
     int cur;           /* keys[cur] is the latest key, keys[!cur] the one before */
     uint32_t k;        /* key interval chosen at the latest key */
-    uint32_t since_key; /* frames published since the latest key */
+    uint32_t since_key; /* vest frames since the latest key (skipped ones too) */
+    uint32_t skipped;   /* vest frames skipped since the latest one made */
+    int fair_id;        /* its entry in the service's fair.c (-1: none) */
+    mim__fair_choice_t common; /* the interval all sessions share, as of the latest frame */
+    mim__fair_times_t times; /* the frame being made: its compute's CPU, in a slot and waiting for one */
+    double w_key, w_morph; /* wall seconds of a key frame and a morph (moving averages, for status) */
     float last_u[3 * MIM_LANDMARKS_MAX];
     uint8_t have_u[MIM_LANDMARKS_MAX];
     uint64_t seen_us[MIM_LANDMARKS_MAX]; /* vest time a landmark was last seen */
@@ -154,12 +164,47 @@ static double budget(const mim__loop_t *l)
     return BUDGET_FRACTION * (l->period > 0.0 ? l->period : 1.0 / 60.0);
 }
 
+/* This thread's CPU time, seconds: the cost of compute, whatever the wait
+ * for a core. */
+static double cpu_now(void)
+{
+    struct timespec ts;
+    if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts))
+        return mim_now();
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* A compute slot (gate.c), taken and given back: the CPU and wall time in
+ * between count in the frame's (for fair.c); slot_leave returns the CPU
+ * time, the compute's cost. */
+typedef struct slot {
+    double wall, cpu;
+} slot_t;
+
+static slot_t slot_enter(mim__loop_t *l)
+{
+    double t0 = mim_now();
+    mim__gate_enter(&l->vs->sv->gate); /* the wait costs no CPU: it is not in the cost */
+    slot_t s = {mim_now(), cpu_now()};
+    l->times.wait += s.wall - t0;
+    return s;
+}
+
+static double slot_leave(mim__loop_t *l, slot_t s)
+{
+    double cpu = cpu_now() - s.cpu, wall = mim_now() - s.wall;
+    mim__gate_leave(&l->vs->sv->gate);
+    l->times.cpu += cpu, l->times.wall += wall;
+    return cpu;
+}
+
 /* Whether the next key frame warm-starts (when its template allows). */
 static int want_warm(const mim__loop_t *l)
 {
     if (l->opt.warm_start)
         return l->opt.warm_start > 0;
-    return l->c_cold > budget(l); /* auto: only when cold key frames do not fit */
+    /* auto: only when cold key frames do not fit, its own or the sessions' together */
+    return l->c_cold > budget(l) || (l->opt.key_rate <= 0.0 && l->common.warm);
 }
 
 /* The smallest k with ck + (k - 1) cm <= k B, or 0 if none up to K_MAX. */
@@ -194,6 +239,10 @@ static void choose_interval(mim__loop_t *l)
         k = interval_for(ck, l->c_linear, B);
     }
     l->k = k ? k : K_MAX;
+    if (l->common.k > l->k) /* the sessions' common interval (fair.c) */
+        l->k = l->common.k;
+    if (l->common.linear && l->k > 1)
+        l->linear = 1;
 }
 
 /* A key's frames (as quaternions) and encoding, which the frames morph needs. */
@@ -224,9 +273,9 @@ static int make_key(mim__loop_t *l, const float *u, const mim_quat *R, const uin
     if (prev->valid && want_warm(l)) /* warm start: the same template as the last key frame */
         req.xfer.start = prev->pos, req.start_template = prev->template_id;
     mim_session_report_t *rep = &l->report;
-    mim__gate_enter(&vs->sv->gate); /* its wait counts in the cost: many vests, lower key rates alike */
+    slot_t slot = slot_enter(l);
     int rc = mim_session_transfer(vs->s, &req, k->pos, rep, err);
-    mim__gate_leave(&vs->sv->gate);
+    double cpu = slot_leave(l, slot);
     if (rep->queried)
         mim__metrics_add(&vs->m, MIM__C_QUERIES, 1);
     if (rc)
@@ -239,8 +288,9 @@ static int make_key(mim__loop_t *l, const float *u, const mim_quat *R, const uin
     memcpy(k->u, u, 3 * (size_t)L * sizeof *u);
     l->cur = !l->cur;
     double c = mim_now() - t0;
-    ewma(&l->c_key, c);
-    ewma(rep->warm_started ? &l->c_warm : &l->c_cold, c);
+    ewma(&l->w_key, c);
+    ewma(&l->c_key, cpu);
+    ewma(rep->warm_started ? &l->c_warm : &l->c_cold, cpu);
     mim__metrics_add(&vs->m, MIM__C_TRANSFERS, 1);
     mim__metrics_add(&vs->m, MIM__C_KEY_FRAMES, 1);
     mim__metrics_observe(&vs->m, MIM__H_KEY_FRAME, c);
@@ -262,30 +312,48 @@ static int make_morph(mim__loop_t *l, key_pose_t *a, key_pose_t *b, double t, mi
     double t0 = mim_now();
     if (a->oriented && b->oriented && !l->linear) {
         mim_session_oriented_key_t ka = {a->R, a->have_R, a->u, a->template_id}, kb = {b->R, b->have_R, b->u, b->template_id};
-        mim__gate_enter(&vs->sv->gate);
+        slot_t slot = slot_enter(l);
         int rc = mim_session_morph_oriented(vs->s, &ka, &kb, t, l->out, err);
-        mim__gate_leave(&vs->sv->gate);
+        double cpu = slot_leave(l, slot);
         if (!rc) {
-            ewma(&l->c_morph, mim_now() - t0);
+            ewma(&l->c_morph, cpu);
+            ewma(&l->w_morph, mim_now() - t0);
             mim__metrics_add(&vs->m, MIM__C_MORPH_FRAMES, 1);
             mim__metrics_observe(&vs->m, MIM__H_MORPH_FRAME, mim_now() - t0);
         }
         return rc;
     }
-    mim__gate_enter(&vs->sv->gate);
+    slot_t slot = slot_enter(l);
     if (!l->linear)
         morph_ready(l, a), morph_ready(l, b);
     mim_xfer_key_t ka = {a->pos, a->quats, a->W, a->u}, kb = {b->pos, b->quats, b->W, b->u};
     int rc = mim_session_morph(vs->s, l->linear ? MIM_XFER_MORPH_LINEAR : MIM_XFER_MORPH_FRAMES, &ka, &kb, t,
                                l->out, err);
-    mim__gate_leave(&vs->sv->gate);
+    double cpu = slot_leave(l, slot);
     if (!rc) {
         double c = mim_now() - t0;
-        ewma(l->linear ? &l->c_linear : &l->c_morph, c);
+        ewma(l->linear ? &l->c_linear : &l->c_morph, cpu);
+        if (!l->linear)
+            ewma(&l->w_morph, c);
         mim__metrics_add(&vs->m, MIM__C_MORPH_FRAMES, 1);
         mim__metrics_observe(&vs->m, MIM__H_MORPH_FRAME, c);
     }
     return rc;
+}
+
+/* The loop's costs and its latest frame to fair.c, and the common
+ * interval back, for its next key frame. */
+static void share_costs(mim__loop_t *l, double now)
+{
+    if (l->fair_id < 0)
+        return;
+    mim__fair_demand_t d = {.key_cold = l->c_cold, .key_warm = l->c_warm, .morph = l->c_morph,
+                            .linear = l->c_linear, .period = l->period,
+                            .fixed_k = l->opt.key_rate > 0.0 ? l->k : 0, .warm_ok = !l->opt.warm_start};
+    mim__fair_choice_t c = mim__fair_frame(&l->vs->sv->fair, l->fair_id, &d, &l->times, now);
+    pthread_mutex_lock(&l->lock);
+    l->common = c;
+    pthread_mutex_unlock(&l->lock);
 }
 
 /* Key and frame rates over the last second, for status and metrics. */
@@ -365,6 +433,12 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
 
     mim_error_t err = {0};
     int key = 0, rc = 0;
+    const uint32_t skipped = l->skipped;
+    /* the interval counts vest frames, skipped ones too: a loop that fell
+     * behind keys as often as the others (fair.c) */
+    l->since_key = skipped > UINT32_MAX - l->since_key ? UINT32_MAX : l->since_key + skipped;
+    l->skipped = 0;
+    l->times = (mim__fair_times_t){0, 0, 0};
     if (!l->keys[l->cur].valid || l->since_key >= l->k) {
         rc = make_key(l, u, R, have, &err);
         if (!rc)
@@ -414,6 +488,7 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
     mim__metrics_observe(&vs->m, MIM__H_FRAME, mim_now() - l->arrival);
     mim__metrics_set(&vs->m, MIM__G_KEY_INTERVAL, l->k);
     count_rates(l, key);
+    share_costs(l, now);
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -448,7 +523,7 @@ static void frame_done(mim__loop_t *l, uint64_t t)
 {
     vest_period(l, t);
     if (l->pending)
-        mim__metrics_add(&l->vs->m, MIM__C_SKIPPED, 1);
+        mim__metrics_add(&l->vs->m, MIM__C_SKIPPED, 1), l->skipped++;
     mim_vest_fk(&l->rig, &l->st, t, 0, l->pending_xyz, l->pending_present);
     mim_vest_fresh(&l->st, t, 0, l->pending_have);
     mim_vest_segment_rotations(&l->rig, l->st.q, l->pending_have, l->pending_R); /* the decoder took unit readings only */
@@ -500,6 +575,7 @@ static void link_state(mim__loop_t *l, int up, const char *why)
     mim__metrics_add(&l->vs->m, up ? MIM__C_VEST_RECONNECTS : MIM__C_VEST_DISCONNECTS, 1);
     mim__metrics_set(&l->vs->m, MIM__G_VEST_UP, up);
     if (!up) { /* no frames while it is away: the rates say so, not their last values */
+        mim__fair_idle(&l->vs->sv->fair, l->fair_id); /* nor is it demand */
         pthread_mutex_lock(&l->lock);
         l->key_rate_hz = l->frame_rate_hz = 0.0;
         pthread_mutex_unlock(&l->lock);
@@ -540,6 +616,7 @@ static void *run(void *arg)
                 flush_frames(l);
             }
             set_state(l, "ended", NULL);
+            mim__fair_idle(&vs->sv->fair, l->fair_id);
             mim__metrics_set(&vs->m, MIM__G_VEST_UP, 0);
             return NULL;
         }
@@ -547,6 +624,7 @@ static void *run(void *arg)
             mim__metrics_add(&vs->m, MIM__C_VEST_ERRORS, 1);
             mim__metrics_set(&vs->m, MIM__G_VEST_UP, 0);
             set_state(l, "failed", mim_error_text(&err));
+            mim__fair_idle(&vs->sv->fair, l->fair_id);
             return NULL;
         }
         l->t_data = l->arrival;
@@ -616,6 +694,8 @@ int mim__loop_open(mim__loop_t **out, mim__vs_t *vs, const mim_serve_options_t *
         l->vs = vs;
         l->opt = *opt;
         l->k = 1;
+        l->fair_id = -1;
+        l->common = (mim__fair_choice_t){1, 0, 0};
         pthread_mutex_init(&l->lock, NULL);
         snprintf(l->spec, sizeof l->spec, "%s", opt->vest);
         l->state = "streaming";
@@ -639,6 +719,8 @@ int mim__loop_open(mim__loop_t **out, mim__vs_t *vs, const mim_serve_options_t *
         mim__metrics_set(&vs->m, MIM__G_VEST_UP, 1);
         l->t_data = mim_now();
     }
+    if (!rc)
+        l->fair_id = mim__fair_join(&vs->sv->fair); /* -1 (out of memory): its own k only */
     if (!rc && (rc = -pthread_create(&l->thread, NULL, run, l)) != 0)
         rc = mim_error_set(err, rc, "cannot start the vest thread: %s", strerror(-rc));
     if (l)
@@ -661,6 +743,8 @@ void mim__loop_close(mim__loop_t **pl)
         atomic_store(&l->stop, 1);
         pthread_join(l->thread, NULL);
     }
+    if (l->vs)
+        mim__fair_leave(&l->vs->sv->fair, l->fair_id);
     mim_vest_decoder_close(&l->dec);
     mim_vest_transport_close(&l->t);
     if (l->vs)
@@ -688,13 +772,14 @@ json_t *mim__loop_status(mim__loop_t *l)
         return json_null();
     pthread_mutex_lock(&l->lock);
     json_t *j = json_pack(
-        "{s:s, s:s, s:o, s:o, s:o, s:I, s:s, s:i, s:s, s:f, s:f, s:f, s:f, s:s, s:I, s:f, s:I, s:s, s:I}", "spec", l->spec, "state", l->state,
+        "{s:s, s:s, s:o, s:o, s:o, s:I, s:s, s:i, s:i, s:s, s:f, s:f, s:f, s:f, s:f, s:s, s:I, s:f, s:I, s:s, s:I}", "spec", l->spec, "state", l->state,
         "error", l->error[0] ? json_string(l->error) : json_null(), "last_template",
         l->last_template ? json_integer((json_int_t)l->last_template) : json_null(), "last_label",
         l->last_label[0] ? json_string(l->last_label) : json_null(), "reconnects",
         (json_int_t)mim_vest_transport_reconnects(l->t), "key_rate_mode", l->opt.key_rate > 0.0 ? "fixed" : "auto",
-        "key_interval", (int)l->k, "morph", l->linear ? "linear" : "frames", "key_rate_hz", l->key_rate_hz, "frame_rate_hz", l->frame_rate_hz, "key_ms",
-        l->c_key * 1e3, "morph_ms", l->c_morph * 1e3, "warm_start",
+        "key_interval", (int)l->k, "shared_key_interval", (int)l->common.k, "morph", l->linear ? "linear" : "frames",
+        "key_rate_hz", l->key_rate_hz, "frame_rate_hz", l->frame_rate_hz, "key_ms", l->w_key * 1e3, "key_cpu_ms",
+        l->c_key * 1e3, "morph_ms", l->w_morph * 1e3, "warm_start",
         l->opt.warm_start ? (l->opt.warm_start > 0 ? "on" : "off") : "auto", "warm_starts", (json_int_t)l->warm_starts,
         "iterations_per_key", l->key_frames ? (double)l->iterations / (double)l->key_frames : 0.0,
         "completed_landmarks", (json_int_t)l->completed, "drive", mim_session_drive_names[l->opt.drive],

@@ -94,6 +94,11 @@ typedef struct mim_serve_options {
     /* Key frames and morphs computed at once, over all sessions (gate.c);
      * 0: the cores online. */
     unsigned compute_slots;
+    /* Cores of CPU the key frames and morphs of every session may take
+     * together, the budget from which the sessions' common key interval is
+     * chosen (serve/fair.c); 0: compute_slots x 0.8. Less: every session's
+     * key rate drops sooner, alike. */
+    double compute_cores;
     /* Called on the loop thread for every published frame of every
      * session (frame->session says whose; may be NULL), e.g. to record the
      * served sequence; it must return quickly, and be thread-safe with

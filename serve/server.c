@@ -203,7 +203,9 @@ int mim_serve_open(mim_serve_t **out, mim_session_t *s, const mim_serve_options_
     mim__metrics_init(&sv->m);
     pthread_mutex_init(&sv->sessions_lock, NULL);
     long cores = sysconf(_SC_NPROCESSORS_ONLN);
-    mim__gate_init(&sv->gate, o.compute_slots ? o.compute_slots : cores > 0 ? (unsigned)cores : 1u);
+    const unsigned slots = o.compute_slots ? o.compute_slots : cores > 0 ? (unsigned)cores : 1u;
+    mim__gate_init(&sv->gate, slots);
+    mim__fair_init(&sv->fair, slots, o.compute_cores);
     sv->t_start = mim_now();
     sv->max_body = o.max_body ? o.max_body : MIM_SERVE_DEFAULT_MAX_BODY;
     sv->opt = o;
@@ -341,6 +343,7 @@ void mim_serve_close(mim_serve_t **ps)
     mim__sessions_free_all(sv);
     mim__ws_close(&sv->ws);
     mim__gate_destroy(&sv->gate);
+    mim__fair_destroy(&sv->fair);
     pthread_mutex_destroy(&sv->sessions_lock);
     mim__metrics_destroy(&sv->m);
     free(sv);

@@ -2,11 +2,13 @@
  * binary, real simulated vests on ptys, real sockets. Two sessions from
  * --session, each with its own avatar and stream; one added and removed
  * through the API with a client connected; one session's vest killed while
- * the other streams on; bad specs and requests. Every wait has a deadline;
+ * the other streams on; bad specs and requests; a forced overload
+ * (--compute-cores) where the auto sessions share one key interval. Every wait has a deadline;
  * every child is killed in teardown. */
 #include "serve_support.h"
 
 #include <jansson.h>
+#include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -19,6 +21,7 @@
 
 static char *dir, *store;
 static ss_svc_t va, vb; /* the two vests; va.server is mimic serve */
+static ss_svc_t vc, vd, ve; /* test_shared_interval's: three more vests, vc.server its own serve */
 
 static int setup(void **state)
 {
@@ -45,6 +48,7 @@ static int teardown(void **state)
         ss_assert_clean_stderr(va.serr);
     ss_svc_free(&va);
     ss_svc_free(&vb);
+    ss_svc_free(&vc), ss_svc_free(&vd), ss_svc_free(&ve);
     ss_kill_children();
     if (dir)
         ts_rmtree(dir);
@@ -74,10 +78,11 @@ static int request(const char *method, const char *path, const char *body, json_
     return request_as(body ? "application/json" : NULL, method, path, body, json);
 }
 
-/* The session's object in /api/status, a new reference (NULL: not there). */
-static json_t *status_of(const char *name)
+/* The session's object in the /api/status of the serve on port, a new
+ * reference (NULL: not there). */
+static json_t *status_on(int port, const char *name)
 {
-    json_t *st = ss_get_status(va.port), *found = NULL, *one;
+    json_t *st = ss_get_status(port), *found = NULL, *one;
     size_t i;
     json_array_foreach(json_object_get(st, "sessions"), i, one) if (!strcmp(
         json_string_value(json_object_get(one, "name")), name)) found = json_incref(one);
@@ -85,12 +90,17 @@ static json_t *status_of(const char *name)
     return found;
 }
 
+static json_t *status_of(const char *name)
+{
+    return status_on(va.port, name);
+}
+
 /* Waits until session name has made key frames with its vest streaming. */
-static void wait_streaming(const char *name)
+static void wait_streaming_on(int port, const char *name)
 {
     double until = ss_now_s() + 60;
     for (;;) {
-        json_t *s = status_of(name);
+        json_t *s = status_on(port, name);
         assert_non_null(s);
         json_t *vest = json_object_get(s, "vest");
         int ok = json_integer_value(json_object_get(s, "key_frames")) > 0 &&
@@ -102,6 +112,11 @@ static void wait_streaming(const char *name)
             fail_msg("session %s: no key frames within 60 s", name);
         ss_sleep_ms(100);
     }
+}
+
+static void wait_streaming(const char *name)
+{
+    wait_streaming_on(va.port, name);
 }
 
 /* The session's stream: its hello names it, and it carries consecutive
@@ -295,6 +310,117 @@ static void test_vest_failure_isolated(void **state)
 }
 
 /* Bad specs on the command line: exit 2 with one line each. */
+/* Session name's vest member (a string) in the status of the serve on port. */
+static void assert_vest_field(int port, const char *name, const char *key, const char *want)
+{
+    json_t *s = status_on(port, name);
+    assert_non_null(s);
+    const char *v = json_string_value(json_object_get(json_object_get(s, "vest"), key));
+    if (!v || strcmp(v, want))
+        fail_msg("session %s: vest.%s is %s, not %s", name, key, v ? v : "(none)", want);
+    json_decref(s);
+}
+
+static json_int_t vest_int(int port, const char *name, const char *key)
+{
+    json_t *s = status_on(port, name);
+    assert_non_null(s);
+    json_int_t v = json_integer_value(json_object_get(json_object_get(s, "vest"), key));
+    json_decref(s);
+    return v;
+}
+
+/* The value of "NAME VALUE" in a /metrics text. */
+static double metric_in(const char *text, const char *name)
+{
+    char want[160];
+    snprintf(want, sizeof want, "\n%s ", name);
+    const char *p = strstr(text, want);
+    if (!p)
+        fail_msg("/metrics has no %s", name);
+    return strtod(p + strlen(want), NULL);
+}
+
+/* The sessions' key frames and vest frames (skipped ones too) so far, from
+ * one /metrics. */
+static void key_counts(int port, const char *const *names, int n, double *keys, double *vest)
+{
+    hc_reply_t r = ss_http_get(port, "/metrics");
+    assert_int_equal(r.status, 200);
+    for (int i = 0; i < n; i++) {
+        char m[128];
+        snprintf(m, sizeof m, "mimic_key_frames_total{session=\"%s\"}", names[i]);
+        keys[i] = metric_in(r.body, m);
+        snprintf(m, sizeof m, "mimic_vest_frames_total{session=\"%s\"}", names[i]);
+        vest[i] = metric_in(r.body, m);
+        snprintf(m, sizeof m, "mimic_vest_frames_skipped_total{session=\"%s\"}", names[i]);
+        vest[i] += metric_in(r.body, m);
+    }
+    hc_reply_free(&r);
+}
+
+/* Forced overload, whatever the machine's speed: a serve whose sessions
+ * may take 0.001 cores for key frames (--compute-cores) can afford none
+ * at every vest frame, so its two auto sessions share the largest key
+ * interval (serve/fair.c), with linear morphs, and key alike: one key
+ * frame every 30 vest frames each, skipped ones counted (a loop that falls
+ * behind keys on time). A session with a fixed key rate keeps its own
+ * interval. Asserted on the rule (key frames per vest frame), not on a
+ * rate. */
+static void test_shared_interval(void **state)
+{
+    (void)state;
+    assert_int_equal(ss_vest_start(&vc, dir, "sc", NULL), 0);
+    assert_int_equal(ss_vest_start(&vd, dir, "sd", NULL), 0);
+    assert_int_equal(ss_vest_start(&ve, dir, "se", NULL), 0);
+    char c[4300], d[4300], e[4300];
+    snprintf(c, sizeof c, "c:vest=serial:%s,avatar=1", vc.link);
+    snprintf(d, sizeof d, "d:vest=serial:%s,avatar=" AVATAR_B, vd.link);
+    snprintf(e, sizeof e, "e:vest=serial:%s,avatar=1,key-rate=20", ve.link);
+    const char *args[] = {"serve", "--store", store, "--session", c, "--session", d, "--session", e,
+                          "--compute-cores", "0.001", "--vest-pose", "t", "--listen", "127.0.0.1:0", NULL};
+    assert_int_equal(ss_serve_start(&vc, dir, "shared", args), 0);
+    const int port = vc.port;
+    wait_streaming_on(port, "c");
+    wait_streaming_on(port, "d");
+    wait_streaming_on(port, "e");
+    /* the costs are shared within a window (0.5 s) of the first frames */
+    double until = ss_now_s() + 30;
+    while (vest_int(port, "c", "key_interval") != 30 || vest_int(port, "d", "key_interval") != 30) {
+        if (ss_now_s() > until)
+            fail_msg("sessions c and d: key intervals %d and %d, not 30, after 30 s",
+                     (int)vest_int(port, "c", "key_interval"), (int)vest_int(port, "d", "key_interval"));
+        ss_sleep_ms(100);
+    }
+    const char *auto_s[] = {"c", "d"};
+    for (int i = 0; i < 2; i++) {
+        assert_int_equal(vest_int(port, auto_s[i], "shared_key_interval"), 30);
+        assert_vest_field(port, auto_s[i], "morph", "linear");
+        assert_vest_field(port, auto_s[i], "key_rate_mode", "auto");
+    }
+    /* the fixed rate: 20 Hz of a 60 Hz vest, whatever is shared */
+    assert_vest_field(port, "e", "key_rate_mode", "fixed");
+    assert_int_equal(vest_int(port, "e", "key_interval"), 3);
+    assert_int_equal(vest_int(port, "e", "shared_key_interval"), 30);
+
+    double k0[2], v0[2], k1[2], v1[2];
+    key_counts(port, auto_s, 2, k0, v0);
+    ss_sleep_ms(4000);
+    key_counts(port, auto_s, 2, k1, v1);
+    for (int i = 0; i < 2; i++) {
+        double keys = k1[i] - k0[i], vest = v1[i] - v0[i];
+        print_message("session %s: %.0f key frames in %.0f vest frames\n", auto_s[i], keys, vest);
+        assert_true(vest >= 60); /* it streamed */
+        /* one key frame every 30 vest frames, give or take the one at
+         * each end of the window */
+        assert_true(keys >= floor(vest / 30.0) - 1 && keys <= ceil(vest / 30.0) + 1);
+    }
+    ss_assert_alive(port);
+    ss_svc_term(&vc);
+    ss_assert_clean_stderr(vc.serr);
+    ss_svc_free(&vc), ss_svc_free(&vd), ss_svc_free(&ve);
+}
+
 static void test_cli_errors(void **state)
 {
     (void)state;
@@ -315,6 +441,7 @@ static void test_cli_errors(void **state)
         {{"serve", "--store", store, "--sessions", file, NULL}, "\"avatar\" must be"},
         {{"serve", "--store", store, "--vest", "x.rec", "--session", "a:avatar=1", NULL}, "--vest drives --avatar"},
         {{"serve", "--store", store, NULL}, "--avatar or a --session"},
+        {{"serve", "--store", store, "--avatar", "1", "--compute-cores", "0", NULL}, "--compute-cores '0'"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         char *out = NULL, *err = NULL;
@@ -335,6 +462,7 @@ int main(void)
         cmocka_unit_test(test_each_session_streams),
         cmocka_unit_test(test_add_and_remove),
         cmocka_unit_test(test_cli_errors),
+        cmocka_unit_test(test_shared_interval),
         cmocka_unit_test(test_vest_failure_isolated), /* last: it kills session a's vest */
     };
     return cmocka_run_group_tests(tests, setup, teardown);

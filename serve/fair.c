@@ -1,0 +1,306 @@
+/* The common key interval of the sessions (issue 16): when the cores
+ * cannot make a key frame for every vest frame of every session, every
+ * session's key rate drops alike.
+ *
+ * Why not each loop on its own: each loop used to choose its key interval
+ * k from its own wall-clock costs (loop.c). At 24 vests on 2 cores a key
+ * frame's wall time was 14-24 ms (0.7-0.9 ms alone): the loops waited for
+ * a core, and that wait counted as cost, so each loop flipped between
+ * k = 1 and k = 30 on its own, and the loops that fell behind skipped to
+ * the newest vest frame at different moments. Achieved key rates across
+ * sessions: 18.7-45.2 Hz, min/max 0.50-0.63 (bench/RESULTS.md, "Many
+ * vests in one process"). Sharing wall-clock costs between loops did not
+ * help either (0.50 and 0.62, ibid.): wall time measures the machine's
+ * load, not a session's demand.
+ *
+ * What this file does instead:
+ *  - each loop measures the CPU time of its compute (its thread's
+ *    CLOCK_THREAD_CPUTIME_ID), which waiting for a core or the gate does
+ *    not inflate, and publishes it here: the CPU cost of a cold and a warm
+ *    key frame, a frames morph and a linear morph, and its vest period;
+ *  - from these, one rule for the whole process (mim__fair_choose, pure):
+ *    the smallest common k (and, as loop.c's rule for one session: warm
+ *    starts before a lower key rate, frames morphs while they fit, else
+ *    linear ones; a cost not measured yet is the mean of the measured
+ *    ones, else a warm key frame as a cold one and a morph as a key frame,
+ *    as the orientation drive's morphs cost) whose total demand, sum over
+ *    sessions of
+ *    (c_key + (k - 1) c_morph) / (k P) cores, fits the compute capacity.
+ *    A session with a fixed key rate (--key-rate) keeps its own k; its
+ *    demand is counted first, and the auto sessions share what is left.
+ *    Sessions with equal costs get equal k; each loop uses the larger of
+ *    its own k and the common one. A session counts from its first frame
+ *    until its vest goes away, ends or fails (mim__fair_idle);
+ *  - the capacity (cores the compute may take) is at most slots x 0.8
+ *    (the loops' budget fraction; or --compute-cores) times the share of
+ *    a core that a compute slot yields (the compute's CPU time over its
+ *    wall time while it holds the slot, smoothed): on a shared machine a
+ *    slot holder is preempted. Below that, it is what the compute gets
+ *    when the gate is the bottleneck: when in two windows of WINDOW_S
+ *    running the loops waited for a slot over WAIT_HIGH of a vest period
+ *    a frame on average, the capacity drops to DROP x the compute's CPU
+ *    per second in the last window (all it could get); while they wait
+ *    under WAIT_LOW, it climbs back by CLIMB of the way each window. With
+ *    24 vests on this shared 2-core machine the whole serve process got
+ *    84-105 % of one core in the bench runs, not the 1.6 cores that 2
+ *    slots x 0.8 promise: the service thread's fan-out to 240 clients
+ *    takes its part, and (likely) a slot handed over waits for the woken
+ *    loop to get a core, as the ticket order is strict.
+ *    Tried first, not kept: (a) the share alone: at 24 vests it kept k = 1
+ *    (cold key frames, 24 x 60/s at 0.7-0.9 ms: 1.0-1.3 cores, fit the
+ *    capacity): 45 % of the vest frames skipped, 32.7-33.4 Hz a session,
+ *    p99 169 ms (one run); (b) dropping the capacity when frames were late (vest frames
+ *    skipped, or published over a period after their bytes came), not
+ *    when loops waited for a slot: at 24 vests it went down to 8.7 Hz a
+ *    session with frames still 6-16 % late (the fan-out's and the
+ *    machine's lateness, not the key frames'); guarded (only while the
+ *    compute was half the process's CPU) it held 22 Hz at 24 vests, but at
+ *    12 vests on the loaded machine it keyed 48-49 Hz with 5.5 % skipped
+ *    where the old loops keyed 56.8-58.8 Hz with 2.4 % (one run each,
+ *    load average 5.4-6.9): fewer key frames did not put late frames on
+ *    time; (c) as now, but dropping when loops waited over half a vest
+ *    period: 12 vests keyed 39-54 Hz (2.3-5.7 % skipped);
+ *  - loop.c counts the interval in vest frames (skipped ones too), not in
+ *    frames it published, so a loop that skipped a frame makes its next
+ *    key on time: with one k, every session keys at the vest rate / k.
+ *
+ * Measured with bench/serve --vests 12,24 (bench/RESULTS.md, "Fair key
+ * rates"). */
+#include "internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define WINDOW_S 0.5    /* the compute's times are summed over this */
+#define SHARE_EWMA 0.3  /* weight of a window's share of a core in the smoothed one */
+#define SHARE_MIN 0.05  /* a slot never counts as less than this of a core */
+#define WALL_MIN 0.002  /* seconds of compute a window needs to tell a share */
+#define WAIT_HIGH 1.0   /* of a vest period, a frame's mean wait for a slot: the gate is the bottleneck */
+#define WAIT_LOW 0.1    /* ... under this: it is not */
+#define DROP 0.9        /* the capacity then: this times the compute's CPU per second */
+#define CLIMB 0.05      /* while it is not: this much of the way back up, each window */
+#define CAP_MIN 0.01    /* cores: the capacity never goes below this (unless given lower) */
+#define HYSTERESIS 0.9 /* a dearer choice than the current one must fit in this much of the capacity */
+
+static int known(double c)
+{
+    return isfinite(c) && c > 0.0;
+}
+
+/* A session's cores at interval k: (ck + (k - 1) cm) / (k P). */
+static double demand_at(double ck, double cm, double P, uint32_t k)
+{
+    return (ck + (double)(k - 1) * cm) / ((double)k * P);
+}
+
+static double period_of(const mim__fair_demand_t *d)
+{
+    return known(d->period) ? d->period : 1.0 / 60.0;
+}
+
+mim__fair_choice_t mim__fair_choose(const mim__fair_demand_t *d, size_t n, double capacity)
+{
+    mim__fair_choice_t c = {1, 0, 0};
+    /* an unmeasured cost (a session just added) is taken as the mean of
+     * the measured ones, not as free */
+    double sum[4] = {0}, cnt[4] = {0};
+    for (size_t i = 0; i < n; i++) {
+        const double v[4] = {d[i].key_cold, d[i].key_warm, d[i].morph, d[i].linear};
+        for (int j = 0; j < 4; j++)
+            if (known(v[j]))
+                sum[j] += v[j], cnt[j]++;
+    }
+    double mean[4];
+    for (int j = 0; j < 4; j++)
+        mean[j] = cnt[j] ? sum[j] / cnt[j] : 0.0;
+    if (!cnt[0]) /* nothing measured yet: nothing to share */
+        return c;
+    double fixed = 0.0; /* the fixed-rate sessions' cores, at their own k */
+    size_t n_auto = 0;
+    for (size_t i = 0; i < n; i++) {
+        double ck = known(d[i].key_cold) ? d[i].key_cold : mean[0];
+        double cm = known(d[i].morph) ? d[i].morph : cnt[2] ? mean[2] : ck;
+        if (d[i].fixed_k)
+            fixed += demand_at(ck, fmin(cm, ck), period_of(&d[i]), d[i].fixed_k);
+        else
+            n_auto++;
+    }
+    if (!n_auto)
+        return c;
+    const double left = (isfinite(capacity) ? capacity : 0.0) - fixed;
+    /* the auto sessions' cores at k, with warm key frames or not, frames
+     * or linear morphs */
+    for (int pass = 0; pass < 3; pass++) { /* cold k = 1; warm, frames morphs; warm, linear morphs */
+        const int warm = pass > 0, linear = pass == 2;
+        for (uint32_t k = 1; k <= MIM__FAIR_K_MAX; k++) {
+            double total = 0.0;
+            for (size_t i = 0; i < n; i++) {
+                if (d[i].fixed_k)
+                    continue;
+                double cold = known(d[i].key_cold) ? d[i].key_cold : mean[0];
+                double ck = cold;
+                if (warm && d[i].warm_ok)
+                    ck = known(d[i].key_warm) ? d[i].key_warm : cnt[1] ? mean[1] : cold;
+                double cm = linear ? (known(d[i].linear) ? d[i].linear : mean[3])
+                                   : (known(d[i].morph) ? d[i].morph : cnt[2] ? mean[2] : ck);
+                total += demand_at(ck, cm, period_of(&d[i]), k);
+            }
+            if (total <= left) {
+                c.k = k, c.warm = warm, c.linear = linear && k > 1;
+                return c;
+            }
+            if (pass == 0)
+                break; /* cold key frames only at k = 1 (then warm ones first, as loop.c) */
+        }
+    }
+    c.k = MIM__FAIR_K_MAX, c.warm = 1, c.linear = 1;
+    return c;
+}
+
+void mim__fair_init(mim__fair_t *f, unsigned slots, double cores)
+{
+    memset(f, 0, sizeof *f);
+    pthread_mutex_init(&f->lock, NULL);
+    f->capacity_max = isfinite(cores) && cores > 0.0 ? cores : MIM__FAIR_BUDGET * (slots ? slots : 1);
+    f->capacity = f->capacity_max;
+    f->choice = (mim__fair_choice_t){1, 0, 0};
+}
+
+void mim__fair_destroy(mim__fair_t *f)
+{
+    free(f->d);
+    free(f->packed);
+    free(f->used);
+    free(f->active);
+    pthread_mutex_destroy(&f->lock);
+}
+
+/* The live entries packed (under the lock) and the choice for them. */
+/* How cheap a choice is: linear morphs, then warm key frames, then k. */
+static uint32_t cheapness(mim__fair_choice_t c)
+{
+    return (uint32_t)c.linear * 4 * MIM__FAIR_K_MAX + (uint32_t)c.warm * 2 * MIM__FAIR_K_MAX + c.k;
+}
+
+/* The active entries packed (under the lock) and the choice for them: a
+ * dearer one than now only when it fits with room (HYSTERESIS), so that
+ * the interval does not flip at each window where demand and capacity
+ * meet. */
+static void rechoose(mim__fair_t *f)
+{
+    size_t m = 0;
+    for (size_t i = 0; i < f->n; i++)
+        if (f->used[i] && f->active[i])
+            f->packed[m++] = f->d[i];
+    mim__fair_choice_t c = mim__fair_choose(f->packed, m, f->capacity);
+    if (m && cheapness(c) < cheapness(f->choice)) {
+        c = mim__fair_choose(f->packed, m, HYSTERESIS * f->capacity);
+        if (cheapness(c) > cheapness(f->choice))
+            c = f->choice;
+    }
+    f->choice = c;
+}
+
+int mim__fair_join(mim__fair_t *f)
+{
+    pthread_mutex_lock(&f->lock);
+    int id = -1;
+    for (size_t i = 0; i < f->n; i++)
+        if (!f->used[i]) {
+            id = (int)i;
+            break;
+        }
+    if (id < 0) {
+        size_t n = f->n + 1;
+        mim__fair_demand_t *d = realloc(f->d, n * sizeof *d);
+        if (d)
+            f->d = d;
+        mim__fair_demand_t *p = realloc(f->packed, n * sizeof *p);
+        if (p)
+            f->packed = p;
+        unsigned char *u = realloc(f->used, n);
+        if (u)
+            f->used = u;
+        unsigned char *t = realloc(f->active, n);
+        if (t)
+            f->active = t;
+        if (d && p && u && t)
+            id = (int)f->n, f->n = n;
+    }
+    if (id >= 0) {
+        memset(&f->d[id], 0, sizeof f->d[id]);
+        f->used[id] = 1;
+        f->active[id] = 0; /* counted from its first frame */
+        rechoose(f);
+    }
+    pthread_mutex_unlock(&f->lock);
+    return id;
+}
+
+void mim__fair_idle(mim__fair_t *f, int id)
+{
+    if (id < 0)
+        return;
+    pthread_mutex_lock(&f->lock);
+    if ((size_t)id < f->n && f->used[id] && f->active[id]) {
+        f->active[id] = 0;
+        rechoose(f);
+    }
+    pthread_mutex_unlock(&f->lock);
+}
+
+void mim__fair_leave(mim__fair_t *f, int id)
+{
+    if (id < 0)
+        return;
+    pthread_mutex_lock(&f->lock);
+    if ((size_t)id < f->n)
+        f->used[id] = 0;
+    rechoose(f);
+    pthread_mutex_unlock(&f->lock);
+}
+
+mim__fair_choice_t mim__fair_frame(mim__fair_t *f, int id, const mim__fair_demand_t *d, const mim__fair_times_t *t,
+                                   double now)
+{
+    pthread_mutex_lock(&f->lock);
+    if (id >= 0 && (size_t)id < f->n && f->used[id])
+        f->d[id] = *d, f->active[id] = 1;
+    if (f->window_start == 0.0 || now < f->window_start)
+        f->window_start = now, f->w_cpu = f->w_wall = f->w_wait = 0.0, f->w_frames = 0;
+    if (known(t->cpu) && known(t->wall))
+        f->w_cpu += t->cpu, f->w_wall += t->wall;
+    if (isfinite(t->wait) && t->wait > 0.0)
+        f->w_wait += t->wait;
+    f->w_frames++;
+    const double dt = now - f->window_start;
+    if (dt >= WINDOW_S) {
+        if (f->w_wall >= WALL_MIN) {
+            double r = fmax(SHARE_MIN, fmin(1.0, f->w_cpu / f->w_wall));
+            f->share = f->share > 0.0 ? (1.0 - SHARE_EWMA) * f->share + SHARE_EWMA * r : r;
+        }
+        const double top = f->capacity_max * (f->share > 0.0 ? f->share : 1.0);
+        const double P = known(d->period) ? d->period : 1.0 / 60.0, wait = f->w_wait / (double)f->w_frames;
+        const int busy = wait > WAIT_HIGH * P;
+        if (busy && f->busy_before) /* two windows running: not a passing stall */
+            f->capacity = fmin(f->capacity, fmax(fmin(CAP_MIN, f->capacity_max), DROP * f->w_cpu / dt));
+        else if (wait < WAIT_LOW * P)
+            f->capacity += CLIMB * (top - f->capacity);
+        f->capacity = fmin(f->capacity, top);
+        f->busy_before = busy;
+        f->window_start = now, f->w_cpu = f->w_wall = f->w_wait = 0.0, f->w_frames = 0;
+        rechoose(f); /* costs change slowly: once a window is enough */
+    }
+    mim__fair_choice_t c = f->choice;
+    pthread_mutex_unlock(&f->lock);
+    return c;
+}
+
+void mim__fair_state(mim__fair_t *f, mim__fair_choice_t *choice, double *capacity)
+{
+    pthread_mutex_lock(&f->lock);
+    *choice = f->choice;
+    *capacity = f->capacity;
+    pthread_mutex_unlock(&f->lock);
+}

@@ -1,0 +1,338 @@
+/* The sessions' common key interval (serve/fair.c, issue 16 item 1): the
+ * rule alone, on given CPU costs, and the registry the loops share, driven
+ * by hand with given times. No thread, no socket, no clock: these assert
+ * the rule, not anyone's speed. */
+#include "internal.h"
+
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#define P (1.0 / 60.0)
+
+/* A session keyed at 60 Hz: a key frame of key ms CPU, frames morphs of
+ * morph ms, linear ones of 0.02 ms. */
+static mim__fair_demand_t sess(double key_ms, double morph_ms)
+{
+    return (mim__fair_demand_t){.key_cold = key_ms * 1e-3, .key_warm = 0.6 * key_ms * 1e-3, .morph = morph_ms * 1e-3,
+                                .linear = 0.02e-3, .period = P, .warm_ok = 1};
+}
+
+/* The total cores of d at choice c, as the rule counts them (auto sessions). */
+static double cores(const mim__fair_demand_t *d, size_t n, mim__fair_choice_t c)
+{
+    double t = 0.0;
+    for (size_t i = 0; i < n; i++) {
+        uint32_t k = d[i].fixed_k ? d[i].fixed_k : c.k;
+        double ck = c.warm && !d[i].fixed_k ? d[i].key_warm : d[i].key_cold;
+        double cm = c.linear && !d[i].fixed_k ? d[i].linear : d[i].morph;
+        t += (ck + (k - 1) * cm) / (k * d[i].period);
+    }
+    return t;
+}
+
+/* Light load: a key frame for every vest frame, cold, whoever asks. */
+static void test_light_load_keys_every_frame(void **state)
+{
+    (void)state;
+    mim__fair_demand_t d[12];
+    for (int i = 0; i < 12; i++)
+        d[i] = sess(0.9, 0.5);
+    /* 12 x 0.9 ms x 60 Hz = 0.65 cores, in 2 x 0.8 */
+    mim__fair_choice_t c = mim__fair_choose(d, 12, 1.6);
+    assert_int_equal(c.k, 1);
+    assert_false(c.warm);
+    assert_false(c.linear);
+    /* one session */
+    c = mim__fair_choose(d, 1, 1.6);
+    assert_int_equal(c.k, 1);
+    assert_false(c.warm);
+    /* none */
+    c = mim__fair_choose(d, 0, 1.6);
+    assert_int_equal(c.k, 1);
+}
+
+/* Overload: warm key frames first, then the smallest k that fits, then
+ * linear morphs; the choice always fits, and one k less would not. */
+static void test_overload_smallest_fitting_interval(void **state)
+{
+    (void)state;
+    mim__fair_demand_t d[24];
+    for (int i = 0; i < 24; i++)
+        d[i] = sess(0.9, 0.5);
+    /* cold at k = 1: 1.30 cores; warm: 0.78 */
+    mim__fair_choice_t c = mim__fair_choose(d, 24, 1.0);
+    assert_int_equal(c.k, 1);
+    assert_true(c.warm);
+    assert_false(c.linear);
+    assert_true(cores(d, 24, c) <= 1.0);
+    /* frames morphs: 24 x (0.54 + (k-1) 0.5) / k ms x 60 -> 0.72 cores at
+     * best, above 0.6: linear morphs, k = 2 (0.40 cores), as k = 1 (0.78)
+     * does not fit */
+    c = mim__fair_choose(d, 24, 0.6);
+    assert_true(c.warm);
+    assert_true(c.linear);
+    assert_int_equal(c.k, 2);
+    assert_true(cores(d, 24, c) <= 0.6);
+    /* frames morphs that are cheap fit before linear ones do */
+    for (int i = 0; i < 24; i++)
+        d[i].morph = 0.1e-3;
+    c = mim__fair_choose(d, 24, 0.6);
+    assert_false(c.linear);
+    assert_true(c.k > 1);
+    assert_true(cores(d, 24, c) <= 0.6);
+    mim__fair_choice_t less = c;
+    less.k--;
+    assert_true(cores(d, 24, less) > 0.6);
+    /* nothing fits: one key frame in K_MAX, linear */
+    c = mim__fair_choose(d, 24, 0.001);
+    assert_int_equal(c.k, MIM__FAIR_K_MAX);
+    assert_true(c.linear);
+    c = mim__fair_choose(d, 24, 0.0);
+    assert_int_equal(c.k, MIM__FAIR_K_MAX);
+    c = mim__fair_choose(d, 24, -1.0);
+    assert_int_equal(c.k, MIM__FAIR_K_MAX);
+}
+
+/* More sessions, a larger common interval (never a smaller one). */
+static void test_interval_grows_with_sessions(void **state)
+{
+    (void)state;
+    mim__fair_demand_t d[64];
+    for (int i = 0; i < 64; i++)
+        d[i] = sess(0.9, 0.5);
+    uint32_t prev = 1;
+    int prev_linear = 0;
+    for (size_t n = 1; n <= 64; n++) {
+        mim__fair_choice_t c = mim__fair_choose(d, n, 0.8);
+        /* as sessions are added, the choice only gets cheaper: linear
+         * once, k never back down within a morph method */
+        assert_true(c.linear >= prev_linear);
+        if (c.linear == prev_linear)
+            assert_true(c.k >= prev);
+        assert_true(cores(d, n, c) <= 0.8 || c.k == MIM__FAIR_K_MAX);
+        prev = c.k, prev_linear = c.linear;
+    }
+    assert_true(prev > 1);
+    /* and removed again (the registry packs the live ones): back to 1 */
+    assert_int_equal(mim__fair_choose(d, 2, 0.8).k, 1);
+}
+
+/* Costs not measured yet (0, NaN, infinite) are the mean of the measured
+ * ones, never free; when none is measured, there is nothing to share. */
+static void test_unmeasured_costs(void **state)
+{
+    (void)state;
+    mim__fair_demand_t d[24];
+    for (int i = 0; i < 24; i++)
+        d[i] = sess(0.9, 0.5);
+    mim__fair_choice_t ref = mim__fair_choose(d, 24, 0.6);
+    d[3].key_cold = 0.0, d[3].key_warm = NAN, d[3].morph = 0.0, d[3].linear = NAN;
+    d[7].key_cold = NAN, d[7].key_warm = INFINITY, d[7].period = 0.0; /* 0: 1/60 */
+    d[9].key_cold = -1.0, d[9].period = NAN;
+    mim__fair_choice_t c = mim__fair_choose(d, 24, 0.6);
+    assert_int_equal(c.k, ref.k);
+    assert_int_equal(c.linear, ref.linear);
+    for (int i = 0; i < 24; i++)
+        d[i].key_cold = d[i].key_warm = d[i].morph = d[i].linear = NAN;
+    c = mim__fair_choose(d, 24, 0.6);
+    assert_int_equal(c.k, 1);
+    assert_false(c.warm);
+    /* a NaN capacity fits nothing */
+    for (int i = 0; i < 24; i++)
+        d[i] = sess(0.9, 0.5);
+    c = mim__fair_choose(d, 24, NAN);
+    assert_int_equal(c.k, MIM__FAIR_K_MAX);
+}
+
+/* A fixed key rate keeps its own interval; its demand comes first, and the
+ * auto sessions share the rest. */
+static void test_fixed_rate_sessions(void **state)
+{
+    (void)state;
+    mim__fair_demand_t d[13];
+    for (int i = 0; i < 13; i++)
+        d[i] = sess(0.9, 0.5);
+    /* 12 auto: 0.65 cores cold; with 1 more at a fixed 60 Hz (0.054
+     * cores) in 0.7: still every frame */
+    d[12].fixed_k = 1;
+    assert_int_equal(mim__fair_choose(d, 13, 0.7).k, 1);
+    /* in 0.66 not: the fixed one's share is taken first */
+    mim__fair_choice_t c = mim__fair_choose(d, 13, 0.66);
+    assert_true(c.warm || c.k > 1);
+    assert_true(cores(d, 13, c) <= 0.66);
+    /* only fixed sessions: nothing to choose */
+    for (int i = 0; i < 13; i++)
+        d[i].fixed_k = 4;
+    c = mim__fair_choose(d, 13, 0.01);
+    assert_int_equal(c.k, 1);
+    assert_false(c.linear);
+}
+
+/* A session whose warm start is not auto keeps cold key frames in the sum. */
+static void test_warm_only_where_auto(void **state)
+{
+    (void)state;
+    mim__fair_demand_t d[24];
+    for (int i = 0; i < 24; i++)
+        d[i] = sess(0.9, 0.5), d[i].warm_ok = 0;
+    /* 1.30 cores cold, warm (0.78) not allowed: k = 1 does not fit 1.0 */
+    mim__fair_choice_t c = mim__fair_choose(d, 24, 1.0);
+    assert_true(c.k > 1);
+}
+
+/* Equal costs, equal intervals: the rule has no per-session answer. And
+ * unequal ones still one k: a dearer avatar does not key less often. */
+static void test_one_interval_for_all(void **state)
+{
+    (void)state;
+    mim__fair_demand_t d[24];
+    for (int i = 0; i < 24; i++)
+        d[i] = sess(i % 2 ? 0.9 : 2.7, 0.5);
+    mim__fair_choice_t c = mim__fair_choose(d, 24, 0.8);
+    assert_true(c.k > 1);
+    assert_true(cores(d, 24, c) <= 0.8);
+}
+
+/* 24 loops' frames at 60 Hz each for seconds, each frame's compute
+ * taking cpu CPU seconds in wall seconds of a compute slot after waiting
+ * wait seconds for it; *t advances. */
+static mim__fair_choice_t feed(mim__fair_t *f, const int *id, const mim__fair_demand_t *d, double cpu, double wall,
+                               double wait, double seconds, double *t)
+{
+    mim__fair_choice_t c = {0, 0, 0};
+    mim__fair_times_t tm = {cpu, wall, wait};
+    for (double end = *t + seconds; *t < end; *t += P)
+        for (int i = 0; i < 24; i++)
+            c = mim__fair_frame(f, id[i], d, &tm, *t);
+    return c;
+}
+
+/* The registry: entries join and leave, and count from their first frame
+ * until they idle; the capacity is at most the
+ * cores' budget times the share of a core a compute slot yields (CPU over
+ * wall time while it is held), falls to what the compute got when loops
+ * wait long for a slot two windows running (not one: a passing stall),
+ * and climbs back while they do not; the choice follows it. Times and CPU
+ * are given, not read. */
+static void test_registry_capacity(void **state)
+{
+    (void)state;
+    mim__fair_t f;
+    mim__fair_init(&f, 2, 0.0);
+    double cap, t = 100.0;
+    mim__fair_choice_t c;
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 1.6) < 1e-9);
+    assert_int_equal(c.k, 1);
+    int id[24];
+    for (int i = 0; i < 24; i++)
+        assert_true((id[i] = mim__fair_join(&f)) >= 0);
+    mim__fair_demand_t d = sess(0.9, 0.5);
+    /* a slot yields a whole core: 24 x 0.9 ms x 60 = 1.30 cores fits 1.6 */
+    c = feed(&f, id, &d, 0.9e-3, 0.9e-3, 0.0, 2.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 1.6) < 1e-6);
+    assert_int_equal(c.k, 1);
+    assert_false(c.warm);
+    /* a slot yields 0.4 of a core (its holder preempted): 0.64 cores, in
+     * which warm key frames at every vest frame (0.78) do not fit, nor
+     * frames morphs (0.72 at best): linear ones, every second frame a key */
+    c = feed(&f, id, &d, 0.9e-3, 2.25e-3, 0.0, 10.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 0.64) < 0.01);
+    assert_int_equal(c.k, 2);
+    assert_true(c.warm);
+    assert_true(c.linear);
+    /* windows with too little compute to tell keep the share */
+    c = feed(&f, id, &d, 0.0, 0.0, 0.0, 2.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 0.64) < 0.01);
+    /* a whole core again (nonsense times count for nothing; a share is
+     * never over 1), no wait: climbs back */
+    c = feed(&f, id, &d, NAN, 1e-3, 0.0, 1.0, &t);
+    c = feed(&f, id, &d, 2e-3, 1e-3, 0.0, 60.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(cap <= 1.6 + 1e-9 && cap > 1.5);
+    assert_int_equal(c.k, 1);
+    assert_false(c.warm);
+    /* loops wait 25 ms a frame for a slot (the compute gets 0.72 cores)
+     * one window: held (a stall); wait under 0.1 period resets it */
+    while (f.w_frames >= 24)
+        feed(&f, id, &d, 0.9e-3, 0.9e-3, 0.0, P / 2, &t);
+    feed(&f, id, &d, 0.5e-3, 0.5e-3, 25e-3, 0.3, &t);
+    feed(&f, id, &d, 0.9e-3, 0.9e-3, 0.0, 1.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(cap > 1.5);
+    /* waits between the marks (0.1 and 1 vest period): held */
+    feed(&f, id, &d, 0.5e-3, 0.5e-3, 12e-3, 3.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(cap > 1.5);
+    /* for long: down to 0.9 x 0.72 = 0.65 cores, one key frame in 2 */
+    c = feed(&f, id, &d, 0.5e-3, 0.5e-3, 25e-3, 1.5, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 0.648) < 0.01);
+    assert_int_equal(c.k, 2);
+    assert_true(c.linear);
+    /* a share near 0 counts as 0.05 of a core: 0.08 cores, linear morphs
+     * and one key frame in 15 */
+    c = feed(&f, id, &d, 1e-6, 1.0e-3, 0.0, 20.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 0.08) < 0.001);
+    assert_int_equal(c.k, 15);
+    assert_true(c.linear);
+    assert_true(cores(&d, 1, c) * 24 <= cap);
+    /* 20 leave: the 4 left fit again; a slot is reused */
+    for (int i = 4; i < 24; i++)
+        mim__fair_leave(&f, id[i]);
+    mim__fair_leave(&f, -1);
+    int again = mim__fair_join(&f);
+    assert_true(again >= 4 && again < 24);
+    mim__fair_leave(&f, again);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(c.k < MIM__FAIR_K_MAX);
+    /* a frame from an entry that left (a loop closing) is harmless */
+    mim__fair_times_t tm = {0.9e-3, 0.9e-3, 0.0};
+    c = mim__fair_frame(&f, id[5], &d, &tm, t);
+    mim__fair_destroy(&f);
+
+    /* --compute-cores: the budget as given */
+    mim__fair_init(&f, 2, 0.5);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 0.5) < 1e-9);
+    for (int i = 0; i < 24; i++)
+        id[i] = mim__fair_join(&f);
+    c = feed(&f, id, &d, 0.9e-3, 0.9e-3, 0.0, 1.0, &t);
+    assert_true(c.k > 1);
+    /* 20 of them idle (their vests away) without leaving: not counted,
+     * and the 4 left fit at every frame; a frame makes one count again */
+    for (int i = 4; i < 24; i++)
+        mim__fair_idle(&f, id[i]);
+    mim__fair_idle(&f, -1);
+    mim__fair_times_t tm4 = {0.9e-3, 0.9e-3, 0.0};
+    for (double end = t + 1.0; t < end; t += P)
+        for (int i = 0; i < 4; i++)
+            c = mim__fair_frame(&f, id[i], &d, &tm4, t);
+    assert_int_equal(c.k, 1);
+    c = feed(&f, id, &d, 0.9e-3, 0.9e-3, 0.0, 1.0, &t);
+    assert_true(c.k > 1);
+    mim__fair_destroy(&f);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_light_load_keys_every_frame),
+        cmocka_unit_test(test_overload_smallest_fitting_interval),
+        cmocka_unit_test(test_interval_grows_with_sessions),
+        cmocka_unit_test(test_unmeasured_costs),
+        cmocka_unit_test(test_fixed_rate_sessions),
+        cmocka_unit_test(test_warm_only_where_auto),
+        cmocka_unit_test(test_one_interval_for_all),
+        cmocka_unit_test(test_registry_capacity),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
