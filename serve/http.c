@@ -664,6 +664,11 @@ static int on_request(mim_serve_t *sv, struct lws *wsi, mim__conn_t *conn, const
         tx->expect_body = tx->declared > 0;
     }
     tx->close |= tx->expect_body && tx->method != M_POST; /* a body nobody reads */
+    /* a method lws does not know (PUT, PATCH, ...): lws reads neither its
+     * Connection header nor, after the answer, times the connection out,
+     * so it would stay open for as long as the client likes (measured:
+     * the test client waited its 120 s): answer and close */
+    tx->close |= tx->method == M_OTHER;
 
     if (strlen(in) != len)
         return refuse(sv, wsi, tx, 400, "request path: has a NUL byte (%%00)");
