@@ -44,8 +44,11 @@ int mim__api_status(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 {
     (void)rq;
     const mim_query_status_t *qs = mim_session_index_status(sv->s);
-    json_t *index = json_pack("{s:b, s:b, s:I}", "present", qs->has_index, "stale", qs->stale, "templates",
-                              (json_int_t)(qs->has_index ? qs->built.templates : 0));
+    int ready = atomic_load(&sv->index_ready);
+    json_t *index = json_pack("{s:b, s:b, s:I, s:b}", "present", qs->has_index, "stale", qs->stale, "templates",
+                              (json_int_t)(qs->has_index ? qs->built.templates : 0), "ready", sv->q && ready == 1);
+    if (sv->q && ready < 0)
+        json_object_set_new(index, "error", json_string(sv->index_error));
     size_t n = 0;
     mim__vs_t **all = mim__sessions_all(sv, &n);
     uint64_t count[MIM__C_COUNT] = {0};

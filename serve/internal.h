@@ -361,6 +361,15 @@ struct mim_serve {
     mim__vs_t *sessions;        /* live and removed ones still referenced, in the order added */
     mim__gate_t gate;
     mim__fair_t fair;           /* the sessions' common key interval */
+    /* The index readied on a thread of its own at start (server.c): a
+     * store's index is used in place and each class is checked and its
+     * kd-forest loaded when a query first needs it (index/blob_v5.c), about
+     * 0.1 s a class at 1 000 000 templates; done here, a vest's first key
+     * frame in a pose does not pay for it. */
+    pthread_t warm;
+    int warm_started;
+    atomic_int index_ready;     /* 0 readying, 1 ready, -1 a part is damaged (index_error) */
+    char index_error[256];
     mim__ws_t *ws;              /* the /ws streams, every session's */
     mim__metrics_t m;           /* the service's own (HTTP requests, the API's queries and transfers) */
 };

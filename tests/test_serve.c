@@ -193,6 +193,27 @@ static void test_status(void **state)
     hc_reply_free(&r);
 }
 
+/* The index is readied on serve's own thread: soon every class is (a test
+ * store's index takes milliseconds; the wait is only for a loaded
+ * machine), and nothing was found damaged. (After test_metrics, which
+ * counts the status requests.) */
+static void test_index_ready(void **state)
+{
+    (void)state;
+    int ready = 0;
+    for (int i = 0; i < 600 && !ready; i++) {
+        hc_reply_t r = http("GET", "/api/status", NULL, NULL, 0);
+        json_t *j = json_of(&r), *ix = json_object_get(j, "index");
+        ready = json_is_true(json_object_get(ix, "ready"));
+        assert_true(json_is_boolean(json_object_get(ix, "ready")));
+        assert_null(json_object_get(ix, "error"));
+        json_decref(j);
+        hc_reply_free(&r);
+        if (!ready) usleep(100000);
+    }
+    assert_true(ready);
+}
+
 static void test_avatar(void **state)
 {
     (void)state;
@@ -525,7 +546,7 @@ int main(void)
     signal(SIGPIPE, SIG_IGN);
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_status),   cmocka_unit_test(test_avatar),    cmocka_unit_test(test_query_self),
-        cmocka_unit_test(test_transfer), cmocka_unit_test(test_metrics),   cmocka_unit_test(test_errors),
+        cmocka_unit_test(test_transfer), cmocka_unit_test(test_metrics), cmocka_unit_test(test_index_ready),   cmocka_unit_test(test_errors),
         cmocka_unit_test(test_sigterm),  cmocka_unit_test(test_bad_usage),   cmocka_unit_test(test_no_index),
         cmocka_unit_test(test_vest_loop),
     };
