@@ -9,8 +9,8 @@
  * learned from the training subjects and their noisy copies weighs each
  * direction by how much it varies within a pose. On the hard set with the
  * variants 24-40 degrees apart (bench/RESULTS.md, "Linear discriminants")
- * this lifts 3 cm noise from 0.93 (SVMs) and 0.94 (1-NN over all angles)
- * to 0.98, against a ceiling of 1.00.
+ * this lifts 3 cm noise from 0.926 (SVMs) and 0.944 (1-NN over all angles)
+ * to 0.969, against a ceiling of 0.999.
  *
  * The model: class means mu_c over a sample of the class's templates;
  * one within-class covariance S over those templates and MIM__LDA_COPIES
@@ -29,10 +29,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* acos on [-1, 1] to within 2e-8 (Abramowitz and Stegun 4.4.46:
- * sqrt(1 - x) times a polynomial of degree 7, for x >= 0; pi minus that of
- * -x below 0), branch-free so that a loop of them vectorises. NaN stays
- * NaN. */
+/* acos on [-1, 1] (Abramowitz and Stegun 4.4.46: sqrt(1 - x) times a
+ * polynomial of degree 7, for x >= 0, within 2e-8 in exact arithmetic;
+ * pi minus that of -x below 0), branch-free so that a loop of them
+ * vectorises; in float within 5e-7 rad of libm's double acos (measured
+ * over [-1, 1] in steps of 1e-6). NaN stays NaN. */
 static inline float acos_poly(float x)
 {
     float a = x < 0 ? -x : x;
@@ -51,9 +52,10 @@ static inline float acos_poly(float x)
 /* Every angle of the n landmarks, in the order of mim_index_angles (at j,
  * pairs {i, k} of the others), in float: the discriminants read all 1680
  * at every whole frame, and one difference vector per pair of landmarks
- * and a polynomial acos make that about 10x cheaper than
- * mim_index_angles (within 1e-7 rad of it). Train and query both use
- * this. NaN for a pair of coincident landmarks. */
+ * and a polynomial acos (no triple decoding, no libm acos) keep that to a
+ * few microseconds, so that a whole frame's query costs about what the
+ * SVM path did (bench/RESULTS.md). Train and query both use this. NaN
+ * for a pair of coincident landmarks. */
 static void all_angles(const float *pos, uint32_t n, float *out)
 {
     float v[MIM_LANDMARKS_MAX][3], len[MIM_LANDMARKS_MAX];
