@@ -7,6 +7,7 @@
 #include "store_support.h"
 #include "mim_session.h"
 #include "mim_query.h"
+#include "serve_support.h"
 
 #include <lmdb.h>
 #include <stdio.h>
@@ -379,6 +380,31 @@ static void test_index_bulk_damage(void **s)
     mim_query_close(&q);
     mim_db_close(&db);
     st_assert_check_finds(store, "index model: checksum mismatch (run mimic index)", 0, "index");
+    /* mimic serve on it: it starts (the damage is in one class's part),
+     * readies the index on its own thread, finds the damage and says so in
+     * its status, and stops cleanly */
+    char *dir = ts_tempdir("damaged_serve");
+    const char *args[] = {"serve", "--store", store, "--avatar", "1", "--listen", "127.0.0.1:0", NULL};
+    ss_svc_t sv = {0};
+    assert_int_equal(ss_serve_start(&sv, dir, "damaged", args), 0);
+    json_t *ix = NULL;
+    for (int i = 0; i < 600; i++) {
+        json_t *st = ss_get_status(sv.port);
+        ix = json_incref(json_object_get(st, "index"));
+        json_decref(st);
+        if (json_object_get(ix, "error")) break;
+        json_decref(ix), ix = NULL;
+        ss_sleep_ms(100);
+    }
+    assert_non_null(ix);
+    assert_true(json_is_false(json_object_get(ix, "ready")));
+    const char *why = json_string_value(json_object_get(ix, "error"));
+    if (!strstr(why, "damaged")) fail_msg("index.error '%s' lacks 'damaged'", why);
+    json_decref(ix);
+    ss_svc_term(&sv);
+    ss_svc_free(&sv);
+    ts_rmtree(dir);
+    free(dir);
     free(store);
 }
 
