@@ -44,18 +44,13 @@
 #define BLOB_VERSION 4 /* the last version read here */
 #define BLOB_HEADER 32
 
-typedef struct {
-    unsigned char *p;
-    size_t len, cap;
-    int oom;
-} wbuf_t;
-
-static void put(wbuf_t *b, const void *src, size_t n)
+void mim__wbuf_put(mim__wbuf_t *b, const void *src, size_t n, size_t align)
 {
+    size_t padded = (n + align - 1) / align * align;
     if (b->oom) return;
-    if (b->len + n > b->cap) {
+    if (b->len + padded > b->cap) {
         size_t nc = b->cap ? b->cap : 4096;
-        while (nc < b->len + n) nc *= 2;
+        while (nc < b->len + padded) nc *= 2;
         unsigned char *np = realloc(b->p, nc);
         if (!np) {
             b->oom = 1;
@@ -63,9 +58,13 @@ static void put(wbuf_t *b, const void *src, size_t n)
         }
         b->p = np, b->cap = nc;
     }
-    memcpy(b->p + b->len, src, n);
-    b->len += n;
+    if (n) memcpy(b->p + b->len, src, n);
+    memset(b->p + b->len + n, 0, padded - n);
+    b->len += padded;
 }
+
+typedef mim__wbuf_t wbuf_t;
+static void put(wbuf_t *b, const void *src, size_t n) { mim__wbuf_put(b, src, n, 1); } /* version 4: unaligned */
 static void put32(wbuf_t *b, uint32_t v) { put(b, &v, 4); }
 static void putf64(wbuf_t *b, double v) { put(b, &v, 8); }
 

@@ -109,30 +109,8 @@ static uint64_t extra_checksum(const mim_index_t *ix, uint32_t j, uint32_t rows)
 }
 
 /* ---- writer ---- */
-typedef struct {
-    unsigned char *p;
-    size_t len, cap;
-    int oom;
-} wbuf_t;
-
-static void put(wbuf_t *b, const void *src, size_t n) /* then zero padding to 8 */
-{
-    size_t padded = (size_t)up(n, 8);
-    if (b->oom) return;
-    if (b->len + padded > b->cap) {
-        size_t nc = b->cap ? b->cap : 4096;
-        while (nc < b->len + padded) nc *= 2;
-        unsigned char *np = realloc(b->p, nc);
-        if (!np) {
-            b->oom = 1;
-            return;
-        }
-        b->p = np, b->cap = nc;
-    }
-    if (n) memcpy(b->p + b->len, src, n);
-    memset(b->p + b->len + n, 0, padded - n);
-    b->len += padded;
-}
+typedef mim__wbuf_t wbuf_t;
+static void put(wbuf_t *b, const void *src, size_t n) { mim__wbuf_put(b, src, n, 8); } /* every head item 8-byte aligned */
 
 int mim__index_save_v5(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err)
 {

@@ -104,6 +104,17 @@ int mim__index_save_v4(const mim_index_t *ix, void **blob, size_t *len, mim_erro
  * the same index. Nothing here touches libc's rand(). */
 #define MIM__INDEX_SEED 0x6d696dULL
 
+/* blob.c: a growing byte buffer, the blob writers' (versions 4 and 5):
+ * appends n bytes of src (src may be NULL when n is 0), then zeros up to a
+ * multiple of align (1: none); oom is set once memory runs out, and every
+ * later put is then a no-op. */
+typedef struct {
+    unsigned char *p;
+    size_t len, cap;
+    int oom;
+} mim__wbuf_t;
+void mim__wbuf_put(mim__wbuf_t *b, const void *src, size_t n, size_t align);
+
 /* lda.c: linear discriminants over all angles (issue 15). Build: from in's
  * templates of classes cls (input order, nc classes) and noisy copies at
  * sigma; none (nf 0) for one class or constant angles. */

@@ -18,6 +18,9 @@
 
 enum { S = 5, P = 16, DRAWS = 5 };
 
+/* index/: every checksum of a version 5 blob made right (blob_v5.c) */
+void mim__index_seal_v5(unsigned char *p, size_t len);
+
 typedef struct {
     bench_hard_t h;
     const char *subj[S * P], *pose[S * P];
@@ -158,6 +161,41 @@ static void test_discriminants(void **state)
         assert_int_equal(mim_index_query(a, f, NULL, NULL, &x, &hx, NULL), 0);
         assert_true(x.probability > 0 && x.probability <= 1);
     }
+    /* a blob's discriminants that do not fit its index, or hold a NaN:
+     * refused at load with the reason (checksums made right, as damage
+     * that a checksum misses or a crafted blob would be) */
+    void *blob = NULL;
+    size_t len = 0;
+    assert_int_equal(mim_index_save(a, &blob, &len, NULL), 0);
+    unsigned char pat[16];
+    mim_index_get_info(a, &info);
+    uint32_t nfc[2] = {mim_index_angle_count(L), info.n_classes};
+    double dn = MIM_INDEX_DISCRIMINANT_NOISE_DEFAULT;
+    memcpy(pat, nfc, 8), memcpy(pat + 8, &dn, 8);
+    size_t at = 0;
+    while (at + 16 <= len && memcmp((unsigned char *)blob + at, pat, 16)) at += 8;
+    assert_true(at + 16 <= len); /* the discriminants' sizes and noise in the head */
+    const struct {
+        size_t off;
+        uint32_t value;
+        const char *why;
+    } cases[] = {{0, 1679, "discriminants of 1679 angles"},
+                 {4, 3, "discriminants of 1680 angles and 3 classes"},
+                 {16 + 4 * 7, 0x7fc00000u, "discriminants hold a non-finite number"}}; /* a mean angle NaN */
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+        unsigned char *v = NULL;
+        assert_int_equal(posix_memalign((void **)&v, 64, len), 0);
+        memcpy(v, blob, len);
+        memcpy(v + at + cases[c].off, &cases[c].value, 4);
+        mim__index_seal_v5(v, len);
+        mim_index_t *back = NULL;
+        mim_error_t e = {0};
+        assert_int_equal(mim_index_load(&back, v, len, &e), MIM_EFORMAT);
+        if (!strstr(e.msg, cases[c].why)) fail_msg("case %zu: '%s' lacks '%s'", c, e.msg, cases[c].why);
+        assert_null(back);
+        free(v);
+    }
+    free(blob);
     /* out of range */
     mim_index_options_t bad = {.discriminant_noise = 1.5};
     mim_index_input_t in = {(S - 1) * P, s->h.n_landmarks, s->h.landmarks, s->ids, s->subj, s->pose, s->h.mirror};
