@@ -40,12 +40,18 @@ static int locked(int j, int k)
 
 void bench_hard_free(bench_hard_t *h)
 {
-    free(h->landmarks), free(h->pose_name);
+    free(h->landmarks), free(h->pose_name), free(h->redrawn);
     memset(h, 0, sizeof *h);
 }
 
 int bench_hard_make(bench_hard_t *h, uint32_t subjects, uint32_t poses, uint32_t vertices, uint64_t seed,
                     double spread, mim_error_t *err)
+{
+    return bench_hard_make_draws(h, subjects, poses, vertices, seed, spread, 0, err);
+}
+
+int bench_hard_make_draws(bench_hard_t *h, uint32_t subjects, uint32_t poses, uint32_t vertices, uint64_t seed,
+                          double spread, uint32_t draws, mim_error_t *err)
 {
     memset(h, 0, sizeof *h);
     mim_synth_options_t o = {.subjects = subjects, .poses = 1, .vertices = vertices, .seed = seed};
@@ -55,11 +61,12 @@ int bench_hard_make(bench_hard_t *h, uint32_t subjects, uint32_t poses, uint32_t
     mim_landmark_map_t map;
     mim_synth_landmarks(s, &map);
     uint32_t L = map.count;
-    h->subjects = subjects, h->poses = poses, h->n_landmarks = L;
+    h->subjects = subjects, h->poses = poses, h->n_landmarks = L, h->draws = draws;
     memcpy(h->mirror, map.mirror, sizeof(uint32_t) * L);
     h->landmarks = malloc(sizeof(float) * 3 * L * subjects * poses);
+    h->redrawn = draws ? malloc(sizeof(float) * 3 * L * subjects * poses * draws) : NULL;
     h->pose_name = calloc(poses ? poses : 1, sizeof *h->pose_name);
-    if (!h->landmarks || !h->pose_name) {
+    if (!h->landmarks || !h->pose_name || (draws && !h->redrawn)) {
         rc = mim_error_set(err, MIM_ENOMEM, "hard set: out of memory");
         goto out;
     }
@@ -75,32 +82,35 @@ int bench_hard_make(bench_hard_t *h, uint32_t subjects, uint32_t poses, uint32_t
             mim_error_set(err, rc, "hard set: subject %u failed", sj);
             break;
         }
-        for (uint32_t p = 0; p < poses; p++) {
-            double deg[MIM__NJ][3];
-            mim__pose_angles(bases[p / BENCH_HARD_VARIANTS % nb], seed, deg);
-            for (int t = 0; t < 2; t++) {
-                const turn_t *v = &variants[p % BENCH_HARD_VARIANTS][t];
-                if (v->j < 0) continue;
-                deg[v->j][v->k] += (deg[v->j][v->k] > 60 ? -v->deg : v->deg) * spread;
+        for (uint32_t p = 0; p < poses; p++)
+            for (uint32_t d = 0; d <= draws; d++) { /* d = 0: the set's own jitter; 1..draws: others */
+                double deg[MIM__NJ][3];
+                mim__pose_angles(bases[p / BENCH_HARD_VARIANTS % nb], seed, deg);
+                for (int t = 0; t < 2; t++) {
+                    const turn_t *v = &variants[p % BENCH_HARD_VARIANTS][t];
+                    if (v->j < 0) continue;
+                    deg[v->j][v->k] += (deg[v->j][v->k] > 60 ? -v->deg : v->deg) * spread;
+                }
+                mim_rng_t r;
+                uint64_t stream = (uint64_t)sj * 100003 + p;
+                mim_rng_seed(&r, seed, d ? 0x6a6974746572ULL + ((uint64_t)d << 40) + stream : 0x68617264ULL + stream);
+                for (int j = 0; j < MIM__NJ; j++)
+                    for (int k = 0; k < 3; k++)
+                        if (!locked(j, k)) deg[j][k] += 6 * mim_rng_unit(&r) - 3;
+                mim_quat q[MIM__NJ], G[MIM__NJ];
+                mim_vec3 P[MIM__NJ];
+                mim__pose_quats((const double(*)[3])deg, q);
+                mim__fk(&b.sk, q, G, P);
+                size_t t = (size_t)sj * poses + p;
+                float *out = d ? h->redrawn + (t * draws + d - 1) * L * 3 : h->landmarks + t * L * 3;
+                for (uint32_t l = 0; l < L; l++) {
+                    uint32_t v = map.vertex[l];
+                    double x[3];
+                    mim__lbs(&b.sk, q, G, P, 1, b.rest + 3 * (size_t)v, b.wj + (size_t)MIM__NW * v,
+                             b.ww + (size_t)MIM__NW * v, x);
+                    for (int c = 0; c < 3; c++) out[3 * l + c] = (float)x[c];
+                }
             }
-            mim_rng_t r;
-            mim_rng_seed(&r, seed, 0x68617264ULL + (uint64_t)sj * 100003 + p);
-            for (int j = 0; j < MIM__NJ; j++)
-                for (int k = 0; k < 3; k++)
-                    if (!locked(j, k)) deg[j][k] += 6 * mim_rng_unit(&r) - 3;
-            mim_quat q[MIM__NJ], G[MIM__NJ];
-            mim_vec3 P[MIM__NJ];
-            mim__pose_quats((const double(*)[3])deg, q);
-            mim__fk(&b.sk, q, G, P);
-            float *out = h->landmarks + ((size_t)sj * poses + p) * L * 3;
-            for (uint32_t l = 0; l < L; l++) {
-                uint32_t v = map.vertex[l];
-                double x[3];
-                mim__lbs(&b.sk, q, G, P, 1, b.rest + 3 * (size_t)v, b.wj + (size_t)MIM__NW * v,
-                         b.ww + (size_t)MIM__NW * v, x);
-                for (int c = 0; c < 3; c++) out[3 * l + c] = (float)x[c];
-            }
-        }
         mim__body_free(&b);
     }
 out:

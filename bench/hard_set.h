@@ -26,11 +26,19 @@ typedef struct bench_hard {
     float *landmarks;                   /* [(s * poses + p) * n_landmarks * 3] */
     uint32_t mirror[MIM_LANDMARKS_MAX]; /* the landmark map's mirror table */
     char (*pose_name)[32];              /* poses names, "rest+0" ... */
+    uint32_t draws;                     /* bench_hard_make_draws: other jitters of every body */
+    float *redrawn;                     /* [((s * poses + p) * draws + d) * n_landmarks * 3], or NULL */
 } bench_hard_t;
 
 /* 0, or a negative MIM_E* code (err says why). */
 int bench_hard_make(bench_hard_t *h, uint32_t subjects, uint32_t poses, uint32_t vertices, uint64_t seed,
                     double spread, mim_error_t *err);
+/* The same, and draws more bodies of every (subject, pose) with jitters of
+ * their own (streams other than the set's): samples of what the subject
+ * would look like taking the pose again, for the bounds of
+ * bench_query_accuracy. */
+int bench_hard_make_draws(bench_hard_t *h, uint32_t subjects, uint32_t poses, uint32_t vertices, uint64_t seed,
+                          double spread, uint32_t draws, mim_error_t *err);
 void bench_hard_free(bench_hard_t *h);
 
 #endif

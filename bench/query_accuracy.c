@@ -13,8 +13,9 @@
  * designed poses each with 7 variants that turn one or two joints by 12-20
  * degrees, every body with its own +-3 degree jitter) at 0, 1, 2 and 3 cm
  * of noise and 1-3 missing landmarks, columns: mimic's default index
- * (noise augmentation, angle weighting, k-NN vote, linear discriminants
- * for whole frames), the same answering by its SVMs alone, the index of
+ * (noise augmentation, angle weighting, k-NN vote, shape discriminants
+ * for every frame), the same answering by its SVMs alone, the angle
+ * discriminants (the default before, whole frames), the index of
  * item 1 (augmentation only) and the index without noise augmentation
  * (issue 4's), the 1-NN baseline; --sweep 1 / 2 (item
  * 1: augmentation, d) and 3 / 4 (item 2: the vote, the weighting) run the
@@ -28,15 +29,19 @@
  * that knew the query subject's own bodies and the noise would score, the
  * ceiling no method can pass. --hard-spread F scales the variants' turns
  * (F = 2: 24-40 degrees apart); --sweep 5 runs the default index alone
- * (its discriminants and its SVMs).
+ * (its discriminants and its SVMs) and the angle discriminants, --sweep 6 no index (baseline and
+ * bounds only). On the hard set two more bounds have the jitter unknown
+ * (jitter_ml, from --jitters D other jitters of every body, default 128;
+ * 0 leaves them out).
  *
- *   bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1|2|3|4|5]
- *                        [--hard-subjects S] [--hard-poses P] [--hard-spread F]
+ *   bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1-6]
+ *                        [--hard-subjects S] [--hard-poses P] [--hard-spread F] [--jitters D]
  * Prints a Markdown table per dataset. */
 #include "bench_data.h"
 #include "hard_set.h"
 #include "mim_index.h"
 
+#include <lapacke.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -76,42 +81,53 @@ static const method_t methods_issue4[] = {{"d = 20", {.features = 20}, {0}},
 #define NOVOTE {.vote_below = -1}
 #define VOTE(b, k, t) {.vote_below = b, .vote_k = k, .vote_classes = t}
 static const method_t methods_hard[] = {
-    {"default (d = 60, noise 0.025 x4, weight 0.5, vote < 0.5, discriminants)", {0}, {0}},
+    {"default (d = 60, noise 0.025 x4, weight 0.5, vote < 0.5, shape discriminants)", {0}, {0}},
     {"without the discriminants (SVMs, vote < 0.5)", {0}, {.svm_above = -1}},
-    {"no weighting, no vote (item 1)", {.weight = -1, .discriminant_noise = -1}, NOVOTE},
-    {"no augmentation (issue 4)", {.noise = -1, .discriminant_noise = -1}, NOVOTE}};
+    {"angle discriminants (the default before)",
+     {.shape_noise = -1, .discriminant_noise = MIM_INDEX_DISCRIMINANT_NOISE_MEASURED},
+     {0}},
+    {"no weighting, no vote (item 1)", {.weight = -1, .shape_noise = -1}, NOVOTE},
+    {"no augmentation (issue 4)", {.noise = -1, .shape_noise = -1}, NOVOTE}};
+/* the discriminants alone, fast (C and gamma given: no cross-validation;
+ * the SVMs are not asked) */
+static const method_t methods_sweep7[] = {
+    {"shape discriminants", {.C = 100, .gamma = 0.2}, {0}},
+    {"angle discriminants",
+     {.C = 100, .gamma = 0.2, .shape_noise = -1, .discriminant_noise = MIM_INDEX_DISCRIMINANT_NOISE_MEASURED},
+     {0}},
+};
 static const method_t methods_sweep1[] = {
-    {"default (d = 60, noise 0.025 x4)", {.weight = -1, .discriminant_noise = -1}, NOVOTE},
-    {"no augmentation (issue 4)", {.noise = -1, .discriminant_noise = -1}, NOVOTE},
-    {"noise 0.05 x4", {.noise = 0.05, .augment = 4, .weight = -1, .discriminant_noise = -1}, NOVOTE},
-    {"noise 0.075 x4", {.noise = 0.075, .augment = 4, .weight = -1, .discriminant_noise = -1}, NOVOTE},
-    {"noise 0.05 x2", {.noise = 0.05, .augment = 2, .weight = -1, .discriminant_noise = -1}, NOVOTE},
+    {"default (d = 60, noise 0.025 x4)", {.weight = -1, .shape_noise = -1}, NOVOTE},
+    {"no augmentation (issue 4)", {.noise = -1, .shape_noise = -1}, NOVOTE},
+    {"noise 0.05 x4", {.noise = 0.05, .augment = 4, .weight = -1, .shape_noise = -1}, NOVOTE},
+    {"noise 0.075 x4", {.noise = 0.075, .augment = 4, .weight = -1, .shape_noise = -1}, NOVOTE},
+    {"noise 0.05 x2", {.noise = 0.05, .augment = 2, .weight = -1, .shape_noise = -1}, NOVOTE},
 };
 static const method_t methods_sweep2[] = {
-    {"d = 40 augmented", {.features = 40, .weight = -1, .discriminant_noise = -1}, NOVOTE},
-    {"d = 100 augmented", {.features = 100, .weight = -1, .discriminant_noise = -1}, NOVOTE},
-    {"d = 100, no augmentation", {.features = 100, .noise = -1, .discriminant_noise = -1}, NOVOTE},
-    {"d = 20 augmented", {.features = 20, .weight = -1, .discriminant_noise = -1}, NOVOTE},
+    {"d = 40 augmented", {.features = 40, .weight = -1, .shape_noise = -1}, NOVOTE},
+    {"d = 100 augmented", {.features = 100, .weight = -1, .shape_noise = -1}, NOVOTE},
+    {"d = 100, no augmentation", {.features = 100, .noise = -1, .shape_noise = -1}, NOVOTE},
+    {"d = 20 augmented", {.features = 20, .weight = -1, .shape_noise = -1}, NOVOTE},
 };
 /* issue 15, item 2: the k-NN vote's settings, on the index without weighting */
 static const method_t methods_sweep3[] = {
-    {"no vote", {.weight = -1, .discriminant_noise = -1}, NOVOTE},
-    {"vote < 0.5 k5 T3", {.weight = -1, .discriminant_noise = -1}, VOTE(0.5, 5, 3)},
-    {"vote < 0.5 k1 T3", {.weight = -1, .discriminant_noise = -1}, VOTE(0.5, 1, 3)},
-    {"vote < 0.3 k5 T3", {.weight = -1, .discriminant_noise = -1}, VOTE(0.3, 5, 3)},
-    {"vote < 0.7 k5 T3", {.weight = -1, .discriminant_noise = -1}, VOTE(0.7, 5, 3)},
-    {"vote always k5 T3", {.weight = -1, .discriminant_noise = -1}, VOTE(2, 5, 3)},
-    {"vote < 0.5 k9 T5", {.weight = -1, .discriminant_noise = -1}, VOTE(0.5, 9, 5)},
+    {"no vote", {.weight = -1, .shape_noise = -1}, NOVOTE},
+    {"vote < 0.5 k5 T3", {.weight = -1, .shape_noise = -1}, VOTE(0.5, 5, 3)},
+    {"vote < 0.5 k1 T3", {.weight = -1, .shape_noise = -1}, VOTE(0.5, 1, 3)},
+    {"vote < 0.3 k5 T3", {.weight = -1, .shape_noise = -1}, VOTE(0.3, 5, 3)},
+    {"vote < 0.7 k5 T3", {.weight = -1, .shape_noise = -1}, VOTE(0.7, 5, 3)},
+    {"vote always k5 T3", {.weight = -1, .shape_noise = -1}, VOTE(2, 5, 3)},
+    {"vote < 0.5 k9 T5", {.weight = -1, .shape_noise = -1}, VOTE(0.5, 9, 5)},
 };
 /* issue 15, item 2: the angle weighting's power, with and without the vote */
 static const method_t methods_sweep4[] = {
-    {"no weighting, no vote", {.weight = -1, .discriminant_noise = -1}, NOVOTE},
-    {"weight 0.5, no vote", {.weight = 0.5, .discriminant_noise = -1}, NOVOTE},
-    {"weight 0.75, no vote", {.weight = 0.75, .discriminant_noise = -1}, NOVOTE},
-    {"weight 1, no vote", {.weight = 1, .discriminant_noise = -1}, NOVOTE},
-    {"no weighting, vote < 0.5 k5 T3", {.weight = -1, .discriminant_noise = -1}, VOTE(0.5, 5, 3)},
-    {"weight 0.5, vote < 0.5 k5 T3 (default)", {.weight = 0.5, .discriminant_noise = -1}, VOTE(0.5, 5, 3)},
-    {"weight 0.75, vote < 0.5 k5 T3", {.weight = 0.75, .discriminant_noise = -1}, VOTE(0.5, 5, 3)},
+    {"no weighting, no vote", {.weight = -1, .shape_noise = -1}, NOVOTE},
+    {"weight 0.5, no vote", {.weight = 0.5, .shape_noise = -1}, NOVOTE},
+    {"weight 0.75, no vote", {.weight = 0.75, .shape_noise = -1}, NOVOTE},
+    {"weight 1, no vote", {.weight = 1, .shape_noise = -1}, NOVOTE},
+    {"no weighting, vote < 0.5 k5 T3", {.weight = -1, .shape_noise = -1}, VOTE(0.5, 5, 3)},
+    {"weight 0.5, vote < 0.5 k5 T3 (default)", {.weight = 0.5, .shape_noise = -1}, VOTE(0.5, 5, 3)},
+    {"weight 0.75, vote < 0.5 k5 T3", {.weight = 0.75, .shape_noise = -1}, VOTE(0.5, 5, 3)},
 };
 
 static uint64_t rng_state = 12345;
@@ -182,11 +198,93 @@ static uint32_t own_nearest(const float *lm, uint32_t s, uint32_t P, uint32_t L,
     return arg;
 }
 
+/* Two references with the jitter unknown (the hard set only), from D
+ * other jitters of every body: each body's landmarks as a Gaussian (the
+ * draws' mean and covariance: the jitter's spread through the skinning,
+ * linear for +-3 degrees), plus the frame's noise sigma (with a 5 mm floor,
+ * so that a noiseless frame still has a likelihood) on every coordinate,
+ * marginalised to the present landmarks. own != 0: the query subject's
+ * body in each pose (its proportions known, not its jitter): the
+ * maximum-likelihood pose under that model. own == 0: an equal mixture of
+ * the other subjects' bodies in each pose (what a classifier that knew the
+ * generator and the training subjects exactly, but not the query's body,
+ * would decide; a reference, not a proof, since the population is those
+ * S - 1 subjects). */
+typedef struct {
+    uint32_t S, P, L, D;
+    double *mean, *cov; /* per body (s * P + p): [3L], [3L x 3L] */
+} jitter_model_t;
+
+static void jitter_model_make(jitter_model_t *m, const float *redrawn, uint32_t D, uint32_t S, uint32_t P, uint32_t L)
+{
+    uint32_t n = 3 * L;
+    m->S = S, m->P = P, m->L = L, m->D = D;
+    m->mean = calloc((size_t)S * P * n, sizeof(double));
+    m->cov = calloc((size_t)S * P * n * n, sizeof(double));
+    for (size_t t = 0; t < (size_t)S * P; t++) {
+        double *mu = m->mean + t * n, *C = m->cov + t * n * n;
+        for (uint32_t d = 0; d < D; d++)
+            for (uint32_t i = 0; i < n; i++) mu[i] += redrawn[(t * D + d) * n + i] / D;
+        for (uint32_t d = 0; d < D; d++) {
+            const float *x = redrawn + (t * D + d) * n;
+            for (uint32_t i = 0; i < n; i++)
+                for (uint32_t j = 0; j < n; j++) C[i * n + j] += (x[i] - mu[i]) * (x[j] - mu[j]) / (D - 1);
+        }
+    }
+}
+
+static void jitter_model_free(jitter_model_t *m) { free(m->mean), free(m->cov); }
+
+/* log N(frame; body t's Gaussian + var I) over the present coordinates, up
+ * to the constant every pose shares. */
+static double jitter_loglik(const jitter_model_t *m, size_t t, const float *frame, const uint8_t *present, double var)
+{
+    uint32_t n = 3 * m->L, k = 0, idx[3 * MIM_LANDMARKS_MAX];
+    for (uint32_t i = 0; i < n; i++)
+        if (present[i / 3]) idx[k++] = i;
+    double A[(3 * MIM_LANDMARKS_MAX) * (3 * MIM_LANDMARKS_MAX)], r[3 * MIM_LANDMARKS_MAX];
+    const double *mu = m->mean + t * n, *C = m->cov + t * n * n;
+    for (uint32_t a = 0; a < k; a++) {
+        r[a] = frame[idx[a]] - mu[idx[a]];
+        for (uint32_t b = 0; b < k; b++) A[a * k + b] = C[idx[a] * n + idx[b]] + (a == b ? var : 0);
+    }
+    if (LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'L', (lapack_int)k, A, (lapack_int)k)) return -INFINITY;
+    double logdet = 0, q = 0;
+    for (uint32_t a = 0; a < k; a++) { /* forward substitution: L z = r, q = |z|^2 */
+        double z = r[a];
+        for (uint32_t b = 0; b < a; b++) z -= A[a * k + b] * r[b];
+        r[a] = z / A[a * k + a];
+        q += r[a] * r[a], logdet += 2 * log(A[a * k + a]);
+    }
+    return -0.5 * (q + logdet);
+}
+
+static uint32_t jitter_ml(const jitter_model_t *m, uint32_t s, int own, const float *frame, const uint8_t *present,
+                          double sigma)
+{
+    double var = sigma * sigma + 0.005 * 0.005, best = -INFINITY;
+    uint32_t arg = 0;
+    for (uint32_t p = 0; p < m->P; p++) {
+        double mx = -INFINITY, sum = 0; /* log of the mixture's sum, one pass */
+        for (uint32_t o = own ? s : 0; o < (own ? s + 1 : m->S); o++) {
+            if (!own && o == s) continue;
+            double e = jitter_loglik(m, (size_t)o * m->P + p, frame, present, var);
+            if (e > mx) sum = sum * exp(mx - e) + 1, mx = e;
+            else sum += exp(e - mx);
+        }
+        double ll = mx + log(sum);
+        if (ll > best) best = ll, arg = p;
+    }
+    return arg;
+}
+
 /* One set: S subjects x P poses of L landmarks (lm, [(s * P + p) * L * 3]). */
 typedef struct {
     const char *name;
     uint32_t S, P, L;
     const float *lm;
+    const float *redrawn; /* hard set: D other jitters of every body (jitter_ml), or NULL */
+    uint32_t D;
     const uint32_t *mirror;
     const cond_t *cond;
     int n_cond;
@@ -217,11 +315,14 @@ static void run_set(const set_t *set, int draws)
     }
     fprintf(stderr, "%s: %u subjects x %u poses, %u landmarks, landmark height span %.2f (units: metres)\n", set->name,
             S, P, L, ymax - ymin);
-    /* hits[method][cond] (then the 1-NN and the Bayes bound), tests[cond] */
-    double hits[MAX_METHOD + 2][MAX_COND] = {{0}}, tests[MAX_COND] = {0}, cv[MAX_METHOD] = {0}, lc[MAX_METHOD] = {0};
+    /* hits[method][cond] (then the 1-NN, the Bayes bound and the two
+     * jitter-unknown bounds), tests[cond] */
+    double hits[MAX_METHOD + 4][MAX_COND] = {{0}}, tests[MAX_COND] = {0}, cv[MAX_METHOD] = {0}, lc[MAX_METHOD] = {0};
     double build_s[MAX_METHOD] = {0}, qtime[MAX_METHOD] = {0}, nq[MAX_METHOD] = {0};
     float *frame = malloc(sizeof(float) * 3 * L), *qa = malloc(sizeof(float) * nf);
     uint8_t *present = malloc(L);
+    jitter_model_t jm = {0};
+    if (set->redrawn) jitter_model_make(&jm, set->redrawn, set->D, S, P, L);
     for (uint32_t s = 0; s < S; s++) {
         uint32_t ntrain = 0;
         for (uint32_t t = 0; t < n; t++)
@@ -281,6 +382,11 @@ static void run_set(const set_t *set, int draws)
                     uint32_t arg = nn_all(angles, train, ntrain, nf, qa);
                     hits[NM][c] += !strcmp(pose[arg], pose[t]);
                     hits[NM + 1][c] += own_nearest(lm, s, P, L, frame, present) == p;
+                    if (set->redrawn) {
+                        double sg = set->cond[c].sigma;
+                        hits[NM + 2][c] += jitter_ml(&jm, s, 1, frame, present, sg) == p;
+                        hits[NM + 3][c] += jitter_ml(&jm, s, 0, frame, present, sg) == p;
+                    }
                 }
             }
         }
@@ -291,12 +397,16 @@ static void run_set(const set_t *set, int draws)
            S, P, draws);
     printf("| condition |");
     for (int mi = 0; mi < NM; mi++) printf(" %s |", set->method[mi].label);
-    printf(" 1-NN, all %u angles | Bayes bound (own bodies known) |\n|---|", nf);
-    for (int mi = 0; mi <= NM + 1; mi++) printf("---|");
+    printf(" 1-NN, all %u angles | Bayes bound (own bodies known) |", nf);
+    int nb = set->redrawn ? 2 : 0;
+    if (nb)
+        printf(" own proportions, jitter unknown (%u draws) | other subjects' bodies, jitter unknown |", set->D);
+    printf("\n|---|");
+    for (int mi = 0; mi <= NM + 1 + nb; mi++) printf("---|");
     printf("\n");
     for (int c = 0; c < NC; c++) {
         printf("| %s |", set->cond[c].name);
-        for (int m = 0; m <= NM + 1; m++) printf(" %.3f |", hits[m][c] / tests[c]);
+        for (int m = 0; m <= NM + 1 + nb; m++) printf(" %.3f |", hits[m][c] / tests[c]);
         printf("\n");
     }
     printf("\nPer column: mean cross-validation accuracy of the SVMs on the training subjects; mean log10(C); mean "
@@ -309,6 +419,7 @@ static void run_set(const set_t *set, int draws)
     fflush(stdout);
     free(angles), free(subj), free(pose), free(sp), free(pp), free(ids), free(train), free(frame), free(qa);
     free(present);
+    jitter_model_free(&jm);
 }
 
 /* A body dataset's landmarks, for run_set. */
@@ -324,25 +435,27 @@ static float *dataset_landmarks(const bench_dataset_t *d)
 static void run_dataset(const char *name, bench_dataset_t *d, int draws)
 {
     float *lm = dataset_landmarks(d);
-    set_t set = {name, d->subjects, d->poses, d->map.count, lm, d->map.mirror, cond_issue4, 6, methods_issue4, 4};
+    set_t set = {name, d->subjects, d->poses, d->map.count, lm, NULL, 0, d->map.mirror, cond_issue4, 6, methods_issue4, 4};
     run_set(&set, draws);
     free(lm);
 }
 
-static int run_hard(uint32_t S, uint32_t P, double spread, int sweep, int draws)
+static int run_hard(uint32_t S, uint32_t P, double spread, int sweep, int draws, uint32_t jitters)
 {
     bench_hard_t h;
     mim_error_t err = {0};
-    if (bench_hard_make(&h, S, P, 3000, 1, spread, &err)) {
+    if (bench_hard_make_draws(&h, S, P, 3000, 1, spread, jitters, &err)) {
         fprintf(stderr, "hard set: %s\n", mim_error_text(&err));
         return 2;
     }
     char name[96];
     snprintf(name, sizeof name, "hard (synth seed 1, nearby poses, variants x%g: %g-%g degrees)", spread, 12 * spread,
              20 * spread);
-    set_t set = {name, S, P, h.n_landmarks, h.landmarks, h.mirror, cond_hard, 7,
+    set_t set = {name, S, P, h.n_landmarks, h.landmarks, h.redrawn, h.draws, h.mirror, cond_hard, 7,
                  methods_hard, (int)(sizeof methods_hard / sizeof *methods_hard)};
-    if (sweep == 5) set.n_method = 2; /* the default, and its SVMs alone (one build) */
+    if (sweep == 5) set.n_method = 3; /* the default, its SVMs alone, the angle discriminants */
+    if (sweep == 6) set.n_method = 0; /* the baselines and bounds only */
+    if (sweep == 7) set.method = methods_sweep7, set.n_method = sizeof methods_sweep7 / sizeof *methods_sweep7;
     if (sweep == 1) set.method = methods_sweep1, set.n_method = sizeof methods_sweep1 / sizeof *methods_sweep1;
     if (sweep == 2) set.method = methods_sweep2, set.n_method = sizeof methods_sweep2 / sizeof *methods_sweep2;
     if (sweep == 3) set.method = methods_sweep3, set.n_method = sizeof methods_sweep3 / sizeof *methods_sweep3;
@@ -355,7 +468,7 @@ static int run_hard(uint32_t S, uint32_t P, double spread, int sweep, int draws)
 int main(int argc, char **argv)
 {
     int draws = 5, mh = 1, hard = 1, easy = 1, sweep = 0;
-    uint32_t hs = 8, hp = 40;
+    uint32_t hs = 8, hp = 40, jitters = 128;
     double spread = 1;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--draws") && i + 1 < argc) draws = atoi(argv[++i]);
@@ -366,15 +479,17 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--hard-subjects") && i + 1 < argc) hs = (uint32_t)atoi(argv[++i]);
         else if (!strcmp(argv[i], "--hard-poses") && i + 1 < argc) hp = (uint32_t)atoi(argv[++i]);
         else if (!strcmp(argv[i], "--hard-spread") && i + 1 < argc) spread = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--jitters") && i + 1 < argc) jitters = (uint32_t)atoi(argv[++i]);
         else {
-            fprintf(stderr, "usage: bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1|2|3|4|5] "
-                            "[--hard-subjects S] [--hard-poses P] [--hard-spread F]\n");
+            fprintf(stderr, "usage: bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1-6] "
+                            "[--hard-subjects S] [--hard-poses P] [--hard-spread F] [--jitters D]\n");
             return 2;
         }
     }
     if (draws < 1) draws = 1;
-    if (hs < 2 || hp < 2 || hp > 1000 || !(spread > 0 && spread <= 3)) {
-        fprintf(stderr, "bench_query_accuracy: the hard set needs 2+ subjects, 2..1000 poses and a spread in (0, 3]\n");
+    if (hs < 2 || hp < 2 || hp > 1000 || !(spread > 0 && spread <= 3) || (jitters && jitters < 2) || jitters > 1024) {
+        fprintf(stderr, "bench_query_accuracy: the hard set needs 2+ subjects, 2..1000 poses, a spread in (0, 3] and "
+                        "0 or 2..1024 jitters\n");
         return 2;
     }
     bench_dataset_t d;
@@ -396,5 +511,5 @@ int main(int argc, char **argv)
             }
         }
     }
-    return hard ? run_hard(hs, hp, spread, sweep, draws) : 0;
+    return hard ? run_hard(hs, hp, spread, sweep, draws, jitters) : 0;
 }

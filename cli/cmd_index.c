@@ -12,8 +12,8 @@
 
 static void help(FILE *out)
 {
-    fprintf(out, "usage: mimic index --store DIR [--features D] [--noise F] [--augment N] [--discriminants F]\n"
-                 "                   [--json]\n\n"
+    fprintf(out, "usage: mimic index --store DIR [--features D] [--noise F] [--augment N] [--shape-noise F]\n"
+                 "                   [--discriminants F] [--json]\n\n"
                  "Builds the pose recognition index of a store and keeps it in the store, so that\n"
                  "mimic query opens it in milliseconds: the D most salient landmark angles (a\n"
                  "decision tree on the pose labels, mirrored samples included), one SVM per pose\n"
@@ -21,17 +21,22 @@ static void help(FILE *out)
                  "k-NN index inside each class. A store without pose labels is clustered by\n"
                  "k-means (k = round(sqrt(templates / 2))). Run it again after ingesting more.\n"
                  "The tree and the SVMs also learn from noisy copies of every template, so that\n"
-                 "vest landmarks a few cm off are still recognised, and linear discriminants over\n"
-                 "all angles (the pose classes as Gaussians of one covariance, learnt from the\n"
-                 "subjects and noisy copies) classify every whole frame (bench/RESULTS.md, issue 15).\n\n"
+                 "vest landmarks a few cm off are still recognised, and shape discriminants (the\n"
+                 "pose classes as Gaussians of one covariance over the landmarks, each frame\n"
+                 "brought onto each pose's mean shape, at noise levels up to --shape-noise)\n"
+                 "classify every frame, whole or with landmarks missing (bench/RESULTS.md, issue 15).\n\n"
                  "  --store DIR     the template store\n"
                  "  --features D    angles in the descriptor (default 60)\n"
                  "  --noise F       sigma of the training noise, a fraction of the bodies' RMS\n"
                  "                  landmark radius (about 0.5 m for adults; default 0.025, about\n"
                  "                  1.3 cm); 0 turns the augmentation off\n"
                  "  --augment N     noisy copies per template, 1..64 (default 4)\n"
-                 "  --discriminants F  sigma of the discriminants' training noise, as --noise\n"
-                 "                  (default 0.04, about 2 cm); 0: none (whole frames go to the SVMs)\n"
+                 "  --shape-noise F the shape discriminants' top noise level, as --noise (default\n"
+                 "                  0.06, about 3 cm); 0: none (frames go to the SVMs)\n"
+                 "  --discriminants F  also linear discriminants over all angles (the default\n"
+                 "                  before the shape discriminants), trained with noise sigma F,\n"
+                 "                  as --noise (0.04 measured best); used for whole frames when\n"
+                 "                  there are no shape discriminants (default: none)\n"
                  "  --json          one JSON object on stdout (schemas/index.schema.json)\n"
                  "  -h, --help      this help\n");
 }
@@ -43,6 +48,7 @@ int mim_cmd_index(int argc, char **argv)
                                               {"noise", required_argument, 0, 'n'},
                                               {"augment", required_argument, 0, 'a'},
                                               {"discriminants", required_argument, 0, 'D'},
+                                              {"shape-noise", required_argument, 0, 'S'},
                                               {"json", no_argument, 0, 'j'},
                                               {"help", no_argument, 0, 'h'},
                                               {0, 0, 0, 0}};
@@ -51,7 +57,7 @@ int mim_cmd_index(int argc, char **argv)
     mim_index_options_t o = {0};
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "s:d:n:a:D:jh", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "s:d:n:a:D:S:jh", longopts, NULL)) != -1) {
         uint64_t v;
         if (c == 's') store = optarg;
         else if (c == 'd') {
@@ -65,6 +71,10 @@ int mim_cmd_index(int argc, char **argv)
             double f;
             if (mim_cli_real("index", "discriminants", optarg, 0, 1, 0, NULL, &f)) return 2;
             o.discriminant_noise = f > 0 ? f : -1;
+        } else if (c == 'S') {
+            double f;
+            if (mim_cli_real("index", "shape-noise", optarg, 0, 1, 0, NULL, &f)) return 2;
+            o.shape_noise = f > 0 ? f : -1;
         } else if (c == 'a') {
             if (mim_cli_number("index", "augment", optarg, 1, 64, &v)) return 2;
             o.augment = (uint32_t)v;
@@ -100,7 +110,7 @@ int mim_cmd_index(int argc, char **argv)
     }
     const char *source = rep.class_source == MIM_CLASSES_KMEANS ? "kmeans" : "labels";
     if (as_json) {
-        json_t *root = json_pack("{s:s, s:I, s:I, s:s, s:I, s:f, s:f, s:o, s:I, s:I, s:I, s:f, s:f, s:f, s:f}",
+        json_t *root = json_pack("{s:s, s:I, s:I, s:s, s:I, s:f, s:f, s:o, s:I, s:I, s:I, s:f, s:f, s:f, s:f, s:f}",
                                  "store", store,
                                  "templates",
                                  (json_int_t)st.templates, "classes", (json_int_t)rep.n_classes, "class_source", source,
@@ -108,7 +118,8 @@ int mim_cmd_index(int argc, char **argv)
                                  rep.cv_accuracy >= 0 ? json_real(rep.cv_accuracy) : json_null(), "support_vectors",
                                  (json_int_t)rep.support_vectors, "exact_classes", (json_int_t)rep.exact_classes,
                                  "augment", (json_int_t)rep.augment, "noise", rep.noise, "weight", rep.weight,
-                                 "discriminant_noise", rep.discriminant_noise, "seconds", rep.seconds);
+                                 "discriminant_noise", rep.discriminant_noise, "shape_noise",
+                                 rep.shape_noise > 0 ? rep.shape_noise : 0.0, "seconds", rep.seconds);
         char *s = json_dumps(root, JSON_INDENT(2) | JSON_PRESERVE_ORDER);
         printf("%s\n", s ? s : "{}");
         free(s);
@@ -129,11 +140,14 @@ int mim_cmd_index(int argc, char **argv)
             printf("augmented    %u noisy copies per template, sigma %g of the landmark radius\n", rep.augment, rep.noise);
         else
             printf("augmented    no (templates only)\n");
+        if (rep.shape_noise >= 0)
+            printf("shape        discriminants over the landmarks, noise levels up to %g of the landmark radius\n",
+                   rep.shape_noise);
         if (rep.discriminant_noise > 0)
-            printf("discriminant over all angles, trained with noise sigma %g of the landmark radius\n",
+            printf("angles       discriminants over all angles, trained with noise sigma %g of the landmark radius\n",
                    rep.discriminant_noise);
-        else
-            printf("discriminant none (whole frames go to the SVMs)\n");
+        if (rep.shape_noise < 0 && !(rep.discriminant_noise > 0))
+            printf("discriminant none (frames go to the SVMs)\n");
         printf("k-NN         %u of %u classes exact, the rest kd-forests\n", rep.exact_classes, rep.n_classes);
         printf("built in     %.2f s\n", rep.seconds);
     }

@@ -123,6 +123,30 @@ static int vote(const mim_index_t *ix, const mim_index_query_options_t *opt, con
     return 0;
 }
 
+/* The discriminants' class of a frame and its posterior (the softmax of
+ * the classes' log-likelihoods): the shape discriminants' (shape.c, any
+ * frame with three landmarks or more), else for a whole frame the angles'
+ * (lda.c: blobs of version 5, or built on request). Not both: adding
+ * their log-likelihoods measured worse than the shape discriminants alone
+ * (bench/RESULTS.md). -1: neither. */
+static int64_t discriminant_class(const mim_index_t *ix, const float *positions, const uint8_t *present,
+                                  uint32_t missing, double *posterior)
+{
+    const uint32_t nc = ix->n_classes;
+    double st[256], *a = nc <= 256 ? st : malloc(sizeof *a * nc);
+    if (!a) return -1;
+    int64_t c = mim__shape_class(&ix->shape, positions, present, a);
+    if (c < 0 && !missing && ix->lda.nf) c = mim__lda_class(&ix->lda, positions, ix->n_landmarks, a);
+    if (c >= 0) {
+        double z = 0;
+        for (uint32_t k = 0; k < nc; k++)
+            if (isfinite(a[k])) z += exp(a[k] - a[c]);
+        *posterior = 1 / z;
+    }
+    if (a != st) free(a);
+    return c;
+}
+
 int mim_index_query(const mim_index_t *ix, const float *positions, const uint8_t *present,
                     const mim_index_query_options_t *opt, mim_index_answer_t *ans, mim_index_hit_t *hits,
                     mim_error_t *err)
@@ -209,9 +233,9 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
         for (uint32_t f = 0; f < d; f++)
             if (!mask[f]) q[f] = ix->desc[(size_t)br * d + f], xd[f] = q[f] * ix->w[f];
     }
-    /* the class: for a whole frame, the linear discriminants' (lda.c),
-     * unless the SVMs are sure (svm_above); else the SVM with the highest
-     * probability, and the k-NN vote when that is low */
+    /* the class: the discriminants' (discriminant_class), unless the SVMs
+     * are sure (svm_above); else the SVM with the highest probability, and
+     * the k-NN vote when that is low */
     uint32_t cls = 0;
     double prob = 1;
     if (ix->n_classes > 1) {
@@ -219,8 +243,8 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
         double sa = opt && opt->svm_above ? opt->svm_above : MIM_INDEX_SVM_ABOVE_DEFAULT;
         int64_t lc = -1;
         double lp = 0;
-        if (!ans->missing && ix->lda.nf && sa > 1) /* the discriminants alone: no SVM is evaluated */
-            lc = mim__lda_class(&ix->lda, positions, L, &lp);
+        if (sa > 1) /* the discriminants alone: no SVM is evaluated */
+            lc = discriminant_class(ix, positions, present, ans->missing, &lp);
         if (lc >= 0) {
             cls = (uint32_t)lc, prob = lp;
         } else {
@@ -233,8 +257,7 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
                 if (pr[c] > best) best = pr[c], cls = c;
             }
             prob = sum > 0 ? best / sum : 0;
-            if (!ans->missing && ix->lda.nf && sa > 0 && sa <= 1 && prob < sa &&
-                (lc = mim__lda_class(&ix->lda, positions, L, &lp)) >= 0)
+            if (sa > 0 && sa <= 1 && prob < sa && (lc = discriminant_class(ix, positions, present, ans->missing, &lp)) >= 0)
                 cls = (uint32_t)lc, prob = lp;
             int vrc = 0;
             if (!(lc >= 0) && vb > 0 && prob < vb)

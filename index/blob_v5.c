@@ -1,10 +1,10 @@
-/* The recognition index as one blob, version 5 (issue 16): laid out to be
+/* The recognition index as one blob, versions 5 and 6 (issue 16): laid out to be
  * used in place, where the store's memory map holds it, and verified by
  * section as queries first need each one, so that opening an index of
  * 1 000 000 templates (739 MiB) reads a few hundred KiB instead of all of
  * it (bench/RESULTS.md, "Opening in place").
  *
- *    0  "MIXB"  4 u32 version (5)  8 u64 bytes after the header
+ *    0  "MIXB"  4 u32 version (5 or 6)  8 u64 bytes after the header
  *   16  u64 checksum: mim_hash64 of the head (bytes 64 .. 64 + head bytes)
  *   24  u32 0x01020304 (byte order)  28 u32 header bytes (64)
  *   32  u64 head bytes (a multiple of 64)  40 u32 rows a chunk  44 u32 0
@@ -23,6 +23,9 @@
  *       u32 nf, n_classes (0, 0: none); f64 discriminant_noise;
  *       f32 mean[nf], f32 g[n_classes * nf], f64 b[n_classes]
  *                                          the linear discriminants (lda.c)
+ *       version 6 only: u32 m (3 n_landmarks, or 0: none), n_classes (or 0);
+ *       f64 noise_max; f64 mu[n_classes * m], f64 S[m * m]
+ *                                          the shape discriminants (shape.c)
  *   then the bulk, each section 64-byte aligned (offsets follow from the
  *   sizes; nothing points): u64 ids[n], u32 subject[n], u32 pose[n],
  *   f32 desc[n * d], f32 extra[n * (d2 - d)], and the forests' bytes in
@@ -65,6 +68,7 @@
 #include <xxhash.h>
 
 #define V5 5
+#define V6 6 /* version 5 and the shape discriminants (issue 15) */
 #define HDR 64
 #define CHUNK_ROWS 256
 #define SEED_HEAD 0x6d69785648ULL
@@ -112,9 +116,10 @@ static uint64_t extra_checksum(const mim_index_t *ix, uint32_t j, uint32_t rows)
 typedef mim__wbuf_t wbuf_t;
 static void put(wbuf_t *b, const void *src, size_t n) { mim__wbuf_put(b, src, n, 8); } /* every head item 8-byte aligned */
 
-int mim__index_save_v5(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err)
+int mim__index_save_v5(const mim_index_t *ix, uint32_t version, void **blob, size_t *len, mim_error_t *err)
 {
     *blob = NULL, *len = 0;
+    if (version != V5 && version != V6) return mim_error_set(err, MIM_EINVAL, "index blob: cannot write version %u", version);
     int rc = mim_index_verify(ix, err); /* in place: nothing damaged is written out, every forest made */
     if (rc) return rc;
     uint32_t n = ix->n_templates, d = ix->d, d2 = ix->d2, nc = ix->n_classes, ns = ix->n_strings;
@@ -169,6 +174,13 @@ int mim__index_save_v5(const mim_index_t *ix, void **blob, size_t *len, mim_erro
         put(&h, ix->lda.g, 4ull * ix->lda.nf * nc);
         put(&h, ix->lda.b, 8ull * nc);
     }
+    if (version >= V6) { /* the shape discriminants (issue 15), none: m 0 */
+        const mim__shape_t *sh = &ix->shape;
+        uint32_t m = sh->n_classes ? 3 * sh->L : 0, sm[2] = {m, m ? sh->n_classes : 0};
+        double noise_max = m ? sh->noise_max : 0;
+        put(&h, sm, sizeof sm), put(&h, &noise_max, 8);
+        if (m) put(&h, sh->mu, 8ull * nc * m), put(&h, sh->S, 8ull * m * m);
+    }
     static const unsigned char zero[64];
     if (h.len % 64) put(&h, zero, 64 - h.len % 64); /* the head ends 64-byte aligned */
     bulk_t b;
@@ -199,7 +211,7 @@ int mim__index_save_v5(const mim_index_t *ix, void **blob, size_t *len, mim_erro
     for (uint32_t c = 0; c < nc; c++) free(fb[c]);
     free(fb), free(fl);
     uint64_t hb = h.len, plen = end - HDR, sum = hash(p + HDR, hb, SEED_HEAD);
-    uint32_t ver = V5, bom = 0x01020304, hdr = HDR;
+    uint32_t ver = version, bom = 0x01020304, hdr = HDR;
     free(h.p);
     memcpy(p, "MIXB", 4);
     memcpy(p + 4, &ver, 4);
@@ -248,7 +260,7 @@ int mim__index_parse_v5(mim_index_t **out, const unsigned char *p, size_t len, i
         return mim_error_set(err, MIM_EFORMAT, "index blob: not a mimic index (bad magic or too short)");
     memcpy(&ver, p + 4, 4), memcpy(&plen, p + 8, 8), memcpy(&sum, p + 16, 8), memcpy(&bom, p + 24, 4);
     memcpy(&hdr, p + 28, 4), memcpy(&hb, p + 32, 8), memcpy(&rows, p + 40, 4);
-    if (ver != V5) return mim_error_set(err, MIM_EFORMAT, "index blob: version %u is not 5", ver);
+    if (ver != V5 && ver != V6) return mim_error_set(err, MIM_EFORMAT, "index blob: version %u is not 5 or 6", ver);
     if (bom != 0x01020304) return mim_error_set(err, MIM_EFORMAT, "index blob: written with another byte order");
     static const unsigned char zero[64];
     if (hdr != HDR || plen != len - HDR || hb > len - HDR || hb % 64 || !rows || rows > (1u << 24) ||
@@ -341,6 +353,33 @@ int mim__index_parse_v5(mim_index_t **out, const unsigned char *p, size_t len, i
         if (!finite) BAD("index blob: the discriminants hold a non-finite number");
     } else if (lda[1] || ix->discriminant_noise != 0) {
         BAD("index blob: no discriminants, but %u classes and noise %g for them", lda[1], ix->discriminant_noise);
+    }
+    if (ver >= V6) {
+        const uint32_t *sm = take(&c, 2, 4);
+        const double *snoise = take(&c, 1, 8);
+        if (!sm || !snoise) goto trunc;
+        mim__shape_t *sh = &ix->shape;
+        double noise_max;
+        memcpy(&noise_max, snoise, 8);
+        if (sm[0]) { /* the shape discriminants: for every landmark and class, or none */
+            const uint32_t m = 3 * L;
+            if (sm[0] != m || sm[1] != nc || !(noise_max >= 0 && noise_max <= 1))
+                BAD("index blob: shape discriminants of %u coordinates and %u classes (noise %g) for %u and %u", sm[0],
+                    sm[1], noise_max, m, nc);
+            sh->borrowed = 1; /* before the pointers: closing never frees the blob's bytes */
+            if (!(sh->mu = (double *)take(&c, (uint64_t)nc * m, 8)) || !(sh->S = (double *)take(&c, (uint64_t)m * m, 8)))
+                goto trunc;
+            sh->L = L, sh->noise_max = noise_max;
+            int finite = 1;
+            for (size_t i = 0; i < (size_t)nc * m && finite; i++) finite = isfinite(sh->mu[i]);
+            for (size_t i = 0; i < (size_t)m * m && finite; i++) finite = isfinite(sh->S[i]);
+            if (!finite) BAD("index blob: the shape discriminants hold a non-finite number");
+            sh->n_classes = nc;
+            if ((rc = mim__shape_prepare(sh)) == MIM_ENOMEM) goto oom;
+            if (rc) BAD("index blob: the shape discriminants' covariance is not positive definite");
+        } else if (sm[1] || noise_max != 0) {
+            BAD("index blob: no shape discriminants, but %u classes and noise %g for them", sm[1], noise_max);
+        }
     }
     if (up(c.off, 64) != c.end) BAD("index blob: %llu bytes left over in its head", (unsigned long long)(c.end - c.off));
     /* the bulk: sections where the sizes put them, all inside the blob */
@@ -504,7 +543,7 @@ int mim_index_open_in_place(mim_index_t **out, const void *blob, size_t len, mim
     *out = NULL;
     uint32_t ver = 0;
     if (blob && len >= 8) memcpy(&ver, (const unsigned char *)blob + 4, 4);
-    if (ver != V5 || (uintptr_t)blob % 8) return mim_index_load(out, blob, len, err);
+    if ((ver != V5 && ver != V6) || (uintptr_t)blob % 8) return mim_index_load(out, blob, len, err);
     return mim__index_parse_v5(out, blob, len, 1, err);
 }
 
@@ -513,11 +552,11 @@ int mim_index_load(mim_index_t **out, const void *blob, size_t len, mim_error_t 
     *out = NULL;
     uint32_t ver = 0;
     if (blob && len >= 32 && !memcmp(blob, "MIXB", 4)) memcpy(&ver, (const unsigned char *)blob + 4, 4);
-    if (ver > V5)
+    if (ver > V6)
         return mim_error_set(err, MIM_EFORMAT, "index blob: version %u, this mimic reads versions 1 to %d (run mimic index)",
-                             ver, V5);
-    if (ver != V5) return mim__index_load_legacy(out, blob, len, err);
-    /* version 5, copied: an aligned copy of our own, used in place and
+                             ver, V6);
+    if (ver < V5) return mim__index_load_legacy(out, blob, len, err);
+    /* versions 5 and 6, copied: an aligned copy of our own, used in place and
      * verified whole now (this contract has always been: checked at load) */
     void *own = NULL;
     if (posix_memalign(&own, 64, len ? len : 1)) return MIM_ENOMEM;
@@ -540,7 +579,7 @@ int mim_index_load(mim_index_t **out, const void *blob, size_t len, mim_error_t 
 
 int mim_index_save(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err)
 {
-    return mim__index_save_v5(ix, blob, len, err);
+    return mim__index_save_v5(ix, V6, blob, len, err);
 }
 
 /* For tests and the fuzz harness: writes every checksum of a version 5

@@ -9,6 +9,23 @@
 #include <stdlib.h>
 #include <string.h>
 
+uint32_t mim__class_sample(const uint32_t *cls, uint32_t n, uint32_t nc, uint32_t per_class, uint32_t *pick)
+{
+    uint32_t *count = calloc(nc, sizeof *count), *seen = calloc(nc, sizeof *seen), np = 0;
+    if (!count || !seen) {
+        free(count), free(seen);
+        return 0;
+    }
+    for (uint32_t t = 0; t < n; t++) count[cls[t]]++;
+    for (uint32_t t = 0; t < n; t++) { /* the i-th of a class is picked when it crosses a step */
+        uint32_t c = cls[t], i = seen[c]++;
+        uint32_t want = count[c] < per_class ? count[c] : per_class;
+        if ((uint64_t)i * want / count[c] != (uint64_t)(i + 1) * want / count[c]) pick[np++] = t;
+    }
+    free(count), free(seen);
+    return np;
+}
+
 /* k = round(sqrt(n / 2)), 1..64: Mardia's rule of thumb (see mim_index.h). */
 uint32_t mim__kmeans_k(uint32_t n)
 {

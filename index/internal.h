@@ -48,6 +48,15 @@ struct mim_index {
         float *g;               /* n_classes * nf: S^-1 mu_c */
         double *b;              /* n_classes */
     } lda;                      /* in the blob's head when in place (borrowed or own) */
+    struct mim__shape {         /* shape.c (issue 15); n_classes 0: none */
+        uint32_t L, n_classes;
+        double noise_max;       /* the top noise level, shape units (a fraction of the RMS radius) */
+        double *mu;             /* n_classes * 3L: the class mean shapes, centred, unit RMS radius */
+        double *S;              /* 3L * 3L: the shared within-class covariance of the aligned shapes, shrunk */
+        int borrowed;           /* mu and S point into the blob (in place) */
+        double *V, *lam, *Vmu;  /* S's eigenvectors (columns), eigenvalues, V^T mu_c: made at build and open */
+        double *U;              /* 3 * 3L: V^T of a unit translation along x, y, z */
+    } shape;
     /* In place (blob version 5, blob_v5.c): the arrays above, the label
      * strings and the SVMs' arrays point into the blob, which is not ours
      * (borrowed) or is our own aligned copy (own); lazy says which sections
@@ -86,8 +95,9 @@ int mim__class_ready(const mim_index_t *ix, uint32_t c, mim_error_t *err);
  * (model.c). */
 int mim__class_knn(mim_index_t *ix, uint32_t c, const void *bytes, size_t len, mim_error_t *err);
 struct FLANNParameters mim__flann_params(const mim_index_t *ix, int exact);
-/* blob_v5.c */
-int mim__index_save_v5(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err);
+/* blob_v5.c: the in-place layout, version 5 (no shape discriminants: the
+ * tests' old blobs) or 6 (what mim_index_save writes). */
+int mim__index_save_v5(const mim_index_t *ix, uint32_t version, void **blob, size_t *len, mim_error_t *err);
 /* Parses a version 5 blob in place (p 8-byte aligned and lasting as long
  * as ix); the head is verified now, the rest lazily. check_head 0: the
  * head's checksum is not checked (the fuzz harness's sealing). */
@@ -125,10 +135,43 @@ typedef struct mim__lda mim__lda_t;
 int mim__lda_build(mim__lda_t *out, const mim_index_input_t *in, const uint32_t *cls, uint32_t nc, double sigma,
                    mim_error_t *err);
 /* The class of a whole frame (positions of n_landmarks), -1 when there
- * are no discriminants or an angle is undefined; *posterior (may be NULL)
- * the class's share of the softmax of the scores. */
-int64_t mim__lda_class(const mim__lda_t *m, const float *positions, uint32_t n_landmarks, double *posterior);
+ * are no discriminants or an angle is undefined; score (n_classes) gets
+ * every class's discriminant (a log-likelihood up to a constant). */
+int64_t mim__lda_class(const mim__lda_t *m, const float *positions, uint32_t n_landmarks, double *score);
 void mim__lda_free(mim__lda_t *m);
+
+/* cholesky.c: the lower-triangular Cholesky factor of the n x n row-major
+ * a in place (0, or -1 when a is not positive definite); x = L^-1 x
+ * returning |x|^2 afterwards (forward substitution); x = (L L^T)^-1 x. */
+int mim__cholesky(double *a, uint32_t n);
+double mim__chol_forward(const double *l, uint32_t n, double *x);
+void mim__chol_solve(const double *l, uint32_t n, double *x);
+
+/* shape.c: the classes as Gaussians in landmark space (issue 15). Build:
+ * from in's templates of classes cls (input order, nc classes), at most
+ * MIM__SHAPE_TEMPLATES of them (spread over the classes); none
+ * (n_classes 0) for one class or no shape. */
+typedef struct mim__shape mim__shape_t;
+#define MIM__SHAPE_TEMPLATES 65536u /* templates sampled, over all classes */
+#define MIM__SHAPE_GPA 4            /* rounds of generalised Procrustes for the class means */
+#define MIM__SHAPE_SHRINK 0.1       /* the least shrinkage intensity towards the mean variance (bench/RESULTS.md) */
+#define MIM__SHAPE_LEVELS 4         /* noise levels 0 .. noise_max */
+int mim__shape_build(mim__shape_t *out, const mim_index_input_t *in, const uint32_t *cls, uint32_t nc,
+                     double noise_max, mim_error_t *err);
+/* V, lam and Vmu from L, n_classes, mu and S (after loading them): 0,
+ * MIM_ENOMEM, or MIM_EFORMAT when S is not positive definite. */
+int mim__shape_prepare(mim__shape_t *m);
+/* The class of a frame (positions of L landmarks, present may be NULL:
+ * all; a NaN position counts as missing), -1 when there are no shape
+ * discriminants or fewer than 3 landmarks; score (n_classes) gets every
+ * class's log-likelihood (-inf for one that cannot be scored). */
+int64_t mim__shape_class(const mim__shape_t *m, const float *positions, const uint8_t *present, double *score);
+void mim__shape_free(mim__shape_t *m);
+
+/* classes.c: up to per_class templates of each class (cls, n templates,
+ * nc classes), spread evenly over its templates in input order; their
+ * indices into pick (n long), the count returned. */
+uint32_t mim__class_sample(const uint32_t *cls, uint32_t n, uint32_t nc, uint32_t per_class, uint32_t *pick);
 
 /* classes.c: k-means on rows x (n x f, NaN = unknown) into k clusters. */
 int mim__kmeans(const float *x, uint32_t n, uint32_t f, uint32_t k, uint32_t *assign, mim_error_t *err);

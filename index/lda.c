@@ -80,41 +80,6 @@ static void all_angles(const float *pos, uint32_t n, float *out)
     }
 }
 
-/* Lower-triangular Cholesky of the n x n row-major a in place; 0 or -1
- * when a is not positive definite. */
-static int cholesky(double *a, uint32_t n)
-{
-    for (uint32_t j = 0; j < n; j++) {
-        double *aj = a + (size_t)j * n;
-        double s = aj[j];
-        for (uint32_t k = 0; k < j; k++) s -= aj[k] * aj[k];
-        if (!(s > 0)) return -1;
-        aj[j] = sqrt(s);
-        for (uint32_t i = j + 1; i < n; i++) {
-            double *ai = a + (size_t)i * n, t = ai[j];
-            for (uint32_t k = 0; k < j; k++) t -= ai[k] * aj[k];
-            ai[j] = t / aj[j];
-        }
-    }
-    return 0;
-}
-
-/* x = (L L^T)^-1 x with the factor of cholesky(). */
-static void chol_solve(const double *l, uint32_t n, double *x)
-{
-    for (uint32_t i = 0; i < n; i++) {
-        const double *li = l + (size_t)i * n;
-        double s = x[i];
-        for (uint32_t k = 0; k < i; k++) s -= li[k] * x[k];
-        x[i] = s / li[i];
-    }
-    for (uint32_t i = n; i-- > 0;) {
-        double s = x[i];
-        for (uint32_t k = i + 1; k < n; k++) s -= l[(size_t)k * n + i] * x[k];
-        x[i] = s / l[(size_t)i * n + i];
-    }
-}
-
 void mim__lda_free(mim__lda_t *m)
 {
     free(m->mean), free(m->g), free(m->b);
@@ -129,7 +94,7 @@ int mim__lda_build(mim__lda_t *out, const mim_index_input_t *in, const uint32_t 
     if (nc < 2) return 0; /* nothing to tell apart */
     /* the sample: at most per_class templates of each class, evenly spread */
     uint32_t per_class = MIM__LDA_TEMPLATES / nc > 4 ? MIM__LDA_TEMPLATES / nc : 4;
-    uint32_t *count = calloc(nc, sizeof *count), *seen = calloc(nc, sizeof *seen), *pick = malloc(sizeof *pick * n);
+    uint32_t *seen = calloc(nc, sizeof *seen), *pick = malloc(sizeof *pick * n);
     double *mu = calloc((size_t)nc * nf, sizeof *mu), *S = calloc((size_t)nf * nf, sizeof *S);
     double *r = malloc(sizeof *r * nf);
     float *a = malloc(sizeof *a * nf), *noisy = malloc(sizeof *noisy * 3 * L);
@@ -137,18 +102,12 @@ int mim__lda_build(mim__lda_t *out, const mim_index_input_t *in, const uint32_t 
     out->g = malloc(sizeof *out->g * (size_t)nc * nf);
     out->b = malloc(sizeof *out->b * nc);
     int rc = 0;
-    if (!count || !seen || !pick || !mu || !S || !r || !a || !noisy || !out->mean || !out->g || !out->b) {
+    uint32_t np = 0;
+    if (!seen || !pick || !mu || !S || !r || !a || !noisy || !out->mean || !out->g || !out->b ||
+        !(np = mim__class_sample(cls, n, nc, per_class, pick))) {
         rc = mim_error_set(err, MIM_ENOMEM, "index: out of memory for the linear discriminants (%u angles)", nf);
         goto out;
     }
-    for (uint32_t t = 0; t < n; t++) count[cls[t]]++;
-    uint32_t np = 0;
-    for (uint32_t t = 0; t < n; t++) { /* the k-th of a class's count is picked when it crosses a step */
-        uint32_t c = cls[t], i = seen[c]++;
-        uint32_t want = count[c] < per_class ? count[c] : per_class;
-        if ((uint64_t)i * want / count[c] != (uint64_t)(i + 1) * want / count[c]) pick[np++] = t;
-    }
-    memset(seen, 0, sizeof *seen * nc);
     for (uint32_t i = 0; i < np; i++) { /* class means */
         uint32_t t = pick[i], c = cls[t];
         all_angles(in->landmarks + (size_t)t * L * 3, L, a);
@@ -181,7 +140,7 @@ int mim__lda_build(mim__lda_t *out, const mim_index_input_t *in, const uint32_t 
     const double shrink = MIM__LDA_SHRINK * tr / rows / nf;
     for (uint32_t f = 0; f < nf; f++)
         for (uint32_t e = 0; e <= f; e++) S[(size_t)f * nf + e] = S[(size_t)f * nf + e] / rows + (e == f ? shrink : 0);
-    if (!(shrink > 0) || cholesky(S, nf)) { /* every angle constant: no discriminant to learn */
+    if (!(shrink > 0) || mim__cholesky(S, nf)) { /* every angle constant: no discriminant to learn */
         mim__lda_free(out);
         goto out;
     }
@@ -190,7 +149,7 @@ int mim__lda_build(mim__lda_t *out, const mim_index_input_t *in, const uint32_t 
     for (uint32_t c = 0; c < nc; c++) {
         const double *m = mu + (size_t)c * nf;
         memcpy(r, m, sizeof *r * nf);
-        chol_solve(S, nf, r);
+        mim__chol_solve(S, nf, r);
         double b = 0;
         for (uint32_t f = 0; f < nf; f++) {
             out->g[(size_t)c * nf + f] = (float)r[f];
@@ -201,18 +160,17 @@ int mim__lda_build(mim__lda_t *out, const mim_index_input_t *in, const uint32_t 
     out->nf = nf, out->n_classes = nc;
 out:
     if (rc) mim__lda_free(out);
-    free(count), free(seen), free(pick), free(mu), free(S), free(r), free(a), free(noisy);
+    free(seen), free(pick), free(mu), free(S), free(r), free(a), free(noisy);
     return rc;
 }
 
-int64_t mim__lda_class(const mim__lda_t *m, const float *positions, uint32_t n_landmarks, double *posterior)
+int64_t mim__lda_class(const mim__lda_t *m, const float *positions, uint32_t n_landmarks, double *score)
 {
     if (!m->g || mim_index_angle_count(n_landmarks) != m->nf) return -1;
     const uint32_t nf = m->nf, nc = m->n_classes;
     float x_st[1680], *x = nf <= 1680 ? x_st : malloc(sizeof *x * nf);
-    double s_st[256], *score = nc <= 256 ? s_st : malloc(sizeof *score * nc);
     int64_t arg = -1;
-    if (!x || !score) goto out;
+    if (!x) return -1;
     all_angles(positions, n_landmarks, x);
     for (uint32_t f = 0; f < nf; f++) {
         if (isnan(x[f])) goto out; /* whole frames only */
@@ -230,13 +188,7 @@ int64_t mim__lda_class(const mim__lda_t *m, const float *positions, uint32_t n_l
         score[c] = s;
         if (arg < 0 || s > score[arg]) arg = c;
     }
-    if (posterior) { /* the top class's share: the softmax of the scores, which are log-likelihoods */
-        double z = 0;
-        for (uint32_t c = 0; c < nc; c++) z += exp(score[c] - score[arg]);
-        *posterior = 1 / z;
-    }
 out:
     if (x != x_st) free(x);
-    if (score != s_st) free(score);
     return arg;
 }

@@ -159,20 +159,28 @@ typedef struct mim_index_options {
      * (blob version 4). Needs the augmentation (none without it). The k-NN
      * inside a class, and the distances it reports, stay in radians. */
     double weight;            /* 0 means MIM_INDEX_WEIGHT_DEFAULT; < 0: none; at most 4 */
-    /* Linear discriminants over all angles (issue 15; lda.c says what and
-     * why): the classes as Gaussians of one shared covariance, learnt from
-     * the templates and noisy copies at sigma = discriminant_noise x the
-     * bodies' scale. A whole frame's class is theirs unless the SVMs are
-     * sure (mim_index_query_options_t.svm_above). Stored in the index
-     * (blob version 5). */
-    double discriminant_noise; /* 0 means MIM_INDEX_DISCRIMINANT_NOISE_DEFAULT; < 0: no discriminants */
+    /* Shape discriminants (issue 15; shape.c says what and why): the
+     * classes as Gaussians of one shared covariance over the landmarks,
+     * each frame brought onto each class's mean shape by a similarity,
+     * at noise levels 0 .. shape_noise (a fraction of the bodies' RMS
+     * radius). A frame's class is theirs unless the SVMs are sure
+     * (mim_index_query_options_t.svm_above). Stored in the index (blob
+     * version 6). */
+    double shape_noise;        /* 0 means MIM_INDEX_SHAPE_NOISE_DEFAULT; < 0: none; at most 1 */
+    /* Linear discriminants over all angles (issue 15; lda.c), the default
+     * before the shape discriminants, which take precedence when both are
+     * there: learnt from the templates and noisy copies at sigma =
+     * discriminant_noise x the bodies' scale; whole frames only. Stored in
+     * the index (blob versions 5 and 6). */
+    double discriminant_noise; /* > 0: build them (MIM_INDEX_DISCRIMINANT_NOISE_MEASURED was their best); else none */
     mim_progress_t *progress; /* fn and ctx set by the caller, run by the build; NULL: quiet */
 } mim_index_options_t;
 
 #define MIM_INDEX_NOISE_DEFAULT 0.025
 #define MIM_INDEX_AUGMENT_DEFAULT 4u
 #define MIM_INDEX_WEIGHT_DEFAULT 0.5
-#define MIM_INDEX_DISCRIMINANT_NOISE_DEFAULT 0.04
+#define MIM_INDEX_DISCRIMINANT_NOISE_MEASURED 0.04
+#define MIM_INDEX_SHAPE_NOISE_DEFAULT 0.06
 
 enum { MIM_CLASSES_LABELS = 0, MIM_CLASSES_KMEANS = 1 };
 
@@ -184,7 +192,8 @@ typedef struct mim_index_report {
     uint32_t augment;                    /* noisy copies per template learnt from (0: none) */
     double noise;                        /* their sigma / the bodies' scale (0: none) */
     double weight;                       /* the angle weighting's power (0: none) */
-    double discriminant_noise;           /* the discriminants' training noise / the bodies' scale (0: none) */
+    double discriminant_noise;           /* the angle discriminants' training noise / the bodies' scale (0: none) */
+    double shape_noise;                  /* the shape discriminants' top noise level / the RMS radius (-1: none) */
     mim_select_report_t select;
     double seconds;
 } mim_index_report_t;
@@ -230,6 +239,7 @@ typedef struct mim_index_info {
     double noise;     /* their sigma, a fraction of the bodies' scale (0: none) */
     double weight;    /* the angle weighting's power (0: none) */
     double discriminant_noise; /* the linear discriminants' training noise / the bodies' scale (0: none) */
+    double shape_noise;        /* the shape discriminants' top noise level / the RMS radius (-1: none) */
     /* kd-forests (classes above the exact scan's size) read from the blob
      * and built when it was made or loaded (a blob before version 3, or a
      * forest that would not load, builds them again) */
@@ -254,13 +264,14 @@ typedef struct mim_index_query_options {
     double vote_below;           /* 0 means MIM_INDEX_VOTE_BELOW_DEFAULT; < 0: never */
     uint32_t vote_k;             /* 0 means MIM_INDEX_VOTE_K_DEFAULT; at most 32 */
     uint32_t vote_classes;       /* 0 means MIM_INDEX_VOTE_CLASSES_DEFAULT; at most 8 */
-    /* A whole frame's class (issue 15): the SVMs' when their top
-     * probability is at least svm_above, else the linear discriminants'
-     * (an index without them: the SVMs' and the vote). 0 means
-     * MIM_INDEX_SVM_ABOVE_DEFAULT: above 1, always the discriminants', and
-     * the SVMs are not evaluated (the answer's probability is then the
-     * discriminants' posterior, the softmax of their scores); < 0: never.
-     * A frame with missing landmarks always goes to the SVMs. */
+    /* A frame's class (issue 15): the SVMs' when their top probability
+     * is at least svm_above, else the discriminants' (the shape
+     * discriminants', for any frame with three landmarks or more; else the
+     * angle discriminants', for a whole frame; an index without them: the
+     * SVMs' and the vote). 0 means MIM_INDEX_SVM_ABOVE_DEFAULT: above 1,
+     * always the discriminants', and the SVMs are not evaluated (the
+     * answer's probability is then the discriminants' posterior, the
+     * softmax of their scores); < 0: never. */
     double svm_above;
 } mim_index_query_options_t;
 
@@ -277,7 +288,7 @@ typedef struct mim_index_hit {
 
 typedef struct mim_index_answer {
     uint32_t cls;
-    double probability; /* the class's: the SVMs' normalised Platt probability, or for a whole frame the discriminants' posterior */
+    double probability; /* the class's: the SVMs' normalised Platt probability, or the discriminants' posterior */
     uint32_t missing;   /* landmarks missing in the frame */
     uint32_t n_hits;    /* <= k */
 } mim_index_answer_t;

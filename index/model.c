@@ -130,6 +130,7 @@ void mim_index_close(mim_index_t **pix)
         }
     mim__lazy_free(ix);
     if (ix->borrowed) { /* the arrays, strings and SVMs' arrays are the blob's */
+        mim__shape_free(&ix->shape);
         free(ix->strings), free(ix->svm), free(ix->flann), free(ix->flann_exact), free(ix->own);
         free(ix);
         *pix = NULL;
@@ -142,6 +143,7 @@ void mim_index_close(mim_index_t **pix)
     free(ix->strings), free(ix->selected), free(ix->class_name), free(ix->class_start), free(ix->ids);
     free(ix->subject), free(ix->pose), free(ix->desc), free(ix->extra), free(ix->svm), free(ix->flann), free(ix->flann_exact), free(ix->w);
     mim__lda_free(&ix->lda);
+    mim__shape_free(&ix->shape);
     free(ix);
     *pix = NULL;
 }
@@ -396,8 +398,10 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
     if (!(wpow > 0) || !A) wpow = 0;
     if (!(opt.discriminant_noise <= 1))
         return mim_error_set(err, MIM_EINVAL, "linear discriminants: noise %g (at most 1)", opt.discriminant_noise);
-    double dnoise = opt.discriminant_noise < 0 ? 0 : opt.discriminant_noise > 0 ? opt.discriminant_noise
-                                                                                : MIM_INDEX_DISCRIMINANT_NOISE_DEFAULT;
+    if (!(opt.shape_noise <= 1))
+        return mim_error_set(err, MIM_EINVAL, "shape discriminants: noise %g (at most 1)", opt.shape_noise);
+    double dnoise = opt.discriminant_noise > 0 ? opt.discriminant_noise : 0;
+    double snoise = opt.shape_noise < 0 ? -1 : opt.shape_noise > 0 ? opt.shape_noise : MIM_INDEX_SHAPE_NOISE_DEFAULT;
     mim_index_t *ix = calloc(1, sizeof *ix);
     strtab_t st = {0};
     uint32_t *cls = malloc(sizeof(uint32_t) * n), *names = NULL, nc = 0, source = 0;
@@ -418,6 +422,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
     ix->n_classes = nc, ix->class_source = source;
     if (dnoise > 0 && (rc = mim__lda_build(&ix->lda, in, cls, nc, dnoise * scale, err))) goto out;
     ix->discriminant_noise = ix->lda.nf ? dnoise : 0;
+    if (snoise >= 0 && (rc = mim__shape_build(&ix->shape, in, cls, nc, snoise, err))) goto out;
     progress = opt.progress;
     if (progress) mim_progress_begin(progress, "index", (nc > 1 && !(opt.C > 0 && opt.gamma > 0) ? 16 : 0) + nc);
 
@@ -616,6 +621,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
         report->select = srep;
         report->augment = A, report->noise = noise, report->weight = wpow;
         report->discriminant_noise = ix->discriminant_noise;
+        report->shape_noise = ix->shape.n_classes ? ix->shape.noise_max : -1;
         report->seconds = mim_now() - t0;
     }
     *out = ix;
@@ -638,6 +644,7 @@ void mim_index_get_info(const mim_index_t *ix, mim_index_info_t *o)
     o->C = ix->C, o->gamma = ix->gamma, o->cv_accuracy = ix->cv_accuracy;
     o->augment = ix->augment, o->noise = ix->noise, o->weight = ix->weight;
     o->discriminant_noise = ix->discriminant_noise;
+    o->shape_noise = ix->shape.n_classes ? ix->shape.noise_max : -1;
     o->forests_loaded = ix->forests_loaded, o->forests_built = ix->forests_built;
     o->in_place = ix->borrowed && !ix->own;
     o->classes_ready = ix->n_classes;

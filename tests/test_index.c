@@ -598,12 +598,12 @@ static void test_forest_section_hostile(void **s)
     synth_set_free(&ss);
 }
 
-/* ---- version 5: in place (issue 16) ---- */
+/* ---- versions 5 and 6: in place (issue 16) ---- */
 void mim__index_seal_v5(unsigned char *p, size_t len);
 
 static uint64_t up64(uint64_t x) { return (x + 63) / 64 * 64; }
 
-/* Offsets of a version 5 blob's bulk sections (blob_v5.c's layout). */
+/* Offsets of a version 5 or 6 blob's bulk sections (blob_v5.c's layout). */
 static void v5_sections(const unsigned char *p, uint32_t n, uint32_t d, uint32_t d2, uint64_t *desc, uint64_t *extra,
                         uint64_t *forests)
 {
@@ -633,7 +633,7 @@ static void v5_frames(const synth_set_t *ss, float *frames, uint8_t *present)
 
 /* An index used in place answers exactly as the index that was saved, as
  * the same blob copied, and as its version 4 blob (still loaded, copied;
- * without the discriminants of version 5, so as the others' SVMs),
+ * without the discriminants of versions 5 and 6, so as the others' SVMs),
  * with kd-forests so coarse (1 check) that the answers depend on the
  * trees; in place, nothing is verified or loaded before a query needs it. */
 static void test_in_place_answers(void **s)
@@ -652,7 +652,7 @@ static void test_in_place_answers(void **s)
         assert_int_equal(mim__index_save_v4(ix, &b4, &l4, NULL), 0);
         uint32_t ver;
         memcpy(&ver, (unsigned char *)blob + 4, 4);
-        assert_int_equal(ver, 5);
+        assert_int_equal(ver, 6);
         memcpy(&ver, (unsigned char *)b4 + 4, 4);
         assert_int_equal(ver, 4);
         assert_int_equal((uintptr_t)blob % 64, 0);

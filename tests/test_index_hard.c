@@ -18,7 +18,8 @@
 
 enum { S = 5, P = 16, DRAWS = 5 };
 
-/* index/: every checksum of a version 5 blob made right (blob_v5.c) */
+
+/* index/: every checksum of a version 5 or 6 blob made right (blob_v5.c) */
 void mim__index_seal_v5(unsigned char *p, size_t len);
 
 typedef struct {
@@ -78,15 +79,15 @@ static double accuracy(const set_t *s, const mim_index_t *ix, double sigma, cons
 /* Recognition on the hard set: clean frames of an unseen subject are
  * recognised well, and at 3 cm of noise the SVM path of the default (noise
  * augmentation, angle weighting, k-NN vote; the discriminants are
- * test_discriminants') beats both the index without augmentation (issue 4)
+ * test_shape_discriminants' and test_angle_discriminants') beats both the index without augmentation (issue 4)
  * and the one with augmentation only (issue 15, item 1). */
 static void test_hard_set_accuracy(void **state)
 {
     (void)state;
     set_t *s = calloc(1, sizeof *s);
     set_make(s);
-    mim_index_options_t def = {.discriminant_noise = -1}, plain = {.noise = -1, .discriminant_noise = -1},
-                        item1 = {.weight = -1, .discriminant_noise = -1};
+    mim_index_options_t def = {.shape_noise = -1}, plain = {.noise = -1, .shape_noise = -1},
+                        item1 = {.weight = -1, .shape_noise = -1};
     mim_index_t *a = build(s, &def), *b = build(s, &plain), *c = build(s, &item1);
     mim_index_info_t info;
     mim_index_get_info(a, &info);
@@ -111,20 +112,171 @@ static void test_hard_set_accuracy(void **state)
     free(s);
 }
 
-/* The linear discriminants (issue 15, lda.c): built by default, and at
- * 3 cm of noise the default beats the same index without them; clean
- * frames lose nothing. Queries may turn them off (svm_above < 0), which
- * gives exactly the index without them. */
-static void test_discriminants(void **state)
+/* Accuracy on the held-out subject's frames with m landmarks missing
+ * (DRAWS draws of which each), seeded. */
+static double accuracy_missing(const set_t *s, const mim_index_t *ix, uint32_t m, const mim_index_query_options_t *qo)
+{
+    uint32_t L = s->h.n_landmarks, hits = 0, tests = 0;
+    mim_rng_t rng;
+    mim_rng_seed(&rng, 15, 0x6d697373ULL);
+    uint8_t present[MIM_LANDMARKS_MAX];
+    for (uint32_t p = 0; p < P; p++) {
+        uint32_t t = (S - 1) * P + p;
+        for (int r = 0; r < DRAWS; r++) {
+            memset(present, 1, L);
+            for (uint32_t k = 0; k < m;) {
+                uint32_t l = (uint32_t)(mim_rng_unit(&rng) * L) % L;
+                if (present[l]) present[l] = 0, k++;
+            }
+            mim_index_answer_t a;
+            mim_index_hit_t hit;
+            assert_int_equal(mim_index_query(ix, s->h.landmarks + (size_t)t * L * 3, present, qo, &a, &hit, NULL), 0);
+            hits += a.n_hits && !strcmp(hit.pose, s->pose[t]);
+            tests++;
+        }
+    }
+    return (double)hits / tests;
+}
+
+/* The shape discriminants (issue 15, shape.c): built by default, and every
+ * frame, whole or with landmarks missing, is classified by them. On this
+ * fold they beat the angle discriminants (the default before) at 3 cm of
+ * noise and the SVM path (completion, SVMs, vote) with two landmarks
+ * missing, and lose nothing clean. Queries may turn them off (svm_above
+ * < 0): exactly the index without them. A frame turned, moved and scaled
+ * gets the same answer. A frame with two landmarks, or with its landmarks
+ * at two places, answers or fails as the SVM path does. A blob whose shape discriminants
+ * do not fit its index, hold a NaN, or whose covariance is not positive
+ * definite is refused with the reason. */
+static void test_shape_discriminants(void **state)
 {
     (void)state;
     set_t *s = calloc(1, sizeof *s);
     set_make(s);
-    mim_index_options_t def = {0}, none = {.discriminant_noise = -1};
+    mim_index_options_t def = {0}, none = {.shape_noise = -1},
+                        angles = {.shape_noise = -1, .discriminant_noise = MIM_INDEX_DISCRIMINANT_NOISE_MEASURED};
+    mim_index_t *a = build(s, &def), *b = build(s, &none), *c = build(s, &angles);
+    mim_index_info_t info;
+    mim_index_get_info(a, &info);
+    assert_true(info.shape_noise == MIM_INDEX_SHAPE_NOISE_DEFAULT);
+    assert_true(info.discriminant_noise == 0);
+    mim_index_get_info(b, &info);
+    assert_true(info.shape_noise == -1);
+    mim_index_query_options_t svm_only = {.svm_above = -1};
+    double clean_a = accuracy(s, a, 0, NULL), clean_c = accuracy(s, c, 0, NULL);
+    double noisy_a = accuracy(s, a, 0.03, NULL), noisy_c = accuracy(s, c, 0.03, NULL);
+    double miss_a = accuracy_missing(s, a, 2, NULL), miss_b = accuracy_missing(s, b, 2, NULL);
+    fprintf(stderr,
+            "hard set (%d x %d, one fold): shape discriminants clean %.3f, 3 cm %.3f, 2 missing %.3f; angle "
+            "discriminants clean %.3f, 3 cm %.3f; SVMs 2 missing %.3f\n",
+            S, P, clean_a, noisy_a, miss_a, clean_c, noisy_c, miss_b);
+    assert_true(clean_a >= clean_c);
+    assert_true(noisy_a >= noisy_c + 0.05);
+    assert_true(miss_a >= miss_b + 0.1);
+    assert_true(accuracy(s, a, 0.03, &svm_only) == accuracy(s, b, 0.03, NULL)); /* the rest is the same build */
+    assert_true(accuracy_missing(s, a, 2, &svm_only) == miss_b);
+    /* a frame turned, moved and scaled is the same shape: the same class
+     * and posterior (the alignment is a similarity's), whole or not */
+    const uint32_t L = s->h.n_landmarks;
+    float frame[3 * MIM_LANDMARKS_MAX];
+    uint8_t present[MIM_LANDMARKS_MAX];
+    mim_index_answer_t x, y;
+    mim_index_hit_t hx, hy;
+    const mim_quat turn = mim_quat_normalize((mim_quat){0.3, -0.5, 0.2, 0.8});
+    for (uint32_t p = 0; p < P; p++) {
+        const float *f = s->h.landmarks + ((size_t)(S - 1) * P + p) * L * 3;
+        for (uint32_t l = 0; l < L; l++) {
+            mim_vec3 v = mim_quat_rotate(turn, (mim_vec3){f[3 * l], f[3 * l + 1], f[3 * l + 2]});
+            frame[3 * l] = (float)(1.3 * v.x + 2), frame[3 * l + 1] = (float)(1.3 * v.y - 1), frame[3 * l + 2] = (float)(1.3 * v.z + 0.5);
+        }
+        memset(present, 1, L);
+        for (int m = 0; m < 2; m++, present[p % L] = 0) {
+            assert_int_equal(mim_index_query(a, f, present, NULL, &x, &hx, NULL), 0);
+            assert_int_equal(mim_index_query(a, frame, present, NULL, &y, &hy, NULL), 0);
+            assert_int_equal(x.cls, y.cls);
+            assert_true(fabs(x.probability - y.probability) < 1e-6);
+        }
+    }
+    /* degenerate frames answer; a frame's probability is the posterior */
+    const float *f = s->h.landmarks + (size_t)(S - 1) * P * L * 3;
+    memset(present, 0, L);
+    present[0] = present[1] = 1; /* two landmarks: no shape, the SVM path (which has too few angles) */
+    int r1 = mim_index_query(a, f, present, NULL, &x, &hx, NULL), r2 = mim_index_query(a, f, present, &svm_only, &y, &hy, NULL);
+    assert_int_equal(r1, r2);
+    if (!r1) assert_int_equal(x.cls, y.cls);
+    for (uint32_t l = 0; l < L; l++) memcpy(frame + 3 * l, f, 3 * sizeof(float)); /* all at one place: no angle */
+    assert_int_equal(mim_index_query(a, frame, NULL, NULL, &x, &hx, NULL), MIM_EINVAL);
+    memcpy(frame + 3, f + 3, 3 * sizeof(float)); /* two places: some angles, a shape of two points */
+    assert_int_equal(mim_index_query(a, frame, NULL, NULL, &x, &hx, NULL), 0);
+    assert_true(x.probability > 0 && x.probability <= 1);
+    assert_int_equal(mim_index_query(a, f, NULL, NULL, &x, &hx, NULL), 0);
+    assert_true(x.probability > 0 && x.probability <= 1);
+    /* a blob's shape discriminants that do not fit its index, hold a NaN or
+     * are not positive definite: refused at load with the reason
+     * (checksums made right, as damage a checksum misses or a crafted blob) */
+    void *blob = NULL;
+    size_t len = 0;
+    assert_int_equal(mim_index_save(a, &blob, &len, NULL), 0);
+    mim_index_get_info(a, &info);
+    unsigned char pat[16];
+    uint32_t mc[2] = {3 * L, info.n_classes};
+    double sn = MIM_INDEX_SHAPE_NOISE_DEFAULT;
+    memcpy(pat, mc, 8), memcpy(pat + 8, &sn, 8);
+    size_t at = 0;
+    while (at + 16 <= len && memcmp((unsigned char *)blob + at, pat, 16)) at += 8;
+    assert_true(at + 16 <= len); /* the shape discriminants' sizes and noise in the head */
+    const size_t S0 = 16 + 8ull * info.n_classes * 3 * L; /* S[0][0] */
+    const struct {
+        size_t off;
+        uint32_t value;
+        const char *why;
+    } cases[] = {{0, 45, "shape discriminants of 45 coordinates"},
+                 {4, 3, "shape discriminants of 48 coordinates and 3 classes"},
+                 {16 + 8 * 5 + 4, 0x7ff80000u, "shape discriminants hold a non-finite number"}, /* mu[5] NaN */
+                 {S0 + 4, 0xc08f4000u, "covariance is not positive definite"}};               /* S[0][0] -1000 */
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        unsigned char *v = NULL;
+        assert_int_equal(posix_memalign((void **)&v, 64, len), 0);
+        memcpy(v, blob, len);
+        memcpy(v + at + cases[k].off, &cases[k].value, 4);
+        mim__index_seal_v5(v, len);
+        mim_index_t *back = NULL;
+        mim_error_t e = {0};
+        assert_int_equal(mim_index_load(&back, v, len, &e), MIM_EFORMAT);
+        if (!strstr(e.msg, cases[k].why)) fail_msg("case %zu: '%s' lacks '%s'", k, e.msg, cases[k].why);
+        assert_null(back);
+        free(v);
+    }
+    free(blob);
+    /* out of range */
+    mim_index_options_t bad = {.shape_noise = 1.5};
+    mim_index_input_t in = {(S - 1) * P, s->h.n_landmarks, s->h.landmarks, s->ids, s->subj, s->pose, s->h.mirror};
+    mim_index_t *ix = NULL;
+    mim_error_t err = {0};
+    assert_int_equal(mim_index_build(&ix, &in, &bad, NULL, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "shape discriminants"));
+    mim_index_close(&a), mim_index_close(&b), mim_index_close(&c);
+    bench_hard_free(&s->h);
+    free(s);
+}
+
+/* The linear discriminants over all angles (issue 15, lda.c; the default
+ * before the shape discriminants, now an option): at 3 cm of noise they
+ * beat the same index without them; clean frames lose nothing. Queries
+ * may turn them off (svm_above < 0), which gives exactly the index without
+ * them. */
+static void test_angle_discriminants(void **state)
+{
+    (void)state;
+    set_t *s = calloc(1, sizeof *s);
+    set_make(s);
+    mim_index_options_t def = {.shape_noise = -1, .discriminant_noise = MIM_INDEX_DISCRIMINANT_NOISE_MEASURED},
+                        none = {.shape_noise = -1};
     mim_index_t *a = build(s, &def), *b = build(s, &none);
     mim_index_info_t info;
     mim_index_get_info(a, &info);
-    assert_true(info.discriminant_noise == MIM_INDEX_DISCRIMINANT_NOISE_DEFAULT);
+    assert_true(info.discriminant_noise == MIM_INDEX_DISCRIMINANT_NOISE_MEASURED);
+    assert_true(info.shape_noise == -1);
     mim_index_get_info(b, &info);
     assert_true(info.discriminant_noise == 0);
     mim_index_query_options_t svm_only = {.svm_above = -1};
@@ -170,7 +322,7 @@ static void test_discriminants(void **state)
     unsigned char pat[16];
     mim_index_get_info(a, &info);
     uint32_t nfc[2] = {mim_index_angle_count(L), info.n_classes};
-    double dn = MIM_INDEX_DISCRIMINANT_NOISE_DEFAULT;
+    double dn = MIM_INDEX_DISCRIMINANT_NOISE_MEASURED;
     memcpy(pat, nfc, 8), memcpy(pat + 8, &dn, 8);
     size_t at = 0;
     while (at + 16 <= len && memcmp((unsigned char *)blob + at, pat, 16)) at += 8;
@@ -208,8 +360,9 @@ static void test_discriminants(void **state)
     free(s);
 }
 
-/* index/'s writer of version 4, kept for the tests of old blobs */
+/* index/'s writers of versions 4 and 5, kept for the tests of old blobs */
 int mim__index_save_v4(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err);
+int mim__index_save_v5(const mim_index_t *ix, uint32_t version, void **blob, size_t *len, mim_error_t *err);
 
 /* A blob of version 4 rewritten in an older layout: version 3 has
  * no angle weighting (the f64 weight and the f32 w[d2] after the selected
@@ -259,13 +412,14 @@ static void test_blob_versions(void **state)
     assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
     uint32_t ver;
     memcpy(&ver, (char *)blob + 4, 4);
-    assert_int_equal(ver, 5);
-    for (int v4 = 0; v4 < 2; v4++) { /* version 5 (mimic's now), and version 4 still */
-        if (v4) {
+    assert_int_equal(ver, 6);
+    for (uint32_t want = 6; want >= 4; want--) { /* version 6 (mimic's now), and versions 5 and 4 still */
+        if (want < 6) {
             free(blob);
-            assert_int_equal(mim__index_save_v4(ix, &blob, &len, NULL), 0);
+            if (want == 5) assert_int_equal(mim__index_save_v5(ix, 5, &blob, &len, NULL), 0);
+            else assert_int_equal(mim__index_save_v4(ix, &blob, &len, NULL), 0);
             memcpy(&ver, (char *)blob + 4, 4);
-            assert_int_equal(ver, 4);
+            assert_int_equal(ver, want);
             mim_index_close(&back);
         }
         assert_int_equal(mim_index_load(&back, blob, len, NULL), 0);
@@ -273,9 +427,10 @@ static void test_blob_versions(void **state)
         assert_int_equal(info.augment, 2);
         assert_true(info.noise == 0.03);
         assert_true(info.weight == 0.5);
-        /* the discriminants are in version 5, not in 4: there the index answers by its SVMs */
-        assert_true(info.discriminant_noise == (v4 ? 0 : MIM_INDEX_DISCRIMINANT_NOISE_DEFAULT));
-        mim_index_query_options_t as_saved = {.svm_above = v4 ? -1 : 0};
+        /* the shape discriminants are in version 6, not in 5 or 4: there the index answers by its SVMs */
+        assert_true(info.shape_noise == (want == 6 ? MIM_INDEX_SHAPE_NOISE_DEFAULT : -1));
+        assert_true(info.discriminant_noise == 0);
+        mim_index_query_options_t as_saved = {.svm_above = want < 6 ? -1 : 0};
         for (uint32_t p = 0; p < P; p++) {
             const float *f = s->h.landmarks + ((size_t)(S - 1) * P + p) * s->h.n_landmarks * 3;
             assert_int_equal(mim_index_query(ix, f, NULL, &as_saved, &a1, &h1, NULL), 0);
@@ -333,7 +488,8 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_hard_set_accuracy),
-        cmocka_unit_test(test_discriminants),
+        cmocka_unit_test(test_shape_discriminants),
+        cmocka_unit_test(test_angle_discriminants),
         cmocka_unit_test(test_blob_versions),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

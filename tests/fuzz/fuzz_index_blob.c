@@ -4,12 +4,13 @@
  * instead of stopping at a checksum. The first byte picks the layout:
  *   0, 1  version 1 or 2 (read by copying, blob.c); the input is the
  *         payload after the 32-byte header;
- *   2, 3  version 5 (used in place, blob_v5.c): bytes 1-2 give the head's
+ *   2, 3  version 5 (4, 5: version 6, with the shape discriminants; used
+ *         in place, blob_v5.c): bytes 1-2 give the head's
  *         size in units of 64 bytes, byte 3 the rows a chunk (1 + value),
  *         the rest is the blob after its 64-byte header; every checksum is
  *         then made right (mim__index_seal_v5), and for 3 one byte past the
- *         head is flipped after sealing, so that a lazily verified section
- *         fails when a query first needs it.
+ *         head is flipped after sealing (3, 5), so that a lazily verified
+ *         section fails when a query first needs it.
  * Versions 3 to 5 hold kd-forests as FLANN's own bytes, which FLANN's
  * loader does not check; their checksum guards them against damage, but a
  * sealed input passes it, so the harness gives FLANN no forest: a version
@@ -42,7 +43,7 @@ static void exercise(mim_index_t *ix)
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     if (!size) return 0;
-    int mode = data[0] % 4;
+    int mode = data[0] % 6;
     data++, size--;
     if (mode < 2) {
         uint32_t version = 1 + (uint32_t)mode, order = 0x01020304, zero = 0;
@@ -66,7 +67,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     if (size < 3) return 0;
     uint64_t hb = 64ull * (data[0] | (uint32_t)data[1] << 8);
-    uint32_t rows = 1u + data[2], version = 5, order = 0x01020304, hdr = 64;
+    uint32_t rows = 1u + data[2], version = mode < 4 ? 5 : 6, order = 0x01020304, hdr = 64;
     data += 3, size -= 3;
     if (hb > size) hb = size / 64 * 64;
     unsigned char *blob = NULL;
@@ -82,7 +83,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     memcpy(blob + 40, &rows, 4);
     if (size) memcpy(blob + 64, data, size);
     mim__index_seal_v5(blob, 64 + size);
-    if (mode == 3 && size > hb) blob[64 + hb + (data[0] * 131u + data[size - 1]) % (size - hb)] ^= 0x10;
+    if (mode % 2 && size > hb) blob[64 + hb + (data[0] * 131u + data[size - 1]) % (size - hb)] ^= 0x10;
     /* a head that lists forests: FLANN must not see their (sealed, so
      * trusted) bytes; opening and the completion scan do not touch them */
     uint32_t nf = 0;
