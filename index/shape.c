@@ -37,6 +37,7 @@
 #include <string.h>
 
 #define NMAX (3 * MIM_LANDMARKS_MAX)
+
 /* The eigenvector of the largest eigenvalue of the symmetric 4 x 4 a
  * (cyclic Jacobi; a is destroyed). */
 static void top_eigenvector(double a[4][4], double v[4])
