@@ -35,7 +35,7 @@ int bench_hard_make(bench_hard_t *h, uint32_t subjects, uint32_t poses, uint32_t
                     double spread, mim_error_t *err);
 /* The same, and draws more bodies of every (subject, pose) with jitters of
  * their own (streams other than the set's): samples of what the subject
- * would look like taking the pose again, for the bounds of
+ * would look like taking the pose again, for the references of
  * bench_query_accuracy. */
 int bench_hard_make_draws(bench_hard_t *h, uint32_t subjects, uint32_t poses, uint32_t vertices, uint64_t seed,
                           double spread, uint32_t draws, mim_error_t *err);

@@ -29,12 +29,13 @@
  * that knew the query subject's own bodies and the noise would score, the
  * ceiling no method can pass. --hard-spread F scales the variants' turns
  * (F = 2: 24-40 degrees apart); --sweep 5 runs the default index alone
- * (its discriminants and its SVMs) and the angle discriminants, --sweep 6 no index (baseline and
- * bounds only). On the hard set two more bounds have the jitter unknown
- * (jitter_ml, from --jitters D other jitters of every body, default 128;
- * 0 leaves them out).
+ * (its discriminants and its SVMs) and the angle discriminants, --sweep 6
+ * no index (baseline and bounds only), --sweep 7 the shape and the angle
+ * discriminants alone (C and gamma given: fast). On the hard set two
+ * references have the jitter unknown (jitter_ml, from --jitters D other
+ * jitters of every body, default 128; 0 leaves them out).
  *
- *   bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1-6]
+ *   bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1-7]
  *                        [--hard-subjects S] [--hard-poses P] [--hard-spread F] [--jitters D]
  * Prints a Markdown table per dataset. */
 #include "bench_data.h"
@@ -481,7 +482,7 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--hard-spread") && i + 1 < argc) spread = atof(argv[++i]);
         else if (!strcmp(argv[i], "--jitters") && i + 1 < argc) jitters = (uint32_t)atoi(argv[++i]);
         else {
-            fprintf(stderr, "usage: bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1-6] "
+            fprintf(stderr, "usage: bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1-7] "
                             "[--hard-subjects S] [--hard-poses P] [--hard-spread F] [--jitters D]\n");
             return 2;
         }
