@@ -279,7 +279,8 @@ int64_t mim__shape_class(const mim__shape_t *m, const float *positions, const ui
     }
     const int whole = k == n;
     double *F = NULL; /* landmarks missing: each level's Cholesky factor of its sub-block */
-    double *W = NULL; /* a whole frame: W_rc = V^T (x's coordinate c, centred, as coordinate r) */
+    /* a whole frame: W_rc = V^T (x's coordinate c, centred, as coordinate r); 14 KiB at 64 landmarks */
+    double W[9 * NMAX];
     if (whole) {
         for (int lv = 0; lv < MIM__SHAPE_LEVELS; lv++) {
             logdet[lv] = 0;
@@ -288,7 +289,7 @@ int64_t mim__shape_class(const mim__shape_t *m, const float *positions, const ui
         double c[3] = {0};
         for (uint32_t l = 0; l < L; l++)
             for (int r = 0; r < 3; r++) c[r] += x[3 * l + r] / L;
-        if (!(W = calloc(9 * (size_t)n, sizeof *W))) return -1;
+        memset(W, 0, sizeof *W * 9 * n);
         for (uint32_t l = 0; l < L; l++)
             for (int r = 0; r < 3; r++) {
                 const double *vi = m->V + (size_t)(3 * l + r) * n;
@@ -345,7 +346,6 @@ int64_t mim__shape_class(const mim__shape_t *m, const float *positions, const ui
         score[c] = best;
         if (isfinite(best) && (arg < 0 || best > score[arg])) arg = c;
     }
-    free(W);
     free(F);
     return arg;
 }

@@ -70,6 +70,8 @@ static void test_usage_errors(void **s)
         {{"index", "--store", "s", "--noise", "2", NULL}, "mimic index: --noise '2' is not a number in 0..1"},
         {{"index", "--store", "s", "--discriminants", "2", NULL}, "mimic index: --discriminants '2' is not a number in 0..1"},
         {{"index", "--store", "s", "--discriminants", "x", NULL}, "mimic index: --discriminants 'x' is not a number in 0..1"},
+        {{"index", "--store", "s", "--shape-noise", "2", NULL}, "mimic index: --shape-noise '2' is not a number in 0..1"},
+        {{"index", "--store", "s", "--shape-noise", "-1", NULL}, "mimic index: --shape-noise '-1' is not a number in 0..1"},
         {{"index", "--store", "s", "--augment", "0", NULL}, "mimic index: --augment '0' is not a number in 1..64"},
         {{"list", "--bogus", NULL}, "unknown or incomplete option '--bogus'"},
         {{"info", "--store", "/nonexistent/store", NULL}, "/nonexistent/store"},
