@@ -158,8 +158,34 @@ mim_db_options_t mim_cli_db_options(int read_only)
                               .log = mim_cli_log};
 }
 
-void mim_cli_session_options(mim_session_options_t *so, const char *avatar_landmarks)
+int mim_cli_avatar_option(const char *cmd, int c, const char *arg, mim_cli_avatar_t *a)
 {
-    *so = (mim_session_options_t){.map_size = mim_cli_db_options(1).map_size, .avatar_landmarks = avatar_landmarks,
-                                  .log = mim_cli_log};
+    if (c == MIM_CLI_OPT_AVATAR_MESH) {
+        if (a->n_meshes >= MIM_CLI_AVATAR_MESHES_MAX) {
+            fprintf(stderr, "mimic %s: --avatar-mesh: at most %d meshes\n", cmd, MIM_CLI_AVATAR_MESHES_MAX);
+            return -1;
+        }
+        if (!*arg) {
+            fprintf(stderr, "mimic %s: --avatar-mesh: an empty name\n", cmd);
+            return -1;
+        }
+        a->meshes[a->n_meshes++] = arg;
+        return 1;
+    }
+    if (c == MIM_CLI_OPT_MAX_DISTANCE)
+        return mim_cli_real(cmd, "max-distance-mm", arg, 0.0, 1000.0, 1, "is not a distance in (0, 1000] mm",
+                            &a->max_distance_mm)
+                   ? -1
+                   : 1;
+    return 0;
+}
+
+void mim_cli_session_options(mim_session_options_t *so, const mim_cli_avatar_t *avatar)
+{
+    *so = (mim_session_options_t){.map_size = mim_cli_db_options(1).map_size, .log = mim_cli_log};
+    if (avatar) {
+        so->avatar_landmarks = avatar->landmarks;
+        so->avatar_meshes = avatar->meshes, so->n_avatar_meshes = avatar->n_meshes;
+        so->max_distance_mm = avatar->max_distance_mm;
+    }
 }

@@ -51,7 +51,30 @@ int mim_cli_drive(const char *cmd, const char *text, int *drive);
  * (mim_cli_db_options), the log on the terminal, and --avatar-landmarks
  * (NULL when not given) for an avatar of another connectivity. */
 struct mim_session_options;
-void mim_cli_session_options(struct mim_session_options *so, const char *avatar_landmarks);
+/* The options of a command that loads an avatar (transfer, morph, serve):
+ * --avatar-landmarks FILE, --avatar-mesh NAME (repeatable), --max-distance-mm MM. */
+#define MIM_CLI_AVATAR_MESHES_MAX 64
+typedef struct mim_cli_avatar {
+    const char *landmarks;
+    const char *meshes[MIM_CLI_AVATAR_MESHES_MAX];
+    uint32_t n_meshes;
+    double max_distance_mm;
+} mim_cli_avatar_t;
+#define MIM_CLI_OPT_AVATAR_MESH 1001
+#define MIM_CLI_OPT_MAX_DISTANCE 1002
+#define MIM_CLI_AVATAR_LONGOPTS                                                                                        \
+    {"avatar-mesh", required_argument, 0, MIM_CLI_OPT_AVATAR_MESH},                                                    \
+    {"max-distance-mm", required_argument, 0, MIM_CLI_OPT_MAX_DISTANCE}
+#define MIM_CLI_AVATAR_HELP                                                                                            \
+    "  --avatar-mesh NAME   a glTF avatar: drive only the meshes (or nodes) of that name (repeatable;\n"             \
+    "                       default: every primitive of the scene)\n"                                                 \
+    "  --max-distance-mm MM refuse an avatar whose registration's surface distance p95 is over MM\n"                  \
+    "                       (default 15; a stylised avatar may need more)\n"
+/* Takes option c (getopt's value) when it is one of the two above: 1 when
+ * taken, -1 after a one-line error on stderr (exit 2), 0 when c is another. */
+int mim_cli_avatar_option(const char *cmd, int c, const char *arg, mim_cli_avatar_t *a);
+/* avatar may be NULL (a command without one). */
+void mim_cli_session_options(struct mim_session_options *so, const mim_cli_avatar_t *avatar);
 
 /* For --register and mimic register: the store's index (a query) and a
  * registrar over the store's connectivity that finds starting templates

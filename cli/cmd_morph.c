@@ -26,6 +26,7 @@ static void help(FILE *out)
             "                       is registered onto the store's once and bound (kept in the store)\n"
             "  --avatar-landmarks FILE  that mesh's landmarks (default: NAME.landmarks.json beside it,\n"
             "                       or a built-in map of its connectivity)\n"
+            MIM_CLI_AVATAR_HELP
             "  --keys K1,K2,...     template ids of the key poses, in order (2..%d)\n"
             "  --frames-between N   in-between poses per pair of keys (0..1000)\n"
             "  --method M           frames (default: per-vertex frames slerped, landmarks lerped,\n"
@@ -68,13 +69,14 @@ static int parse_keys(const char *text, uint64_t *keys, uint32_t *count)
 int mim_cmd_morph(int argc, char **argv)
 {
     static const struct option longopts[] = {
-        {"store", required_argument, 0, 's'},  {"avatar", required_argument, 0, 'a'}, {"avatar-landmarks", required_argument, 0, 'A'},
+        {"store", required_argument, 0, 's'},  {"avatar", required_argument, 0, 'a'}, {"avatar-landmarks", required_argument, 0, 'A'}, MIM_CLI_AVATAR_LONGOPTS,
         {"keys", required_argument, 0, 'k'},   {"frames-between", required_argument, 0, 'n'},
         {"method", required_argument, 0, 'm'}, {"landmarks", required_argument, 0, 'l'},
         {"fps", required_argument, 0, 'r'},    {"output", required_argument, 0, 'o'},
         {"json", no_argument, 0, 'j'},         {"help", no_argument, 0, 'h'}, {"drive", required_argument, 0, 'd'},
         {"relative", required_argument, 0, 'R'}, {0, 0, 0, 0}};
-    const char *store = NULL, *avatar = NULL, *avatar_lm = NULL, *keys_arg = NULL, *lm_path = NULL, *outp = NULL;
+    const char *store = NULL, *avatar = NULL, *keys_arg = NULL, *lm_path = NULL, *outp = NULL;
+    mim_cli_avatar_t av = {0};
     uint64_t between = 0, fps = 30, keys[KEYS_MAX];
     uint32_t n_keys = 0;
     int have_between = 0, as_json = 0, c, drive = MIM_DRIVE_AUTO, relative = 1;
@@ -84,7 +86,10 @@ int mim_cmd_morph(int argc, char **argv)
     while ((c = getopt_long(argc, argv, "s:a:k:n:m:l:r:o:jhd:R:", longopts, NULL)) != -1) {
         if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
-        else if (c == 'A') avatar_lm = optarg;
+        else if (c == 'A') av.landmarks = optarg;
+        else if (c == MIM_CLI_OPT_AVATAR_MESH || c == MIM_CLI_OPT_MAX_DISTANCE) {
+            if (mim_cli_avatar_option("morph", c, optarg, &av) < 0) return 2;
+        }
         else if (c == 'k') keys_arg = optarg;
         else if (c == 'l') lm_path = optarg;
         else if (c == 'o') outp = optarg;
@@ -135,7 +140,7 @@ int mim_cmd_morph(int argc, char **argv)
     mim_error_t err = {0};
     mim_session_t *s = NULL;
     mim_session_options_t so;
-    mim_cli_session_options(&so, avatar_lm);
+    mim_cli_session_options(&so, &av);
     int rc = mim_session_open(&s, store, &so, &err);
     if (rc) { /* the command cannot run (README: exit status) */
         fprintf(stderr, "mimic morph: %s\n", mim_error_text(&err));

@@ -37,6 +37,7 @@ static void help(FILE *out)
             "                       is registered onto the store's once and bound (kept in the store)\n"
             "  --avatar-landmarks FILE  that mesh's landmarks (default: NAME.landmarks.json beside it,\n"
             "                       or a built-in map of its connectivity)\n"
+            MIM_CLI_AVATAR_HELP
             "  --vest SPEC          a recording (played in real time), serial:PATH, hid:VID:PID or\n"
             "                       udp:HOST:PORT (as mimic vest replay takes)\n"
             "  --vest-pose P        the wearer's pose at the tare: rest (as the avatar), t or a\n"
@@ -168,7 +169,7 @@ int mim_cmd_serve(int argc, char **argv)
 static int run(int argc, char **argv, spec_list_t *specs)
 {
     static const struct option longopts[] = {{"store", required_argument, 0, 's'},
-                                              {"avatar", required_argument, 0, 'a'}, {"avatar-landmarks", required_argument, 0, 'A'},
+                                              {"avatar", required_argument, 0, 'a'}, {"avatar-landmarks", required_argument, 0, 'A'}, MIM_CLI_AVATAR_LONGOPTS,
                                               {"listen", required_argument, 0, 'l'},
                                               {"max-body", required_argument, 0, 'b'},
                                               {"vest", required_argument, 0, 'v'},
@@ -185,7 +186,8 @@ static int run(int argc, char **argv, spec_list_t *specs)
                                               {"sessions", required_argument, 0, 'F'},
                                               {"help", no_argument, 0, 'h'},
                                               {0, 0, 0, 0}};
-    const char *store = NULL, *avatar = NULL, *avatar_lm = NULL;
+    const char *store = NULL, *avatar = NULL;
+    mim_cli_avatar_t av = {0};
     mim_serve_options_t o = {.log = mim_cli_log};
     int c, rc = 0;
     optind = 0;
@@ -196,7 +198,10 @@ static int run(int argc, char **argv, spec_list_t *specs)
         else if (c == 'F') rc = add_spec_file(specs, optarg);
         else if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
-        else if (c == 'A') avatar_lm = optarg;
+        else if (c == 'A') av.landmarks = optarg;
+        else if (c == MIM_CLI_OPT_AVATAR_MESH || c == MIM_CLI_OPT_MAX_DISTANCE) {
+            if (mim_cli_avatar_option("serve", c, optarg, &av) < 0) return 2;
+        }
         else if (c == 'l') o.listen = optarg;
         else if (c == 'v') o.vest = optarg;
         else if (c == 'p') {
@@ -295,7 +300,7 @@ static int run(int argc, char **argv, spec_list_t *specs)
     mim_error_t err = {0};
     mim_session_t *session = NULL;
     mim_session_options_t so;
-    mim_cli_session_options(&so, avatar_lm);
+    mim_cli_session_options(&so, &av);
     rc = mim_session_open(&session, store, &so, &err);
     if (rc) { /* the command cannot run (README: exit status) */
         fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));

@@ -28,6 +28,7 @@ static void help(FILE *out)
             "                       is registered onto the store's once and bound (kept in the store)\n"
             "  --avatar-landmarks FILE  that mesh's landmarks (default: NAME.landmarks.json beside it,\n"
             "                       or a built-in map of its connectivity)\n"
+            MIM_CLI_AVATAR_HELP
             "  --template ID[,ID...] the template whose pose to take; with no --landmarks, mimic\n"
             "                       retargets its landmarks onto the avatar's proportions; several\n"
             "                       (at most %d): their frames blended with equal weights\n"
@@ -59,7 +60,7 @@ static void help(FILE *out)
 int mim_cmd_transfer(int argc, char **argv)
 {
     static const struct option longopts[] = {
-        {"store", required_argument, 0, 's'},      {"avatar", required_argument, 0, 'a'}, {"avatar-landmarks", required_argument, 0, 'A'},
+        {"store", required_argument, 0, 's'},      {"avatar", required_argument, 0, 'a'}, {"avatar-landmarks", required_argument, 0, 'A'}, MIM_CLI_AVATAR_LONGOPTS,
         {"template", required_argument, 0, 't'},   {"landmarks", required_argument, 0, 'l'},
         {"iterations", required_argument, 0, 'i'}, {"tol", required_argument, 0, 'T'},
         {"formulation", required_argument, 0, 'f'}, {"output", required_argument, 0, 'o'},
@@ -67,7 +68,8 @@ int mim_cmd_transfer(int argc, char **argv)
         {"blend", required_argument, 0, 'b'},      {"segment-correction", required_argument, 0, 'C'},
         {"relative", required_argument, 0, 'R'},
         {0, 0, 0, 0}};
-    const char *store = NULL, *avatar = NULL, *avatar_lm = NULL, *tmpl_arg = NULL, *lm_path = NULL, *outp = NULL;
+    const char *store = NULL, *avatar = NULL, *tmpl_arg = NULL, *lm_path = NULL, *outp = NULL;
+    mim_cli_avatar_t av = {0};
     uint64_t iterations = 0, blend = 0, tmpl_ids[MIM_XFER_BLEND_MAX];
     uint32_t n_tmpl = 0;
     int correction = 0, relative = 1;
@@ -80,7 +82,10 @@ int mim_cmd_transfer(int argc, char **argv)
     while ((c = getopt_long(argc, argv, "s:a:t:l:i:T:f:o:jhd:b:C:R:", longopts, NULL)) != -1) {
         if (c == 's') store = optarg;
         else if (c == 'a') avatar = optarg;
-        else if (c == 'A') avatar_lm = optarg;
+        else if (c == 'A') av.landmarks = optarg;
+        else if (c == MIM_CLI_OPT_AVATAR_MESH || c == MIM_CLI_OPT_MAX_DISTANCE) {
+            if (mim_cli_avatar_option("transfer", c, optarg, &av) < 0) return 2;
+        }
         else if (c == 't') tmpl_arg = optarg;
         else if (c == 'l') lm_path = optarg;
         else if (c == 'o') outp = optarg;
@@ -136,7 +141,7 @@ int mim_cmd_transfer(int argc, char **argv)
     mim_session_t *s = NULL;
     double t0 = mim_now();
     mim_session_options_t so;
-    mim_cli_session_options(&so, avatar_lm);
+    mim_cli_session_options(&so, &av);
     so.formulation = form;
     int rc = mim_session_open(&s, store, &so, &err);
     if (!rc && !tmpl_arg && !mim_session_query(s))

@@ -25,32 +25,89 @@ int mim_io_read_mesh(const char *path, mim_mesh_t *out, mim_error_t *err);
 /* 1 if the file name has an extension mim_io_read_mesh handles. */
 int mim_io_format_known(const char *path);
 
-/* ---- a glTF skin (read.c, read_gltf.cpp) ---- */
+/* ---- a glTF scene: its parts and its rig (read.c, gltf_scene.cpp) ---- */
+/* A glTF/GLB file is read as its whole default scene (issue 28): every
+ * primitive of every mesh a node of the scene instantiates, in the order
+ * of a depth-first walk of the scene's nodes (children in their listed
+ * order; a node's primitives in their order), each placed in the world:
+ * a skinned primitive (its node has a skin, it has JOINTS_0 and
+ * WEIGHTS_0) by its skin at the joints' current transforms (glTF 2.0
+ * 3.7.3: world(joint) * inverseBindMatrix, the node's own transform
+ * ignored), anything else by its node's world transform; node scales (a
+ * root "Armature" at 0.01 over centimetres) are applied, so the result is
+ * in the file's metres. A file whose scene instantiates no mesh reads its
+ * meshes in meshes[] order, untransformed. Vertices keep the file's split
+ * copies (UV and normal seams) and order; parts say where each primitive
+ * went. Other formats read as one part. */
 #define MIM_IO_SKIN_NAME_MAX 64
+#define MIM_IO_MAX_PARTS 4096u /* more primitives than this: MIM_EUNSUPPORTED, naming the count */
+typedef struct mim_io_part {
+    char name[MIM_IO_SKIN_NAME_MAX]; /* its mesh's name, else its node's, else "" */
+    uint32_t mesh, primitive;        /* indices into the file's meshes[] and that mesh's primitives[] */
+    int32_t node;                    /* the node that placed it; -1: none */
+    int32_t material;                /* -1: none */
+    uint32_t first_vertex, n_vertices, first_face, n_faces;
+} mim_io_part_t;
+
+/* Which parts to read: the primitives of the meshes (or nodes) with these
+ * names; n_meshes 0 (or opt NULL): all. A name that matches nothing is
+ * MIM_ENOTFOUND, listing the names there are. */
+typedef struct mim_io_read_options {
+    const char *const *meshes;
+    uint32_t n_meshes;
+} mim_io_read_options_t;
+
+/* The scene's rig, over all its skins: the union of their joints (each
+ * joint node once), and each vertex's four heaviest influences. A vertex
+ * of a primitive placed under a joint node (a sword in a hand, a hat on
+ * the head) without a skin of its own hangs on that joint alone. A vertex
+ * on no joint has weights 0. Joint names are the nodes' names, or the
+ * humanoid bone names of a VRM file (VRM 0.x "VRM", VRM 1.0 "VRMC_vrm"
+ * extensions: "leftUpperArm", ...) where it maps the node. */
 typedef struct mim_io_skin {
-    uint32_t n_vertices;   /* the first primitive's, as mim_io_read_mesh reads it */
+    uint32_t n_vertices;   /* the whole scene's, as mim_io_read_mesh reads it */
     uint32_t n_joints;     /* the skin's joints */
-    uint16_t *joints;      /* 4 * n_vertices: JOINTS_0, indices into the skin's joints */
+    uint16_t *joints;      /* 4 * n_vertices: JOINTS_0, indices into the joints */
     float *weights;        /* 4 * n_vertices: WEIGHTS_0, each vertex's normalised to sum 1 (all 0 if they were) */
-    char (*names)[MIM_IO_SKIN_NAME_MAX]; /* n_joints node names ("" for a node without one), truncated */
+    char (*names)[MIM_IO_SKIN_NAME_MAX]; /* n_joints names ("" for a node without one), truncated */
+    float *joint_positions; /* 3 * n_joints: each joint's origin in the world, as the vertices are placed */
+    int32_t *parent;        /* n_joints: the nearest ancestor that is a joint too, or -1 */
+    int from_vrm;           /* 1: names from a VRM humanoid map */
 } mim_io_skin_t;
-/* The skin of the mesh mim_io_read_mesh reads from a .gltf/.glb: the first
- * primitive's JOINTS_0 and WEIGHTS_0 and the names of its skin's joint
- * nodes. The skin is that of the first node that instantiates mesh 0 with
- * a skin, else skins[0]. JOINTS_1/WEIGHTS_1 (influences past the fourth)
- * are ignored. Names longer than MIM_IO_SKIN_NAME_MAX - 1 bytes are cut
- * at a UTF-8 character boundary.
- * Returns 0; MIM_ENOTFOUND when the file has no skin (a format other
- * than glTF/GLB, no JOINTS_0, no WEIGHTS_0, or no skin: not an error for
- * callers, who then segment by geometry); mim_io_read_mesh's errors for a file whose mesh it cannot
- * read; MIM_EFORMAT for a malformed skin, with one line naming what: a
+
+typedef struct mim_io_scene {
+    mim_mesh_t mesh;        /* every part's vertices and faces, in part order */
+    uint32_t n_parts;
+    mim_io_part_t *parts;
+    int skin_rc;            /* 0: skin holds the rig; MIM_ENOTFOUND: none; else why it could not be read */
+    char skin_msg[4352];    /* with skin_rc != 0: one line, naming the file */
+    mim_io_skin_t skin;
+} mim_io_scene_t;
+/* The scene (or, for other formats, the one mesh as one part) with its
+ * rig. The mesh gets mim_io_read_mesh's checks; the rig's failure does not
+ * fail the read (skin_rc says). opt may be NULL. Errors: mim_io_read_mesh's,
+ * MIM_ENOTFOUND for a selected name that is in no mesh or node,
+ * MIM_EUNSUPPORTED for more than MIM_IO_MAX_PARTS parts, MIM_EFORMAT for
+ * a node graph that is not a forest or a bad node transform, all naming
+ * the file. Free with mim_io_scene_free. Safe from many threads. */
+int mim_io_read_scene(const char *path, const mim_io_read_options_t *opt, mim_io_scene_t *out, mim_error_t *err);
+void mim_io_scene_free(mim_io_scene_t *s); /* accepts NULL; zeroes */
+
+/* The rig of the whole scene mim_io_read_mesh reads from a .gltf/.glb.
+ * Returns 0; MIM_ENOTFOUND when the scene has no vertex on a joint (a
+ * format other than glTF/GLB, no skinned primitive and no primitive under
+ * a joint: not an error for callers, who then segment by geometry);
+ * mim_io_read_mesh's errors for a file whose mesh it cannot read;
+ * MIM_EFORMAT for a malformed skin, with one line naming what: a
  * JOINTS_0 that is not VEC4 of unsigned byte/short, a WEIGHTS_0 not VEC4
  * of float or normalised unsigned byte/short, a count that differs from
- * POSITION's, a joint index >= n_joints, a negative or non-finite weight,
- * a skin joint that is not a valid node index, a skin without joints;
- * MIM_ETRUNCATED for skin data past the end of its buffer;
- * MIM_EUNSUPPORTED for a sparse skin accessor; MIM_ENOMEM. On failure *out is zeroed. Safe to call from many
- * threads. Free with mim_io_skin_free. */
+ * POSITION's, a joint index >= the skin's joints, a negative or
+ * non-finite weight, a skin joint that is not a valid node index, a skin
+ * without joints, inverseBindMatrices that are not MAT4 float of one per
+ * joint; MIM_ETRUNCATED for skin data past the end of its buffer;
+ * MIM_EUNSUPPORTED for a sparse skin accessor; MIM_ENOMEM. On failure
+ * *out is zeroed. Safe to call from many threads. Free with
+ * mim_io_skin_free. */
 int mim_io_read_skin(const char *path, mim_io_skin_t *out, mim_error_t *err);
 void mim_io_skin_free(mim_io_skin_t *s); /* accepts NULL; zeroes */
 

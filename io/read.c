@@ -75,10 +75,13 @@ static int validate(const char *path, int fmt, const mim__decl_t *d, mim__raw_me
 }
 
 /* The whole read of one mesh file, and of its skin when skin is not NULL
- * (glTF/GLB only: the same parse). */
-static int read_checked(const char *path, mim_mesh_t *out, mim__raw_skin_t *skin, mim_error_t *err)
+ * and of its parts when parts is not NULL (glTF/GLB only: the same parse;
+ * another format is one part). */
+static int read_checked(const char *path, const mim_io_read_options_t *opt, mim_mesh_t *out, mim__raw_skin_t *skin,
+                        mim_io_part_t **parts, uint32_t *n_parts, mim_error_t *err)
 {
     memset(out, 0, sizeof *out);
+    if (parts) *parts = NULL, *n_parts = 0;
     struct stat st;
     if (stat(path, &st) != 0)
         return mim_error_set(err, errno == ENOENT ? MIM_ENOTFOUND : -errno, "%s: cannot read: %s", path, strerror(errno));
@@ -148,18 +151,30 @@ static int read_checked(const char *path, mim_mesh_t *out, mim__raw_skin_t *skin
 
     mim__raw_mesh_t raw;
     static const char *const om_format[] = {[FMT_OFF] = "off", [FMT_PLY] = "ply", [FMT_OBJ] = "obj", [FMT_STL] = "stl"};
-    int shim_rc = (fmt == FMT_GLTF || fmt == FMT_GLB) ? mim__gltf_read(path, &raw, skin)
-                                                      : mim__openmesh_read(path, om_format[fmt], &raw);
+    const int gltf = fmt == FMT_GLTF || fmt == FMT_GLB;
+    mim_io_part_t *pv = NULL;
+    uint32_t np = 0;
+    int shim_rc = gltf ? mim__gltf_read(path, opt, &raw, skin, &pv, &np) : mim__openmesh_read(path, om_format[fmt], &raw);
     rc = validate(path, fmt, &d, &raw, shim_rc, err);
+    if (!rc && !gltf && parts) { /* one part: the whole file */
+        if (!(pv = calloc(1, sizeof *pv))) rc = mim_error_set(err, MIM_ENOMEM, "%s: out of memory while reading", path);
+        else np = 1, pv->node = pv->material = -1, pv->n_vertices = raw.mesh.n_vertices, pv->n_faces = raw.mesh.n_faces;
+    }
     if (rc) {
+        free(pv);
         mim__raw_mesh_free(&raw);
         return rc;
     }
+    if (parts) *parts = pv, *n_parts = np;
+    else free(pv);
     *out = raw.mesh; /* ownership moves to the caller */
     return 0;
 }
 
-int mim_io_read_mesh(const char *path, mim_mesh_t *out, mim_error_t *err) { return read_checked(path, out, NULL, err); }
+int mim_io_read_mesh(const char *path, mim_mesh_t *out, mim_error_t *err)
+{
+    return read_checked(path, NULL, out, NULL, NULL, NULL, err);
+}
 
 void mim_io_skin_free(mim_io_skin_t *s)
 {
@@ -167,7 +182,42 @@ void mim_io_skin_free(mim_io_skin_t *s)
     free(s->joints);
     free(s->weights);
     free(s->names);
+    free(s->joint_positions);
+    free(s->parent);
     memset(s, 0, sizeof *s);
+}
+
+void mim_io_scene_free(mim_io_scene_t *s)
+{
+    if (!s) return;
+    mim_mesh_free(&s->mesh);
+    free(s->parts);
+    mim_io_skin_free(&s->skin);
+    memset(s, 0, sizeof *s);
+}
+
+int mim_io_read_scene(const char *path, const mim_io_read_options_t *opt, mim_io_scene_t *out, mim_error_t *err)
+{
+    memset(out, 0, sizeof *out);
+    mim__raw_skin_t skin;
+    memset(&skin, 0, sizeof skin);
+    int fmt = mim__format_of(path);
+    const int gltf = fmt == FMT_GLTF || fmt == FMT_GLB;
+    int rc = read_checked(path, opt, &out->mesh, gltf ? &skin : NULL, &out->parts, &out->n_parts, err);
+    if (rc) {
+        mim_io_skin_free(&skin.skin);
+        memset(out, 0, sizeof *out);
+        return rc;
+    }
+    if (!gltf) {
+        out->skin_rc = MIM_ENOTFOUND;
+        snprintf(out->skin_msg, sizeof out->skin_msg, "%s: no skin: skins are read from glTF and GLB files only", path);
+    } else {
+        out->skin_rc = skin.rc;
+        if (skin.rc) snprintf(out->skin_msg, sizeof out->skin_msg, "%s: %s", path, skin.msg);
+        else out->skin = skin.skin; /* ownership moves */
+    }
+    return 0;
 }
 
 /* The skin comes from the same parse as the mesh, and only once the mesh
@@ -183,7 +233,7 @@ int mim_io_read_skin(const char *path, mim_io_skin_t *out, mim_error_t *err)
     mim__raw_skin_t skin;
     memset(&skin, 0, sizeof skin);
     mim_mesh_t mesh;
-    int rc = read_checked(path, &mesh, &skin, err);
+    int rc = read_checked(path, NULL, &mesh, &skin, NULL, NULL, err);
     mim_mesh_free(&mesh);
     if (!rc && skin.rc == MIM_ENOMEM) rc = mim_error_set(err, MIM_ENOMEM, "%s: out of memory while reading the skin", path);
     else if (!rc && skin.rc) rc = mim_error_set(err, skin.rc, "%s: %s", path, skin.msg);

@@ -35,12 +35,14 @@ typedef struct mim__raw_skin {
     char msg[256];      /* one line, without the path */
 } mim__raw_skin_t;
 
-/* glTF / GLB through tinygltf: the first mesh's first primitive, POSITION
- * as stored (the bind pose of a skinned mesh), triangles/strips/fans.
- * skin: NULL, or where to put that primitive's skin (read from the same
- * parse; its rc says whether it was found and well formed, whatever the
- * mesh's return code). */
-int mim__gltf_read(const char *path, mim__raw_mesh_t *out, mim__raw_skin_t *skin);
+/* glTF / GLB through tinygltf: the whole scene (mim_io.h, "a glTF
+ * scene"), triangles/strips/fans, placed in the world; parts (malloc'd,
+ * *n_parts entries) says where each primitive went. skin: NULL, or where
+ * to put the scene's rig (read from the same parse; its rc says whether
+ * it was found and well formed, whatever the mesh's return code). opt
+ * may be NULL (every mesh). */
+int mim__gltf_read(const char *path, const mim_io_read_options_t *opt, mim__raw_mesh_t *out, mim__raw_skin_t *skin,
+                   mim_io_part_t **parts, uint32_t *n_parts);
 
 #ifdef __cplusplus
 }

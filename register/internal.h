@@ -25,7 +25,10 @@ typedef struct mim__reg_surface {
 } mim__reg_surface_t;
 
 /* Opens the surface after the target check (mim_reg_target_check); with
- * check 0 the mesh is trusted (a proxy of the store's connectivity). */
+ * check 0 the mesh is trusted (a proxy of the store's connectivity); with
+ * check 2 it is an avatar of several pieces (mim_reg_options_t pieces):
+ * a body, indices in range, but any number of pieces, and an edge of more
+ * than two triangles is simply no boundary. */
 int mim__reg_surface_open(mim__reg_surface_t *s, const mim_mesh_t *m, int check, const char *origin,
                           mim_error_t *err);
 void mim__reg_surface_close(mim__reg_surface_t *s);

@@ -66,6 +66,34 @@ void mim_reg_similarity_apply(const mim_reg_similarity_t *s, const float *in, ui
  * the body check's. */
 int mim_reg_target_check(const mim_mesh_t *target, const char *origin, mim_error_t *err);
 
+/* ---- welding split vertices (weld.c) ---- */
+/* An avatar as exporters write it has its vertices split along UV and
+ * normal seams (a flat-shaded one splits every triangle): the copies sit
+ * at the same place, so the surface falls apart into pieces that are one
+ * piece. Welds vertices whose positions agree within tol metres (0:
+ * MIM_REG_WELD_TOL) into one: out gets the welded mesh (triangles whose
+ * corners merged dropped), map (n_vertices of in) the welded vertex of
+ * each input vertex. The output keeps the split copies: only registration
+ * and stretch measures use the weld. Errors: MIM_EINVAL, MIM_ENOMEM. */
+#define MIM_REG_WELD_TOL 1e-5
+int mim_reg_weld(const mim_mesh_t *in, double tol, mim_mesh_t *out, uint32_t *map, mim_error_t *err);
+
+/* ---- landmarks from a rig (rig_landmarks.c) ---- */
+/* The 16 default landmarks (mim_reg_rig_landmark_names, mim_landmarks
+ * default order) of an avatar from its rig's joints: pivots holds, per
+ * body segment (MIM_SEGMENTS, mim_segment_names order), the world
+ * position of the joint that turns it (3 doubles each), have marks the
+ * ones the rig has. rig_landmarks.c states the rule of each landmark. The
+ * head, both upper arms, forearms, hands, thighs, shins and feet are
+ * needed; missing (may be NULL) gets the names of those the rig lacks.
+ * out: 3 * 16 floats, each on a vertex of mesh. Errors: MIM_ENOLANDMARKS
+ * (a needed joint missing, no surface near one), MIM_EFORMAT (joints that
+ * make no upright body), MIM_EINVAL. */
+#define MIM_REG_RIG_LANDMARKS 16
+extern const char *const mim_reg_rig_landmark_names[MIM_REG_RIG_LANDMARKS];
+int mim_reg_rig_landmarks(const mim_mesh_t *mesh, const double *pivots, const uint8_t *have, float *out,
+                          char *missing, size_t missing_size, mim_error_t *err);
+
 /* ---- registration (register.c) ---- */
 #define MIM_REG_DEFAULT_ROUNDS 2u             /* initial shape + ICP; the second round from the first's frames */
 #define MIM_REG_DEFAULT_STAGES 5u             /* stiffness stages per round */
@@ -86,6 +114,9 @@ typedef struct mim_reg_options {
     double max_angle_deg;     /* 0: default */
     double max_distance;      /* 0: default */
     int no_icp;               /* 1: the initial shape only (the baseline the bench compares against) */
+    int pieces;               /* 1: the target may be several pieces (an avatar's body, eyes, boots, props:
+                                 issue 28), welded first (mim_reg_weld); an edge of three triangles is no
+                                 boundary. 0: one manifold piece (a scan) */
 } mim_reg_options_t;
 
 typedef struct mim_reg_report {
@@ -167,6 +198,57 @@ void mim_reg_binding_apply(const mim_reg_binding_t *b, const uint32_t *proxy_fac
 int mim_reg_binding_encode(const mim_reg_binding_t *b, void **blob, size_t *len, mim_error_t *err);
 int mim_reg_binding_decode(const void *blob, size_t len, uint32_t n_proxy_vertices, uint32_t n_proxy_faces,
                            mim_reg_binding_t *out, mim_error_t *err);
+
+/* ---- following the segments where the proxy is far (follow.c; issue 28) ---- */
+/* Where the avatar lies far from its proxy (fists against open hands,
+ * hair, boots, props), the binding alone tears it: follow.c says why. A
+ * vertex at distance d takes a share smoothstep(near, far, d) of the rigid
+ * motions of the segments under its closest proxy point (fitted to the
+ * proxy each frame); a piece whose p90 distance is over far follows one
+ * segment rigidly (its rig's, else its nearest). */
+#define MIM_REG_FOLLOW_NEAR 0.005         /* metres: closer follows the surface alone */
+#define MIM_REG_FOLLOW_FAR 0.03           /* metres: further follows the segments alone */
+#define MIM_REG_FOLLOW_MAX_FAR_SHARE 0.35 /* more of the avatar in far pieces: not one body */
+typedef struct mim_reg_follow_options {
+    double near, far;      /* 0: the defaults above */
+    double max_far_share;  /* 0: MIM_REG_FOLLOW_MAX_FAR_SHARE */
+} mim_reg_follow_options_t;
+typedef struct mim_reg_follow {
+    uint32_t n_vertices, n_proxy_vertices;
+    uint32_t n_entries;      /* the vertices that take some of the segments' motion */
+    uint32_t *vertex;        /* n_entries avatar vertices */
+    float *alpha;            /* n_entries: their share of it */
+    uint8_t (*bone)[4];      /* n_entries: segments (mim_segment_names order) */
+    float (*weight)[4];      /* n_entries: their weights, summing to 1 */
+    float *rest;             /* 3 * n_entries: their rest positions */
+    uint32_t sample_start[MIM_SEGMENTS + 1];
+    uint32_t n_samples;
+    uint32_t *samples;       /* proxy vertices each segment's motion is fitted to */
+    uint32_t pieces, far_pieces, far_vertices; /* the avatar's pieces (welded), the rigid ones, their vertices */
+} mim_reg_follow_t;
+/* Builds it from the binding b of avatar (the same vertices), the
+ * proxy's faces and its segment skin (n_proxy_vertices entries, e.g.
+ * mim_xfer_skin_from_bones over the vest's segments), and optionally the
+ * avatar's own rig's segment per vertex (rig_segment, -1: none; NULL).
+ * Errors: MIM_EINVAL, MIM_ENOMEM, MIM_ETOPOLOGY when more than
+ * max_far_share of the avatar lies in far pieces (two bodies, a body and a
+ * large scene: "N of its M vertices ... lie over F mm from the registered
+ * body"; pieces and far_* are still filled). opt may be NULL. */
+int mim_reg_follow_build(const mim_reg_binding_t *b, const uint32_t *proxy_faces, const mim_xfer_skin_t *proxy_skin,
+                         const mim_mesh_t *avatar, const int *rig_segment, const mim_reg_follow_options_t *opt,
+                         mim_reg_follow_t *out, mim_error_t *err);
+void mim_reg_follow_free(mim_reg_follow_t *f); /* accepts an empty one; empties it */
+/* Blends the segments' motion into out (the avatar's positions as
+ * mim_reg_binding_apply gave them), for the proxy going from proxy_rest
+ * to proxy_posed. Allocates nothing; thread-safe on distinct outputs. */
+void mim_reg_follow_apply(const mim_reg_follow_t *f, const float *proxy_rest, const float *proxy_posed, float *out);
+
+/* Tearing, measured (issue 28): over the triangles (faces, n_faces) of a
+ * mesh at rest and posed, the share whose longest edge stretched over
+ * limit times its rest length, and the largest stretch. Triangles with an
+ * edge of zero length at rest are not counted. */
+void mim_reg_stretch(const uint32_t *faces, uint32_t n_faces, const float *rest, const float *posed, double limit,
+                     double *share_over, double *max_ratio);
 
 /* ---- landmark maps of known connectivities, built in (known_maps.c) ---- */
 /* The built-in landmark map of the connectivity of these faces, found by

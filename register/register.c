@@ -97,7 +97,7 @@ int mim_reg_run(mim_reg_t *r, const float *tmpl, const mim_mesh_t *target, const
     int rc = mim_landmarks_check(target_landmarks, NULL, count, origin, -1, err);
     if (rc) return rc;
     mim__reg_surface_t surface;
-    if ((rc = mim__reg_surface_open(&surface, target, 1, origin, err))) return rc;
+    if ((rc = mim__reg_surface_open(&surface, target, r->opt.pieces ? 2 : 1, origin, err))) return rc;
 
     /* 1. The template's landmarks onto the target's: place, orientation, size. */
     for (uint32_t l = 0; l < count; l++)

@@ -52,7 +52,7 @@ static int edges_and_pieces(const mim_mesh_t *m, uint8_t *edge_boundary, uint8_t
         size_t j = i + 1;
         while (j < ne && e[j].a == e[i].a && e[j].b == e[i].b)
             j++;
-        if (check && j - i > 2) {
+        if (check == 1 && j - i > 2) {
             rc = mim_error_set(err, MIM_ETOPOLOGY, "%s: non-manifold: edge %u-%u is shared by %zu triangles",
                                origin, e[i].a, e[i].b, j - i);
             goto done;
@@ -63,7 +63,7 @@ static int edges_and_pieces(const mim_mesh_t *m, uint8_t *edge_boundary, uint8_t
         }
         i = j;
     }
-    if (!check)
+    if (check != 1) /* 0: trusted; 2: an avatar's pieces and shells (any edge use, any piece count) */
         goto done;
     for (uint32_t v = 0; v < m->n_vertices; v++)
         parent[v] = v;

@@ -55,7 +55,12 @@ struct mim_session {
     /* a foreign avatar (another connectivity): its own mesh, its binding to
      * the proxy, and the scratch of mapping a pose onto it (out_lock) */
     mim_mesh_t own;
+    mim_io_part_t *parts;       /* the avatar's parts over own (or mesh) */
+    uint32_t n_parts;
+    mim_io_skin_t rig;          /* a glTF avatar's rig (n_joints 0: none) */
     mim_reg_binding_t binding;
+    mim_reg_follow_t follow;    /* where it is far from the proxy, it follows the segments */
+    char bound_note[8800];      /* how a new binding was made, said once the avatar is accepted */
     int foreign;
     pthread_mutex_t out_lock;
     float *out_work;            /* 3 * n: the proxy's normals */

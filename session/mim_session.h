@@ -14,6 +14,7 @@
 
 #include "mim_core.h"
 #include "mim_db.h"
+#include "mim_io.h"
 #include "mim_query.h"
 #include "mim_transfer.h"
 
@@ -34,6 +35,13 @@ typedef struct mim_session_options {
     const char *avatar_landmarks;
     mim_log_fn log;                     /* registering and binding a foreign avatar; NULL: quiet */
     void *log_ctx;
+    /* A glTF avatar: only the primitives of the meshes (or nodes) of these
+     * names (`--avatar-mesh`, repeatable); 0: the whole scene. */
+    const char *const *avatar_meshes;
+    uint32_t n_avatar_meshes;
+    /* A foreign avatar whose registration's surface distance p95 is over
+     * this (mm) is refused; 0: MIM_INGEST_DEFAULT_MAX_DISTANCE_MM. */
+    double max_distance_mm;
 } mim_session_options_t;
 
 /* Opens store read-only with its connectivity, landmark map and index (if
@@ -84,6 +92,10 @@ const mim_mesh_t *mim_session_mesh(const mim_session_t *s);
  * output is in. The same as mim_session_mesh unless the avatar is foreign. */
 const mim_mesh_t *mim_session_output_mesh(const mim_session_t *s);
 int mim_session_maps_output(const mim_session_t *s); /* 1: a foreign avatar, outputs go through its binding */
+/* The avatar's parts (its glTF primitives, in the file's scene order; one
+ * part for other formats and template ids) over the output mesh's
+ * vertices and faces: *n gets their count. */
+const mim_io_part_t *mim_session_output_parts(const mim_session_t *s, uint32_t *n);
 /* A computed pose (3 * mim_session_mesh n floats) as the avatar's own
  * (3 * mim_session_output_mesh n floats): through the binding, or a copy.
  * Thread-safe; allocates nothing. */
@@ -102,6 +114,22 @@ int mim_session_has_avatar(const mim_session_t *s); /* 1 after a successful mim_
  * 1 when the weights are the avatar's own skin's (a skinned glTF whose
  * joint names map to the segments), 0 when made from the geometry. */
 const mim_xfer_skin_t *mim_session_skin(const mim_session_t *s, const mim_error_t **why, int *from_rig);
+
+/* ---- an avatar's rig (rig.c; issue 28) ---- */
+/* A rig whose joint names give fewer segments than this is no body rig. */
+#define MIM_SESSION_RIG_MIN_SEGMENTS 12
+/* Each body segment's pivot from a rig (its mapped joint nearest the
+ * root; mim_vest_segments_of_joints maps the names), have[] which ones,
+ * *covered how many. 0, MIM_ENOTFOUND (no joints), MIM_ENOMEM. */
+int mim_session_rig_pivots(const mim_io_skin_t *skin, double pivots[3 * MIM_SEGMENTS], uint8_t have[MIM_SEGMENTS],
+                           uint32_t *covered);
+/* The landmarks of map (each one of the 16 default names) on mesh, placed
+ * from its rig (mim_reg_rig_landmarks' rules) when the rig's joints give
+ * at least MIM_SESSION_RIG_MIN_SEGMENTS segments. how gets where they came
+ * from. Errors: MIM_ENOLANDMARKS with why (no rig, too few segments, a
+ * joint the rules need, a landmark without a rule), MIM_EFORMAT, MIM_ENOMEM. */
+int mim_session_rig_landmarks(const mim_mesh_t *mesh, const mim_io_skin_t *skin, const mim_landmark_map_t *map,
+                              float *out, char *how, size_t how_size, mim_error_t *err);
 
 /* ---- templates ---- */
 /* Template id's positions (3 * n floats) and frames (9 * n doubles); each

@@ -163,6 +163,15 @@ static int load_foreign_avatar(mim_session_t *s, const char *path, const mim_mes
     char how[4200];
     mim_error_t lm_err = {0};
     int rc = mim_ingest_foreign_landmarks(path, m, &src, &s->map, lm, how, sizeof how, &lm_err);
+    if (rc == MIM_ENOLANDMARKS && s->rig.n_joints) { /* no file, no known map: the rig places them (issue 28) */
+        mim_error_t rig_err = {0};
+        int rig_rc = mim_session_rig_landmarks(m, &s->rig, &s->map, lm, how, sizeof how, &rig_err);
+        if (!rig_rc)
+            rc = 0;
+        else
+            rc = mim_error_set(&lm_err, rig_rc, "%s; nor from its rig: %s", mim_error_text(&lm_err),
+                               mim_error_text(&rig_err));
+    }
     if (rc && !s->query) /* the index is what it needs first: without landmarks no cached binding is found either */
         return no_index(s, path, m, err);
     if (rc) return mim_error_set(err, rc, "%s", mim_error_text(&lm_err));
@@ -188,24 +197,34 @@ static int load_foreign_avatar(mim_session_t *s, const char *path, const mim_mes
     if (rc) return rc;
     if (!cached) {
         if (!s->query) return no_index(s, path, m, err);
+        /* registered onto the avatar welded (seams and flat shading split
+         * it; issue 28), all its pieces at once; bound below in its own
+         * split vertices, which coincident copies bind alike */
         mim_ingest_registrar_t *r = NULL;
         mim_reg_report_t rep;
-        if ((rc = mim_ingest_registrar_open(&r, s->db, mim_query_nearest, s->query, NULL, err)) ||
-            (rc = mim_ingest_register_mesh(r, m, lm, path, s->mesh.positions, &rep, NULL, err))) {
-            mim_ingest_registrar_close(&r);
-            return rc;
-        }
+        mim_mesh_t welded = {0};
+        uint32_t *weld_map = malloc(((size_t)m->n_vertices + 1) * sizeof *weld_map);
+        const mim_reg_options_t ro = {.pieces = 1};
+        if (!weld_map) return mim_error_set(err, MIM_ENOMEM, "%s: out of memory", path);
+        rc = mim_reg_weld(m, 0, &welded, weld_map, err);
+        free(weld_map);
+        if (!rc && !(rc = mim_ingest_registrar_open(&r, s->db, mim_query_nearest, s->query, &ro, err)))
+            rc = mim_ingest_register_mesh(r, &welded, lm, path, s->mesh.positions, &rep, NULL, err);
         mim_ingest_registrar_close(&r);
-        if (!(rep.p95_mm <= MIM_INGEST_DEFAULT_MAX_DISTANCE_MM))
+        mim_mesh_free(&welded);
+        if (rc) return rc;
+        const double limit = s->opt.max_distance_mm > 0 ? s->opt.max_distance_mm : MIM_INGEST_DEFAULT_MAX_DISTANCE_MM;
+        if (!(rep.p95_mm <= limit))
             return mim_error_set(err, MIM_ETOPOLOGY,
                                  "%s: registration too far from the avatar's surface: distance p95 %.1f mm over the "
-                                 "%g mm limit (mean %.1f mm)",
-                                 path, rep.p95_mm, MIM_INGEST_DEFAULT_MAX_DISTANCE_MM, rep.mean_mm);
+                                 "%g mm limit (mean %.1f mm; --max-distance-mm raises it)",
+                                 path, rep.p95_mm, limit, rep.mean_mm);
         if ((rc = mim_reg_bind(&s->mesh, m, &s->binding, err))) return rc;
-        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_INFO,
-                     "%s: registered onto the store's connectivity (landmarks from %s; surface distance mean %.2f mm, "
-                     "p95 %.2f mm) and bound, %.2f s",
-                     path, how, rep.mean_mm, rep.p95_mm, rep.seconds);
+        /* said once the avatar is accepted whole (follow_segments may still refuse it) */
+        snprintf(s->bound_note, sizeof s->bound_note,
+                 "%s: registered onto the store's connectivity (landmarks from %s; surface distance mean %.2f mm, "
+                 "p95 %.2f mm) and bound, %.2f s",
+                 path, how, rep.mean_mm, rep.p95_mm, rep.seconds);
         if ((rc = cache_binding(s, key, err))) return rc;
     } else {
         memcpy(s->mesh.positions, s->binding.proxy_rest, 3 * (size_t)s->mesh.n_vertices * sizeof(float));
@@ -232,8 +251,19 @@ static int load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err)
             rc = mim_body_check(s->mesh.positions, n, s->avatar, err);
     } else {
         snprintf(s->avatar, sizeof s->avatar, "%s", avatar);
-        mim_mesh_t m = {0};
-        rc = mim_io_read_mesh(avatar, &m, err);
+        mim_io_scene_t scene;
+        const mim_io_read_options_t ro = {.meshes = s->opt.avatar_meshes, .n_meshes = s->opt.n_avatar_meshes};
+        rc = mim_io_read_scene(avatar, &ro, &scene, err);
+        mim_mesh_t m = scene.mesh;
+        if (!rc) {
+            s->parts = scene.parts, s->n_parts = scene.n_parts;
+            if (scene.skin_rc == 0)
+                s->rig = scene.skin;
+            else if (scene.skin_rc != MIM_ENOTFOUND) /* no skin (a PLY) is no news; a broken one is */
+                mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN, "%s; its rig is not used", scene.skin_msg);
+            else
+                mim_io_skin_free(&scene.skin);
+        }
         if (!rc) /* an avatar must be a body (a 10 m box, not a point) before it is factored */
             rc = mim_body_check(m.positions, m.n_vertices, avatar, err);
         mim_error_t topo_err = {0};
@@ -270,15 +300,8 @@ static int load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err)
 #define MIN_RIG_SEGMENTS 12
 static void rig_weights(mim_session_t *s)
 {
-    mim_io_skin_t rig = {0};
-    mim_error_t e = {0};
-    int rc = mim_io_read_skin(s->avatar, &rig, &e);
-    if (rc) {
-        if (rc != MIM_ENOTFOUND) /* no skin (a PLY, a template id) is no news; a broken one is */
-            mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN, "%s; segmenting by the geometry instead",
-                         mim_error_text(&e));
-        return;
-    }
+    const mim_io_skin_t rig = s->rig; /* read with the avatar (load_avatar) */
+    if (!rig.n_joints) return;
     const uint32_t n = s->mesh.n_vertices, G = MIM_VEST_SEGMENTS;
     const char **names = malloc(rig.n_joints * sizeof *names);
     int *bone = malloc(rig.n_joints * sizeof *bone);
@@ -327,7 +350,6 @@ static void rig_weights(mim_session_t *s)
                      s->avatar, rig.n_joints, covered, by_geometry);
     }
     free(names), free(bone), free(dense);
-    mim_io_skin_free(&rig);
 }
 
 /* The avatar's segmentation (issue 17): bones of the vest skeleton under
@@ -357,6 +379,58 @@ static void segment_avatar(mim_session_t *s)
         mim_error_set(&s->skin_failed, rc, "%s: the avatar cannot be segmented for the orientation drive: %s",
                       s->avatar, mim_error_text(&why));
     }
+}
+
+/* Each avatar vertex's heaviest segment by its own rig (-1: none), so
+ * that a prop follows the bone its author hung it on. NULL without a rig
+ * that maps to the segments. */
+static int *rig_segments(const mim_session_t *s)
+{
+    const mim_io_skin_t *r = &s->rig;
+    if (!r->n_joints || r->n_vertices != s->own.n_vertices) return NULL;
+    const char **names = malloc(r->n_joints * sizeof *names);
+    int *seg = malloc(r->n_joints * sizeof *seg), *out = malloc(((size_t)r->n_vertices + 1) * sizeof *out);
+    if (!names || !seg || !out) {
+        free(names), free(seg), free(out);
+        return NULL;
+    }
+    for (uint32_t j = 0; j < r->n_joints; j++) names[j] = r->names[j];
+    mim_vest_segments_of_joints(names, r->n_joints, seg);
+    for (uint32_t v = 0; v < r->n_vertices; v++) {
+        float w[MIM_SEGMENTS] = {0};
+        out[v] = -1;
+        for (int k = 0; k < 4; k++) {
+            int g = seg[r->joints[4 * (size_t)v + k]];
+            if (g >= 0) w[g] += r->weights[4 * (size_t)v + k];
+        }
+        for (int g = 0; g < MIM_SEGMENTS; g++)
+            if (w[g] > 0 && (out[v] < 0 || w[g] > w[out[v]])) out[v] = g;
+    }
+    free(names), free(seg);
+    return out;
+}
+
+/* A foreign avatar far from its proxy follows the segments there
+ * (mim_reg_follow_build; issue 28: no tearing at fists, boots, props).
+ * Without a segmentation the binding alone carries it, with a warning. */
+static int follow_segments(mim_session_t *s, mim_error_t *err)
+{
+    if (!s->skin) {
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_WARN,
+                     "%s: parts far from the registered body follow its surface alone (%s)", s->avatar,
+                     mim_error_text(&s->skin_failed));
+        return 0;
+    }
+    int *rig = rig_segments(s);
+    mim_error_t e = {0};
+    int rc = mim_reg_follow_build(&s->binding, s->mesh.faces, s->skin, &s->own, rig, NULL, &s->follow, &e);
+    free(rig);
+    if (rc) return mim_error_set(err, rc, "%s: %s", s->avatar, mim_error_text(&e));
+    if (s->follow.far_pieces)
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_INFO,
+                     "%s: %u of its %u pieces lie away from the body (props, shells) and follow one segment each",
+                     s->avatar, s->follow.far_pieces, s->follow.pieces);
+    return 0;
 }
 
 static mim_session_t *session_new(const char *store, const mim_session_options_t *opt)
@@ -426,6 +500,12 @@ int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *e
             return mim_error_set(err, MIM_ENOMEM, "out of memory for %u vertices", n);
     }
     int rc = load_avatar(s, avatar, err);
+    if (!rc && !s->n_parts) { /* a template id: one part, the whole mesh */
+        const mim_mesh_t *o = mim_session_output_mesh(s);
+        if (!(s->parts = calloc(1, sizeof *s->parts))) return mim_error_set(err, MIM_ENOMEM, "out of memory");
+        *s->parts = (mim_io_part_t){.node = -1, .material = -1, .n_vertices = o->n_vertices, .n_faces = o->n_faces};
+        s->n_parts = 1;
+    }
     if (!rc) {
         mim_xfer_solver_options_t so = {.formulation = s->opt.formulation};
         double t0 = mim_now();
@@ -434,6 +514,10 @@ int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *e
     }
     if (!rc)
         segment_avatar(s);
+    if (!rc && s->foreign)
+        rc = follow_segments(s, err);
+    if (!rc && s->bound_note[0])
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_INFO, "%s", s->bound_note);
     return rc;
 }
 
@@ -450,7 +534,10 @@ void mim_session_close(mim_session_t **ps)
     }
     mim_mesh_free(&s->mesh);
     mim_mesh_free(&s->own);
+    free(s->parts);
+    mim_io_skin_free(&s->rig);
     mim_reg_binding_free(&s->binding);
+    mim_reg_follow_free(&s->follow);
     free(s->out_work);
     for (int k = 0; k < MIM_XFER_BLEND_MAX; k++)
         free(s->slot[k].pos), free(s->slot[k].F), free(s->slot[k].cF), free(s->slot[k].W), free(s->slot[k].rF);
@@ -473,6 +560,12 @@ const mim_mesh_t *mim_session_mesh(const mim_session_t *s) { return &s->mesh; }
 const mim_mesh_t *mim_session_output_mesh(const mim_session_t *s) { return s->foreign ? &s->own : &s->mesh; }
 int mim_session_maps_output(const mim_session_t *s) { return s->foreign; }
 
+const mim_io_part_t *mim_session_output_parts(const mim_session_t *s, uint32_t *n)
+{
+    *n = s->n_parts;
+    return s->parts;
+}
+
 void mim_session_output(mim_session_t *s, const float *positions, float *out)
 {
     if (!s->foreign) {
@@ -482,6 +575,7 @@ void mim_session_output(mim_session_t *s, const float *positions, float *out)
     pthread_mutex_lock(&s->out_lock);
     mim_reg_binding_apply(&s->binding, s->mesh.faces, positions, s->out_work, out);
     pthread_mutex_unlock(&s->out_lock);
+    mim_reg_follow_apply(&s->follow, s->binding.proxy_rest, positions, out);
 }
 const mim_landmark_map_t *mim_session_map(const mim_session_t *s) { return &s->map; }
 const mim_xfer_topology_t *mim_session_topology(const mim_session_t *s) { return s->topo; }
