@@ -79,7 +79,7 @@ int mim_cmd_morph(int argc, char **argv)
     mim_cli_avatar_t av = {0};
     uint64_t between = 0, fps = 30, keys[KEYS_MAX];
     uint32_t n_keys = 0;
-    int have_between = 0, as_json = 0, c, drive = MIM_DRIVE_AUTO, relative = 1;
+    int have_between = 0, as_json = 0, c, drive = MIM_DRIVE_AUTO, relative = 1, look_kept = 0;
     mim_xfer_morph_method_t method = MIM_XFER_MORPH_FRAMES;
     optind = 0;
     opterr = 0;
@@ -232,7 +232,9 @@ int mim_cmd_morph(int argc, char **argv)
             rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for %zu frames of %u vertices", n_frames, om->n_vertices);
         for (size_t f = 0; !rc && own != seq && f < n_frames; f++)
             mim_session_output(s, seq + f * 3 * n, own + f * 3 * (size_t)om->n_vertices);
-        mim_io_sequence_t sq = {.mesh = om, .n_frames = (uint32_t)n_frames, .positions = own, .fps = (double)fps};
+        mim_io_sequence_t sq = {.mesh = om, .n_frames = (uint32_t)n_frames, .positions = own, .fps = (double)fps,
+                                .look_kept = &look_kept};
+        mim_session_output_look(s, &sq); /* the avatar's parts and look (issue 28) */
         if (!rc) rc = mim_io_write_sequence_glb(outp, &sq, &err);
         if (own != seq) free(own);
     }
@@ -244,6 +246,9 @@ int mim_cmd_morph(int argc, char **argv)
                               "oriented_keys", (int)oriented_keys, "relative_keys", (int)relative_keys,
                               "frames_between", (int)between, "frames", (int)n_frames, "key_iterations",
                               (int)iterations, "seconds", t_compute);
+        uint32_t n_parts = 0;
+        mim_session_output_parts(s, &n_parts);
+        if (j) json_object_set_new(j, "parts", json_integer(n_parts)), json_object_set_new(j, "look", json_boolean(look_kept));
         char *txt = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
         if (txt) printf("%s\n", txt);
         else rc = MIM_EINVAL, fprintf(stderr, "mimic morph: cannot make the JSON report (is every path valid UTF-8?)\n");

@@ -5,6 +5,7 @@
 #include "commands.h"
 #include "mim_serve.h"
 #include "mim_vest.h"
+#include "mim_vest_kinematics.h"
 #include "output.h"
 
 #include <getopt.h>
@@ -310,6 +311,16 @@ static int run(int argc, char **argv, spec_list_t *specs)
         fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
         mim_session_close(&session);
         return rc == MIM_ENOINDEX ? 2 : 1;
+    }
+    if (avatar && o.vest && o.vest_pose == MIM_VEST_POSE_REST) { /* issue 28: say what a tare in another pose needs */
+        double deg = 0;
+        int pose = mim_session_rest_pose(session, &deg);
+        if (pose == MIM_VEST_POSE_T || pose == MIM_VEST_POSE_A)
+            fprintf(stderr,
+                    "mimic serve: %s stands in %s (upper arms %.0f degrees below the horizontal): --vest-pose rest "
+                    "takes the wearer at the tare to stand so; a wearer tared in %s needs --vest-pose %s\n",
+                    avatar, pose == MIM_VEST_POSE_T ? "a T-pose" : "an A-pose", deg,
+                    pose == MIM_VEST_POSE_T ? "an A-pose" : "a T-pose", pose == MIM_VEST_POSE_T ? "a" : "t");
     }
     mim_serve_t *sv = NULL;
     if (mim_serve_open(&sv, session, &o, &err)) { /* the vest or the address */

@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 static void help(FILE *out)
 {
@@ -74,7 +75,7 @@ int mim_cmd_transfer(int argc, char **argv)
     uint32_t n_tmpl = 0;
     int correction = 0, relative = 1;
     double tol = 0.0;
-    int as_json = 0, c;
+    int as_json = 0, c, look_kept = 0;
     mim_xfer_formulation_t form = MIM_XFER_LEAST_SQUARES;
     optind = 0;
     opterr = 0;
@@ -181,10 +182,19 @@ int mim_cmd_transfer(int argc, char **argv)
         if (!rc) {
             mim_session_output(s, out, own);
             mim_mesh_t m = {om->n_vertices, om->n_faces, own, om->faces};
-            rc = mim_io_write_mesh(outp, &m, &err);
+            size_t ol = strlen(outp);
+            if (ol >= 4 && !strcasecmp(outp + ol - 4, ".glb")) { /* the avatar's parts and look (issue 28) */
+                mim_io_sequence_t sq = {.mesh = &m, .n_frames = 1, .positions = own, .look_kept = &look_kept};
+                mim_session_output_look(s, &sq);
+                rc = mim_io_write_sequence_glb(outp, &sq, &err);
+            } else {
+                rc = mim_io_write_mesh(outp, &m, &err);
+            }
         }
         if (own != out) free(own);
     }
+    uint32_t n_parts = 0;
+    if (!rc) mim_session_output_parts(s, &n_parts);
     /* load: the store, the avatar and the template; factor: the avatar's Cholesky factor */
     const double t_load = t_open - t_factor + rep.seconds_query + rep.seconds_template, t_solve = rep.seconds_solve;
     if (rc) {
@@ -209,6 +219,8 @@ int mim_cmd_transfer(int argc, char **argv)
             for (uint32_t k = 0; rep.relative && k < rep.n_templates; k++)
                 json_array_append_new(refs, json_integer((json_int_t)rep.references[k]));
             json_object_set_new(j, "relative", json_boolean(rep.relative));
+            json_object_set_new(j, "parts", json_integer(n_parts));
+            json_object_set_new(j, "look", json_boolean(look_kept));
             json_object_set_new(j, "frames_turned", json_integer(rep.frames_turned));
             json_object_set_new(j, "reference",
                                 rep.relative ? json_integer((json_int_t)rep.reference_id) : json_null());

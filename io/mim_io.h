@@ -164,8 +164,31 @@ typedef struct mim_io_sequence {
     const double *times;        /* NULL: i / fps */
     double fps;                 /* used when times is NULL; 0 means 30 */
     const char *const *names;   /* optional frame names */
+    /* An avatar's parts (mim_io_read_scene; issue 28): each becomes a mesh
+     * and a node of its own, with its vertices in order, and every node
+     * gets the same weights animation; n_parts 0: one part, the mesh. The
+     * parts must cover the vertices and faces in order, each face inside
+     * its part (MIM_EINVAL, naming the part). Normals are then shared by
+     * a vertex's coincident copies wherever they bend less than 30 degrees
+     * apart: seams stay smooth, hard edges (flat shading) hard. */
+    const mim_io_part_t *parts;
+    uint32_t n_parts;
+    /* The glTF/GLB the parts were read from (as look_read says): the
+     * output keeps its materials, textures (images embedded), samplers
+     * and each part's TEXCOORD_n and COLOR_n (as floats), and so looks as
+     * the author made it. The rig and morph targets are not kept (the
+     * poses are baked). A look that cannot be had (another format, a file
+     * gone or changed, an image that cannot be embedded) leaves the output
+     * plain: *look_kept (may be NULL) says which. NULL: plain. */
+    const char *look;
+    const mim_io_read_options_t *look_read;
+    int *look_kept;
 } mim_io_sequence_t;
 int mim_io_write_sequence_glb(const char *path, const mim_io_sequence_t *seq, mim_error_t *err);
+/* The same GLB in memory: *data (malloc'd, the caller frees) and *size;
+ * origin names it in messages. */
+int mim_io_encode_sequence_glb(const mim_io_sequence_t *seq, const char *origin, unsigned char **data, size_t *size,
+                               mim_error_t *err);
 
 #ifdef __cplusplus
 }

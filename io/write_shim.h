@@ -6,6 +6,7 @@
 #define MIM_IO_WRITE_SHIM_H
 
 #include "mim_core.h"
+#include "mim_io.h"
 
 #include <stddef.h>
 #include <stdint.h>
@@ -45,6 +46,16 @@ typedef struct mim__gltf_frames {
     const float *normals;
     const float *times;
     const char *const *names;
+    /* The mesh's parts (issue 28): each becomes a mesh and a node of its
+     * own, its vertices and faces in order. NULL: one part, the whole mesh. */
+    const mim_io_part_t *parts;
+    uint32_t n_parts;
+    /* The file the parts were read from (read as look_read says), whose
+     * materials, textures (images embedded) and the parts' other vertex
+     * attributes (TEXCOORD_n, COLOR_n) the output keeps; NULL: none. */
+    const char *look;
+    const mim_io_read_options_t *look_read;
+    int *look_kept; /* may be NULL: set to 1 when the look went in */
 } mim__gltf_frames_t;
 int mim__gltf_encode(const mim__gltf_frames_t *in, mim__bytes_t *out, char *msg, size_t msg_size);
 

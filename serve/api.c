@@ -87,10 +87,41 @@ int mim__api_avatar(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
         json_array_append_new(pos, json_real(m->positions[i]));
     for (size_t i = 0; faces && i < 3 * (size_t)m->n_faces; i++)
         json_array_append_new(faces, json_integer(m->faces[i]));
-    json_t *j = json_pack("{s:s, s:s, s:i, s:i, s:o, s:o}", "session", vs->name, "avatar", mim_session_avatar(vs->s),
-                          "vertices", (int)m->n_vertices, "faces", (int)m->n_faces, "positions", pos, "indices", faces);
+    /* its parts (issue 28): each glTF primitive's range of the vertices and
+     * faces, which every frame keeps; the textured GLB at /api/avatar.glb */
+    uint32_t np = 0;
+    const mim_io_part_t *pt = mim_session_output_parts(vs->s, &np);
+    json_t *parts = json_array();
+    for (uint32_t k = 0; parts && k < np; k++)
+        json_array_append_new(parts, json_pack("{s:s, s:i, s:i, s:i, s:i, s:i}", "name", pt[k].name, "first_vertex",
+                                               (int)pt[k].first_vertex, "vertices", (int)pt[k].n_vertices,
+                                               "first_face", (int)pt[k].first_face, "faces", (int)pt[k].n_faces,
+                                               "material", (int)pt[k].material));
+    json_t *j = json_pack("{s:s, s:s, s:i, s:i, s:o, s:o, s:o, s:s}", "session", vs->name, "avatar",
+                          mim_session_avatar(vs->s), "vertices", (int)m->n_vertices, "faces", (int)m->n_faces,
+                          "positions", pos, "indices", faces, "parts", parts, "glb", "/api/avatar.glb");
     mim__vs_release(vs);
     return mim__reply_json(rp, 200, j);
+}
+
+/* The avatar at rest as a GLB in its own parts and look (materials,
+ * textures, UVs: issue 28), for a viewer that shows it as its author made
+ * it and then moves its vertices with each frame. */
+int mim__api_avatar_glb(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
+{
+    int status = 0;
+    mim__vs_t *vs = request_session(sv, rq, rp, &status);
+    if (!vs)
+        return status;
+    mim_io_sequence_t sq = {.mesh = vs->out_mesh, .n_frames = 1, .positions = vs->out_mesh->positions};
+    mim_session_output_look(vs->s, &sq);
+    unsigned char *glb = NULL;
+    size_t glen = 0;
+    mim_error_t err = {0};
+    int rc = mim_io_encode_sequence_glb(&sq, "avatar", &glb, &glen, &err);
+    mim__vs_release(vs);
+    if (rc) return mim__reply_error(rp, 500, "%s", mim_error_text(&err));
+    return mim__reply_take(rp, 200, "model/gltf-binary", glb, glen);
 }
 
 /* k from the query string (?k=N, 1..1000), else 1. 0 if malformed. */
@@ -238,7 +269,9 @@ int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *r
         mim__metrics_add(&sv->m, MIM__C_TRANSFERS, 1);
         mim_session_output(vs->s, out, own); /* in the avatar's own connectivity */
         mim_mesh_t m = {n_own, vs->out_mesh->n_faces, own, vs->out_mesh->faces};
-        rc = mim_io_encode_glb(&m, "transfer", &glb, &glen, &err);
+        mim_io_sequence_t sq = {.mesh = &m, .n_frames = 1, .positions = own};
+        mim_session_output_look(vs->s, &sq); /* its parts and look (issue 28) */
+        rc = mim_io_encode_sequence_glb(&sq, "transfer", &glb, &glen, &err);
         if (rc && status_of(rc) == 400)
             rc = MIM_EIO; /* an encoder failure is ours, not the client's */
     }

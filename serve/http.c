@@ -93,6 +93,7 @@ static const struct route {
 } routes[] = {
     {"/api/status", "GET", M_GET, MIM__R_STATUS, mim__api_status, 0, 0},
     {"/api/avatar", "GET", M_GET, MIM__R_AVATAR, mim__api_avatar, 1, 0},
+    {"/api/avatar.glb", "GET", M_GET, MIM__R_AVATAR, mim__api_avatar_glb, 1, 0},
     {"/api/query", "POST", M_POST, MIM__R_QUERY, mim__api_query, 1, 0},
     {"/api/transfer", "POST", M_POST, MIM__R_TRANSFER, mim__api_transfer, 1, 0},
     {"/metrics", "GET", M_GET, MIM__R_METRICS, mim__api_metrics, 0, 0},

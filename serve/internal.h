@@ -124,6 +124,7 @@ void mim__printable(const char *s, size_t len, char *out, size_t n);
 typedef int (*mim__handler_t)(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
 int mim__api_status(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
 int mim__api_avatar(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
+int mim__api_avatar_glb(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
 int mim__api_query(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
 int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);
 int mim__api_metrics(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp);

@@ -58,8 +58,13 @@ struct mim_session {
     mim_io_part_t *parts;       /* the avatar's parts over own (or mesh) */
     uint32_t n_parts;
     mim_io_skin_t rig;          /* a glTF avatar's rig (n_joints 0: none) */
+    mim_io_read_options_t read_opt; /* how the avatar's file was read (its meshes: the caller's options') */
+    int read_opt_set;           /* the avatar is a file */
     mim_reg_binding_t binding;
     mim_reg_follow_t follow;    /* where it is far from the proxy, it follows the segments */
+    int turned;                 /* it faces another way: registered and bound as canon = turn own */
+    double turn[9];
+    mim_mesh_t canon;
     char bound_note[8800];      /* how a new binding was made, said once the avatar is accepted */
     int foreign;
     pthread_mutex_t out_lock;

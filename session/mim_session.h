@@ -96,6 +96,10 @@ int mim_session_maps_output(const mim_session_t *s); /* 1: a foreign avatar, out
  * part for other formats and template ids) over the output mesh's
  * vertices and faces: *n gets their count. */
 const mim_io_part_t *mim_session_output_parts(const mim_session_t *s, uint32_t *n);
+/* Sets seq's parts and look (mim_io_sequence_t) to the avatar's: its
+ * primitives, and its file with the read options it was loaded with, so
+ * that a GLB of its poses keeps its materials and textures. */
+void mim_session_output_look(const mim_session_t *s, mim_io_sequence_t *seq);
 /* A computed pose (3 * mim_session_mesh n floats) as the avatar's own
  * (3 * mim_session_output_mesh n floats): through the binding, or a copy.
  * Thread-safe; allocates nothing. */
@@ -130,6 +134,16 @@ int mim_session_rig_pivots(const mim_io_skin_t *skin, double pivots[3 * MIM_SEGM
  * joint the rules need, a landmark without a rule), MIM_EFORMAT, MIM_ENOMEM. */
 int mim_session_rig_landmarks(const mim_mesh_t *mesh, const mim_io_skin_t *skin, const mim_landmark_map_t *map,
                               float *out, char *how, size_t how_size, mim_error_t *err);
+
+/* How the avatar stands at rest (issue 28), from its landmark skeleton:
+ * the upper arms' mean angle below the horizontal (+Y up) into *arm_deg,
+ * and MIM_VEST_POSE_T (under MIM_SESSION_T_POSE_MAX_DEG), MIM_VEST_POSE_A
+ * (under MIM_SESSION_A_POSE_MAX_DEG) or MIM_VEST_POSE_REST (arms down);
+ * -1 without the shoulder and elbow landmarks or an avatar. A vest tared in
+ * another pose than the avatar's rest needs --vest-pose to say which. */
+#define MIM_SESSION_T_POSE_MAX_DEG 20.0
+#define MIM_SESSION_A_POSE_MAX_DEG 65.0
+int mim_session_rest_pose(const mim_session_t *s, double *arm_deg);
 
 /* ---- templates ---- */
 /* Template id's positions (3 * n floats) and frames (9 * n doubles); each

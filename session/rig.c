@@ -7,6 +7,7 @@
 
 #include "mim_vest_kinematics.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -31,10 +32,18 @@ int mim_session_rig_pivots(const mim_io_skin_t *skin, double pivots[3 * MIM_SEGM
         depth[j] = d;
     }
     *covered = mim_vest_segments_of_joints(names, skin->n_joints, seg);
+    /* The segment's pivot: its joint nearest the root; but the head turns
+     * about the head joint, not the neck's base (which maps to the head
+     * segment too), and a head's end or top is no pivot at all. */
     uint32_t best[MIM_SEGMENTS];
     for (uint32_t j = 0; j < skin->n_joints; j++) {
         int g = seg[j];
-        if (g < 0 || (have[g] && depth[j] >= best[g])) continue; /* the segment's pivot: its joint nearest the root */
+        if (g == MIM_VEST_HEAD) {
+            const char *n = names[j];
+            int head = strcasestr(n, "head") && !strcasestr(n, "end") && !strcasestr(n, "top");
+            if (!head) continue;
+        }
+        if (g < 0 || (have[g] && depth[j] >= best[g])) continue;
         have[g] = 1, best[g] = depth[j];
         for (int c = 0; c < 3; c++) pivots[3 * g + c] = skin->joint_positions[3 * (size_t)j + c];
     }
@@ -74,4 +83,26 @@ int mim_session_rig_landmarks(const mim_mesh_t *mesh, const mim_io_skin_t *skin,
         snprintf(how, how_size, "its rig (%u joints on %u of the 17 segments%s)", skin->n_joints, covered,
                  skin->from_vrm ? ", VRM humanoid names" : "");
     return 0;
+}
+
+int mim_session_rest_pose(const mim_session_t *s, double *arm_deg)
+{
+    *arm_deg = NAN;
+    int at[4] = {-1, -1, -1, -1};
+    static const char *const want[4] = {"l_shoulder", "l_elbow", "r_shoulder", "r_elbow"};
+    for (uint32_t l = 0; l < s->map.count; l++)
+        for (int k = 0; k < 4; k++)
+            if (!strcmp(s->map.names[l], want[k])) at[k] = (int)s->map.vertex[l];
+    if (!s->mesh.positions || at[0] < 0 || at[1] < 0 || at[2] < 0 || at[3] < 0) return -1;
+    double sum = 0;
+    for (int side = 0; side < 2; side++) { /* each upper arm's angle below the horizontal (+Y up) */
+        const float *a = s->mesh.positions + 3 * (size_t)at[2 * side], *b = s->mesh.positions + 3 * (size_t)at[2 * side + 1];
+        double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        if (!(len > 0)) return -1;
+        sum += asin(fmax(-1, fmin(1, -d[1] / len))) * 180 / M_PI;
+    }
+    *arm_deg = sum / 2;
+    return *arm_deg < MIM_SESSION_T_POSE_MAX_DEG ? MIM_VEST_POSE_T
+           : *arm_deg < MIM_SESSION_A_POSE_MAX_DEG ? MIM_VEST_POSE_A
+                                                   : MIM_VEST_POSE_REST;
 }

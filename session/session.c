@@ -152,6 +152,44 @@ static int no_index(const mim_session_t *s, const char *path, const mim_mesh_t *
                          path, m->n_vertices, s->mesh.n_vertices, s->store);
 }
 
+/* An avatar that faces another way than the store's bodies (+Y up,
+ * facing +Z, its own left +X; a VRM 0.x model faces -Z) is driven turned
+ * into that frame, and its outputs are turned back: the templates' and a
+ * vest's poses are in that frame. From its landmarks: up from the hips to
+ * the shoulders, left from the right ones to the left. Returns 1 and
+ * fills R (canonical = R p, row-major) when it is more than 60 degrees off. */
+static int facing_turn(const mim_landmark_map_t *map, const float *lm, double R[9])
+{
+    int at[4] = {-1, -1, -1, -1};
+    static const char *const want[4] = {"l_shoulder", "r_shoulder", "l_hip", "r_hip"};
+    for (uint32_t l = 0; l < map->count; l++)
+        for (int k = 0; k < 4; k++)
+            if (!strcmp(map->names[l], want[k])) at[k] = (int)l;
+    if (at[0] < 0 || at[1] < 0 || at[2] < 0 || at[3] < 0) return 0;
+    mim_vec3 p[4];
+    for (int k = 0; k < 4; k++) p[k] = mim_v3(lm[3 * at[k]], lm[3 * at[k] + 1], lm[3 * at[k] + 2]);
+    mim_vec3 U = mim_v3_normalize(mim_v3_sub(mim_v3_add(p[0], p[1]), mim_v3_add(p[2], p[3])));
+    mim_vec3 L = mim_v3_add(mim_v3_sub(p[0], p[1]), mim_v3_sub(p[2], p[3]));
+    L = mim_v3_normalize(mim_v3_sub(L, mim_v3_scale(U, mim_v3_dot(L, U))));
+    mim_vec3 F = mim_v3_cross(L, U);
+    if (!(mim_v3_norm(L) > 0.5) || !(mim_v3_norm(U) > 0.5) || (F.z >= 0.5 && U.y >= 0.5)) return 0;
+    const mim_vec3 rows[3] = {L, U, F};
+    for (int r = 0; r < 3; r++) R[3 * r] = rows[r].x, R[3 * r + 1] = rows[r].y, R[3 * r + 2] = rows[r].z;
+    return 1;
+}
+
+static void turn_points(const double R[9], int transpose, const float *in, uint32_t n, float *out)
+{
+    for (uint32_t i = 0; i < n; i++) {
+        const double x = in[3 * (size_t)i], y = in[3 * (size_t)i + 1], z = in[3 * (size_t)i + 2];
+        for (int r = 0; r < 3; r++) {
+            const double *row = transpose ? NULL : R + 3 * r;
+            out[3 * (size_t)i + r] = transpose ? (float)(R[r] * x + R[3 + r] * y + R[6 + r] * z)
+                                               : (float)(row[0] * x + row[1] * y + row[2] * z);
+        }
+    }
+}
+
 /* A foreign avatar m: its binding from the store's cache, or registered
  * now (issue 13: landmarks as for any foreign mesh, the nearest template
  * through the index, then bound and cached). Fills s->binding and the
@@ -176,6 +214,18 @@ static int load_foreign_avatar(mim_session_t *s, const char *path, const mim_mes
         return no_index(s, path, m, err);
     if (rc) return mim_error_set(err, rc, "%s", mim_error_text(&lm_err));
     uint64_t key = binding_key(s, m, lm);
+    if (facing_turn(&s->map, lm, s->turn)) { /* registered, bound and followed turned (facing_turn) */
+        if (mim_mesh_alloc(&s->canon, m->n_vertices, m->n_faces))
+            return mim_error_set(err, MIM_ENOMEM, "%s: out of memory", path);
+        memcpy(s->canon.faces, m->faces, 3 * (size_t)m->n_faces * sizeof *m->faces);
+        turn_points(s->turn, 0, m->positions, m->n_vertices, s->canon.positions);
+        turn_points(s->turn, 0, lm, s->map.count, lm);
+        s->turned = 1;
+        m = &s->canon;
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_INFO,
+                     "%s: it faces another way than the store's bodies (+Y up, facing +Z): driven turned, output "
+                     "as it stands", path);
+    }
     mim_db_txn_t *t = NULL;
     const void *blob;
     size_t len;
@@ -252,8 +302,9 @@ static int load_avatar(mim_session_t *s, const char *avatar, mim_error_t *err)
     } else {
         snprintf(s->avatar, sizeof s->avatar, "%s", avatar);
         mim_io_scene_t scene;
-        const mim_io_read_options_t ro = {.meshes = s->opt.avatar_meshes, .n_meshes = s->opt.n_avatar_meshes};
-        rc = mim_io_read_scene(avatar, &ro, &scene, err);
+        s->read_opt = (mim_io_read_options_t){.meshes = s->opt.avatar_meshes, .n_meshes = s->opt.n_avatar_meshes};
+        s->read_opt_set = 1;
+        rc = mim_io_read_scene(avatar, &s->read_opt, &scene, err);
         mim_mesh_t m = scene.mesh;
         if (!rc) {
             s->parts = scene.parts, s->n_parts = scene.n_parts;
@@ -423,7 +474,8 @@ static int follow_segments(mim_session_t *s, mim_error_t *err)
     }
     int *rig = rig_segments(s);
     mim_error_t e = {0};
-    int rc = mim_reg_follow_build(&s->binding, s->mesh.faces, s->skin, &s->own, rig, NULL, &s->follow, &e);
+    int rc = mim_reg_follow_build(&s->binding, s->mesh.faces, s->skin, s->turned ? &s->canon : &s->own, rig, NULL,
+                                  &s->follow, &e);
     free(rig);
     if (rc) return mim_error_set(err, rc, "%s: %s", s->avatar, mim_error_text(&e));
     if (s->follow.far_pieces)
@@ -534,6 +586,7 @@ void mim_session_close(mim_session_t **ps)
     }
     mim_mesh_free(&s->mesh);
     mim_mesh_free(&s->own);
+    mim_mesh_free(&s->canon);
     free(s->parts);
     mim_io_skin_free(&s->rig);
     mim_reg_binding_free(&s->binding);
@@ -566,6 +619,13 @@ const mim_io_part_t *mim_session_output_parts(const mim_session_t *s, uint32_t *
     return s->parts;
 }
 
+void mim_session_output_look(const mim_session_t *s, mim_io_sequence_t *seq)
+{
+    seq->parts = s->parts, seq->n_parts = s->n_parts;
+    seq->look = s->read_opt_set ? s->avatar : NULL; /* a file, not a template id */
+    seq->look_read = &s->read_opt;
+}
+
 void mim_session_output(mim_session_t *s, const float *positions, float *out)
 {
     if (!s->foreign) {
@@ -576,6 +636,7 @@ void mim_session_output(mim_session_t *s, const float *positions, float *out)
     mim_reg_binding_apply(&s->binding, s->mesh.faces, positions, s->out_work, out);
     pthread_mutex_unlock(&s->out_lock);
     mim_reg_follow_apply(&s->follow, s->binding.proxy_rest, positions, out);
+    if (s->turned) turn_points(s->turn, 1, out, s->own.n_vertices, out); /* as the avatar stands */
 }
 const mim_landmark_map_t *mim_session_map(const mim_session_t *s) { return &s->map; }
 const mim_xfer_topology_t *mim_session_topology(const mim_session_t *s) { return s->topo; }
