@@ -17,6 +17,7 @@ int mim_cmd_morph(int argc, char **argv);
 int mim_cmd_serve(int argc, char **argv);
 int mim_cmd_demo(int argc, char **argv);
 int mim_cmd_register(int argc, char **argv);
+int mim_cmd_landmarks(int argc, char **argv);
 int mim_cmd_pairs(int argc, char **argv);
 int mim_cmd_complete(int argc, char **argv);
 int mim_cmd_pairs_sample(int argc, char **argv);    /* mimic pairs sample */

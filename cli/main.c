@@ -17,6 +17,7 @@ static const struct {
     {"list", mim_cmd_list, "list the templates of a store"},
     {"index", mim_cmd_index, "build the pose recognition index of a store"},
     {"register", mim_cmd_register, "register a mesh of another connectivity onto the store's"},
+    {"landmarks", mim_cmd_landmarks, "the landmarks mimic would use for a mesh, and the built-in maps"},
     {"query", mim_cmd_query, "find the nearest-pose templates of landmark frames"},
     {"transfer", mim_cmd_transfer, "deform an avatar into a template's pose and/or landmarks"},
     {"morph", mim_cmd_morph, "key poses and the poses between them, as a GLB animation"},

@@ -94,3 +94,7 @@ int mim_reg_known_map(const uint32_t *faces, uint32_t n_faces, uint32_t n_vertic
     }
     return 0;
 }
+
+uint32_t mim_reg_known_map_count(void) { return mim__known_map_count; }
+const char *mim_reg_known_map_name(uint32_t i) { return i < mim__known_map_count ? mim__known_map_names[i] : NULL; }
+const char *mim_reg_known_map_text(uint32_t i) { return i < mim__known_map_count ? mim__known_map_texts[i] : NULL; }

@@ -258,6 +258,12 @@ void mim_reg_stretch(const uint32_t *faces, uint32_t n_faces, const float *rest,
  * name, the map's file name, if not NULL) when known, 0 when not. */
 int mim_reg_known_map(const uint32_t *faces, uint32_t n_faces, uint32_t n_vertices, mim_landmark_map_t *map,
                       const char **name);
+/* The built-in maps, for listing and export: how many, each one's file
+ * name ("smpl-6890.json") and its text (a landmark map file with
+ * "topology_vertices" and "faces_sha256"). NULL past the end. */
+uint32_t mim_reg_known_map_count(void);
+const char *mim_reg_known_map_name(uint32_t i);
+const char *mim_reg_known_map_text(uint32_t i);
 /* The SHA-256 of the faces as above, as 64 lowercase hex digits and a NUL. */
 void mim_reg_faces_sha256(const uint32_t *faces, uint32_t n_faces, char hex[65]);
 

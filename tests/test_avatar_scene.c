@@ -429,12 +429,68 @@ static void test_bad_avatars(void **state)
     free(out), free(e), free(p), free(fp), free(outp);
 }
 
+/* mimic landmarks show: where each landmark came from; the built-in maps
+ * listed and exported; a mesh without any source gets one line. */
+static void test_landmarks_command(void **state)
+{
+    (void)state;
+    ra_avatar_info_t info;
+    ra_options_t o = {.names = RA_NAMES_VRM1, .split_seams = 1, .vertices = 7000};
+    char *p = make_avatar("show.glb", o, &info), *svg = ts_path(dir, "show.svg");
+    const char *args[] = {"landmarks", "show", p, "--json", "--svg", svg, NULL};
+    char *out = NULL, *e = NULL;
+    if (ts_run_mimic(&out, &e, args)) fail_msg("mimic landmarks show: %s", e);
+    json_error_t je;
+    json_t *j = json_loads(out, 0, &je);
+    assert_non_null(j);
+    assert_string_equal(json_string_value(json_object_get(j, "source")), "rig");
+    assert_non_null(strstr(json_string_value(json_object_get(j, "from")), "VRM humanoid names"));
+    json_t *lms = json_object_get(j, "landmarks");
+    assert_int_equal(json_array_size(lms), 16);
+    /* the same positions the library places, each on a vertex */
+    for (size_t l = 0; l < 16; l++) {
+        json_t *pos = json_object_get(json_array_get(lms, l), "position");
+        double d = 0;
+        for (int c = 0; c < 3; c++) d += pow(json_real_value(json_array_get(pos, c)) - info.landmarks[3 * l + c], 2);
+        assert_true(sqrt(d) < 0.015);
+        assert_true(json_real_value(json_object_get(json_array_get(lms, l), "vertex_distance_m")) < 1e-6);
+    }
+    json_decref(j);
+    free(out), free(e);
+    size_t len = 0;
+    char *pic = ts_read_file(svg, &len);
+    assert_non_null(pic);
+    assert_non_null(strstr(pic, "<svg"));
+    assert_non_null(strstr(pic, ">l_wrist<"));
+    free(pic);
+    /* the built-in SMPL map, exported, is a landmark map file */
+    char *smpl = ts_path(dir, "smpl.json");
+    const char *exp[] = {"landmarks", "export", "smpl-6890.json", "-o", smpl, NULL};
+    if (ts_run_mimic(&out, &e, exp)) fail_msg("mimic landmarks export: %s", e);
+    free(out), free(e);
+    mim_landmark_map_t m;
+    mim_error_t err = {0};
+    assert_int_equal(mim_landmarks_read(&m, smpl, &err), 0);
+    assert_int_equal(m.topology_vertices, 6890);
+    assert_int_equal(m.count, 16);
+    /* nothing to place them from: one line naming the file */
+    ra_avatar_info_t i2;
+    ra_options_t none = {.names = RA_NAMES_NONE, .split_seams = 1};
+    char *np = make_avatar("show-none.glb", none, &i2);
+    const char *bad[] = {"landmarks", "show", np, NULL};
+    assert_int_equal(ts_run_mimic(&out, &e, bad), 1);
+    assert_non_null(strstr(e, "show-none.glb"));
+    assert_int_equal(strchr(e, '\n') - e + 1, (long)strlen(e));
+    free(out), free(e), free(np), free(smpl), free(svg), free(p);
+    ra_info_free(&info), ra_info_free(&i2);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_all),          cmocka_unit_test(test_vrm0_flat), cmocka_unit_test(test_vrm1_blender_tpose),
         cmocka_unit_test(test_rig_landmarks), cmocka_unit_test(test_morph),     cmocka_unit_test(test_mesh_selection),
-        cmocka_unit_test(test_bad_avatars),
+        cmocka_unit_test(test_bad_avatars),  cmocka_unit_test(test_landmarks_command),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -29,7 +29,8 @@ SCHEMAS = {s["$id"]: s for s in map(load, ["info.schema.json", "list.schema.json
                                             "pairs-coverage.schema.json", "complete.schema.json", "register.schema.json",
                                             "pairs-templates.schema.json", "pairs-sample.schema.json",
                                             "store-copy.schema.json", "serve-session.schema.json",
-                                            "serve-session-request.schema.json", "serve-sessions.schema.json"])}
+                                            "serve-session-request.schema.json", "serve-sessions.schema.json",
+                                            "landmarks-show.schema.json"])}
 
 
 def validator(schema_id):
@@ -461,6 +462,9 @@ def main():
             ("/mimic/schemas/list.schema.json", json.loads(run("list", "--store", store, "--json")), "list"),
             ("/mimic/schemas/list.schema.json", json.loads(run("list", "--store", store, "--pose", "9", "--json")), "list (none)"),
             ("/mimic/schemas/landmarks.schema.json", landmarks, "synth landmarks.json"),
+            ("/mimic/schemas/landmarks-show.schema.json",
+             json.loads(run("landmarks", "show", os.path.join(data, "synth_s00_p00.ply"), "--landmarks",
+                            os.path.join(data, "landmarks.json"), "--json")), "landmarks show (a file)"),
         ]
         check_cases = store_check_cases(d, store, data)
         cases += check_cases
