@@ -636,7 +636,16 @@ int read_scene(const char *path, const mim_io_read_options_t *opt, mim__raw_mesh
         auto h = vrm.find(node);
         if (h != vrm.end()) o->from_vrm = 1;
         copy_name(o->names[j], h != vrm.end() ? h->second : m.nodes[size_t(node)].name);
-        for (int c = 0; c < 3; c++) o->joint_positions[3 * j + uint32_t(c)] = float(world[size_t(node)][size_t(12 + c)]);
+        for (int c = 0; c < 3; c++) {
+            const float x = float(world[size_t(node)][size_t(12 + c)]);
+            if (!std::isfinite(x)) // transforms whose product overflows: no rig to place anything from
+                return skin_fail_nothrow(skin, MIM_EFORMAT,
+                                         ("joint " + std::to_string(j) + " ('" + m.nodes[size_t(node)].name +
+                                          "') lies at a non-finite position: its nodes' transforms overflow")
+                                             .c_str()),
+                       0;
+            o->joint_positions[3 * j + uint32_t(c)] = x;
+        }
         int a = parent[size_t(node)];
         while (a >= 0 && !node_joint.count(a)) a = parent[size_t(a)];
         o->parent[j] = a >= 0 ? int32_t(node_joint[a]) : -1;
