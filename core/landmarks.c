@@ -17,6 +17,8 @@ const char *const mim_segment_names[MIM_SEGMENTS] = {
     "pelvis",     "chest",       "head",       "l_shoulder", "r_shoulder", "l_upperarm",
     "r_upperarm", "l_forearm",   "r_forearm",  "l_hand",     "r_hand",     "l_thigh",
     "r_thigh",    "l_shin",      "r_shin",     "l_foot",     "r_foot"};
+static const int segment_parent[MIM_SEGMENTS] = {-1, 0, 1, 1, 1, 3, 4, 5, 6, 7, 8, 0, 0, 11, 12, 13, 14};
+int mim_segment_parent(uint32_t s) { return s < MIM_SEGMENTS ? segment_parent[s] : -1; }
 static const uint32_t default_mirror[MIM_LANDMARKS_DEFAULT_COUNT] = {0,  1,  2,  4,  3,  6,  5,  8,
                                                                      7,  10, 9,  12, 11, 14, 13, 15};
 

@@ -122,6 +122,9 @@ extern const char *const mim_landmark_default_names[MIM_LANDMARKS_DEFAULT_COUNT]
  * keyed by these names. */
 #define MIM_SEGMENTS 17
 extern const char *const mim_segment_names[MIM_SEGMENTS];
+/* A segment's parent in the body's tree (parents have lower ids); -1 for
+ * the pelvis and out of range. */
+int mim_segment_parent(uint32_t s);
 /* The index of the landmark called name in map, or -1. */
 int mim_landmarks_find(const mim_landmark_map_t *map, const char *name);
 /* Fills the 16 default names and their mirror table with the given vertices. */

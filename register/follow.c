@@ -11,12 +11,19 @@
  * linear blend skinning instead: the rigid motions of the segments under
  * its closest point (the proxy's segment weights there), each fitted
  * every frame to the proxy's own vertices of that segment (least squares,
- * the polar factor of their cross-covariance). A piece of the avatar that
+ * the polar factor of their cross-covariance). The hands follow their
+ * segment so always (in the measure of the hand's weight, so the wrist
+ * blends): the vest does not track fingers, and a hand registered onto
+ * another hand (fists onto open hands, fingers onto the wrong fingers)
+ * leaves the proxy's fingers folded, which a transfer turns wildly. Where
+ * registration crushed the proxy elsewhere (mim_reg_crushed), the avatar
+ * follows the segments as much as the crush. A piece of the avatar that
  * lies mostly far from the proxy (p90 of its distances over `far`: a
  * sword, a hat, a prop) follows one segment rigidly: the segment its rig
  * gives it, else the one under its nearest vertex. */
 #include "mim_register.h"
 
+#include <lapacke.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -62,6 +69,8 @@ int mim_reg_follow_build(const mim_reg_binding_t *b, const uint32_t *proxy_faces
     const double near = opt && opt->near > 0 ? opt->near : MIM_REG_FOLLOW_NEAR;
     const double far = opt && opt->far > near ? opt->far : fmax(near * 2, MIM_REG_FOLLOW_FAR);
     const double max_far_share = opt && opt->max_far_share > 0 ? opt->max_far_share : MIM_REG_FOLLOW_MAX_FAR_SHARE;
+    const uint32_t rigid_mask = opt && opt->rigid ? (opt->rigid == MIM_REG_FOLLOW_RIGID_NONE ? 0 : opt->rigid)
+                                                  : MIM_REG_FOLLOW_RIGID_DEFAULT;
     const uint32_t n = avatar->n_vertices, np = b->n_proxy_vertices, G = MIM_SEGMENTS;
     float *dist = malloc((size_t)n * sizeof *dist), *segw = calloc((size_t)n * G, sizeof *segw);
     uint32_t *wmap = malloc((size_t)n * sizeof *wmap), *parent = NULL, *piece_start = NULL, *piece_v = NULL;
@@ -69,9 +78,16 @@ int mim_reg_follow_build(const mim_reg_binding_t *b, const uint32_t *proxy_faces
     mim_mesh_t welded = {0};
     int rc = dist && segw && wmap ? 0 : mim_error_set(err, MIM_ENOMEM, "follow: out of memory");
 
+    /* how crushed the proxy is where each avatar vertex is bound */
+    const float *unreliable = opt ? opt->crush : NULL;
+    float *bad = !rc && unreliable ? calloc((size_t)n + 1, sizeof *bad) : NULL;
+    if (unreliable && !bad) rc = mim_error_set(err, MIM_ENOMEM, "follow: out of memory");
     /* each vertex's distance from the proxy and the segment weights under its closest point */
     for (uint32_t e = 0; !rc && e < n; e++) {
         const uint32_t v = b->vertex[e], *fv = proxy_faces + 3 * (size_t)b->face[e];
+        if (bad)
+            bad[v] = (1 - b->bary[2 * e] - b->bary[2 * e + 1]) * unreliable[fv[0]] + b->bary[2 * e] * unreliable[fv[1]] +
+                     b->bary[2 * e + 1] * unreliable[fv[2]];
         const float *o = b->offset + 3 * (size_t)e, u = b->bary[2 * e], w = b->bary[2 * e + 1];
         dist[v] = sqrtf(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
         const float share[3] = {1 - u - w, u, w};
@@ -141,6 +157,22 @@ int mim_reg_follow_build(const mim_reg_binding_t *b, const uint32_t *proxy_faces
             uint32_t v = piece_v[k];
             one_bone[v] = bone;
             alpha_all[v] = bone >= 0 ? 1.0f : (float)smoothstep(near, far, dist[v]);
+            if (bad && bad[v] > alpha_all[v]) alpha_all[v] = bad[v];
+            /* the rigid segments (the hands): as much as their weight here, fading across the wrist */
+            int rigid = -1; /* the heaviest rigid segment here */
+            for (uint32_t g = 0; g < G; g++)
+                if ((rigid_mask & (1u << g)) && segw[(size_t)v * G + g] > 0 &&
+                    (rigid < 0 || segw[(size_t)v * G + g] > segw[(size_t)v * G + (uint32_t)rigid]))
+                    rigid = (int)g;
+            const float rigid_w = rigid >= 0 ? segw[(size_t)v * G + (uint32_t)rigid] : 0;
+            if (bone < 0 && rigid_w > alpha_all[v]) {
+                /* that segment's own motion, blended with the surface's, not with its neighbours': a toe
+                 * weighted to the foot and the shin (or, by a careless rig, the other foot) would
+                 * collapse between their turns */
+                alpha_all[v] = fminf(rigid_w, 1.0f);
+                for (uint32_t g = 0; g < G; g++)
+                    if (g != (uint32_t)rigid) segw[(size_t)v * G + g] = 0;
+            }
         }
     }
     out->pieces = pieces, out->far_pieces = far_pieces, out->far_vertices = far_vertices;
@@ -190,16 +222,18 @@ int mim_reg_follow_build(const mim_reg_binding_t *b, const uint32_t *proxy_faces
     for (uint32_t g = 0; !rc && g < G; g++) {
         uint32_t count = 0;
         for (uint32_t i = 0; i < np; i++)
-            count += proxy_skin[i].bone[0] == g && proxy_skin[i].weight[0] >= SEGMENT_SAMPLE_WEIGHT;
+            count += proxy_skin[i].bone[0] == g && proxy_skin[i].weight[0] >= SEGMENT_SAMPLE_WEIGHT &&
+                     !(unreliable && unreliable[i] > 0);
         uint32_t stride = count > SAMPLES_PER_SEGMENT ? (count + SAMPLES_PER_SEGMENT - 1) / SAMPLES_PER_SEGMENT : 1, k = 0;
         out->sample_start[g] = out->n_samples;
         for (uint32_t i = 0; i < np && out->n_samples - out->sample_start[g] < SAMPLES_PER_SEGMENT; i++)
-            if (proxy_skin[i].bone[0] == g && proxy_skin[i].weight[0] >= SEGMENT_SAMPLE_WEIGHT && k++ % stride == 0)
+            if (proxy_skin[i].bone[0] == g && proxy_skin[i].weight[0] >= SEGMENT_SAMPLE_WEIGHT &&
+                !(unreliable && unreliable[i] > 0) && k++ % stride == 0)
                 out->samples[out->n_samples++] = i;
     }
     out->sample_start[G] = out->n_samples;
     out->n_proxy_vertices = np;
-    free(alpha_all), free(one_bone);
+    free(alpha_all), free(one_bone), free(bad);
     free(dist), free(segw), free(wmap), free(parent), free(piece_start), free(piece_v), free(piece_d);
     mim_mesh_free(&welded);
     if (rc) {
@@ -210,31 +244,31 @@ int mim_reg_follow_build(const mim_reg_binding_t *b, const uint32_t *proxy_faces
     return rc;
 }
 
-/* The rotation nearest to M (its polar factor; Newton's iteration
- * X <- (X + X^-T) / 2, which converges quadratically from M / |M|).
- * Returns 0 when M is singular or a reflection: no rotation fits. */
-static int polar(const double M[9], double R[9])
+/* The rotation R (row-major) that best takes the rest samples onto the
+ * posed ones, from H = sum (y - cy)(x - cx)^T (row-major): Horn's
+ * quaternion method (1987), the unit eigenvector of the largest eigenvalue
+ * of a symmetric 4x4, which stays a rotation when the samples are near a
+ * plane or a line (a hand's few samples), where a polar decomposition
+ * degenerates. 0 when the eigen solver fails. */
+static int best_rotation(const double H[9], double R[9])
 {
-    double X[9], n2 = 0;
-    for (int k = 0; k < 9; k++) n2 += M[k] * M[k];
-    if (!(n2 > 0)) return 0;
-    for (int k = 0; k < 9; k++) X[k] = M[k] / sqrt(n2 / 3);
-    for (int it = 0; it < 20; it++) {
-        /* X^-T = cofactor(X) / det(X), row-major */
-        double C[9] = {X[4] * X[8] - X[5] * X[7], X[5] * X[6] - X[3] * X[8], X[3] * X[7] - X[4] * X[6],
-                       X[2] * X[7] - X[1] * X[8], X[0] * X[8] - X[2] * X[6], X[1] * X[6] - X[0] * X[7],
-                       X[1] * X[5] - X[2] * X[4], X[2] * X[3] - X[0] * X[5], X[0] * X[4] - X[1] * X[3]};
-        double det = X[0] * C[0] + X[1] * C[1] + X[2] * C[2];
-        if (!(det > 1e-12)) return 0;
-        double change = 0;
-        for (int k = 0; k < 9; k++) {
-            double y = 0.5 * (X[k] + C[k] / det);
-            change += fabs(y - X[k]);
-            X[k] = y;
-        }
-        if (change < 1e-12) break;
-    }
-    memcpy(R, X, sizeof X);
+    /* S[a][b] = sum x_a y_b = H[b][a] */
+    const double Sxx = H[0], Sxy = H[3], Sxz = H[6], Syx = H[1], Syy = H[4], Syz = H[7], Szx = H[2], Szy = H[5],
+                 Szz = H[8];
+    double N[16] = {Sxx + Syy + Szz, Syz - Szy,        Szx - Sxz,        Sxy - Syx,
+                    Syz - Szy,       Sxx - Syy - Szz,  Sxy + Syx,        Szx + Sxz,
+                    Szx - Sxz,       Sxy + Syx,        -Sxx + Syy - Szz, Syz + Szy,
+                    Sxy - Syx,       Szx + Sxz,        Syz + Szy,        -Sxx - Syy + Szz};
+    double ev[4];
+    if (LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', 4, N, 4, ev) != 0) return 0;
+    /* ascending eigenvalues: the last column is the largest's vector */
+    double w = N[3], x = N[7], y = N[11], z = N[15], l = sqrt(w * w + x * x + y * y + z * z);
+    if (!(l > 0)) return 0;
+    w /= l, x /= l, y /= l, z /= l;
+    const double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - z * w),     2 * (x * z + y * w),
+                         2 * (x * y + z * w),     1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+                         2 * (x * z - y * w),     2 * (y * z + x * w),     1 - 2 * (x * x + y * y)};
+    memcpy(R, r, sizeof r);
     return 1;
 }
 
@@ -255,10 +289,17 @@ void mim_reg_follow_apply(const mim_reg_follow_t *f, const float *proxy_rest, co
             for (int r = 0; r < 3; r++)
                 for (int c = 0; c < 3; c++) H[3 * r + c] += (y[r] - cp[g][r]) * (x[c] - cr[g][c]);
         }
-        if (z - a < 4 || !polar(H, R[g])) { /* too few samples to fit: it stays as it is */
-            memset(R[g], 0, sizeof R[g]);
-            R[g][0] = R[g][4] = R[g][8] = 1;
-            if (z == a) memset(cr[g], 0, sizeof cr[g]), memset(cp[g], 0, sizeof cp[g]);
+        if (z - a < 4 || !best_rotation(H, R[g])) { /* too few samples to fit (a hand all crushed): its parent's motion */
+            const int up = mim_segment_parent(g); /* parents come first: already fitted */
+            if (up >= 0) {
+                memcpy(R[g], R[up], sizeof R[g]);
+                memcpy(cr[g], cr[up], sizeof cr[g]);
+                memcpy(cp[g], cp[up], sizeof cp[g]);
+            } else {
+                memset(R[g], 0, sizeof R[g]);
+                R[g][0] = R[g][4] = R[g][8] = 1;
+                if (z == a) memset(cr[g], 0, sizeof cr[g]), memset(cp[g], 0, sizeof cp[g]);
+            }
         }
     }
     for (uint32_t e = 0; e < f->n_entries; e++) {
@@ -301,4 +342,40 @@ void mim_reg_stretch(const uint32_t *faces, uint32_t n_faces, const float *rest,
     }
     *share_over = counted ? (double)over / (double)counted : 0;
     *max_ratio = worst;
+}
+
+static double tri_area(const float *x, const uint32_t *t)
+{
+    const float *a = x + 3 * (size_t)t[0], *b = x + 3 * (size_t)t[1], *c = x + 3 * (size_t)t[2];
+    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+    return 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+}
+
+uint32_t mim_reg_crushed(const uint32_t *faces, uint32_t n_faces, uint32_t n_vertices, const float *proxy,
+                         const float *tmpl, double scale, float *crush)
+{
+    memset(crush, 0, (size_t)n_vertices * sizeof *crush);
+    if (!(scale > 0) || !isfinite(scale)) scale = 1;
+    for (uint32_t f = 0; f < n_faces; f++) {
+        const uint32_t *t = faces + 3 * (size_t)f;
+        const double at = tri_area(tmpl, t) * scale * scale, ap = tri_area(proxy, t);
+        if (!(at > 0)) continue;
+        const double off = ap > 0 ? fabs(log(ap / at)) : INFINITY;
+        const float c = (float)smoothstep(MIM_REG_CRUSH_FROM, MIM_REG_CRUSH_TO, isfinite(off) ? off : 1e9);
+        for (int k = 0; k < 3; k++)
+            if (c > crush[t[k]]) crush[t[k]] = c;
+    }
+    /* fading out ring by ring: each pass lets a vertex take its neighbour's less one step */
+    const float step = 1.0f / (MIM_REG_CRUSH_RINGS + 1);
+    for (uint32_t ring = 0; ring < MIM_REG_CRUSH_RINGS; ring++)
+        for (uint32_t f = 0; f < n_faces; f++) {
+            const uint32_t *t = faces + 3 * (size_t)f;
+            float m = fmaxf(crush[t[0]], fmaxf(crush[t[1]], crush[t[2]])) - step;
+            for (int k = 0; k < 3; k++)
+                if (m > crush[t[k]]) crush[t[k]] = m;
+        }
+    uint32_t count = 0;
+    for (uint32_t i = 0; i < n_vertices; i++) count += crush[i] > 0;
+    return count;
 }

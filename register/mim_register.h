@@ -212,7 +212,18 @@ int mim_reg_binding_decode(const void *blob, size_t len, uint32_t n_proxy_vertic
 typedef struct mim_reg_follow_options {
     double near, far;      /* 0: the defaults above */
     double max_far_share;  /* 0: MIM_REG_FOLLOW_MAX_FAR_SHARE */
+    /* How crushed each proxy vertex is (n_proxy_vertices, 0..1;
+     * mim_reg_crushed; NULL: not at all): an avatar vertex follows the
+     * segments at least as much as the crush at its closest point, and no
+     * segment's motion is fitted to a crushed vertex. */
+    const float *crush;
+    /* Segments (bit g: mim_segment_names[g]) whose vertices follow them
+     * rigidly in the measure of their weight; 0: MIM_REG_FOLLOW_RIGID_DEFAULT
+     * (the hands); MIM_REG_FOLLOW_RIGID_NONE: none. */
+    uint32_t rigid;
 } mim_reg_follow_options_t;
+#define MIM_REG_FOLLOW_RIGID_DEFAULT ((1u << 2) | (1u << 9) | (1u << 10) | (1u << 15) | (1u << 16)) /* head, hands, feet */
+#define MIM_REG_FOLLOW_RIGID_NONE (1u << 31)
 typedef struct mim_reg_follow {
     uint32_t n_vertices, n_proxy_vertices;
     uint32_t n_entries;      /* the vertices that take some of the segments' motion */
@@ -242,6 +253,22 @@ void mim_reg_follow_free(mim_reg_follow_t *f); /* accepts an empty one; empties 
  * mim_reg_binding_apply gave them), for the proxy going from proxy_rest
  * to proxy_posed. Allocates nothing; thread-safe on distinct outputs. */
 void mim_reg_follow_apply(const mim_reg_follow_t *f, const float *proxy_rest, const float *proxy_posed, float *out);
+
+/* Where registration crushed the proxy (fingers of an open hand pressed
+ * into a fist, folds at the face): how far each proxy vertex is from a
+ * surface that moves smoothly, in [0, 1] (n_vertices floats into crush).
+ * A triangle whose area against the same triangle of the template the
+ * registration started from (times scale^2, the similarity's) is off by a
+ * factor r counts smoothstep(MIM_REG_CRUSH_FROM, MIM_REG_CRUSH_TO, |ln r|);
+ * a vertex takes its worst triangle's, then fades out over
+ * MIM_REG_CRUSH_RINGS rings around, so that what follows from it changes
+ * smoothly over the surface. Such a region's frames turn wildly in a
+ * transfer. Returns the number of vertices with crush > 0. */
+#define MIM_REG_CRUSH_FROM 1.05 /* |ln r|: areas within 2.9x of the template's are fine */
+#define MIM_REG_CRUSH_TO 1.9    /* 6.7x off: crushed */
+#define MIM_REG_CRUSH_RINGS 3u
+uint32_t mim_reg_crushed(const uint32_t *faces, uint32_t n_faces, uint32_t n_vertices, const float *proxy,
+                         const float *tmpl, double scale, float *crush);
 
 /* Tearing, measured (issue 28): over the triangles (faces, n_faces) of a
  * mesh at rest and posed, the share whose longest edge stretched over

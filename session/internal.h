@@ -62,6 +62,7 @@ struct mim_session {
     int read_opt_set;           /* the avatar is a file */
     mim_reg_binding_t binding;
     mim_reg_follow_t follow;    /* where it is far from the proxy, it follows the segments */
+    float *crushed;             /* how crushed registration left each proxy vertex (NULL: none known) */
     int turned;                 /* it faces another way: registered and bound as canon = turn own */
     double turn[9];
     mim_mesh_t canon;

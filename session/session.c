@@ -190,6 +190,31 @@ static void turn_points(const double R[9], int transpose, const float *in, uint3
     }
 }
 
+/* The proxy's vertices that registration crushed (mim_reg_crushed): its
+ * triangles against the template registration started from, the index's
+ * nearest to the landmarks as the registrar finds it, so that a binding
+ * from the cache gets the same flags. NULL without an index or that
+ * template (then nothing is flagged). */
+static float *proxy_crushed(mim_session_t *s, const float *lm)
+{
+    const uint32_t n = s->mesh.n_vertices, count = s->map.count;
+    uint64_t id = 0;
+    mim_error_t e = {0};
+    if (!s->query || mim_query_nearest(s->query, lm, &id, &e)) return NULL;
+    float *t = malloc(3 * (size_t)n * sizeof *t), tl[3 * MIM_LANDMARKS_MAX];
+    float *flags = malloc(((size_t)n + 1) * sizeof *flags);
+    if (!t || !flags || mim_session_template(s, id, t, NULL, NULL, 0, &e)) {
+        free(t), free(flags);
+        return NULL;
+    }
+    for (uint32_t l = 0; l < count; l++) memcpy(tl + 3 * l, t + 3 * (size_t)s->map.vertex[l], 3 * sizeof(float));
+    mim_reg_similarity_t sim;
+    if (mim_reg_similarity_fit(tl, lm, count, &sim, &e)) sim.scale = 1;
+    mim_reg_crushed(s->mesh.faces, s->mesh.n_faces, n, s->binding.proxy_rest, t, sim.scale, flags);
+    free(t);
+    return flags;
+}
+
 /* A foreign avatar m: its binding from the store's cache, or registered
  * now (issue 13: landmarks as for any foreign mesh, the nearest template
  * through the index, then bound and cached). Fills s->binding and the
@@ -279,6 +304,7 @@ static int load_foreign_avatar(mim_session_t *s, const char *path, const mim_mes
     } else {
         memcpy(s->mesh.positions, s->binding.proxy_rest, 3 * (size_t)s->mesh.n_vertices * sizeof(float));
     }
+    s->crushed = proxy_crushed(s, lm);
     s->out_work = malloc(3 * (size_t)s->mesh.n_vertices * sizeof *s->out_work);
     if (!s->out_work) return mim_error_set(err, MIM_ENOMEM, "out of memory");
     s->foreign = 1;
@@ -474,7 +500,8 @@ static int follow_segments(mim_session_t *s, mim_error_t *err)
     }
     int *rig = rig_segments(s);
     mim_error_t e = {0};
-    int rc = mim_reg_follow_build(&s->binding, s->mesh.faces, s->skin, s->turned ? &s->canon : &s->own, rig, NULL,
+    const mim_reg_follow_options_t fo = {.crush = s->crushed};
+    int rc = mim_reg_follow_build(&s->binding, s->mesh.faces, s->skin, s->turned ? &s->canon : &s->own, rig, &fo,
                                   &s->follow, &e);
     free(rig);
     if (rc) return mim_error_set(err, rc, "%s: %s", s->avatar, mim_error_text(&e));
@@ -591,6 +618,7 @@ void mim_session_close(mim_session_t **ps)
     mim_io_skin_free(&s->rig);
     mim_reg_binding_free(&s->binding);
     mim_reg_follow_free(&s->follow);
+    free(s->crushed);
     free(s->out_work);
     for (int k = 0; k < MIM_XFER_BLEND_MAX; k++)
         free(s->slot[k].pos), free(s->slot[k].F), free(s->slot[k].cF), free(s->slot[k].W), free(s->slot[k].rF);

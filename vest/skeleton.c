@@ -15,10 +15,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const int seg_parent[MIM_VEST_SEGMENTS] = {-1, 0, 1, 1, 1, 3, 4, 5, 6, 7, 8, 0, 0, 11, 12, 13, 14};
-
 const char *mim_vest_segment_name(uint32_t s) { return s < MIM_VEST_SEGMENTS ? mim_segment_names[s] : NULL; }
-int mim_vest_segment_parent(uint32_t s) { return s < MIM_VEST_SEGMENTS ? seg_parent[s] : -1; }
+int mim_vest_segment_parent(uint32_t s) { return mim_segment_parent(s); }
 
 enum { HEAD, CHEST, PELVIS, LSH, RSH, LEL, REL, LWR, RWR, LHIP, RHIP, LKN, RKN, LAN, RAN, SPINE, NDEF };
 
