@@ -77,6 +77,11 @@ int mim_reg_target_check(const mim_mesh_t *target, const char *origin, mim_error
  * and stretch measures use the weld. Errors: MIM_EINVAL, MIM_ENOMEM. */
 #define MIM_REG_WELD_TOL 1e-5
 int mim_reg_weld(const mim_mesh_t *in, double tol, mim_mesh_t *out, uint32_t *map, mim_error_t *err);
+/* The connected pieces of a mesh (faces in range: the caller's check), or
+ * MIM_ENOMEM. An avatar of more pieces than MIM_REG_MAX_PIECES once welded
+ * is no body mimic drives (a scene of loose triangles, a particle cloud). */
+#define MIM_REG_MAX_PIECES 4096
+int64_t mim_reg_pieces(const mim_mesh_t *m);
 
 /* ---- landmarks from a rig (rig_landmarks.c) ---- */
 /* The 16 default landmarks (mim_reg_rig_landmark_names, mim_landmarks

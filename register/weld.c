@@ -77,3 +77,25 @@ int mim_reg_weld(const mim_mesh_t *in, double tol, mim_mesh_t *out, uint32_t *ma
     free(c);
     return 0;
 }
+
+static uint32_t root_of(uint32_t *p, uint32_t x)
+{
+    while (p[x] != x) x = p[x] = p[p[x]];
+    return x;
+}
+
+int64_t mim_reg_pieces(const mim_mesh_t *m)
+{
+    uint32_t *p = malloc(((size_t)m->n_vertices + 1) * sizeof *p);
+    if (!p) return MIM_ENOMEM;
+    for (uint32_t i = 0; i < m->n_vertices; i++) p[i] = i;
+    for (uint32_t f = 0; f < m->n_faces; f++)
+        for (int k = 1; k < 3; k++) {
+            uint32_t a = root_of(p, m->faces[3 * (size_t)f]), b = root_of(p, m->faces[3 * (size_t)f + k]);
+            if (a != b) p[a] = b;
+        }
+    int64_t n = 0;
+    for (uint32_t i = 0; i < m->n_vertices; i++) n += root_of(p, i) == i;
+    free(p);
+    return n;
+}

@@ -283,6 +283,13 @@ static int load_foreign_avatar(mim_session_t *s, const char *path, const mim_mes
         if (!weld_map) return mim_error_set(err, MIM_ENOMEM, "%s: out of memory", path);
         rc = mim_reg_weld(m, 0, &welded, weld_map, err);
         free(weld_map);
+        int64_t pieces = rc ? 0 : mim_reg_pieces(&welded);
+        if (!rc && pieces > MIM_REG_MAX_PIECES)
+            rc = mim_error_set(err, MIM_ETOPOLOGY,
+                               "%s: %lld pieces once its seams are welded, more than the %d mimic drives as one body",
+                               path, (long long)pieces, MIM_REG_MAX_PIECES);
+        else if (!rc && pieces < 0)
+            rc = mim_error_set(err, (int)pieces, "%s: out of memory", path);
         if (!rc && !(rc = mim_ingest_registrar_open(&r, s->db, mim_query_nearest, s->query, &ro, err)))
             rc = mim_ingest_register_mesh(r, &welded, lm, path, s->mesh.positions, &rep, NULL, err);
         mim_ingest_registrar_close(&r);

@@ -426,7 +426,44 @@ static void test_bad_avatars(void **state)
     assert_non_null(strstr(e, "tight.glb"));
     assert_non_null(strstr(e, "--max-distance-mm"));
     assert_null(fopen(outp, "rb"));
-    free(out), free(e), free(p), free(fp), free(outp);
+    free(out), free(e);
+    /* 5000 loose triangles where a body would be, with landmarks: no body, one line */
+    mim_mesh_t cloud = {0};
+    assert_int_equal(mim_mesh_alloc(&cloud, 3 * 5000, 5000), 0);
+    uint64_t rng = 12345;
+    for (uint32_t t = 0; t < 5000; t++) {
+        float c[3];
+        for (int k = 0; k < 3; k++) rng = rng * 6364136223846793005ull + 1442695040888963407ull, c[k] = (float)((rng >> 40) % 1000) / 1000.0f;
+        c[0] = 0.5f * c[0] - 0.25f, c[1] = 1.7f * c[1], c[2] = 0.3f * c[2] - 0.15f;
+        for (int k = 0; k < 3; k++) {
+            float *q = cloud.positions + 9 * (size_t)t + 3 * k;
+            q[0] = c[0] + (k == 1) * 0.01f, q[1] = c[1] + (k == 2) * 0.01f, q[2] = c[2];
+            cloud.faces[3 * t + k] = 3 * t + (uint32_t)k;
+        }
+    }
+    char *cp = ts_path(dir, "cloud.ply"), *clm = ts_path(dir, "cloud.landmarks.json");
+    mim_error_t err = {0};
+    assert_int_equal(mim_io_write_mesh(cp, &cloud, &err), 0);
+    mim_mesh_free(&cloud);
+    ra_avatar_info_t li;
+    ra_options_t lo = {.names = RA_NAMES_NONE};
+    char *lp = make_avatar("cloud-source.glb", lo, &li);
+    FILE *lf = fopen(clm, "w");
+    fprintf(lf, "{\"landmarks\": [");
+    for (int l = 0; l < 16; l++)
+        fprintf(lf, "%s[%.6f, %.6f, %.6f]", l ? ", " : "", li.landmarks[3 * l], li.landmarks[3 * l + 1], li.landmarks[3 * l + 2]);
+    fprintf(lf, "]}\n");
+    fclose(lf);
+    ra_info_free(&li);
+    const char *cargs[] = {"transfer", "--store", store, "--avatar", cp, "--template", "15", "-o", outp, NULL};
+    assert_int_equal(ts_run_mimic(&out, &e, cargs), 1);
+    print_message("%s", e);
+    assert_non_null(strstr(e, "cloud.ply"));
+    assert_non_null(strstr(e, "pieces once its seams are welded"));
+    assert_int_equal(strchr(e, '\n') - e + 1, (long)strlen(e));
+    assert_null(fopen(outp, "rb"));
+    free(out), free(e), free(cp), free(clm), free(lp);
+    free(p), free(fp), free(outp);
 }
 
 /* mimic landmarks show: where each landmark came from; the built-in maps
