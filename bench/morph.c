@@ -82,7 +82,7 @@ static int run(const bench_dataset_t *d)
                 mim_xfer_frames(topo, xb, F);
                 mim_xfer_frames_to_quats(n, F, qb);
                 mim_xfer_encode(topo, xb, F, Wb);
-                mim_xfer_key_t ka = {xa, qa, Wa, ua}, kb = {xb, qb, Wb, ub};
+                mim_xfer_key_t ka = {xa, qa, Wa, ua, NULL}, kb = {xb, qb, Wb, ub, NULL};
                 for (uint32_t k = 0; k < c; k++)
                     for (int e = 0; e < 3; e++) {
                         ua[3 * k + e] = xa[3 * (size_t)d->map.vertex[k] + e];

@@ -29,8 +29,9 @@ static void help(FILE *out)
             MIM_CLI_AVATAR_HELP
             "  --keys K1,K2,...     template ids of the key poses, in order (2..%d)\n"
             "  --frames-between N   in-between poses per pair of keys (0..1000)\n"
-            "  --method M           frames (default: per-vertex frames slerped, landmarks lerped,\n"
-            "                       one solve each; about half the shrinking) or linear (positions, the paper's)\n"
+            "  --method M           frames (default: per-vertex frames slerped, the landmarks along\n"
+            "                       the skeleton, one solve each: no limb shrinks) or linear (positions,\n"
+            "                       the paper's)\n"
             "  --landmarks FILE     one landmark frame per key ({\"frames\": [...]}); without it each\n"
             "                       key's landmarks are retargeted from its template\n"
             "  --drive D            auto (default: where the landmark frames carry \"orientations\",\n"
@@ -202,9 +203,9 @@ int mim_cmd_morph(int argc, char **argv)
     }
     for (uint32_t k = 0; k + 1 < n_keys && !rc; k++) {
         mim_xfer_key_t a = {kpos + (size_t)k * 3 * n, kq + (size_t)k * 4 * n, kW + (size_t)k * 3 * n,
-                            klm + (size_t)k * 3 * nl};
+                            klm + (size_t)k * 3 * nl, NULL};
         mim_xfer_key_t b = {kpos + (size_t)(k + 1) * 3 * n, kq + (size_t)(k + 1) * 4 * n,
-                            kW + (size_t)(k + 1) * 3 * n, klm + (size_t)(k + 1) * 3 * nl};
+                            kW + (size_t)(k + 1) * 3 * n, klm + (size_t)(k + 1) * 3 * nl, NULL};
         size_t f0 = (size_t)k * (between + 1);
         memcpy(seq + f0 * 3 * n, a.positions, 3 * (size_t)n * sizeof *seq);
         /* between two keys of the orientation drive: their rotations slerped, one solve each */
@@ -219,8 +220,8 @@ int mim_cmd_morph(int argc, char **argv)
         for (uint64_t j = 1; j <= between && !rc; j++) {
             double t = (double)j / (double)(between + 1);
             float *o = seq + (f0 + j) * 3 * n;
-            rc = oa.R && method == MIM_XFER_MORPH_FRAMES ? mim_session_morph_oriented(s, &oa, &ob, t, o, &err)
-                                                        : mim_session_morph(s, method, &a, &b, t, o, &err);
+            rc = oa.R && method == MIM_XFER_MORPH_FRAMES ? mim_session_morph_oriented(s, &oa, &ob, t, NULL, o, &err)
+                                                        : mim_session_morph(s, method, &a, &b, t, NULL, o, &err);
         }
     }
     if (!rc) memcpy(seq + (n_frames - 1) * 3 * n, kpos + (size_t)(n_keys - 1) * 3 * n, 3 * (size_t)n * sizeof *seq);

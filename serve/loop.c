@@ -71,7 +71,15 @@ typedef struct key {
     int oriented;   /* made by the orientation drive, from these segment rotations: */
     mim_quat R[MIM_VEST_SEGMENTS];
     uint8_t have_R[MIM_VEST_SEGMENTS];
+    uint64_t frame;  /* the complete vest frame it was made from (recent[]) */
 } key_pose_t;
+
+/* The latest complete vest frames' landmarks: an in-between shown after
+ * key b stands for a vest frame between keys a and b, which arrived, so
+ * its own landmarks pin it (issue 29), not ones interpolated between the
+ * keys'. More than K_MAX, the longest key interval. */
+#define RECENT_FRAMES 32
+_Static_assert(RECENT_FRAMES > K_MAX, "the frames between two keys are all kept");
 
 struct mim__loop {
     mim__vs_t *vs;      /* the session whose vest this is */
@@ -124,6 +132,9 @@ struct mim__loop {
     uint64_t last_template, warm_starts, iterations, key_frames;
     uint64_t oriented_keys; /* key frames made by the orientation drive */
     uint64_t completed; /* lost landmarks filled in by retrieval */
+    uint64_t frames_complete;                        /* complete vest frames so far */
+    uint64_t recent_no[RECENT_FRAMES];               /* which frame each slot holds (frames_complete then) */
+    float recent_u[RECENT_FRAMES][3 * MIM_LANDMARKS_MAX];
     char last_label[MIM_SESSION_LABEL_MAX];
     double key_rate_hz, frame_rate_hz;
 };
@@ -286,6 +297,7 @@ static int make_key(mim__loop_t *l, const float *u, const mim_quat *R, const uin
         memcpy(k->R, R, sizeof k->R), memcpy(k->have_R, have, sizeof k->have_R);
     snprintf(k->label, sizeof k->label, "%s", rep->class_name);
     memcpy(k->u, u, 3 * (size_t)L * sizeof *u);
+    k->frame = l->frames_complete;
     l->cur = !l->cur;
     double c = mim_now() - t0;
     ewma(&l->w_key, c);
@@ -305,15 +317,23 @@ static int make_key(mim__loop_t *l, const float *u, const mim_quat *R, const uin
     return 0;
 }
 
-/* The frame between keys a and b at t in (0, 1), into l->out. */
+/* The frame between keys a and b at t in (0, 1), into l->out: pinned by
+ * the landmarks of the vest frame it stands for when that frame is still
+ * in recent[], else by the keys' along the skeleton. */
 static int make_morph(mim__loop_t *l, key_pose_t *a, key_pose_t *b, double t, mim_error_t *err)
 {
     mim__vs_t *vs = l->vs;
     double t0 = mim_now();
+    const float *real = NULL;
+    if (b->frame > a->frame) {
+        const uint64_t at = a->frame + (uint64_t)llround(t * (double)(b->frame - a->frame));
+        if (at > a->frame && at < b->frame && l->recent_no[at % RECENT_FRAMES] == at)
+            real = l->recent_u[at % RECENT_FRAMES];
+    }
     if (a->oriented && b->oriented && !l->linear) {
         mim_session_oriented_key_t ka = {a->R, a->have_R, a->u, a->template_id}, kb = {b->R, b->have_R, b->u, b->template_id};
         slot_t slot = slot_enter(l);
-        int rc = mim_session_morph_oriented(vs->s, &ka, &kb, t, l->out, err);
+        int rc = mim_session_morph_oriented(vs->s, &ka, &kb, t, real, l->out, err);
         double cpu = slot_leave(l, slot);
         if (!rc) {
             ewma(&l->c_morph, cpu);
@@ -326,8 +346,8 @@ static int make_morph(mim__loop_t *l, key_pose_t *a, key_pose_t *b, double t, mi
     slot_t slot = slot_enter(l);
     if (!l->linear)
         morph_ready(l, a), morph_ready(l, b);
-    mim_xfer_key_t ka = {a->pos, a->quats, a->W, a->u}, kb = {b->pos, b->quats, b->W, b->u};
-    int rc = mim_session_morph(vs->s, l->linear ? MIM_XFER_MORPH_LINEAR : MIM_XFER_MORPH_FRAMES, &ka, &kb, t,
+    mim_xfer_key_t ka = {a->pos, a->quats, a->W, a->u, NULL}, kb = {b->pos, b->quats, b->W, b->u, NULL};
+    int rc = mim_session_morph(vs->s, l->linear ? MIM_XFER_MORPH_LINEAR : MIM_XFER_MORPH_FRAMES, &ka, &kb, t, real,
                                l->out, err);
     double cpu = slot_leave(l, slot);
     if (!rc) {
@@ -430,6 +450,9 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
     }
     if (!complete || !vs->sv->q)
         return; /* the transfer holds every landmark: it needs them all, and an index */
+    l->frames_complete++;
+    l->recent_no[l->frames_complete % RECENT_FRAMES] = l->frames_complete;
+    memcpy(l->recent_u[l->frames_complete % RECENT_FRAMES], u, 3 * (size_t)L * sizeof *u);
 
     mim_error_t err = {0};
     int key = 0, rc = 0;

@@ -267,9 +267,12 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
                          mim_session_report_t *report, mim_error_t *err);
 
 /* The in-between pose at t between key poses a and b (mim_xfer_morph),
- * with the session's factor. */
+ * with the session's factor. Its landmarks: given (3 * map count, e.g. a
+ * real vest frame's at that moment), else along the skeleton
+ * (mim_xfer_landmarks_between: no limb shorter or longer than both of its
+ * keys'), else lerped (a map without the 16 default landmarks). */
 int mim_session_morph(mim_session_t *s, mim_xfer_morph_method_t method, const mim_xfer_key_t *a,
-                      const mim_xfer_key_t *b, double t, float *out, mim_error_t *err);
+                      const mim_xfer_key_t *b, double t, const float *landmarks, float *out, mim_error_t *err);
 
 /* A key pose of the orientation drive: its segment rotations (17; have
  * NULL: all measured), its landmarks (3 * map count) and its template. */
@@ -280,13 +283,15 @@ typedef struct mim_session_oriented_key {
     uint64_t template_id;
 } mim_session_oriented_key_t;
 /* The in-between pose at t (0..1) between two keys of the orientation
- * drive: the segment rotations slerped, the landmarks lerped, one solve
- * (issue 17: no template in between; b's template names the pose, and with
- * template_id 0 the index finds one). A segment counts as measured when
- * both keys measured it. a, b, their R and landmarks, and out must not be
- * NULL. Errors: mim_session_transfer's. */
+ * drive: the segment rotations slerped, the landmarks given or along the
+ * skeleton as mim_session_morph's, one solve (issue 17: no template in
+ * between; b's template names the pose, and with template_id 0 the index
+ * finds one). A segment counts as measured when both keys measured it. a,
+ * b, their R and landmarks, and out must not be NULL. Errors:
+ * mim_session_transfer's. */
 int mim_session_morph_oriented(mim_session_t *s, const mim_session_oriented_key_t *a,
-                               const mim_session_oriented_key_t *b, double t, float *out, mim_error_t *err);
+                               const mim_session_oriented_key_t *b, double t, const float *landmarks, float *out,
+                               mim_error_t *err);
 
 /* ---- completion of lost landmarks (complete.c; seed 002, Section 6) ---- */
 #define MIM_COMPLETE_MIN_SEEN 4

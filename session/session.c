@@ -1019,18 +1019,32 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
 }
 
 int mim_session_morph(mim_session_t *s, mim_xfer_morph_method_t method, const mim_xfer_key_t *a,
-                      const mim_xfer_key_t *b, double t, float *out, mim_error_t *err)
+                      const mim_xfer_key_t *b, double t, const float *landmarks, float *out, mim_error_t *err)
 {
     if (!s->solver)
         return mim_error_set(err, MIM_EINVAL, "%s: morph: no avatar loaded", s->store);
+    /* the landmarks along the skeleton (issue 29: lerped ones fold a
+     * swinging limb), where the map is the 16 default landmarks */
+    float u[3 * MIM_LANDMARKS_MAX];
+    const int skeletal = !landmarks && method == MIM_XFER_MORPH_FRAMES && a && b && a->landmarks && b->landmarks &&
+                         mim_xfer_landmarks_between(&s->map, a->landmarks, b->landmarks, t, u, NULL) == 0;
+    /* the torsos' turn, so that a half turn turns every frame one way round */
+    double ta[4], tb[4];
+    mim_xfer_key_t ka = a ? *a : (mim_xfer_key_t){0}, kb = b ? *b : (mim_xfer_key_t){0};
+    if (method == MIM_XFER_MORPH_FRAMES && a && b && a->landmarks && b->landmarks && !ka.torso && !kb.torso &&
+        mim_xfer_landmarks_torso(&s->map, a->landmarks, ta, NULL) == 0 &&
+        mim_xfer_landmarks_torso(&s->map, b->landmarks, tb, NULL) == 0)
+        ka.torso = ta, kb.torso = tb;
     pthread_mutex_lock(&s->lock);
-    int rc = mim_xfer_morph(s->solver, method, a, b, t, out, err);
+    int rc = mim_xfer_morph_between(s->solver, method, a ? &ka : NULL, b ? &kb : NULL, t,
+                                    landmarks ? landmarks : skeletal ? u : NULL, out, err);
     pthread_mutex_unlock(&s->lock);
     return rc;
 }
 
 int mim_session_morph_oriented(mim_session_t *s, const mim_session_oriented_key_t *a,
-                               const mim_session_oriented_key_t *b, double t, float *out, mim_error_t *err)
+                               const mim_session_oriented_key_t *b, double t, const float *landmarks, float *out,
+                               mim_error_t *err)
 {
     const uint32_t L = s->map.count;
     mim_quat R[MIM_VEST_SEGMENTS];
@@ -1040,8 +1054,11 @@ int mim_session_morph_oriented(mim_session_t *s, const mim_session_oriented_key_
         R[g] = mim_quat_slerp(a->R[g], b->R[g], t);
         have[g] = (!a->have || a->have[g]) && (!b->have || b->have[g]);
     }
-    for (uint32_t i = 0; i < 3 * L; i++)
-        u[i] = (float)((1.0 - t) * a->landmarks[i] + t * b->landmarks[i]);
+    if (landmarks)
+        memcpy(u, landmarks, 3 * (size_t)L * sizeof *u);
+    else if (mim_xfer_landmarks_between(&s->map, a->landmarks, b->landmarks, t, u, NULL)) /* not the default 16 */
+        for (uint32_t i = 0; i < 3 * L; i++)
+            u[i] = (float)((1.0 - t) * a->landmarks[i] + t * b->landmarks[i]);
     mim_session_request_t req = {.template_id = b->template_id, .landmarks = u, .orientations = R,
                                  .orient_present = have, .drive = MIM_DRIVE_ORIENTATION};
     return mim_session_transfer(s, &req, out, NULL, err);

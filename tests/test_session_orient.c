@@ -232,9 +232,9 @@ static void test_morph(void **state)
     mim_session_oriented_key_t a = {I, NULL, u0, 1}, b = {R, NULL, u, 1};
     mim_session_request_t rb = {.template_id = 1, .landmarks = u, .orientations = R};
     assert_int_equal(mim_session_transfer(sess, &rb, key, NULL, &err), 0);
-    assert_int_equal(mim_session_morph_oriented(sess, &a, &b, 1.0, x, &err), 0);
+    assert_int_equal(mim_session_morph_oriented(sess, &a, &b, 1.0, NULL, x, &err), 0);
     for (size_t i = 0; i < 3 * (size_t)n; i++) assert_true(fabs(x[i] - key[i]) < 1e-5);
-    assert_int_equal(mim_session_morph_oriented(sess, &a, &b, 0.5, x, &err), 0);
+    assert_int_equal(mim_session_morph_oriented(sess, &a, &b, 0.5, NULL, x, &err), 0);
     double half = hand_angle(x, mim_quat_slerp(I[0], R[MIM_VEST_L_HAND], 0.5));
     print_message("half-way in-between: the hand off the half turn by %.1f degrees\n", half);
     assert_true(half < 15.0);

@@ -314,7 +314,7 @@ static void test_morph_and_retarget(void **state)
     landmark_positions(xb, ub);
     mim_xfer_solver_t *s = NULL;
     assert_int_equal(mim_xfer_solver_open(&s, fx.topo, fx.map.vertex, c, NULL, NULL), 0);
-    mim_xfer_key_t a = {xa, qa, Wa, ua}, b = {xb, qb, Wb, ub};
+    mim_xfer_key_t a = {xa, qa, Wa, ua, NULL}, b = {xb, qb, Wb, ub, NULL};
     for (int m = 0; m < 2; m++)
         for (int k = 0; k < 2; k++) {
             assert_int_equal(mim_xfer_morph(s, (mim_xfer_morph_method_t)m, &a, &b, k, out, NULL), 0);
@@ -330,7 +330,7 @@ static void test_morph_and_retarget(void **state)
     e = (mim_error_t){0};
     assert_int_equal(mim_xfer_morph(s, (mim_xfer_morph_method_t)7, &a, &b, 0.5, out, &e), MIM_EINVAL);
     assert_non_null(strstr(e.msg, "unknown method 7"));
-    mim_xfer_key_t bare = {xb, NULL, NULL, NULL};
+    mim_xfer_key_t bare = {xb, NULL, NULL, NULL, NULL};
     e = (mim_error_t){0};
     assert_int_equal(mim_xfer_morph(s, MIM_XFER_MORPH_FRAMES, &a, &bare, 0.5, out, &e), MIM_EINVAL);
     assert_non_null(strstr(e.msg, "needs each key's frames, W and landmarks"));
@@ -527,6 +527,129 @@ static void test_bad_inputs(void **state)
     free(x), free(F), free(W), free(out);
 }
 
+
+/* In-betweens along the skeleton (issue 29): on large swings every bone of
+ * the landmark skeleton keeps a length within its keys' range, and the
+ * in-between mesh folds no triangle; lerped landmarks do both wrong on
+ * the same swings (so the test sees the difference). */
+static double bone_len(const float *u, int c, int p)
+{
+    double d = 0;
+    for (int k = 0; k < 3; k++) d += pow((double)u[3 * c + k] - u[3 * p + k], 2);
+    return sqrt(d);
+}
+
+/* Triangles of x whose area fell under half the smaller of their areas in
+ * the two keys, or whose normal turned against its corners' mean normal. */
+static uint32_t folded(const float *x, const float *xa, const float *xb)
+{
+    const uint32_t *f = mim_synth_faces(fx.synth), nf = mim_synth_n_faces(fx.synth);
+    double *vn = calloc(3 * (size_t)fx.n, sizeof *vn), (*fn)[3] = malloc((size_t)nf * sizeof *fn);
+    uint32_t bad = 0;
+    for (int pass = 0; pass < 2; pass++)
+        for (uint32_t t = 0; t < nf; t++) {
+            const uint32_t *v = f + 3 * t;
+            double area[3], n[3][3];
+            const float *X[3] = {x, xa, xb};
+            for (int k = 0; k < 3; k++) {
+                const float *p = X[k] + 3 * v[0], *q = X[k] + 3 * v[1], *r = X[k] + 3 * v[2];
+                double e1[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]}, e2[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
+                n[k][0] = e1[1] * e2[2] - e1[2] * e2[1], n[k][1] = e1[2] * e2[0] - e1[0] * e2[2];
+                n[k][2] = e1[0] * e2[1] - e1[1] * e2[0];
+                area[k] = 0.5 * sqrt(n[k][0] * n[k][0] + n[k][1] * n[k][1] + n[k][2] * n[k][2]);
+            }
+            if (pass == 0) {
+                for (int c = 0; c < 3; c++)
+                    for (int k = 0; k < 3; k++) vn[3 * v[c] + k] += n[0][k];
+                memcpy(fn[t], n[0], sizeof fn[t]);
+                continue;
+            }
+            double mean[3] = {0, 0, 0};
+            for (int c = 0; c < 3; c++)
+                for (int k = 0; k < 3; k++) mean[k] += vn[3 * v[c] + k];
+            int flipped = fn[t][0] * mean[0] + fn[t][1] * mean[1] + fn[t][2] * mean[2] < 0;
+            bad += flipped || area[0] < 0.5 * fmin(area[1], area[2]);
+        }
+    free(vn), free(fn);
+    return bad;
+}
+
+static void test_inbetween_skeleton(void **state)
+{
+    (void)state;
+    const uint32_t n = fx.n, c = fx.map.count;
+    /* arms over the head (2) to hanging by the hips (0); a knee raised (6: kick) from standing (0);
+     * a half turn: pose 9 and itself turned 180 degrees about the vertical through the pelvis */
+    float *arms = body(0, 2), *rest = body(0, 0), *kick = body(0, 6), *lunge = body(0, 9), *turned = body(0, 9);
+    const float *pel = lunge + 3 * (size_t)fx.map.vertex[mim_landmarks_find(&fx.map, "pelvis")];
+    for (uint32_t i = 0; i < n; i++) {
+        float *p = turned + 3 * (size_t)i;
+        p[0] = 2 * pel[0] - p[0], p[2] = 2 * pel[2] - p[2];
+    }
+    const float *keys[3][2] = {{arms, rest}, {rest, kick}, {lunge, turned}};
+    const char *swing[3] = {"arms over the head to the hips", "a knee to the chest", "a half turn"};
+    mim_xfer_solver_t *s = NULL;
+    assert_int_equal(mim_xfer_solver_open(&s, fx.topo, fx.map.vertex, c, NULL, NULL), 0);
+    double *F = malloc(9 * (size_t)n * sizeof *F), *qa = malloc(4 * (size_t)n * sizeof *qa),
+           *qb = malloc(4 * (size_t)n * sizeof *qb), *Wa = malloc(3 * (size_t)n * sizeof *Wa),
+           *Wb = malloc(3 * (size_t)n * sizeof *Wb);
+    float *out = malloc(3 * (size_t)n * sizeof *out);
+    static const char *const bones[][2] = {{"l_elbow", "l_shoulder"}, {"l_wrist", "l_elbow"}, {"r_elbow", "r_shoulder"},
+                                          {"r_wrist", "r_elbow"},    {"l_knee", "l_hip"},     {"l_ankle", "l_knee"},
+                                          {"r_knee", "r_hip"},       {"r_ankle", "r_knee"},   {"chest", "spine"}};
+    for (int sw = 0; sw < 3; sw++) {
+        const float *xa = keys[sw][0], *xb = keys[sw][1];
+        float ua[3 * MIM_LANDMARKS_MAX], ub[3 * MIM_LANDMARKS_MAX], u[3 * MIM_LANDMARKS_MAX];
+        mim_xfer_frames(fx.topo, xa, F), mim_xfer_frames_to_quats(n, F, qa), mim_xfer_encode(fx.topo, xa, F, Wa);
+        mim_xfer_frames(fx.topo, xb, F), mim_xfer_frames_to_quats(n, F, qb), mim_xfer_encode(fx.topo, xb, F, Wb);
+        landmark_positions(xa, ua), landmark_positions(xb, ub);
+        double ta[4], tb[4];
+        assert_int_equal(mim_xfer_landmarks_torso(&fx.map, ua, ta, NULL), 0);
+        assert_int_equal(mim_xfer_landmarks_torso(&fx.map, ub, tb, NULL), 0);
+        mim_xfer_key_t a = {xa, qa, Wa, ua, ta}, b = {xb, qb, Wb, ub, tb}, la = {xa, qa, Wa, ua, NULL},
+                       lb = {xb, qb, Wb, ub, NULL};
+        /* the keys themselves at the ends, to the bit */
+        assert_int_equal(mim_xfer_landmarks_between(&fx.map, ua, ub, 0, u, NULL), 0);
+        assert_memory_equal(u, ua, 3 * c * sizeof *u);
+        assert_int_equal(mim_xfer_landmarks_between(&fx.map, ua, ub, 1, u, NULL), 0);
+        assert_memory_equal(u, ub, 3 * c * sizeof *u);
+        uint32_t worst_fold = 0, worst_fold_lerp = 0;
+        double worst_out = 0, worst_out_lerp = 0; /* how far a bone's length left its keys' range (m) */
+        for (int step = 1; step < 10; step++) {
+            const double t = step / 10.0;
+            for (int lerp = 0; lerp < 2; lerp++) {
+                if (lerp)
+                    for (uint32_t i = 0; i < 3 * c; i++) u[i] = (float)((1 - t) * ua[i] + t * ub[i]);
+                else
+                    assert_int_equal(mim_xfer_landmarks_between(&fx.map, ua, ub, t, u, NULL), 0);
+                for (size_t k = 0; k < sizeof bones / sizeof *bones; k++) {
+                    int ch = mim_landmarks_find(&fx.map, bones[k][0]), pa = mim_landmarks_find(&fx.map, bones[k][1]);
+                    double la = bone_len(ua, ch, pa), lb = bone_len(ub, ch, pa), l = bone_len(u, ch, pa);
+                    double out_of = fmax(0, fmax(fmin(la, lb) - l, l - fmax(la, lb)));
+                    if (lerp) worst_out_lerp = fmax(worst_out_lerp, out_of);
+                    else worst_out = fmax(worst_out, out_of);
+                }
+                /* the lerp as before: frames slerped each its own way */
+                assert_int_equal(mim_xfer_morph_between(s, MIM_XFER_MORPH_FRAMES, lerp ? &la : &a, lerp ? &lb : &b, t,
+                                                        u, out, NULL),
+                                 0);
+                uint32_t fo = folded(out, xa, xb);
+                if (lerp) worst_fold_lerp = fo > worst_fold_lerp ? fo : worst_fold_lerp;
+                else worst_fold = fo > worst_fold ? fo : worst_fold;
+            }
+        }
+        print_message("%s: along the skeleton, bones leave their keys' range by %.4f m and %u triangles fold at "
+                      "worst; lerped landmarks: %.3f m, %u triangles\n",
+                      swing[sw], worst_out, worst_fold, worst_out_lerp, worst_fold_lerp);
+        assert_true(worst_out < 1e-4);
+        assert_int_equal(worst_fold, 0);
+        if (sw < 2) assert_true(worst_out_lerp > 0.02); /* the lerp shortens the limb: the swings are large */
+    }
+    mim_xfer_solver_close(&s);
+    free(arms), free(rest), free(kick), free(lunge), free(turned);
+    free(F), free(qa), free(qb), free(Wa), free(Wb), free(out);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -537,6 +660,7 @@ int main(void)
         cmocka_unit_test(test_factor_reused),
         cmocka_unit_test(test_low_rank_matches_normal_factor),
         cmocka_unit_test(test_morph_and_retarget),
+        cmocka_unit_test(test_inbetween_skeleton),
         cmocka_unit_test(test_accuracy_bounds),
         cmocka_unit_test(test_bad_inputs),
     };

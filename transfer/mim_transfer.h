@@ -277,6 +277,22 @@ double mim_xfer_encoding_scale(uint32_t n_vertices, const double *W_avatar, cons
 int mim_xfer_retarget_landmarks(const mim_landmark_map_t *map, const float *avatar_rest, const float *tmpl,
                                 float *out, mim_error_t *err);
 
+/* ---- in-between landmarks along the skeleton (inbetween.c; issue 29) ---- */
+/* The landmarks (3 * map->count floats, map order) at t in [0, 1] between
+ * keys a and b, interpolated as a skeleton: the torso's frame slerped,
+ * each bone of the landmark tree turned on a great circle in that frame
+ * (opposite directions through the body's side) with its length lerped,
+ * the pelvis lerped. So no bone is ever shorter or longer than both of its
+ * keys' (lerped landmarks collapse a swinging arm). t = 0 and 1 give the
+ * keys exactly. Errors: MIM_EUNSUPPORTED (not the 16 default landmarks),
+ * MIM_EINVAL, MIM_ENONFINITE. */
+int mim_xfer_landmarks_between(const mim_landmark_map_t *map, const float *a, const float *b, double t, float *out,
+                               mim_error_t *err);
+/* The torso's frame of a landmark set (columns: the body's left, up from
+ * the pelvis to the chest, forward) as a unit quaternion x y z w: what
+ * mim_xfer_key_t's torso takes. Errors as mim_xfer_landmarks_between's. */
+int mim_xfer_landmarks_torso(const mim_landmark_map_t *map, const float *u, double q[4], mim_error_t *err);
+
 /* ---- morphing between key poses (morph.c; seed 000 Section 3.5) ---- */
 typedef enum mim_xfer_morph_method {
     MIM_XFER_MORPH_LINEAR = 0, /* the paper: positions interpolated linearly */
@@ -293,13 +309,25 @@ typedef struct mim_xfer_key {
     const double *quats;
     const double *W;
     const float *landmarks;
+    /* Optional (NULL: none): the key's torso frame as a quaternion x y z w
+     * (mim_xfer_landmarks_torso). With both keys', FRAMES slerps each
+     * vertex's frame relative to the torso and turns the result by the
+     * torsos' own slerp, so that a half turn of the body turns every frame
+     * the same way round (alone, each would take its own shortest way). */
+    const double *torso;
 } mim_xfer_key_t;
 /* The in-between pose at t in [0, 1] between key poses a and b. LINEAR
- * lerps positions; FRAMES slerps frames, lerps W and landmarks and solves
- * once with the solver's cached factor (allocating nothing); both return
- * the keys themselves at t = 0 and 1. Writes 3 * n floats to out. */
+ * lerps positions; FRAMES slerps frames, lerps W and solves once with the
+ * solver's cached factor (allocating nothing), its landmarks lerped (here)
+ * or given (mim_xfer_morph_between: e.g. mim_xfer_landmarks_between's,
+ * which keep the bones' lengths); both return the keys themselves at t = 0
+ * and 1. Writes 3 * n floats to out. */
 int mim_xfer_morph(mim_xfer_solver_t *s, mim_xfer_morph_method_t method, const mim_xfer_key_t *a,
                    const mim_xfer_key_t *b, double t, float *out, mim_error_t *err);
+/* The same with the in-between's landmarks given (3 * constrained count,
+ * the solver's order; NULL: lerped); LINEAR does not read them. */
+int mim_xfer_morph_between(mim_xfer_solver_t *s, mim_xfer_morph_method_t method, const mim_xfer_key_t *a,
+                           const mim_xfer_key_t *b, double t, const float *landmarks, float *out, mim_error_t *err);
 
 #ifdef __cplusplus
 }

@@ -14,7 +14,7 @@
 
 /* The landmark skeleton over the default names: child, parent. Parents
  * come before their children. */
-static const char *const tree[][2] = {
+static const char *const tree[MIM__XFER_BONES][2] = {
     {"spine", "pelvis"},          {"chest", "spine"},         {"head", "chest"},
     {"l_shoulder", "chest"},      {"r_shoulder", "chest"},    {"l_elbow", "l_shoulder"},
     {"r_elbow", "r_shoulder"},    {"l_wrist", "l_elbow"},     {"r_wrist", "r_elbow"},
@@ -22,25 +22,33 @@ static const char *const tree[][2] = {
     {"r_knee", "r_hip"},          {"l_ankle", "l_knee"},      {"r_ankle", "r_knee"},
 };
 
-int mim_xfer_retarget_landmarks(const mim_landmark_map_t *map, const float *avatar_rest, const float *tmpl,
-                                float *out, mim_error_t *err)
+int mim__xfer_landmark_tree(const mim_landmark_map_t *map, int *root, int child[MIM__XFER_BONES],
+                            int parent[MIM__XFER_BONES], const char *what, mim_error_t *err)
 {
-    int root = mim_landmarks_find(map, "pelvis");
-    if (root < 0 || map->count != sizeof tree / sizeof tree[0] + 1)
-        return mim_error_set(err, MIM_EUNSUPPORTED,
-                             "transfer: retargeting needs the 16 default landmarks (pelvis, spine, ...)");
-    int child[sizeof tree / sizeof tree[0]], parent[sizeof tree / sizeof tree[0]];
-    for (size_t k = 0; k < sizeof tree / sizeof tree[0]; k++) {
+    *root = mim_landmarks_find(map, "pelvis");
+    if (*root < 0 || map->count != MIM__XFER_BONES + 1)
+        return mim_error_set(err, MIM_EUNSUPPORTED, "transfer: %s needs the 16 default landmarks (pelvis, spine, ...)",
+                             what);
+    for (size_t k = 0; k < MIM__XFER_BONES; k++) {
         child[k] = mim_landmarks_find(map, tree[k][0]);
         parent[k] = mim_landmarks_find(map, tree[k][1]);
         if (child[k] < 0 || parent[k] < 0)
-            return mim_error_set(err, MIM_EUNSUPPORTED, "transfer: retargeting needs landmark '%s'",
+            return mim_error_set(err, MIM_EUNSUPPORTED, "transfer: %s needs landmark '%s'", what,
                                  child[k] < 0 ? tree[k][0] : tree[k][1]);
     }
+    return 0;
+}
+
+int mim_xfer_retarget_landmarks(const mim_landmark_map_t *map, const float *avatar_rest, const float *tmpl,
+                                float *out, mim_error_t *err)
+{
+    int root, child[MIM__XFER_BONES], parent[MIM__XFER_BONES];
+    int rc = mim__xfer_landmark_tree(map, &root, child, parent, "retargeting", err);
+    if (rc) return rc;
     /* the template's landmark positions at landmark vertices */
     for (int c = 0; c < 3; c++)
         out[3 * root + c] = tmpl[3 * (size_t)map->vertex[root] + c];
-    for (size_t k = 0; k < sizeof tree / sizeof tree[0]; k++) {
+    for (size_t k = 0; k < MIM__XFER_BONES; k++) {
         const uint32_t vc = map->vertex[child[k]], vp = map->vertex[parent[k]];
         double dir[3], len = 0.0, d2 = 0.0;
         for (int c = 0; c < 3; c++) {
