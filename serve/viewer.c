@@ -2,7 +2,8 @@
  * .incbin at build time (serve/CMakeLists.txt passes their absolute paths),
  * so `mimic serve` needs nothing beside it at run time: serve/viewer/ (the
  * page) and three.js from node_modules (npm ci; a placeholder module when it
- * was missing at configure time, and the page then says so). */
+ * was missing at configure time, and the page then says so), with the
+ * addons the page imports (OrbitControls, GLTFLoader and what it imports). */
 #include "internal.h"
 
 #include <stdint.h>
@@ -10,7 +11,8 @@
 #include <string.h>
 
 #if !defined(MIM_VIEWER_INDEX_HTML) || !defined(MIM_VIEWER_JS) || !defined(MIM_VIEWER_CSS) ||              \
-    !defined(MIM_VIEWER_THREE_MODULE) || !defined(MIM_VIEWER_THREE_CORE) || !defined(MIM_VIEWER_ORBIT)
+    !defined(MIM_VIEWER_THREE_MODULE) || !defined(MIM_VIEWER_THREE_CORE) || !defined(MIM_VIEWER_ORBIT) ||             \
+    !defined(MIM_VIEWER_GLTF) || !defined(MIM_VIEWER_BGU) || !defined(MIM_VIEWER_SKELETON)
 #error "serve/CMakeLists.txt passes the viewer's file paths (MIM_VIEWER_*)"
 #endif
 
@@ -38,6 +40,9 @@ MIM__INCBIN(mim__va_viewer_css, MIM_VIEWER_CSS);
 MIM__INCBIN(mim__va_three_module, MIM_VIEWER_THREE_MODULE);
 MIM__INCBIN(mim__va_three_core, MIM_VIEWER_THREE_CORE);
 MIM__INCBIN(mim__va_orbit, MIM_VIEWER_ORBIT);
+MIM__INCBIN(mim__va_gltf, MIM_VIEWER_GLTF);
+MIM__INCBIN(mim__va_bgu, MIM_VIEWER_BGU);
+MIM__INCBIN(mim__va_skeleton, MIM_VIEWER_SKELETON);
 
 #define HTML "text/html; charset=utf-8"
 #define JS "text/javascript"
@@ -57,6 +62,10 @@ static const struct asset {
     {"/three/three.module.js", JS, mim__va_three_module, &mim__va_three_module_len},
     {"/three/three.core.js", JS, mim__va_three_core, &mim__va_three_core_len},
     {"/three/addons/controls/OrbitControls.js", JS, mim__va_orbit, &mim__va_orbit_len},
+    /* the avatar's look (GET /api/avatar.glb); GLTFLoader imports ../utils/ */
+    {"/three/addons/loaders/GLTFLoader.js", JS, mim__va_gltf, &mim__va_gltf_len},
+    {"/three/addons/utils/BufferGeometryUtils.js", JS, mim__va_bgu, &mim__va_bgu_len},
+    {"/three/addons/utils/SkeletonUtils.js", JS, mim__va_skeleton, &mim__va_skeleton_len},
 };
 
 int mim__viewer_reply(const char *path, mim__reply_t *rp)

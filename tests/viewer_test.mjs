@@ -1,5 +1,5 @@
 // The web viewer in a real browser (Debian's Chromium, headless, WebGL in
-// software through SwiftShader, driven by playwright-core), two scenarios:
+// software through SwiftShader, driven by playwright-core), three scenarios:
 //
 //  1. `mimic demo`: its viewer URL opened; the avatar streams and moves, the
 //     int16 toggle works.
@@ -8,10 +8,16 @@
 //     served by `mimic serve --store <the demo's store> --avatar FOREIGN.ply`
 //     on a simulated vest; the page draws the avatar with its own vertex and
 //     face counts, and it moves.
+//  3. a rigged avatar as authors ship it (issue 28): a textured GLB of several
+//     primitives (make_rigged_avatar --all, tests/support/rigged_avatar.c),
+//     served the same way with no landmark file (mimic places them from the
+//     rig); the page draws it from GET /api/avatar.glb, one mesh per part
+//     with its texture, and it moves.
 //
-//   node tests/viewer_test.mjs [MIMIC_BIN [MAKE_FOREIGN_AVATAR]]
-//     (or MIMIC_BIN and MIMIC_FOREIGN_AVATAR in the environment; the helper
-//      defaults to tests/make_foreign_avatar of the build beside MIMIC_BIN)
+//   node tests/viewer_test.mjs [MIMIC_BIN [MAKE_FOREIGN_AVATAR [MAKE_RIGGED_AVATAR]]]
+//     (or MIMIC_BIN, MIMIC_FOREIGN_AVATAR and MIMIC_RIGGED_AVATAR in the
+//      environment; the helpers default to tests/make_foreign_avatar and
+//      tests/make_rigged_avatar of the build beside MIMIC_BIN)
 //
 // Exit status: 0 pass, 1 fail, 77 skip (no /usr/bin/chromium or no
 // node_modules/playwright-core: npm ci). The screenshots are kept in a
@@ -45,6 +51,8 @@ if (!bin) {
 }
 const makeForeign =
   process.env.MIMIC_FOREIGN_AVATAR || process.argv[3] || path.join(path.dirname(bin), '..', 'tests', 'make_foreign_avatar');
+const makeRigged =
+  process.env.MIMIC_RIGGED_AVATAR || process.argv[4] || path.join(path.dirname(bin), '..', 'tests', 'make_rigged_avatar');
 
 const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'mimic-viewer-'));
 const failures = [];
@@ -173,6 +181,7 @@ async function watch(context, url, tag) {
   check(moved > 200, `${tag}: the canvas changed between the screenshots (${moved} pixels differ)`);
   check(v2.frames > v1.frames, `${tag}: frames kept arriving (${v1.frames} -> ${v2.frames})`);
   check(v2.templateId > 0, `${tag}: a template was recognised (id ${v2.templateId}, pose "${v2.poseLabel}")`);
+  check(v2.glb, `${tag}: the avatar is drawn from its GLB (${v2.glb ? v2.parts + ' part meshes' : 'plain: ' + v2.glbError})`);
   return { page, errors, v, state: v2 };
 }
 
@@ -261,6 +270,37 @@ try {
   const se = await stop(serve);
   check(cleanExit(se), `mimic serve exited cleanly on SIGTERM${cleanExit(se) ? '' : ': ' + serve.err.trim()}`);
   await stop(vest, 5000);
+
+  // ---- 3. a rigged, textured avatar of several primitives (issue 28) -----------
+  const rigged = path.join(tmp, 'rigged.glb');
+  let madeR;
+  try {
+    madeR = JSON.parse(execFileSync(makeRigged, [rigged, '--all', '--vertices', '3000'], { encoding: 'utf8' }));
+  } catch (e) {
+    throw new Error(`${makeRigged} (MIMIC_RIGGED_AVATAR) could not make the rigged avatar: ${e.message}`);
+  }
+  console.log(`viewer_test: rigged avatar ${rigged}: ${madeR.vertices} vertices, ${madeR.primitives} primitives`);
+  const link3 = path.join(tmp, 'vest3');
+  const vest3 = start('mimic vest simulate (rigged)', ['vest', 'simulate', '--motion', 'demo', '--out', `pty:${link3}`, '--loop']);
+  await line(vest3, /./, 30000);
+  const serve3 = start('mimic serve (rigged)', ['serve', '--store', path.join(demoDir, 'store'), '--avatar', rigged, '--vest',
+    `serial:${link3}`, '--vest-pose', 't', '--listen', '127.0.0.1:0']);
+  const url3 = await viewerUrl(serve3, 120000);
+  console.log(`viewer_test: mimic serve with the rigged avatar at ${url3}`);
+  const r = await watch(context, url3, 'rigged');
+  check(r.state.parts === madeR.primitives,
+    `rigged: the page draws one mesh per primitive (${r.state.parts} part meshes; the file has ${madeR.primitives} primitives)`);
+  check(r.state.vertices === madeR.vertices,
+    `rigged: the page draws the avatar's own vertices (${r.state.vertices}; the file has ${madeR.vertices})`);
+  check(r.state.textured === 1, `rigged: a texture is loaded (textured ${r.state.textured})`);
+  const file5 = path.join(tmp, 'rigged-textured.png');
+  fs.writeFileSync(file5, await r.page.screenshot());
+  console.log(`viewer_test: rigged: screenshot ${file5}`);
+  noErrors('rigged', await r.v(), r.errors);
+  await r.page.close();
+  const se3 = await stop(serve3);
+  check(cleanExit(se3), `mimic serve (rigged) exited cleanly on SIGTERM${cleanExit(se3) ? '' : ': ' + serve3.err.trim()}`);
+  await stop(vest3, 5000);
   code = failures.length ? 1 : 0;
 } catch (e) {
   console.log(`FAIL ${e.message}`);
@@ -271,7 +311,7 @@ try {
   for (const c of children) if (running(c)) await stop(c, 5000);
   if (code === 0) {
     // keep only the screenshots of a pass (the demo's store is ~50 MB)
-    for (const d of ['demo', 'profile', 'foreign.ply', 'foreign.landmarks.json']) fs.rmSync(path.join(tmp, d), { recursive: true, force: true });
+    for (const d of ['demo', 'profile', 'foreign.ply', 'foreign.landmarks.json', 'rigged.glb']) fs.rmSync(path.join(tmp, d), { recursive: true, force: true });
   }
   console.log(`viewer_test: ${code ? 'FAIL' : 'PASS'} (${code ? "screenshots, the demo's files and the browser profile" : 'screenshots'} in ${tmp})`);
   process.exit(code);

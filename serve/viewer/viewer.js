@@ -1,11 +1,14 @@
 // mimic web viewer: the avatar of `mimic serve`, moving with the vest.
 //
-// GET /api/avatar gives the rest mesh once (schemas/serve-avatar.schema.json);
-// the WebSocket /ws then sends the avatar's vertex positions for every frame
-// the service's real-time loop publishes (schemas/serve-ws-frame.md). This
-// page draws the mesh with three.js (embedded in the mimic binary), updates
-// its positions in place for each binary frame, draws the tracked landmarks
-// and shows the stream's state in an overlay. A service drives many vests,
+// GET /api/avatar gives the rest mesh once (schemas/serve-avatar.schema.json)
+// and its parts; GET /api/avatar.glb the same avatar with its look (one mesh
+// per part, in order, with its materials, textures and UVs); the WebSocket
+// /ws then sends the avatar's vertex positions for every frame the service's
+// real-time loop publishes (schemas/serve-ws-frame.md). This page draws the
+// GLB's meshes with three.js (embedded in the mimic binary), or, when the GLB
+// cannot be had, the plain mesh of the JSON; for each binary frame it copies
+// each part's slice of the positions into its mesh, draws the tracked
+// landmarks and shows the stream's state in an overlay. A service drives many vests,
 // each a session with its own avatar: ?session=NAME on the page's URL picks
 // one (the list comes from GET /api/sessions), else the service's first.
 
@@ -29,6 +32,10 @@ const state = {
   landmarksTracked: 0, // of which the vest tracks (the others are NaN)
   vertices: 0,        // of the avatar drawn (GET /api/avatar; every frame must have as many)
   faces: 0,           // its triangles
+  parts: 0,           // meshes drawn: the GLB's parts, or 1 (the plain mesh of the JSON)
+  glb: false,         // the avatar is drawn from GET /api/avatar.glb (its look), not plain
+  glbError: '',       // why not, when not
+  textured: 0,        // 1 when a material drawn has a texture map loaded
   errors: [],         // one line each: bad frames, server error messages
 };
 window.mimicViewer = state;
@@ -49,12 +56,19 @@ function report(msg) {
 // ---- three.js, or why it is missing -------------------------------------
 // Imported dynamically so that a missing or placeholder three.js (a build
 // without npm ci, serve/CMakeLists.txt) still lets the page explain itself.
-let THREE, OrbitControls;
+let THREE, OrbitControls, GLTFLoader = null, gltfMissing = '';
 try {
   THREE = await import('three');
   ({ OrbitControls } = await import('three/addons/controls/OrbitControls.js'));
 } catch (e) {
   THREE = { MIMIC_PLACEHOLDER: 'three.js failed to load: ' + e.message };
+}
+// The avatar's look is optional: without GLTFLoader the avatar is drawn plain.
+try {
+  ({ GLTFLoader } = await import('three/addons/loaders/GLTFLoader.js'));
+  if (!GLTFLoader) gltfMissing = 'three.js has no GLTFLoader in this build';
+} catch (e) {
+  gltfMissing = 'GLTFLoader failed to load: ' + e.message;
 }
 function fatal(msg) {
   $('o-conn').textContent = 'not started';
@@ -97,36 +111,97 @@ function resize() {
 window.addEventListener('resize', resize);
 resize();
 
-let mesh = null;          // the avatar
-let positions = null;     // its position attribute's Float32Array (3 N)
+// The avatar: its meshes, each with the range of the frame's vertices it
+// draws. Plain (no GLB), one mesh whose position attribute is `positions`.
+let meshes = [];          // [{ mesh, first, count, whole }] (whole: the plain mesh, drawing `positions`)
+let positions = null;     // a whole frame's positions (3 N), decoded in place
 let vertexCount = 0;
 let normalsDirty = false; // new positions since the last normal update
 const landmarks = [];     // one small sphere per landmark
 const landmarkGeometry = new THREE.SphereGeometry(1, 12, 8);
 const landmarkMaterial = new THREE.MeshBasicMaterial({ color: 0xff8a3d, depthTest: false, transparent: true, opacity: 0.9 });
 
-// Builds the avatar from GET /api/avatar and points the camera at it.
-function buildAvatar(a) {
-  vertexCount = a.vertices;
-  positions = new Float32Array(a.positions);
-  state.vertices = positions.length / 3;
+// The avatar at rest as GET /api/avatar.glb gives it, its meshes matched to
+// the JSON's parts (the GLB's mesh nodes in scene order, one per part). Each
+// mesh gets a position attribute of its own, rewritten with every frame.
+// Returns the meshes and their root, or throws with a one-line reason.
+async function loadLook(a) {
+  if (!GLTFLoader) throw new Error(gltfMissing);
+  if (!Array.isArray(a.parts) || !a.parts.length) throw new Error('GET /api/avatar names no parts');
+  const url = (a.glb || '/api/avatar.glb') + sessionQuery;
+  let gltf;
+  try {
+    gltf = await new GLTFLoader().loadAsync(url);
+  } catch (e) {
+    throw new Error(`GET ${url}: ${e.message}`);
+  }
+  const found = [];
+  gltf.scene.traverse((o) => o.geometry && o.geometry.attributes.position && found.push(o));
+  if (found.length !== a.parts.length) throw new Error(`the GLB has ${found.length} meshes, the avatar ${a.parts.length} parts`);
+  const seen = new Set(), out = [];
+  for (let k = 0; k < found.length; k++) {
+    const mesh = found[k], p = a.parts[k];
+    if (mesh.geometry.attributes.position.count !== p.vertices)
+      throw new Error(`the GLB's mesh ${k} has ${mesh.geometry.attributes.position.count} vertices, part ${k} ("${p.name}") ${p.vertices}`);
+    if (p.first_vertex < 0 || p.first_vertex + p.vertices > vertexCount)
+      throw new Error(`part ${k} ("${p.name}") lies outside the avatar's ${vertexCount} vertices`);
+    if (seen.has(mesh.geometry)) mesh.geometry = mesh.geometry.clone(); // the loader may share one
+    seen.add(mesh.geometry);
+    // a plain float attribute of its own (the loader's may be a view of the
+    // file, interleaved or quantised), starting at the rest pose
+    const attr = new THREE.BufferAttribute(positions.slice(3 * p.first_vertex, 3 * (p.first_vertex + p.vertices)), 3);
+    attr.setUsage(THREE.DynamicDrawUsage); // rewritten every frame
+    mesh.geometry.setAttribute('position', attr);
+    mesh.geometry.computeBoundingSphere();
+    if (p.material < 0 && mesh.isMesh) mesh.material = plainMaterial; // none of the author's: as the plain avatar
+    out.push({ mesh, first: p.first_vertex, count: p.vertices });
+  }
+  let textured = 0;
+  for (const { mesh } of out)
+    for (const m of Array.isArray(mesh.material) ? mesh.material : [mesh.material])
+      if (m && m.map && m.map.image) textured = 1;
+  return { root: gltf.scene, parts: out, textured };
+}
+
+// The plain avatar: one grey mesh of the JSON's positions and triangles.
+const plainMaterial = new THREE.MeshStandardMaterial({ color: 0xc9b4a2, roughness: 0.65, metalness: 0.0 });
+function plainMesh(a) {
   const geometry = new THREE.BufferGeometry();
   const attr = new THREE.BufferAttribute(positions, 3);
   attr.setUsage(THREE.DynamicDrawUsage); // rewritten every frame
   geometry.setAttribute('position', attr);
   geometry.setIndex(new THREE.BufferAttribute(vertexCount > 65535 ? new Uint32Array(a.indices) : new Uint16Array(a.indices), 1));
-  state.faces = geometry.index.count / 3;
   geometry.computeVertexNormals();
   geometry.computeBoundingSphere();
-  const material = new THREE.MeshStandardMaterial({ color: 0xc9b4a2, roughness: 0.65, metalness: 0.0 });
-  mesh = new THREE.Mesh(geometry, material);
-  scene.add(mesh);
+  return new THREE.Mesh(geometry, plainMaterial);
+}
+
+// Builds the avatar from GET /api/avatar (and its GLB, if it can be had)
+// and points the camera at it.
+async function buildAvatar(a) {
+  vertexCount = a.vertices;
+  positions = new Float32Array(a.positions);
+  state.vertices = positions.length / 3;
+  state.faces = a.indices.length / 3;
+  try {
+    const look = await loadLook(a);
+    scene.add(look.root);
+    meshes = look.parts;
+    state.glb = true;
+    state.textured = look.textured;
+  } catch (e) {
+    state.glbError = e.message;
+    console.warn(`mimic viewer: the avatar is drawn plain: ${e.message}`);
+    const mesh = plainMesh(a);
+    scene.add(mesh);
+    meshes = [{ mesh, first: 0, count: vertexCount, whole: true }];
+  }
+  state.parts = meshes.length;
 
   // Frame the body from the front (+z) with room for its poses: hands
   // raised above the head (a third of the height more) and arms spread as
-  // wide as it is tall.
-  geometry.computeBoundingBox();
-  const box = geometry.boundingBox, size = new THREE.Vector3(), mid = new THREE.Vector3();
+  // wide as it is tall. From the JSON's positions, however it is drawn.
+  const box = new THREE.Box3().setFromArray(positions), size = new THREE.Vector3(), mid = new THREE.Vector3();
   box.getSize(size);
   box.getCenter(mid);
   const bottom = box.min.y - 0.1 * size.y, top = box.max.y + 0.35 * size.y;
@@ -214,7 +289,7 @@ function decodeFrame(buf) {
 }
 
 function onFrame(buf) {
-  if (!mesh) return; // the avatar is not built yet: nothing to update
+  if (!meshes.length) return; // the avatar is not built yet: nothing to update
   let h;
   try {
     h = decodeFrame(buf);
@@ -222,8 +297,12 @@ function onFrame(buf) {
     report(e.message);
     return;
   }
-  mesh.geometry.attributes.position.needsUpdate = true;
-  mesh.geometry.computeBoundingSphere();
+  for (const { mesh, first, count, whole } of meshes) {
+    const attr = mesh.geometry.attributes.position;
+    if (!whole) attr.array.set(positions.subarray(3 * first, 3 * (first + count))); // the plain mesh draws `positions` itself
+    attr.needsUpdate = true;
+    mesh.geometry.computeBoundingSphere();
+  }
   normalsDirty = true;
   // A gap in frame numbers is frames the server dropped for this client.
   // The first frame of a connection, or a restarted server, is a new start.
@@ -340,7 +419,7 @@ function updateOverlay() {
 // ---- start ----------------------------------------------------------------
 function render() {
   if (normalsDirty) { // at most once per displayed frame, however many arrived
-    mesh.geometry.computeVertexNormals();
+    for (const { mesh } of meshes) if (mesh.isMesh) mesh.geometry.computeVertexNormals();
     normalsDirty = false;
     updateOverlay();
   }
@@ -362,7 +441,7 @@ async function loadAvatar() {
   }
 }
 
-buildAvatar(await loadAvatar());
+await buildAvatar(await loadAvatar());
 requestAnimationFrame(render);
 listSessions();
 connect();
