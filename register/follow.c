@@ -302,20 +302,30 @@ void mim_reg_follow_apply(const mim_reg_follow_t *f, const float *proxy_rest, co
             }
         }
     }
+    /* each segment's motion as one affine map x -> M [x 1] (3 x 4, float):
+     * an entry's blend is then the weighted sum of its segments' maps */
+    float M[MIM_SEGMENTS][12];
+    for (uint32_t g = 0; g < MIM_SEGMENTS; g++)
+        for (int r = 0; r < 3; r++) {
+            double t = cp[g][r];
+            for (int c = 0; c < 3; c++) M[g][4 * r + c] = (float)R[g][3 * r + c], t -= R[g][3 * r + c] * cr[g][c];
+            M[g][4 * r + 3] = (float)t;
+        }
     for (uint32_t e = 0; e < f->n_entries; e++) {
         const float *p = f->rest + 3 * (size_t)e;
-        double L[3] = {0, 0, 0};
+        float B[12] = {0};
         for (int k = 0; k < 4; k++) {
             const float w = f->weight[e][k];
             if (!(w > 0)) continue;
-            const uint32_t g = f->bone[e][k];
-            const double d[3] = {p[0] - cr[g][0], p[1] - cr[g][1], p[2] - cr[g][2]};
-            for (int r = 0; r < 3; r++)
-                L[r] += w * (R[g][3 * r] * d[0] + R[g][3 * r + 1] * d[1] + R[g][3 * r + 2] * d[2] + cp[g][r]);
+            const float *m = M[f->bone[e][k]];
+            for (int i = 0; i < 12; i++) B[i] += w * m[i];
         }
         float *x = out + 3 * (size_t)f->vertex[e];
         const float a = f->alpha[e];
-        for (int r = 0; r < 3; r++) x[r] = (1 - a) * x[r] + a * (float)L[r];
+        for (int r = 0; r < 3; r++) {
+            const float L = B[4 * r] * p[0] + B[4 * r + 1] * p[1] + B[4 * r + 2] * p[2] + B[4 * r + 3];
+            x[r] = (1 - a) * x[r] + a * L;
+        }
     }
 }
 
