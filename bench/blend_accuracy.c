@@ -37,6 +37,7 @@
 #include "bench_data.h"
 #include "mim_core.h"
 #include "mim_index.h"
+#include "mim_session.h"
 #include "mim_transfer.h"
 #include "mim_vest_kinematics.h"
 
@@ -62,11 +63,17 @@ static const char *const extra_names[N_EXTRA] = {
  * on A's rest frames first turned by the segment rotations from A's rest
  * landmark skeleton onto the reference's (for a reference in another pose);
  * the truth's */
-enum { FR_TEMPLATE, FR_RELATIVE, FR_RELATIVE_Q, FR_GATED, FR_TRUTH };
+enum { FR_TEMPLATE, FR_RELATIVE, FR_RELATIVE_Q, FR_GATED, FR_GATED_ALL, FR_TRUTH };
 /* FR_GATED: relative frames when the reference's pose is within GATE_DEG
  * (rms over all angles) of A's rest, else the template's own frames: a
  * reference in another pose carries that pose into relative frames. */
 #define GATE_DEG 8.0
+/* FR_GATED_ALL (issue 29, mimic's relative transfer since): the whole
+ * relative path (frames and encoding change) over the hits whose
+ * references lie within the session's gate of A's rest (the others left
+ * out of the blend), the plain path over all hits when none does: a
+ * reference that stands otherwise is another body's way of moving. */
+#define GATE_ALL_DEG MIM_SESSION_RELATIVE_GATE_DEG
 enum { EN_REST, EN_DELTA, EN_DELTA_SCALED, EN_DELTA_ROT, EN_TRUTH }; /* A's encoding */
 enum { ORD_INDEX, ORD_SHAPE }; /* the hits in the index's order, or by rest build nearest A's */
 typedef struct {
@@ -102,6 +109,8 @@ static const rel_method_t rel_methods[] = {
     {1, W_EQUAL, FR_RELATIVE_Q, EN_DELTA_SCALED, "encoding change scaled + relative frames via the reference's skeleton, nearest", ORD_INDEX},
     {2, W_INVERSE, FR_RELATIVE_Q, EN_DELTA_SCALED, "encoding change scaled + relative frames via the reference's skeleton, 2 nearest", ORD_INDEX},
     {1, W_EQUAL, FR_GATED, EN_DELTA_SCALED, "encoding change scaled + relative frames if the reference is within 8 deg rms of A's rest, nearest", ORD_INDEX},
+    {1, W_EQUAL, FR_GATED_ALL, EN_DELTA_SCALED, "relative over the hits whose references are within the gate, else plain; nearest", ORD_INDEX},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "relative over the hits whose references are within the gate, else plain; 3 nearest, 1/distance", ORD_INDEX},
 };
 static int new_only;
 /* Robustness (both off by default):
@@ -276,6 +285,7 @@ static int run_set(const bench_dataset_t *d, void *user)
     }
     double *W = malloc(3 * sizeof(double) * n), *Wx = malloc(3 * sizeof(double) * n), *Fa = malloc(9 * sizeof(double) * n);
     int near_of[64];     /* per subject: its reference's pose is near A's rest (FR_GATED) */
+    int near_all_of[64]; /* the same within GATE_ALL_DEG (FR_GATED_ALL) */
     double scale_of[64]; /* per subject, as a session caches it with the reference */
     uint32_t ref_of[64], ref_misses = 0, rest_right = 0;
     double *Fc[K_ASK], *Fb = malloc(9 * sizeof(double) * n);
@@ -356,9 +366,14 @@ static int run_set(const bench_dataset_t *d, void *user)
                 }
             for (uint32_t s = 0; s < S && s < 64; s++)
                 scale_of[s] = s == a ? 1.0 : mim_xfer_encoding_scale(n, WT[a * P], WT[ref_of[s]]);
-            for (uint32_t s = 0; s < S && s < 64; s++)
-                near_of[s] = s != a && angle_distance(ang + (size_t)na * ref_of[s], ang + (size_t)na * (a * P), na) /
-                                               sqrt((double)na) < GATE_DEG * M_PI / 180;
+            for (uint32_t s = 0; s < S && s < 64; s++) {
+                near_of[s] = near_all_of[s] = 0;
+                if (s == a) continue;
+                const double rms = angle_distance(ang + (size_t)na * ref_of[s], ang + (size_t)na * (a * P), na) /
+                                   sqrt((double)na);
+                near_of[s] = rms < GATE_DEG * M_PI / 180;
+                near_all_of[s] = rms < GATE_ALL_DEG * M_PI / 180;
+            }
         }
         for (uint32_t p = 1; p < P; p++) {
             const uint32_t q = a * P + p;
@@ -458,11 +473,20 @@ static int run_set(const bench_dataset_t *d, void *user)
                 double w[K_ASK], sc[K_ASK];
                 const double *src[K_ASK], *wp[K_ASK], *wr[K_ASK];
                 double t0 = mim_now();
+                /* FR_GATED_ALL as the session: the hits whose references are near, blended relative; with
+                 * none, the plain path over them all */
+                mim_index_hit_t sel[K_ASK];
+                uint32_t n_sel = 0;
+                for (uint32_t j = 0; j < k; j++)
+                    if (near_all_of[((uint32_t)hh[j].id - 1) / P]) sel[n_sel++] = hh[j];
+                const int plain = rm->frames == FR_GATED_ALL && !n_sel;
+                if (rm->frames == FR_GATED_ALL && n_sel) hh = sel, k = n_sel;
                 for (uint32_t j = 0; j < k; j++) {
                     const uint32_t t = (uint32_t)hh[j].id - 1, r = ref_of[t / P];
                     w[j] = rm->weighting == W_EQUAL ? 1.0 : 1.0 / (hh[j].distance + 1e-3);
                     src[j] = F[t];
-                    if (rm->frames == FR_RELATIVE || (rm->frames == FR_GATED && near_of[t / P])) {
+                    if (rm->frames == FR_RELATIVE || (rm->frames == FR_GATED && near_of[t / P]) ||
+                        (rm->frames == FR_GATED_ALL && !plain)) {
                         mim_xfer_frames_relative(n, F[t], F[r], Fa, Fc[j]);
                         src[j] = Fc[j];
                     } else if (rm->frames == FR_RELATIVE_Q) {
@@ -483,7 +507,7 @@ static int run_set(const bench_dataset_t *d, void *user)
                     frames = Fb;
                 }
                 const double *Wq = rm->enc == EN_TRUTH ? WT[q] : W;
-                if (rm->enc == EN_DELTA || rm->enc == EN_DELTA_SCALED) {
+                if ((rm->enc == EN_DELTA || rm->enc == EN_DELTA_SCALED) && !plain) {
                     mim_xfer_encoding_relative(n, k, wp, wr, w, rm->enc == EN_DELTA_SCALED ? sc : NULL, W, Wx);
                     Wq = Wx;
                 } else if (rm->enc == EN_DELTA_ROT) {

@@ -77,7 +77,7 @@ int main(int argc, char **argv)
     /* a synthetic avatar and its rig */
     mim_error_t err = {0};
     mim_synth_t *s = NULL;
-    mim_synth_options_t so = {1, 1, 0, 1};
+    mim_synth_options_t so = {1, 1, 0, 1, 0, 0, 0};
     mim_mesh_t mesh = {0};
     mim_landmark_map_t map;
     static mim_vest_skeleton_t sk;

@@ -63,7 +63,7 @@ static void help(FILE *out)
             "                       orientations, one solve; the template where there are none),\n"
             "                       template (the template's frames, iterated) or orientation\n"
             "  --blend K            the template drive blends the frames of the K nearest templates\n"
-            "                       (default 1; mimic transfer --help)\n"
+            "                       (default %d; mimic transfer --help)\n"
             "  --segment-correction on|off  each template's frames turned onto the landmarks first\n"
             "                       (default off)\n"
             "  --relative on|off    the template drive by relative transfer (default on; mimic\n"
@@ -81,7 +81,8 @@ static void help(FILE *out)
             "  GET|DELETE /api/sessions/NAME  one session's status; remove it\n"
             "  GET  /metrics        Prometheus text (mimic_*; per session: session=\"NAME\")\n"
             "Without ?session= a route means the first session.\n",
-            MIM_SERVE_DEFAULT_LISTEN, MIM_SERVE_DEFAULT_MAX_BODY, MIM_SERVE_DEFAULT_MAX_CLIENTS);
+            MIM_SERVE_DEFAULT_LISTEN, MIM_SERVE_DEFAULT_MAX_BODY, MIM_SERVE_DEFAULT_MAX_CLIENTS,
+            MIM_SESSION_DEFAULT_BLEND);
 }
 
 /* The sessions of --session and --sessions, in the order given. */

@@ -38,7 +38,7 @@ int mim_cmd_synth(int argc, char **argv)
         {"seed", required_argument, 0, 'k'},     {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0}};
     const char *out = NULL;
-    mim_synth_options_t opt = {MIM_SYNTH_DEFAULT_SUBJECTS, MIM_SYNTH_DEFAULT_POSES, MIM_SYNTH_DEFAULT_VERTICES, 1};
+    mim_synth_options_t opt = {MIM_SYNTH_DEFAULT_SUBJECTS, MIM_SYNTH_DEFAULT_POSES, MIM_SYNTH_DEFAULT_VERTICES, 1, 0, 0, 0};
     int c;
     optind = 0;
     opterr = 0;

@@ -47,7 +47,9 @@ static void help(FILE *out)
             "                       lies along the landmarks' before the solve (default off)\n"
             "  --relative on|off    the template drive: the avatar's W plus the template's change from its\n"
             "                       subject's template nearest the avatar's rest, and its turn on the\n"
-            "                       avatar's own frames (default on; off: the template's frames, rest W)\n"
+            "                       avatar's own frames, where that reference stands as the avatar does\n"
+            "                       (within %g degrees: one rig's bodies; real people's do not) (default\n"
+            "                       on; off: the template's frames, rest W)\n"
             "  --iterations N       at most N solves (default %u)\n"
             "  --tol T              stop when no vertex moves more than T metres (default %g)\n"
             "  --formulation F      least-squares (default: the landmark rows stay in the objective)\n"
@@ -55,7 +57,8 @@ static void help(FILE *out)
             "  -o, --output OUT     .ply .obj .off or .glb\n"
             "  --json               a JSON report on stdout (schemas/transfer.schema.json)\n"
             "  -h, --help           this help\n",
-            MIM_XFER_BLEND_MAX, MIM_SESSION_DEFAULT_BLEND, MIM_XFER_DEFAULT_MAX_ITERATIONS, MIM_XFER_DEFAULT_TOL);
+            MIM_XFER_BLEND_MAX, MIM_SESSION_DEFAULT_BLEND, MIM_SESSION_RELATIVE_GATE_DEG, MIM_XFER_DEFAULT_MAX_ITERATIONS,
+            MIM_XFER_DEFAULT_TOL);
 }
 
 int mim_cmd_transfer(int argc, char **argv)

@@ -72,7 +72,7 @@ static int load_rig(const char *cmd, const char *avatar, const char *map_path, i
             free(sk);
             return 2;
         }
-        mim_synth_options_t so = {(uint32_t)subject + 1, 1, 0, 1};
+        mim_synth_options_t so = {(uint32_t)subject + 1, 1, 0, 1, 0, 0, 0};
         mim_synth_t *s = NULL;
         rc = mim_synth_create(&s, &so, &err);
         if (!rc) rc = mim_mesh_alloc(&mesh, mim_synth_n_vertices(s), mim_synth_n_faces(s));

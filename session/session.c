@@ -826,7 +826,7 @@ static int orientation_frames(mim_session_t *s, const mim_session_request_t *req
  * *frames points at them, *W at the avatar's W or, relative, its W plus
  * the templates' change; the first template's slot in *first. */
 static int template_frames(mim_session_t *s, const mim_session_request_t *req, mim_session_report_t *r,
-                           const double *weights, const float *u, const double **frames, const double **W,
+                           double *weights, const float *u, const double **frames, const double **W,
                            template_slot_t **first, mim_error_t *err)
 {
     const uint32_t n = s->mesh.n_vertices, nl = s->map.count;
@@ -836,14 +836,28 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
     size_t at[MIM_XFER_BLEND_MAX];
     int correct = s->skin && u && req->segment_correction;
     int relative = (req->relative ? req->relative : MIM_SESSION_DEFAULT_RELATIVE) > 0;
+    /* Only references that stand as the avatar does (MIM_SESSION_RELATIVE_GATE_DEG; else another body's
+     * way of moving): the templates whose references do are blended relative, the others left out;
+     * with none, the plain path over them all. And all or none of a blend: changes and shapes mixed
+     * would mix two meanings. */
+    uint32_t kept = 0;
+    uint64_t keep_id[MIM_XFER_BLEND_MAX];
+    double keep_w[MIM_XFER_BLEND_MAX];
     for (uint32_t j = 0; relative && j < r->n_templates; j++) {
         subject_ref_t *found;
         int rc = mim__session_reference(s, r->templates[j], &found, err);
         if (rc)
             return rc;
-        relative = found != NULL; /* all or none: a blend of changes and shapes would mix two meanings */
-        if (found) /* an index: a later template's new reference may move s->refs */
-            at[j] = (size_t)(found - s->refs);
+        if (!found || !found->near) continue;
+        at[kept] = (size_t)(found - s->refs); /* an index: a later template's new reference may move s->refs */
+        keep_id[kept] = r->templates[j], keep_w[kept] = weights ? weights[j] : 1.0;
+        kept++;
+    }
+    relative = relative && kept > 0;
+    if (relative && kept < r->n_templates) { /* the blend of those alone */
+        for (uint32_t j = 0; j < kept; j++) r->templates[j] = keep_id[j];
+        r->n_templates = kept;
+        if (weights) memcpy(weights, keep_w, kept * sizeof *keep_w);
     }
     for (uint32_t j = 0; relative && j < r->n_templates; j++)
         ref[j] = &s->refs[at[j]];
@@ -863,14 +877,13 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
                 mim_xfer_encode(s->topo, t->pos, t->F, t->W);
                 t->has_W = 1;
             }
-            if (ref[j]->near && !t->has_rF) {
+            if (!t->has_rF) {
                 if (!t->rF && !(t->rF = malloc(9 * (size_t)n * sizeof *t->rF)))
                     return mim_error_set(err, MIM_ENOMEM, "out of memory for a template of %u vertices", n);
                 mim_xfer_frames_relative(n, t->F, ref[j]->F, s->restF, t->rF);
                 t->has_rF = 1;
             }
-            if (ref[j]->near)
-                src[j] = t->rF, r->frames_turned++;
+            src[j] = t->rF, r->frames_turned++;
             wp[j] = t->W, wr[j] = ref[j]->W, scale[j] = ref[j]->scale;
             r->references[j] = ref[j]->id;
         }

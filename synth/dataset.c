@@ -135,7 +135,7 @@ int mim_synth_write_dataset(const mim_synth_t *s, const char *dir, mim_error_t *
             break;
         }
         for (uint32_t p = 0; p < P && !rc; p++) {
-            mim__body_pose(s, &b, p, work, pos, NULL);
+            mim__body_pose(s, &b, si, p, work, pos, NULL);
             for (uint32_t i = 0; i < 3 * nv; i++) put_f32(vbuf + 4 * (size_t)i, pos[i]);
             char name[64];
             mim_synth_file_name(si, p, name, sizeof name);

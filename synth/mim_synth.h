@@ -30,6 +30,22 @@ typedef struct mim_synth_options {
     uint32_t poses;    /* 0 means 12 (pose 0 = rest) */
     uint32_t vertices; /* approximate vertex count (500..200000), 0 means 7000 */
     uint64_t seed;     /* any value; the CLI default is 1 */
+    /* Imitation (issue 29): each subject takes each pose but the rest its
+     * own way: every joint axis with a range turned by a Gaussian angle of
+     * this standard deviation (degrees; seeded by subject and pose; kept in
+     * the joint's limits). Real people imitating one pose differ by about
+     * 11 degrees rms per bone; 0 (the default): every subject takes the
+     * designed angles exactly, as one shared rig would. */
+    double imitation_deg;
+    /* Pose-dependent soft tissue (issue 29): each (subject, pose) its own
+     * smooth bulges along the surface, heights of this standard deviation
+     * (mm; synth/tissue.c), so that one subject's change of surface from
+     * rest to a pose is not another's. 0 (the default): none. */
+    double tissue_mm;
+    /* Registration's error (issue 29): each (subject, pose)'s vertices slid
+     * along the surface by a smooth field of this standard deviation (mm),
+     * as a store of registered scans holds them. 0 (the default): none. */
+    double slide_mm;
 } mim_synth_options_t;
 
 #define MIM_SYNTH_DEFAULT_SUBJECTS 4u

@@ -236,3 +236,23 @@ void mim__lbs(const mim__skeleton_t *sk, const mim_quat qj[MIM__NJ], const mim_q
         o[2] = B[8] * x[0] + B[9] * x[1] + B[10] * x[2] + B[11];
     }
 }
+
+#define IMITATION_LOOSE_ONES 4     /* one (subject, pose) in this many */
+#define IMITATION_LOOSE_SCALE 1.9 /* is this much looser */
+void mim__pose_imitate(uint32_t subject, uint32_t pose, uint64_t seed, double sigma_deg, double deg[MIM__NJ][3])
+{
+    if (!(sigma_deg > 0)) return; /* the rest too: nobody stands in a designed A-pose exactly */
+    mim_rng_t r;
+    mim_rng_seed(&r, seed, 0x1A17A7E000000ULL + ((uint64_t)subject << 24) + pose);
+    /* one in IMITATION_LOOSE_ONES takes a pose more loosely, by
+     * IMITATION_LOOSE_SCALE (the tail real people show: their p90 is 1.6
+     * times their rms, where a Gaussian's is 1.2) */
+    const double scale = mim_rng_unit(&r) * IMITATION_LOOSE_ONES < 1 ? IMITATION_LOOSE_SCALE : 1.0;
+    for (int j = 0; j < MIM__NJ; j++)
+        for (int k = 0; k < 3; k++) {
+            const range_t *l = &limits[j][k];
+            double g = mim_rng_gauss(&r); /* drawn for every axis: a locked one must not shift the others' */
+            if (l->lo == l->hi) continue;
+            deg[j][k] = fmin(l->hi, fmax(l->lo, deg[j][k] + scale * sigma_deg * g));
+        }
+}

@@ -73,17 +73,19 @@ int mim__body_eval(const mim_synth_t *s, const mim__subject_t *sub, mim__body_t 
     return 0;
 }
 
-void mim__body_pose(const mim_synth_t *s, const mim__body_t *b, uint32_t pose, double *work, float *positions,
-                    float *joints)
+void mim__body_pose(const mim_synth_t *s, const mim__body_t *b, uint32_t subject, uint32_t pose, double *work,
+                    float *positions, float *joints)
 {
     mim_quat q[MIM__NJ], G[MIM__NJ];
     mim_vec3 P[MIM__NJ];
     double deg[MIM__NJ][3];
     mim__pose_angles(pose, s->opt.seed, deg);
+    mim__pose_imitate(subject, pose, s->opt.seed, s->opt.imitation_deg, deg);
     mim__pose_quats((const double(*)[3])deg, q);
     mim__fk(&b->sk, q, G, P);
     uint32_t nv = s->nv;
     mim__lbs(&b->sk, q, G, P, nv, b->rest, b->wj, b->ww, work);
+    mim__tissue_apply(s, b->rest, subject, pose, work);
     /* stand on the ground: the lowest vertex at y = 0 */
     double ymin = DBL_MAX;
     for (uint32_t i = 0; i < nv; i++) ymin = fmin(ymin, work[3 * i + 1]);
@@ -115,7 +117,7 @@ int mim_synth_create(mim_synth_t **out, const mim_synth_options_t *optp, mim_err
 {
     if (!out) return mim_error_set(err, MIM_EINVAL, "synth: no output pointer");
     *out = NULL;
-    mim_synth_options_t opt = {0, 0, 0, 1};
+    mim_synth_options_t opt = {0, 0, 0, 1, 0, 0, 0};
     if (optp) opt = *optp;
     if (!opt.subjects) opt.subjects = MIM_SYNTH_DEFAULT_SUBJECTS;
     if (!opt.poses) opt.poses = MIM_SYNTH_DEFAULT_POSES;
@@ -124,6 +126,13 @@ int mim_synth_create(mim_synth_t **out, const mim_synth_options_t *optp, mim_err
         return mim_error_set(err, MIM_EINVAL, "synth: %u subjects, at most %u", opt.subjects, MIM_SYNTH_MAX_SUBJECTS);
     if (opt.poses > MIM_SYNTH_MAX_POSES)
         return mim_error_set(err, MIM_EINVAL, "synth: %u poses, at most %u", opt.poses, MIM_SYNTH_MAX_POSES);
+    if (!(opt.slide_mm >= 0 && opt.slide_mm <= 50))
+        return mim_error_set(err, MIM_EINVAL, "synth: a slide of %g mm, must be 0..50", opt.slide_mm);
+    if (!(opt.tissue_mm >= 0 && opt.tissue_mm <= 50))
+        return mim_error_set(err, MIM_EINVAL, "synth: soft tissue of %g mm, must be 0..50", opt.tissue_mm);
+    if (!(opt.imitation_deg >= 0 && opt.imitation_deg <= 45))
+        return mim_error_set(err, MIM_EINVAL, "synth: an imitation spread of %g degrees, must be 0..45",
+                             opt.imitation_deg);
     if (opt.vertices < MIM_SYNTH_MIN_VERTICES || opt.vertices > MIM_SYNTH_MAX_VERTICES)
         return mim_error_set(err, MIM_EINVAL, "synth: %u vertices asked, must be %u..%u", opt.vertices,
                              MIM_SYNTH_MIN_VERTICES, MIM_SYNTH_MAX_VERTICES);
@@ -222,7 +231,7 @@ static int eval(const mim_synth_t *s, uint32_t subject, uint32_t pose, float *po
         mim__body_free(&b);
         return MIM_ENOMEM;
     }
-    mim__body_pose(s, &b, pose, work, positions, joints);
+    mim__body_pose(s, &b, subject, pose, work, positions, joints);
     free(work);
     mim__body_free(&b);
     return 0;

@@ -161,6 +161,9 @@ uint32_t mim__triangulate(const mim__refine_t *r, const double *pos, uint32_t *f
 #define MIM__NW 8 /* influences per final vertex */
 #define MIM__POSE_TABLE 12 /* rest + 11 designed poses */
 void mim__pose_angles(uint32_t pose, uint64_t seed, double deg[MIM__NJ][3]);
+/* The subject's own way of taking the pose (mim_synth_options_t's
+ * imitation_deg): deg perturbed in place; nothing for sigma 0 or the rest. */
+void mim__pose_imitate(uint32_t subject, uint32_t pose, uint64_t seed, double sigma_deg, double deg[MIM__NJ][3]);
 const char *mim__pose_table_name(uint32_t pose); /* NULL past the table */
 void mim__pose_quats(const double deg[MIM__NJ][3], mim_quat q[MIM__NJ]);
 /* Forward kinematics: world rotations G and posed joint positions P (root
@@ -196,8 +199,13 @@ int mim__body_eval(const mim_synth_t *s, const mim__subject_t *sub, mim__body_t 
 void mim__body_free(mim__body_t *b);
 /* Poses b: positions (3 * nv, may be NULL) and joints (3 * MIM__NJ, may be
  * NULL), lowest vertex at y = 0. `work` holds 3 * nv doubles. */
-void mim__body_pose(const mim_synth_t *s, const mim__body_t *b, uint32_t pose, double *work, float *positions,
-                    float *joints);
+void mim__body_pose(const mim_synth_t *s, const mim__body_t *b, uint32_t subject, uint32_t pose, double *work,
+                    float *positions, float *joints);
+
+/* Soft tissue (tissue.c): pos (3 * nv, posed) bulged in place for this
+ * subject and pose; nothing when opt.tissue_mm is 0. rest: the subject's
+ * rest mesh (bumps are placed on it). */
+void mim__tissue_apply(const mim_synth_t *s, const double *rest, uint32_t subject, uint32_t pose, double *pos);
 
 /* Landmark vertices chosen on a rest body (landmarks.c). */
 void mim__landmarks_pick(const mim__body_t *b, uint32_t nv, uint32_t out[MIM_LANDMARKS_DEFAULT_COUNT]);

@@ -298,9 +298,11 @@ static void test_fork_own_references(void **state)
     free(t0), free(t2), free(b_before), free(b_after), free(f_out), free(a_out);
 }
 
-/* store2: subject 1 has no rest pose (its reference is another pose: the W
- * change alone, frames not turned), and an unlabelled template takes the
- * plain path. */
+/* store2: subject 1 has no rest pose, so its reference stands in another
+ * pose than the avatar's rest: no evidence that it moves as the avatar
+ * would, so the plain path (issue 29: its change of encoding alone made
+ * bodies of one rig 25 % better, and real people's 20 % worse); and an
+ * unlabelled template takes the plain path too. */
 static void test_no_rest_reference(void **state)
 {
     (void)state;
@@ -329,13 +331,10 @@ static void test_no_rest_reference(void **state)
     transfer(s, &req, off, NULL);
     print_message("no rest reference: relative %.2f mm, plain %.2f mm (reference %llu)\n", mean_mm(on, truth),
                   mean_mm(off, truth), (unsigned long long)r.reference_id);
-    assert_int_equal(r.relative, 1);
+    assert_int_equal(r.relative, 0);
     assert_int_equal(r.frames_turned, 0);
-    assert_int_not_equal(r.reference_id, 0);
-    assert_int_equal(mim_session_template(s, r.reference_id, NULL, NULL, label, sizeof label, &err), 0);
-    assert_int_equal(strncmp(label, "1/", 2), 0);
-    assert_string_not_equal(label, "1/3");
-    assert_true(mean_mm(on, truth) < 0.75 * mean_mm(off, truth));
+    assert_int_equal(r.reference_id, 0);
+    assert_memory_equal(on, off, 3 * (size_t)mim_session_mesh(s)->n_vertices * sizeof *on); /* bit for bit */
     /* no subject: the plain path, bit for bit */
     req = (mim_session_request_t){.template_id = loose, .landmarks = u};
     transfer(s, &req, on, &r);

@@ -24,7 +24,7 @@
 
 static mim_synth_t *make(uint32_t subjects, uint32_t poses, uint32_t vertices, uint64_t seed)
 {
-    mim_synth_options_t o = {subjects, poses, vertices, seed};
+    mim_synth_options_t o = {subjects, poses, vertices, seed, 0, 0, 0};
     mim_synth_t *s = NULL;
     mim_error_t e = {0};
     int rc = mim_synth_create(&s, &o, &e);
@@ -642,12 +642,12 @@ static void test_errors(void **state)
     (void)state;
     mim_synth_t *s = NULL;
     mim_error_t e = {0};
-    mim_synth_options_t bad = {1, 1, 100, 1};
+    mim_synth_options_t bad = {1, 1, 100, 1, 0, 0, 0};
     assert_int_equal(mim_synth_create(&s, &bad, &e), MIM_EINVAL);
     assert_null(s);
     assert_non_null(strstr(mim_error_text(&e), "vertices"));
     assert_null(strchr(mim_error_text(&e), '\n'));
-    mim_synth_options_t bad2 = {MIM_SYNTH_MAX_SUBJECTS + 1, 1, 0, 1};
+    mim_synth_options_t bad2 = {MIM_SYNTH_MAX_SUBJECTS + 1, 1, 0, 1, 0, 0, 0};
     assert_int_equal(mim_synth_create(&s, &bad2, NULL), MIM_EINVAL);
     assert_int_equal(mim_synth_create(NULL, NULL, NULL), MIM_EINVAL);
 
@@ -745,6 +745,75 @@ static void test_cli(void **state)
     rmtree(dir);
 }
 
+
+/* Issue 29: the imitation options. Each subject takes each pose (the rest
+ * too) its own way, seeded: the same options give the same bodies; the
+ * same pose of two subjects lies further apart in bone direction than
+ * without; soft tissue and the registration slide move the surface by
+ * millimetres, not the skeleton; bad values are refused in one line. */
+static double bone_angle(const float *a, const float *b, const mim_landmark_map_t *m, const char *c, const char *p)
+{
+    int ci = mim_landmarks_find(m, c), pi = mim_landmarks_find(m, p);
+    double u[3], v[3], nu = 0, nv = 0, d = 0;
+    for (int k = 0; k < 3; k++) {
+        u[k] = a[3 * m->vertex[ci] + k] - a[3 * m->vertex[pi] + k];
+        v[k] = b[3 * m->vertex[ci] + k] - b[3 * m->vertex[pi] + k];
+        nu += u[k] * u[k], nv += v[k] * v[k], d += u[k] * v[k];
+    }
+    return acos(fmax(-1, fmin(1, d / sqrt(nu * nv)))) * 180 / M_PI;
+}
+
+static void test_imitation(void **state)
+{
+    (void)state;
+    mim_synth_options_t plain = {2, 4, 1500, 3, 0, 0, 0}, imit = plain, again = plain;
+    imit.imitation_deg = again.imitation_deg = 3.5;
+    imit.tissue_mm = again.tissue_mm = 4, imit.slide_mm = again.slide_mm = 22;
+    mim_synth_t *sp = NULL, *si = NULL, *sa = NULL;
+    assert_int_equal(mim_synth_create(&sp, &plain, NULL), 0);
+    assert_int_equal(mim_synth_create(&si, &imit, NULL), 0);
+    assert_int_equal(mim_synth_create(&sa, &again, NULL), 0);
+    const uint32_t n = mim_synth_n_vertices(sp);
+    float *x = malloc(12 * (size_t)n), *y = malloc(12 * (size_t)n), *z = malloc(12 * (size_t)n), *w = malloc(12 * (size_t)n);
+    mim_landmark_map_t m;
+    mim_synth_landmarks(sp, &m);
+    static const char *const arm[][2] = {{"l_elbow", "l_shoulder"}, {"r_wrist", "r_elbow"}, {"l_knee", "l_hip"}};
+    double plain_apart = 0, imit_apart = 0;
+    for (uint32_t p = 0; p < 4; p++) {
+        assert_int_equal(mim_synth_body(si, 0, p, x), 0);
+        assert_int_equal(mim_synth_body(sa, 0, p, y), 0);
+        assert_memory_equal(x, y, 12 * (size_t)n); /* seeded */
+        assert_int_equal(mim_synth_body(si, 1, p, y), 0);
+        assert_int_equal(mim_synth_body(sp, 0, p, z), 0);
+        assert_int_equal(mim_synth_body(sp, 1, p, w), 0);
+        for (size_t k = 0; k < 3; k++)
+            imit_apart += bone_angle(x, y, &m, arm[k][0], arm[k][1]) / 12,
+                plain_apart += bone_angle(z, w, &m, arm[k][0], arm[k][1]) / 12;
+        /* the rest too: nobody stands in the designed A-pose exactly */
+        if (p == 0) {
+            double moved = 0;
+            for (size_t i = 0; i < 3 * (size_t)n; i++) moved = fmax(moved, fabs(x[i] - z[i]));
+            assert_true(moved > 0.01);
+        }
+    }
+    print_message("the same pose, two subjects: bones %.1f deg apart imitating, %.1f deg by one rig\n", imit_apart,
+                  plain_apart);
+    assert_true(imit_apart > plain_apart + 3);
+    mim_synth_destroy(&sp), mim_synth_destroy(&si), mim_synth_destroy(&sa);
+    /* out of range: one line each */
+    const double bad[][3] = {{-1, 0, 0}, {46, 0, 0}, {0, -1, 0}, {0, 51, 0}, {0, 0, -1}, {0, 0, 51}, {NAN, 0, 0}};
+    for (size_t k = 0; k < sizeof bad / sizeof *bad; k++) {
+        mim_synth_options_t o = plain;
+        o.imitation_deg = bad[k][0], o.tissue_mm = bad[k][1], o.slide_mm = bad[k][2];
+        mim_error_t err = {0};
+        mim_synth_t *s = NULL;
+        assert_int_equal(mim_synth_create(&s, &o, &err), MIM_EINVAL);
+        assert_null(s);
+        assert_non_null(strstr(err.msg, "must be 0.."));
+    }
+    free(x), free(y), free(z), free(w);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -755,7 +824,7 @@ int main(void)
         cmocka_unit_test(test_poses),          cmocka_unit_test(test_landmarks),
         cmocka_unit_test(test_bone_lengths),   cmocka_unit_test(test_knee_elbow),
         cmocka_unit_test(test_files),          cmocka_unit_test(test_errors),
-        cmocka_unit_test(test_cli),
+        cmocka_unit_test(test_cli),            cmocka_unit_test(test_imitation),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

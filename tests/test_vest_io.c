@@ -22,7 +22,7 @@ extern char **environ;
  * one-subject synth at its default size; vs_avatar_make's body differs). */
 static void cli_synth_rig(mim_vest_rig_t *rig, int pose)
 {
-    mim_synth_options_t so = {1, 1, 0, 1};
+    mim_synth_options_t so = {1, 1, 0, 1, 0, 0, 0};
     mim_synth_t *s = NULL;
     mim_mesh_t mesh = {0};
     mim_landmark_map_t map;

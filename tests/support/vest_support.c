@@ -22,7 +22,7 @@ void vs_rand_quat(float q[4])
 void vs_avatar_make(vs_avatar_t *a, int pose)
 {
     memset(a, 0, sizeof *a);
-    mim_synth_options_t so = {1, 2, 3000, 1};
+    mim_synth_options_t so = {1, 2, 3000, 1, 0, 0, 0};
     mim_error_t err = {0};
     assert_int_equal(mim_synth_create(&a->s, &so, &err), 0);
     assert_int_equal(mim_mesh_alloc(&a->mesh, mim_synth_n_vertices(a->s), mim_synth_n_faces(a->s)), 0);
