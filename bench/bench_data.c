@@ -291,9 +291,10 @@ int bench_sets_run(bench_sets_t *s, uint32_t subjects, uint32_t poses, bench_set
         fflush(stdout);
         if (!bench_pose_spread(&d, &rms, &p10, &p90))
             printf("\nimitation: synth's subjects, each taking each pose its own way (every joint axis %.1f deg, "
-                   "Gaussian): the same pose differs between two subjects by %.1f deg rms per bone after rigid "
-                   "alignment (pairs p10 %.1f, p90 %.1f; real people: 11.4, 7.6, 18.2)\n",
-                   s->imitation_deg, rms, p10, p90);
+                   "one in four looser), with soft tissue (%.0f mm) and a registered store's slide (%.0f mm): the "
+                   "same pose differs between two subjects by %.1f deg rms per bone after rigid alignment (pairs "
+                   "p10 %.1f, p90 %.1f; real people: 11.4, 7.6, 18.2)\n",
+                   s->imitation_deg, BENCH_TISSUE_MM, BENCH_SLIDE_MM, rms, p10, p90);
         fflush(stdout);
         rc = fn(&d, user);
         bench_dataset_free(&d);

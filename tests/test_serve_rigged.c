@@ -63,6 +63,25 @@ static int teardown(void **state)
     return 0;
 }
 
+/* A GLB answer (freed here), kept at dir/name (the path, malloc'd): the
+ * avatar's parts, each with its vertices and faces as the file has them. */
+static char *glb_in_parts(hc_reply_t *r, const char *name)
+{
+    assert_int_equal(r->status, 200);
+    char *path = ts_path(dir, name);
+    assert_int_equal(ts_write_file(path, r->body, r->len), 0);
+    hc_reply_free(r);
+    mim_io_scene_t s;
+    mim_error_t err = {0};
+    assert_int_equal(mim_io_read_scene(path, NULL, &s, &err), 0);
+    assert_int_equal(s.n_parts, rest.n_parts);
+    for (uint32_t k = 0; k < s.n_parts; k++) assert_int_equal(s.parts[k].n_vertices, rest.parts[k].n_vertices);
+    assert_int_equal(s.mesh.n_faces, rest.mesh.n_faces);
+    assert_memory_equal(s.mesh.faces, rest.mesh.faces, 3 * (size_t)rest.mesh.n_faces * sizeof(uint32_t));
+    mim_io_scene_free(&s);
+    return path;
+}
+
 static void test_start_says_rest_pose(void **state)
 {
     (void)state;
@@ -100,16 +119,7 @@ static void test_api_avatar_parts(void **state)
     hc_reply_free(&r);
 
     r = ss_http_get(svc.port, "/api/avatar.glb");
-    assert_int_equal(r.status, 200);
-    char *path = ts_path(dir, "avatar-rest.glb");
-    assert_int_equal(ts_write_file(path, r.body, r.len), 0);
-    hc_reply_free(&r);
-    mim_io_scene_t s;
-    mim_error_t err = {0};
-    assert_int_equal(mim_io_read_scene(path, NULL, &s, &err), 0);
-    assert_int_equal(s.n_parts, rest.n_parts);
-    for (uint32_t k = 0; k < s.n_parts; k++) assert_int_equal(s.parts[k].n_vertices, rest.parts[k].n_vertices);
-    mim_io_scene_free(&s);
+    char *path = glb_in_parts(&r, "avatar-rest.glb");
     char *txt = ts_read_file(path, NULL);
     assert_non_null(strstr(txt + 20, "\"TEXCOORD_0\""));
     assert_non_null(strstr(txt + 20, "\"image/png\""));
@@ -168,16 +178,7 @@ static void test_transfer_keeps_look(void **state)
     assert_int_equal(hc_request(&r, svc.port, "POST", "/api/transfer", "Content-Type: application/json\r\n", body,
                                 strlen(body), 60000),
                      HC_OK);
-    assert_int_equal(r.status, 200);
-    char *path = ts_path(dir, "transfer.glb");
-    assert_int_equal(ts_write_file(path, r.body, r.len), 0);
-    hc_reply_free(&r);
-    mim_io_scene_t s;
-    mim_error_t err = {0};
-    assert_int_equal(mim_io_read_scene(path, NULL, &s, &err), 0);
-    assert_int_equal(s.n_parts, rest.n_parts);
-    assert_memory_equal(s.mesh.faces, rest.mesh.faces, 3 * (size_t)rest.mesh.n_faces * sizeof(uint32_t));
-    mim_io_scene_free(&s);
+    char *path = glb_in_parts(&r, "transfer.glb");
     char *txt = ts_read_file(path, NULL);
     assert_non_null(strstr(txt + 20, "\"baseColorTexture\""));
     free(txt);
