@@ -9,6 +9,7 @@
 
 #include <getopt.h>
 #include <jansson.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -41,9 +42,10 @@ static json_t *report_json(const char *mesh, const char *outp, const mim_mesh_t 
                            uint64_t tid, const mim_template_view_t *tv, const mim_reg_report_t *r,
                            const mim_landmark_map_t *map)
 {
-    json_t *per = json_object();
+    json_t *per = json_object(), *dist = json_object();
     for (uint32_t l = 0; l < r->n_landmarks; l++) json_object_set_new(per, map->names[l], json_real(r->landmark_mm[l]));
-    return json_pack("{s:s, s:s, s:I, s:I, s:s, s:{s:I, s:s, s:s}, s:I, s:f, s:{s:f, s:f, s:f}, s:{s:f, s:f, s:o}, "
+    for (int g = 0; g < MIM_REG_REGIONS; g++) json_object_set_new(dist, mim_reg_region_names[g], json_real(r->distortion_pct[g]));
+    json_t *j = json_pack("{s:s, s:s, s:I, s:I, s:s, s:{s:I, s:s, s:s}, s:I, s:f, s:{s:f, s:f, s:f}, s:{s:f, s:f, s:o}, "
                      "s:{s:f, s:f, s:f}}",
                      "mesh", mesh, "output", outp, "vertices", (json_int_t)target->n_vertices, "store_vertices",
                      (json_int_t)n, "landmarks_from", how, "template", "id", (json_int_t)tid, "subject",
@@ -51,6 +53,13 @@ static json_t *report_json(const char *mesh, const char *outp, const mim_mesh_t 
                      "scale", r->scale, "surface_distance_mm", "mean", r->mean_mm, "p95", r->p95_mm, "max", r->max_mm,
                      "landmark_residuals_mm", "mean", r->landmark_mean_mm, "max", r->landmark_max_mm, "per_landmark",
                      per, "seconds", "initial", r->seconds_initial, "icp", r->seconds_icp, "total", r->seconds);
+    if (j) {
+        json_object_set_new(j, "distortion_percent", dist);
+        json_object_set_new(j, "volume_ratio", isfinite(r->volume_ratio) ? json_real(r->volume_ratio) : json_null());
+    } else {
+        json_decref(dist);
+    }
+    return j;
 }
 
 int mim_cmd_register(int argc, char **argv)

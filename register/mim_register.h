@@ -135,7 +135,19 @@ typedef struct mim_reg_report {
     double landmark_mean_mm, landmark_max_mm;
     double rejected;           /* fraction of vertices without a closest point at the last step */
     double seconds_initial, seconds_icp, seconds;
+    /* Correspondence quality (issue 29; surface distance hides sliding):
+     * per body region (mim_reg_region_names: a vertex's nearest landmark's),
+     * the rms stretch of the template's edges, percent of their length
+     * (log ratio), against the template moved by the similarity fit; and
+     * the result's enclosed volume over the moved template's. */
+    double distortion_pct[6];
+    double volume_ratio;
 } mim_reg_report_t;
+#define MIM_REG_REGIONS 6
+extern const char *const mim_reg_region_names[MIM_REG_REGIONS]; /* head, torso, arms, hands, legs, feet */
+/* A registration enclosing less than this share of its template's volume
+ * (flat, degenerate, inside out) is refused (MIM_ETOPOLOGY). */
+#define MIM_REG_MIN_VOLUME_RATIO 0.5
 
 typedef struct mim_reg mim_reg_t;
 /* One registration context for a connectivity and its landmark map (16 or

@@ -84,6 +84,94 @@ static int cmp_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
+/* The handedness of a landmark skeleton (issue 29): the sign of
+ * det(left, up, forward), left from the right shoulders and hips to the
+ * left ones, up from the pelvis to the chest, forward from the spine
+ * (back) to the chest (front); 0 without those landmarks or when they are
+ * flat. A body and its mirror image have opposite signs. */
+static int handedness(const mim_landmark_map_t *map, const float *lm)
+{
+    static const char *const want[7] = {"l_shoulder", "r_shoulder", "l_hip", "r_hip", "pelvis", "chest", "spine"};
+    int at[7];
+    for (int k = 0; k < 7; k++)
+        if ((at[k] = mim_landmarks_find(map, want[k])) < 0) return 0;
+    double L[3], U[3], F[3];
+    for (int c = 0; c < 3; c++) {
+        L[c] = lm[3 * at[0] + c] - lm[3 * at[1] + c] + lm[3 * at[2] + c] - lm[3 * at[3] + c];
+        U[c] = lm[3 * at[5] + c] - lm[3 * at[4] + c];
+        F[c] = lm[3 * at[5] + c] - lm[3 * at[6] + c];
+    }
+    const double det = L[0] * (U[1] * F[2] - U[2] * F[1]) - L[1] * (U[0] * F[2] - U[2] * F[0]) +
+                       L[2] * (U[0] * F[1] - U[1] * F[0]);
+    const double size = sqrt((L[0] * L[0] + L[1] * L[1] + L[2] * L[2]) * (U[0] * U[0] + U[1] * U[1] + U[2] * U[2]) *
+                             (F[0] * F[0] + F[1] * F[1] + F[2] * F[2]));
+    return !(size > 0) || fabs(det) < 1e-3 * size ? 0 : det > 0 ? 1 : -1;
+}
+
+/* The enclosed volume of a mesh (divergence theorem; positive for faces
+ * wound outwards, whatever the mesh's holes make of it). */
+static double signed_volume(const uint32_t *faces, uint32_t nf, const float *x)
+{
+    double v = 0;
+    for (uint32_t f = 0; f < nf; f++) {
+        const float *a = x + 3 * (size_t)faces[3 * f], *b = x + 3 * (size_t)faces[3 * f + 1], *c = x + 3 * (size_t)faces[3 * f + 2];
+        v += a[0] * ((double)b[1] * c[2] - (double)b[2] * c[1]) - a[1] * ((double)b[0] * c[2] - (double)b[2] * c[0]) +
+             a[2] * ((double)b[0] * c[1] - (double)b[1] * c[0]);
+    }
+    return v / 6;
+}
+
+/* How much registration stretched the template (issue 29: surface
+ * distance hides sliding): per body region (a vertex's nearest landmark:
+ * head; torso; arms; hands; legs; feet), the rms of the log of each edge's
+ * length against the moved template's, in percent. */
+static void distortion(const mim_reg_t *r, const float *moved, const float *out, double pct[MIM_REG_REGIONS])
+{
+    static const char *const region_of[][2] = {
+        {"head", "head"},     {"chest", "torso"},    {"pelvis", "torso"},   {"spine", "torso"},  {"l_shoulder", "torso"},
+        {"r_shoulder", "torso"}, {"l_elbow", "arms"}, {"r_elbow", "arms"},  {"l_wrist", "hands"}, {"r_wrist", "hands"},
+        {"l_hip", "legs"},    {"r_hip", "legs"},     {"l_knee", "legs"},    {"r_knee", "legs"},  {"l_ankle", "feet"},
+        {"r_ankle", "feet"}};
+    int lm_region[MIM_LANDMARKS_MAX];
+    for (uint32_t l = 0; l < r->map->count; l++) {
+        lm_region[l] = 1; /* another landmark: the torso */
+        for (size_t k = 0; k < sizeof region_of / sizeof *region_of; k++)
+            if (!strcmp(r->map->names[l], region_of[k][0]))
+                for (int g = 0; g < MIM_REG_REGIONS; g++)
+                    if (!strcmp(region_of[k][1], mim_reg_region_names[g])) lm_region[l] = g;
+    }
+    double ss[MIM_REG_REGIONS] = {0};
+    uint64_t cnt[MIM_REG_REGIONS] = {0};
+    for (uint32_t v = 0; v < r->n; v++) {
+        /* the vertex's region: its nearest landmark on the moved template */
+        const float *p = moved + 3 * (size_t)v;
+        double best = INFINITY;
+        int g = 1;
+        for (uint32_t l = 0; l < r->map->count; l++) {
+            const float *q = moved + 3 * (size_t)r->map->vertex[l];
+            double d = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]);
+            if (d < best) best = d, g = lm_region[l];
+        }
+        uint32_t nn = 0;
+        const uint32_t *nb = mim_xfer_neighbors(r->topo, v, &nn);
+        for (uint32_t k = 0; k < nn; k++) {
+            const uint32_t w = nb[k];
+            if (w < v) continue; /* each edge once */
+            double a = 0, b = 0;
+            for (int c = 0; c < 3; c++) {
+                a += pow((double)moved[3 * (size_t)v + c] - moved[3 * (size_t)w + c], 2);
+                b += pow((double)out[3 * (size_t)v + c] - out[3 * (size_t)w + c], 2);
+            }
+            if (!(a > 0) || !(b > 0)) continue;
+            const double e = 0.5 * log(b / a);
+            ss[g] += e * e, cnt[g]++;
+        }
+    }
+    for (int g = 0; g < MIM_REG_REGIONS; g++) pct[g] = cnt[g] ? 100 * sqrt(ss[g] / (double)cnt[g]) : 0;
+}
+
+const char *const mim_reg_region_names[MIM_REG_REGIONS] = {"head", "torso", "arms", "hands", "legs", "feet"};
+
 int mim_reg_run(mim_reg_t *r, const float *tmpl, const mim_mesh_t *target, const float *target_landmarks,
                 const char *origin, float *out, mim_reg_report_t *report, mim_error_t *err)
 {
@@ -110,6 +198,16 @@ int mim_reg_run(mim_reg_t *r, const float *tmpl, const mim_mesh_t *target, const
     }
     rep.scale = sim.scale;
     mim_reg_similarity_apply(&sim, tmpl, n, r->moved);
+    /* a mirror image cannot be registered (no rotation takes a body onto
+     * it): refused before the solve turns the template inside out */
+    const int hand_t = handedness(map, r->tmpl_lm), hand_g = handedness(map, target_landmarks);
+    if (hand_t && hand_g && hand_t != hand_g) {
+        rc = mim_error_set(err, MIM_EFORMAT,
+                           "%s: its landmarks are a mirror image of a body (left and right swapped?): "
+                           "registration needs them on the body's own sides",
+                           origin);
+        goto done;
+    }
 
     /* 2. Initial shape: the moved template as its own avatar, transferred
      * into the target's landmark positions (seed 000, eq. 3); then ICP;
@@ -149,6 +247,22 @@ int mim_reg_run(mim_reg_t *r, const float *tmpl, const mim_mesh_t *target, const
         out[i] = (float)r->x[i];
     rep.seconds_icp = mim_now() - t1;
     if ((rc = mim_body_check(out, n, origin, err))) goto done;
+    /* a result turned inside out or flattened is no body: its enclosed
+     * volume against the moved template's */
+    {
+        uint32_t nf = 0;
+        const uint32_t *faces = mim_xfer_topology_faces(r->topo, &nf);
+        const double vt = signed_volume(faces, nf, r->moved), vo = signed_volume(faces, nf, out);
+        rep.volume_ratio = vt != 0 ? vo / vt : NAN;
+        if (vt != 0 && !(rep.volume_ratio >= MIM_REG_MIN_VOLUME_RATIO)) {
+            rc = mim_error_set(err, MIM_ETOPOLOGY,
+                               "%s: the registered body encloses %.0f%% of its template's volume (at least %.0f%% "
+                               "needed): the surface is flat, degenerate or inside out",
+                               origin, 100 * rep.volume_ratio, 100 * MIM_REG_MIN_VOLUME_RATIO);
+            goto done;
+        }
+    }
+    distortion(r, r->moved, out, rep.distortion_pct);
 
     /* Figures: surface distance of every vertex, landmark residuals. */
     mim__reg_hit_t *hits = malloc((size_t)n * sizeof *hits);

@@ -67,6 +67,7 @@ struct mim_session {
     double turn[9];
     mim_mesh_t canon;
     char bound_note[8800];      /* how a new binding was made, said once the avatar is accepted */
+    char turn_note[4300];       /* that it is driven turned, said then too */
     int foreign;
     pthread_mutex_t out_lock;
     float *out_work;            /* 3 * n: the proxy's normals */

@@ -247,9 +247,9 @@ static int load_foreign_avatar(mim_session_t *s, const char *path, const mim_mes
         turn_points(s->turn, 0, lm, s->map.count, lm);
         s->turned = 1;
         m = &s->canon;
-        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_INFO,
-                     "%s: it faces another way than the store's bodies (+Y up, facing +Z): driven turned, output "
-                     "as it stands", path);
+        snprintf(s->turn_note, sizeof s->turn_note, /* said once the avatar is accepted */
+                 "%s: it faces another way than the store's bodies (+Y up, facing +Z): driven turned, output "
+                 "as it stands", path);
     }
     mim_db_txn_t *t = NULL;
     const void *blob;
@@ -602,6 +602,8 @@ int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *e
         segment_avatar(s);
     if (!rc && s->foreign)
         rc = follow_segments(s, err);
+    if (!rc && s->turn_note[0])
+        mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_INFO, "%s", s->turn_note);
     if (!rc && s->bound_note[0])
         mim_log_emit(s->opt.log, s->opt.log_ctx, MIM_LOG_INFO, "%s", s->bound_note);
     return rc;

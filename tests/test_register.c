@@ -191,6 +191,50 @@ static void test_run_bad_input(void **s)
     assert_int_equal(mim_reg_run(reg, NULL, &target, lm, "scan.ply", out, NULL, &err), MIM_EINVAL);
     assert_int_equal(mim_reg_run(reg, lib_body[1][1], NULL, lm, "scan.ply", out, NULL, &err), MIM_EINVAL);
     assert_int_equal(mim_reg_run(reg, lib_body[1][1], &target, NULL, "scan.ply", out, NULL, &err), MIM_EINVAL);
+    /* issue 29: a mirror image (left and right swapped: the landmarks and
+     * the mesh with x negated) is refused before the solve, in one line */
+    {
+        mim_mesh_t mirror = {0};
+        assert_int_equal(mim_mesh_alloc(&mirror, target.n_vertices, target.n_faces), 0);
+        for (uint32_t v = 0; v < target.n_vertices; v++)
+            mirror.positions[3 * v] = -target.positions[3 * v], mirror.positions[3 * v + 1] = target.positions[3 * v + 1],
+            mirror.positions[3 * v + 2] = target.positions[3 * v + 2];
+        for (uint32_t f = 0; f < target.n_faces; f++) /* wound outwards again */
+            mirror.faces[3 * f] = target.faces[3 * f], mirror.faces[3 * f + 1] = target.faces[3 * f + 2],
+            mirror.faces[3 * f + 2] = target.faces[3 * f + 1];
+        float ml[3 * MIM_LANDMARKS_MAX];
+        for (uint32_t l = 0; l < map.count; l++)
+            ml[3 * l] = -lm[3 * l], ml[3 * l + 1] = lm[3 * l + 1], ml[3 * l + 2] = lm[3 * l + 2];
+        memset(&err, 0, sizeof err);
+        assert_int_equal(mim_reg_run(reg, lib_body[1][1], &mirror, ml, "mirror.ply", out, NULL, &err), MIM_EFORMAT);
+        assert_non_null(strstr(err.msg, "mirror.ply"));
+        assert_non_null(strstr(err.msg, "mirror image"));
+        assert_null(strchr(err.msg, '\n'));
+        /* the same mesh with its landmarks on their own sides (l_ at +x again): registered */
+        float back[3 * MIM_LANDMARKS_MAX];
+        for (uint32_t l = 0; l < map.count; l++) memcpy(back + 3 * l, ml + 3 * map.mirror[l], 3 * sizeof *back);
+        mim_reg_report_t rep;
+        assert_int_equal(mim_reg_run(reg, lib_body[1][1], &mirror, back, "mirror.ply", out, &rep, &err), 0);
+        assert_true(rep.volume_ratio > 0.8 && rep.volume_ratio < 1.25);
+        for (int g = 0; g < MIM_REG_REGIONS; g++) assert_true(rep.distortion_pct[g] >= 0 && rep.distortion_pct[g] < 50);
+        mim_mesh_free(&mirror);
+    }
+    /* a body flattened to 2 mm: the registration encloses almost nothing, refused */
+    {
+        mim_mesh_t flat = {0};
+        assert_int_equal(mim_mesh_alloc(&flat, target.n_vertices, target.n_faces), 0);
+        memcpy(flat.faces, target.faces, 3 * (size_t)target.n_faces * sizeof *flat.faces);
+        float fl[3 * MIM_LANDMARKS_MAX];
+        for (uint32_t v = 0; v < target.n_vertices; v++)
+            for (int c = 0; c < 3; c++) flat.positions[3 * v + c] = target.positions[3 * v + c] * (c == 2 ? 0.01f : 1.0f);
+        for (uint32_t l = 0; l < 3 * map.count; l++) fl[l] = lm[l] * (l % 3 == 2 ? 0.01f : 1.0f);
+        memset(&err, 0, sizeof err);
+        int rc = mim_reg_run(reg, lib_body[1][1], &flat, fl, "flat.ply", out, NULL, &err);
+        print_message("a flattened body: %s\n", err.msg);
+        assert_true(rc < 0);
+        assert_non_null(strstr(err.msg, "flat.ply"));
+        mim_mesh_free(&flat);
+    }
     /* a bad target is the target check's error, named */
     target.positions[3 * 9 + 2] = NAN;
     memset(&err, 0, sizeof err);

@@ -664,8 +664,10 @@ static void test_cli_ingest_register(void **s)
 }
 
 /* A foreign avatar's binding is cached under its landmarks too: the same
- * mesh with other landmarks (left and right swapped) is registered again,
- * not served from the first binding; each is then found in the cache. */
+ * mesh with other landmarks (its left wrist's 2 cm off) is registered
+ * again, not served from the first binding; each is then found in the
+ * cache. Its landmarks with left and right swapped are a mirror image of
+ * a body: refused in one line (issue 29), nothing written. */
 static void test_avatar_binding_key(void **s)
 {
     (void)s;
@@ -681,12 +683,26 @@ static void test_avatar_binding_key(void **s)
     assert_int_equal(mim_landmarks_read(&m, lm_path, NULL), 0);
     for (uint32_t l = 0; l < m.count; l++) json_array_append(sw, json_array_get(arr, m.mirror[l]));
     json_t *sroot = json_pack("{s:o}", "landmarks", sw);
-    char *swapped = ts_path(dir, "swapped.json"), *outp = ts_path(dir, "av_out.ply");
+    char *swapped = ts_path(dir, "swapped.json"), *moved = ts_path(dir, "moved.json"), *outp = ts_path(dir, "av_out.ply");
     assert_int_equal(json_dump_file(sroot, swapped, JSON_REAL_PRECISION(9)), 0);
-    json_decref(root), json_decref(sroot);
+    json_decref(sroot);
+    /* the same landmarks, the left wrist 2 cm lower */
+    json_t *wrist = json_array_get(arr, (size_t)mim_landmarks_find(&m, "l_wrist"));
+    json_array_set_new(wrist, 1, json_real(json_real_value(json_array_get(wrist, 1)) - 0.02));
+    assert_int_equal(json_dump_file(root, moved, JSON_REAL_PRECISION(9)), 0);
+    json_decref(root);
     const char *plain[] = {"transfer", "--store", store, "--avatar", av, "--template", "2", "-o", outp, NULL};
-    const char *other[] = {"transfer", "--store", store, "--avatar", av, "--avatar-landmarks", swapped,
+    const char *other[] = {"transfer", "--store", store, "--avatar", av, "--avatar-landmarks", moved,
                            "--template", "2", "-o", outp, NULL};
+    const char *mirrored[] = {"transfer", "--store", store, "--avatar", av, "--avatar-landmarks", swapped,
+                              "--template", "2", "-o", outp, NULL};
+    {
+        char *o = NULL, *e = NULL;
+        assert_int_equal(ts_run_mimic(&o, &e, mirrored), 1);
+        expect_one_line(e, "transfer", "mirror image", NULL);
+        assert_int_equal(access(outp, F_OK), -1);
+        free(o), free(e);
+    }
     const char *const *runs[4] = {plain, plain, other, plain};
     const int registers[4] = {1, 0, 1, 0};
     for (int k = 0; k < 4; k++) {
@@ -697,7 +713,7 @@ static void test_avatar_binding_key(void **s)
             fail_msg("run %d: %s registration, stderr: %s", k, registers[k] ? "wanted a" : "wanted no", e);
         free(o), free(e);
     }
-    free(folder), free(av), free(lm_path), free(swapped), free(outp);
+    free(folder), free(av), free(lm_path), free(swapped), free(moved), free(outp);
 }
 
 /* kill -9 during ingest --register: a registered template and its

@@ -122,6 +122,12 @@ void mim_xfer_topology_close(mim_xfer_topology_t **tp)
 
 uint32_t mim_xfer_topology_n_vertices(const mim_xfer_topology_t *t) { return t ? t->n : 0; }
 
+const uint32_t *mim_xfer_topology_faces(const mim_xfer_topology_t *t, uint32_t *n_faces)
+{
+    *n_faces = t ? t->n_faces : 0;
+    return t ? t->faces : NULL;
+}
+
 const uint32_t *mim_xfer_neighbors(const mim_xfer_topology_t *t, uint32_t v, uint32_t *count)
 {
     if (!t || v >= t->n) {

@@ -39,6 +39,8 @@ int mim_xfer_topology_open(mim_xfer_topology_t **out, uint32_t n_vertices, const
                            uint32_t n_faces, mim_error_t *err);
 void mim_xfer_topology_close(mim_xfer_topology_t **t); /* accepts NULL, nulls */
 uint32_t mim_xfer_topology_n_vertices(const mim_xfer_topology_t *t);
+/* Its faces (3 * *n_faces, the copy the topology keeps; valid until close). */
+const uint32_t *mim_xfer_topology_faces(const mim_xfer_topology_t *t, uint32_t *n_faces);
 /* Sorted one-ring neighbours of v (deg(v) = *count); NULL if v is out of range. */
 const uint32_t *mim_xfer_neighbors(const mim_xfer_topology_t *t, uint32_t v, uint32_t *count);
 /* y = L x (3 columns, x y z per vertex), L_ii = deg(v_i), L_ij = -1 on edges. */
