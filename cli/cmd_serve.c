@@ -44,7 +44,7 @@ static void help(FILE *out)
             "  --vest-pose P        the wearer's pose at the tare: rest (as the avatar), t or a\n"
             "                       (default rest; every session's)\n"
             "  --session NAME:vest=SPEC,avatar=MESH|ID[,key-rate=HZ]  one more vest and avatar\n"
-            "                       (NAME: 1-32 of A-Z a-z 0-9 _ . -; vest may be left out);\n"
+            "                       (NAME: " MIM_SERVE_SESSION_NAME_RULE "; vest may be left out);\n"
             "                       repeat it for more\n"
             "  --sessions FILE      sessions from a JSON file: {\"sessions\": [{\"name\", \"avatar\",\n"
             "                       \"vest\", \"key_rate\"}, ...]} (schemas/serve-sessions.schema.json)\n"

@@ -28,8 +28,7 @@ static const char no_index[] = "%s: the store has no index (run mimic index, the
 static mim__vs_t *request_session(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp, int *status)
 {
     if (rq->session_given < 0 || (rq->session_given > 0 && !mim__session_name_ok(rq->session))) {
-        *status = mim__reply_error(rp, 400, "query string: session must be 1 to %d of A-Z a-z 0-9 _ . -",
-                                   MIM_SERVE_SESSION_NAME_MAX);
+        *status = mim__reply_error(rp, 400, "query string: session must be " MIM_SERVE_SESSION_NAME_RULE);
         return NULL;
     }
     mim__vs_t *vs = mim__sessions_get(sv, rq->session_given > 0 ? rq->session : NULL);

@@ -124,10 +124,13 @@ typedef struct mim_serve mim_serve_t;
  * opt->vest and opt->key_rate; /ws and the other routes without
  * ?session= mean the first session. */
 #define MIM_SERVE_SESSION_NAME_MAX 32
+/* What a session name may be (issue 30: "." and ".." were taken, and a
+ * path normalised before routing could then never name them again). */
+#define MIM_SERVE_SESSION_NAME_RULE "1 to 32 of A-Z a-z 0-9 _ . -, the first a letter or a digit"
 #define MIM_SERVE_DEFAULT_SESSION "default"
 #define MIM_SERVE_MAX_SESSIONS 256 /* live at once: each holds an avatar, its factor and a vest thread */
 typedef struct mim_serve_session_spec {
-    char name[MIM_SERVE_SESSION_NAME_MAX + 1]; /* 1..32 of A-Z a-z 0-9 _ . - */
+    char name[MIM_SERVE_SESSION_NAME_MAX + 1]; /* MIM_SERVE_SESSION_NAME_RULE */
     char avatar[4096];    /* a mesh file, or a template id */
     char vest[1024];      /* a vest spec (mim_serve_options_t's vest); "": none */
     double key_rate;      /* key frames per second; 0: the service's (opt->key_rate) */

@@ -12,6 +12,7 @@
  * last reference goes, wherever that is. */
 #include "internal.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -24,6 +25,8 @@ int mim__session_name_ok(const char *name)
     size_t n = name ? strlen(name) : 0;
     if (n < 1 || n > MIM_SERVE_SESSION_NAME_MAX)
         return 0;
+    _Static_assert(MIM_SERVE_SESSION_NAME_MAX == 32, "MIM_SERVE_SESSION_NAME_RULE says 32");
+    if (!isalnum((unsigned char)name[0])) return 0; /* ".", "..", "-x": no name a path could lose */
     return strspn(name, "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_.-") == n;
 }
 
@@ -31,8 +34,7 @@ static int bad_name(const char *name, mim_error_t *err)
 {
     char shown[80];
     mim__printable(name, strlen(name), shown, sizeof shown);
-    return mim_error_set(err, MIM_EINVAL, "session name '%s': 1 to %d of A-Z a-z 0-9 _ . -", shown,
-                         MIM_SERVE_SESSION_NAME_MAX);
+    return mim_error_set(err, MIM_EINVAL, "session name '%s': " MIM_SERVE_SESSION_NAME_RULE, shown);
 }
 
 /* The text of value into dst (size n): MIM_EINVAL naming the field when it
@@ -72,8 +74,8 @@ int mim_serve_session_spec_parse(const char *text, mim_serve_session_spec_t *out
     if (nl <= MIM_SERVE_SESSION_NAME_MAX)
         memcpy(out->name, text, nl), out->name[nl] = 0;
     if (!mim__session_name_ok(out->name))
-        return mim_error_set(err, MIM_EINVAL, "--session '%.200s': the name must be 1 to %d of A-Z a-z 0-9 _ . -",
-                             text, MIM_SERVE_SESSION_NAME_MAX);
+        return mim_error_set(err, MIM_EINVAL, "--session '%.200s': the name must be " MIM_SERVE_SESSION_NAME_RULE,
+                             text);
     for (const char *p = colon + 1; *p;) {
         const char *end = strchr(p, ','), *eq = strchr(p, '=');
         if (!end)
@@ -133,8 +135,7 @@ int mim_serve_session_spec_json(const json_t *j, const char *where, mim_serve_se
         memcpy(dst[k], json_string_value(s), json_string_length(s) + 1);
     }
     if (!mim__session_name_ok(out->name))
-        return mim_error_set(err, MIM_EFORMAT, "%s: \"name\" must be 1 to %d of A-Z a-z 0-9 _ . -", where,
-                             MIM_SERVE_SESSION_NAME_MAX);
+        return mim_error_set(err, MIM_EFORMAT, "%s: \"name\" must be " MIM_SERVE_SESSION_NAME_RULE, where);
     json_t *r = json_object_get(j, "key_rate");
     if (r && (!json_is_number(r) || !(json_number_value(r) > 0.0 && json_number_value(r) <= KEY_RATE_MAX)))
         return mim_error_set(err, MIM_EFORMAT, "%s: \"key_rate\" must be a rate in (0, %g] Hz", where, KEY_RATE_MAX);

@@ -372,7 +372,7 @@ static int url_session(mim__ws_t *ws, struct lws *wsi, char *name, size_t n, mim
 {
     int r = mim__url_arg(wsi, "session", name, n);
     if (r < 0 || (r > 0 && !mim__session_name_ok(name))) {
-        snprintf(why, why_size, "/ws: ?session= must be 1 to %d of A-Z a-z 0-9 _ . -", MIM_SERVE_SESSION_NAME_MAX);
+        snprintf(why, why_size, "/ws: ?session= must be " MIM_SERVE_SESSION_NAME_RULE);
         return 400;
     }
     if (r == 0)

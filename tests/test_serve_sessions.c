@@ -231,6 +231,10 @@ static void test_add_and_remove(void **state)
         {"{\"avatar\": \"1\"}", "\"name\" must be a string"},
         {"{\"name\": \"c2\"}", "\"avatar\" must be a string"},
         {"{\"name\": \"x y\", \"avatar\": \"1\"}", "\"name\" must be 1 to 32 of"},
+        /* issue 30: names a normalised path could never name again */
+        {"{\"name\": \"..\", \"avatar\": \"1\"}", "the first a letter or a digit"},
+        {"{\"name\": \".\", \"avatar\": \"1\"}", "the first a letter or a digit"},
+        {"{\"name\": \".c2\", \"avatar\": \"1\"}", "the first a letter or a digit"},
         {"{\"name\": \"c2\", \"avatar\": \"99999\"}", "no template 99999"},
         {"{\"name\": \"c2\", \"avatar\": \"1\", \"extra\": 1}", "unknown member \"extra\""},
         {"{\"name\": \"c2\", \"avatar\": \"1\", \"key_rate\": 0}", "\"key_rate\" must be a rate"},
