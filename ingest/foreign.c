@@ -9,6 +9,7 @@
 
 #include <pthread.h>
 #include <stdio.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -180,6 +181,23 @@ int mim_ingest_register_mesh(mim_ingest_registrar_t *r, const mim_mesh_t *mesh, 
                              mim_error_t *err)
 {
     uint64_t id = 0;
+    /* landmarks that span no body (all at one point, or on a line) give
+     * the index nothing to recognise: one plain line naming the mesh, before
+     * the query says something of angles (issue 30) */
+    {
+        mim_reg_similarity_t sim;
+        mim_error_t e = {0};
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (uint32_t l = 0; l < r->map.count; l++)
+            for (int c = 0; c < 3; c++)
+                lo[c] = fmin(lo[c], landmarks[3 * l + c]), hi[c] = fmax(hi[c], landmarks[3 * l + c]);
+        const double span = sqrt(pow(hi[0] - lo[0], 2) + pow(hi[1] - lo[1], 2) + pow(hi[2] - lo[2], 2));
+        if (!(span > 0.01) || mim_reg_similarity_fit(landmarks, landmarks, r->map.count, &sim, &e))
+            return mim_error_set(err, MIM_EFORMAT,
+                                 "%s: its %u landmarks lie within %.1f mm of each other or on one line: "
+                                 "registration needs them spread over the body",
+                                 origin, r->map.count, 1e3 * (isfinite(span) ? span : 0));
+    }
     int rc = r->nearest(r->nearest_ctx, landmarks, &id, err);
     if (rc) return rc;
     float *tmpl = malloc((size_t)3 * r->n * sizeof *tmpl);

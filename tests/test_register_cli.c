@@ -304,6 +304,18 @@ static void test_cli_register(void **s)
     assert_int_equal(json_dump_file(pos, holes, 0), 0);
     const char *with_holes[] = {"register", "--store", store, "--landmarks", holes, mesh, "-o", bad_out, NULL};
     expect_register(with_holes, 1, bad_out, holes, "landmark 3 (l_shoulder) is missing");
+    /* issue 30: every landmark at one point: one plain line naming the file, nothing of angles */
+    {
+        json_t *one = json_array(), *at = json_array_get(json_object_get(json_loads(text, 0, &je), "landmarks"), 0);
+        for (int l = 0; l < 16; l++) json_array_append(one, at);
+        json_t *doc = json_pack("{s:o}", "landmarks", one);
+        char *onep = ts_path(folder, "onepoint.json");
+        assert_int_equal(json_dump_file(doc, onep, 0), 0);
+        json_decref(doc);
+        const char *one_args[] = {"register", "--store", store, "--landmarks", onep, mesh, "-o", bad_out, NULL};
+        expect_register(one_args, 1, bad_out, "onepoint.json", "not a body");
+        free(onep);
+    }
     json_array_remove(json_object_get(pos, "landmarks"), 3);
     char *short_lm = ts_path(folder, "short.json");
     assert_int_equal(json_dump_file(pos, short_lm, 0), 0);
