@@ -148,7 +148,10 @@ int mim_cmd_index(int argc, char **argv)
                    rep.discriminant_noise);
         if (rep.shape_noise < 0 && !(rep.discriminant_noise > 0))
             printf("discriminant none (frames go to the SVMs)\n");
-        printf("k-NN         %u of %u classes exact, the rest kd-forests\n", rep.exact_classes, rep.n_classes);
+        if (rep.exact_classes == rep.n_classes)
+            printf("k-NN         all %u classes exact\n", rep.n_classes);
+        else
+            printf("k-NN         %u of %u classes exact, the rest kd-forests\n", rep.exact_classes, rep.n_classes);
         printf("built in     %.2f s\n", rep.seconds);
     }
     mim_db_close(&db);

@@ -22,7 +22,9 @@ static void help(FILE *out)
                  "  --store DIR            the template store\n"
                  "  --landmarks FILE       the landmark frames (JSON)\n"
                  "  -k K                   templates per frame (default 1)\n"
-                 "  --exclude-subject S    leave subject S's templates out (leave-one-subject-out tests)\n"
+                 "  --exclude-subject S    leave subject S's templates out of the answers (leave-one-subject-out\n"
+                 "                         tests); the index's classifier was built with them and still knows\n"
+                 "                         S: for a strict test, index a store without S\n"
                  "  --json                 one JSON object on stdout (schemas/query.schema.json)\n"
                  "  -h, --help             this help\n");
 }

@@ -249,6 +249,9 @@ static void test_cli_query_and_bad_input(void **st)
     assert_int_equal(run(&out, NULL, ix), 0);
     assert_non_null(strstr(out, "12 classes (pose labels)"));
     assert_non_null(strstr(out, "C = "));
+    /* issue 30: every class exact here, and no "rest" named that is not there */
+    assert_non_null(strstr(out, "k-NN         all 12 classes exact"));
+    assert_null(strstr(out, "the rest kd-forests"));
     free(out);
 
     mim_db_t *db;
