@@ -42,7 +42,10 @@ static mim__vs_t *request_session(mim_serve_t *sv, const mim__request_t *rq, mim
 int mim__api_status(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
 {
     (void)rq;
-    const mim_query_status_t *qs = mim_session_index_status(sv->s);
+    /* the store as it is now: another process may have grown it (issue 30) */
+    mim_query_status_t fresh;
+    const mim_query_status_t *qs =
+        mim_session_store_status(sv->s, &fresh, NULL) == 0 ? &fresh : mim_session_index_status(sv->s);
     int ready = atomic_load(&sv->index_ready);
     json_t *index = json_pack("{s:b, s:b, s:I, s:b}", "present", qs->has_index, "stale", qs->stale, "templates",
                               (json_int_t)(qs->has_index ? qs->built.templates : 0), "ready", sv->q && ready == 1);

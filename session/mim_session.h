@@ -110,6 +110,10 @@ const double *mim_session_encoding(const mim_session_t *s); /* the avatar's W, 3
 /* The index, or NULL when the store has none; and its status at open. */
 const mim_query_t *mim_session_query(const mim_session_t *s);
 const mim_query_status_t *mim_session_index_status(const mim_session_t *s);
+/* The store's and its index's status now (issue 30: another process may
+ * have grown the store since the session opened it): a fresh read of
+ * mim_query_status. Errors: the store's. Thread-safe. */
+int mim_session_store_status(const mim_session_t *s, mim_query_status_t *out, mim_error_t *err);
 double mim_session_factor_seconds(const mim_session_t *s); /* the factorisation's time */
 int mim_session_has_avatar(const mim_session_t *s); /* 1 after a successful mim_session_load_avatar */
 /* The avatar's segmentation (n entries), or NULL when it could not be

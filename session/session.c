@@ -680,6 +680,10 @@ const mim_xfer_topology_t *mim_session_topology(const mim_session_t *s) { return
 const double *mim_session_encoding(const mim_session_t *s) { return s->W; }
 const mim_query_t *mim_session_query(const mim_session_t *s) { return s->query; }
 const mim_query_status_t *mim_session_index_status(const mim_session_t *s) { return &s->index; }
+int mim_session_store_status(const mim_session_t *s, mim_query_status_t *out, mim_error_t *err)
+{
+    return mim_query_status(s->db, out, err);
+}
 double mim_session_factor_seconds(const mim_session_t *s) { return s->t_factor; }
 int mim_session_has_avatar(const mim_session_t *s) { return s->solver != NULL; }
 const mim_xfer_skin_t *mim_session_skin(const mim_session_t *s, const mim_error_t **why, int *from_rig)

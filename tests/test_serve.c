@@ -464,7 +464,24 @@ static void test_no_index(void **state)
     free(body);
     r = http("GET", "/api/status", NULL, NULL, 0);
     assert_int_equal(r.status, 200);
+    json_t *j = json_of(&r);
+    const json_int_t before = json_integer_value(json_object_get(j, "templates"));
+    json_decref(j);
     hc_reply_free(&r);
+    /* issue 30: another process grows the store; the status follows it */
+    char *more = ts_path(dir, "more-bodies");
+    const char *synth[] = {"synth", "--out", more, "--subjects", "1", "--poses", "2", "--vertices", "1500", "--seed",
+                           "5", NULL};
+    const char *grow[] = {"ingest", "--store", bare, more, NULL};
+    assert_int_equal(run(synth), 0);
+    assert_int_equal(run(grow), 0);
+    r = http("GET", "/api/status", NULL, NULL, 0);
+    assert_int_equal(r.status, 200);
+    j = json_of(&r);
+    assert_int_equal(json_integer_value(json_object_get(j, "templates")), before + 2);
+    json_decref(j);
+    hc_reply_free(&r);
+    free(more);
     test_sigterm(NULL);
     free(bare);
 }
