@@ -653,7 +653,11 @@ static int on_request(mim_serve_t *sv, struct lws *wsi, mim__conn_t *conn, const
         return refuse(sv, wsi, tx, 400, "Content-Length and Transfer-Encoding together: refused (RFC 9112 6.3)");
     if (te > 0) {
         int k = lws_hdr_copy(wsi, v, sizeof v, WSI_TOKEN_HTTP_TRANSFER_ENCODING);
-        if (k < 0 || strcasecmp(v, "chunked"))
+        /* the value without the optional whitespace around it (RFC 9110 5.6.3: SP or HTAB; issue 30) */
+        char *tv = v;
+        while (k > 0 && (*tv == ' ' || *tv == '\t')) tv++;
+        for (size_t e = k > 0 ? strlen(tv) : 0; e > 0 && (tv[e - 1] == ' ' || tv[e - 1] == '\t'); e--) tv[e - 1] = 0;
+        if (k < 0 || strcasecmp(tv, "chunked"))
             return refuse(sv, wsi, tx, 400, "Transfer-Encoding: only \"chunked\" is taken");
         tx->chunked = 1, tx->declared = -1, tx->expect_body = 1;
         tx->close = 1; /* a chunked request's connection serves no other */

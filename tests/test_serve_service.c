@@ -132,6 +132,19 @@ static void test_http_malformed(void **state)
     assert_non_null(strstr(json_string_value(json_object_get(j, "error")), "request body"));
     json_decref(j);
     hc_reply_free(&r);
+    /* issue 30: "Transfer-Encoding:<TAB>chunked" is the same header (RFC 9110 optional whitespace) */
+    const char tabchunk[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nConnection: close\r\nTransfer-Encoding:\tchunked \r\n\r\n"
+                            "3\r\n{\"l\r\n0\r\n\r\n";
+    c = hc_connect(p, 0);
+    assert_true(c >= 0);
+    assert_int_equal(hc_send_all(c, tabchunk, sizeof tabchunk - 1), 0);
+    assert_int_equal(hc_read_reply(&r, c, 15000), HC_OK);
+    close(c);
+    assert_int_equal(r.status, 400);
+    j = ss_json_body(&r);
+    assert_non_null(strstr(json_string_value(json_object_get(j, "error")), "request body")); /* framed as chunked */
+    json_decref(j);
+    hc_reply_free(&r);
     ss_assert_alive(p);
 }
 
