@@ -306,8 +306,9 @@ static void test_cli_register(void **s)
     expect_register(with_holes, 1, bad_out, holes, "landmark 3 (l_shoulder) is missing");
     /* issue 30: every landmark at one point: one plain line naming the file, nothing of angles */
     {
-        json_t *one = json_array(), *at = json_array_get(json_object_get(json_loads(text, 0, &je), "landmarks"), 0);
+        json_t *src = json_loads(text, 0, &je), *one = json_array(), *at = json_array_get(json_object_get(src, "landmarks"), 0);
         for (int l = 0; l < 16; l++) json_array_append(one, at);
+        json_decref(src); /* one holds its own references to the point */
         json_t *doc = json_pack("{s:o}", "landmarks", one);
         char *onep = ts_path(folder, "onepoint.json");
         assert_int_equal(json_dump_file(doc, onep, 0), 0);
