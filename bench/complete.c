@@ -35,7 +35,11 @@
  * to the nearest template of another subject, against the same for the
  * static bodies.
  *
- * usage: bench_complete [--vertices N] [--mh DIR | --no-mh]
+ * Each row's templates and pose classes leave the body's subject out: the
+ * store's scan by --exclude-subject, the classes' Gaussians (issue 29) by
+ * an index built without that subject (as `mimic index` builds one).
+ *
+ * usage: bench_complete [--vertices N] [--mh DIR | --no-mh] [--imitation DEG | --no-imitation]
  * Stores are built in a temporary folder from the data set's files. The
  * real motions are read from the folder that holds mh-bodies (the shared
  * data): --no-mh leaves them out too. */
@@ -57,6 +61,61 @@
 #include <unistd.h>
 
 #define TRIPLES 40
+
+/* ---- leave-one-subject-out indexes: the pose classes' Gaussians without the subject ---- */
+typedef struct loso {
+    uint32_t n;
+    char (*subject)[64];
+    mim_index_t **ix;
+} loso_t;
+
+static void loso_free(loso_t *lo)
+{
+    for (uint32_t i = 0; i < lo->n; i++) mim_index_close(&lo->ix[i]);
+    free(lo->subject), free(lo->ix);
+    memset(lo, 0, sizeof *lo);
+}
+
+/* One index per subject over the other subjects' templates (landmarks tl,
+ * L each, n templates), as `mimic index` builds it (default options). */
+static int loso_build(loso_t *lo, const float *tl, char (*subj)[64], char (*pose)[64], uint32_t n, uint32_t L,
+                      const uint32_t *mirror)
+{
+    memset(lo, 0, sizeof *lo);
+    lo->subject = calloc(n, sizeof *lo->subject), lo->ix = calloc(n, sizeof *lo->ix);
+    float *lm = malloc(sizeof *lm * 3 * L * n);
+    const char **sp = malloc(sizeof *sp * n), **pp = malloc(sizeof *pp * n);
+    uint64_t *id = malloc(sizeof *id * n);
+    int rc = !lo->subject || !lo->ix || !lm || !sp || !pp || !id;
+    for (uint32_t t = 0; t < n && !rc; t++) {
+        uint32_t i = 0;
+        while (i < lo->n && strcmp(lo->subject[i], subj[t])) i++;
+        if (i < lo->n) continue;
+        memcpy(lo->subject[lo->n++], subj[t], 64);
+        uint32_t m = 0;
+        for (uint32_t u = 0; u < n; u++)
+            if (strcmp(subj[u], subj[t])) {
+                memcpy(lm + (size_t)3 * L * m, tl + (size_t)3 * L * u, sizeof *lm * 3 * L);
+                sp[m] = subj[u], pp[m] = pose[u], id[m] = u + 1, m++;
+            }
+        mim_index_input_t in = {m, L, lm, id, sp, pp, mirror};
+        mim_error_t err = {0};
+        if (mim_index_build(&lo->ix[i], &in, NULL, NULL, &err)) {
+            fprintf(stderr, "leave-one-out index without %s: %s\n", subj[t], mim_error_text(&err));
+            rc = 1;
+        }
+    }
+    free(lm), free(sp), free(pp), free(id);
+    if (rc) loso_free(lo);
+    return rc;
+}
+
+static const mim_index_t *loso_find(const loso_t *lo, const char *subject)
+{
+    for (uint32_t i = 0; i < lo->n; i++)
+        if (!strcmp(lo->subject[i], subject)) return lo->ix[i];
+    return NULL;
+}
 
 /* ---- replay: hold the last value against completion ---- */
 #define REPLAY_LOOP_S 12.0   /* a looped motion plays this long */
@@ -187,7 +246,7 @@ static int wearers_load(const char *store, const mim_landmark_map_t *map, wearer
 /* The replay section: every motion, every wearer, every lost set; rows
  * per loss length (all sets) and per lost count (all lengths). */
 static int replay(mim_session_t *s, const char *store, const char *name, const motion_t *motions, int nm,
-                  const float *tl, char (*subj)[64], uint32_t nt)
+                  const float *tl, char (*subj)[64], uint32_t nt, const loso_t *lo)
 {
     const mim_landmark_map_t *map = mim_session_map(s);
     const uint32_t L = map->count;
@@ -262,7 +321,8 @@ static int replay(mim_session_t *s, const char *store, const char *name, const m
             }
             for (uint64_t k = 0; k < N && !missing; k += 4)
                 far_sum += nearest_rms(truth + k * L * 3, tl, subj, nt, L, w[wi].subject), far_n++;
-            mim_session_complete_options_t co2 = {.exclude_subject = w[wi].subject};
+            mim_session_complete_options_t co2 = {.exclude_subject = w[wi].subject,
+                                                   .index = loso_find(lo, w[wi].subject)};
             for (int q = 0; q < LOST_SETS && !rc && !oom && !missing; q++) {
                 if (!set_n[q]) continue;
                 /* completion of each frame (frame 0 is never lost: there is nothing to hold) */
@@ -364,13 +424,14 @@ static int run(const char *name, const char *folder, const char *tmp, const moti
     mim_db_meta_get(t, &meta, &err);
     uint32_t n = (uint32_t)meta.templates;
     float *truth = malloc((size_t)n * L * 3 * sizeof *truth);
-    char (*subject)[64] = malloc((size_t)n * sizeof *subject);
+    char (*subject)[64] = malloc((size_t)n * sizeof *subject), (*pose)[64] = malloc((size_t)n * sizeof *pose);
     uint32_t k = 0;
     for (uint64_t id = 1; id < meta.next_id && k < n; id++) {
         mim_template_view_t v;
         if (mim_db_template_get(t, id, &v, NULL)) continue;
         for (uint32_t l = 0; l < L; l++) memcpy(truth + ((size_t)k * L + l) * 3, v.positions + 3 * (size_t)map->vertex[l], 12);
         snprintf(subject[k], 64, "%s", v.subject);
+        snprintf(pose[k], 64, "%s", v.pose);
         k++;
     }
     mim_db_abort(&t);
@@ -385,12 +446,18 @@ static int run(const char *name, const char *folder, const char *tmp, const moti
             for (int c = 0; c < 3; c++) tri[q][c] = (uint32_t)mim_rng_below(&r, L);
         } while (tri[q][0] == tri[q][1] || tri[q][0] == tri[q][2] || tri[q][1] == tri[q][2]);
     }
+    loso_t lo;
+    if (loso_build(&lo, truth, subject, pose, n, L, map->mirror)) return 1;
     struct { const char *name; mim_session_complete_options_t o; } rows[] = {
-        {"nearest template alone (k 1, no blend)", {.k = 1, .no_blend = 1}},
-        {"median of k 3, no blend", {.k = 3, .no_blend = 1}},
-        {"median of k 3, Gaussian blend (default)", {.k = 3}},
-        {"median of k 8, Gaussian blend", {.k = 8}},
-        {"median of k 16, Gaussian blend", {.k = 16}},
+        {"nearest template alone (k 1, no blend)", {.k = 1, .no_blend = 1, .gaussian = -1}},
+        {"median of k 3, no blend", {.k = 3, .no_blend = 1, .gaussian = -1}},
+        {"retrieval: median of k 3, Gaussian blend (before issue 29)", {.k = 3, .gaussian = -1}},
+        {"median of k 8, Gaussian blend", {.k = 8, .gaussian = -1}},
+        {"median of k 16, Gaussian blend", {.k = 16, .gaussian = -1}},
+        {"pose classes' conditional mean alone", {.gaussian = 1}},
+        {"retrieval 0.7 + classes 0.3", {.gaussian = 0.3}},
+        {"retrieval 0.5 + classes 0.5", {.gaussian = 0.5}},
+        {"retrieval 0.3 + classes 0.7 (default)", {0}},
     };
     const int R = (int)(sizeof rows / sizeof *rows);
     size_t total = (size_t)n * TRIPLES * 3;
@@ -402,6 +469,7 @@ static int run(const char *name, const char *folder, const char *tmp, const moti
         for (uint32_t b = 0; b < n; b++) {
             mim_session_complete_options_t co = rows[row].o;
             co.exclude_subject = subject[b];
+            co.index = loso_find(&lo, subject[b]);
             for (int q = 0; q < TRIPLES; q++) {
                 uint8_t present[MIM_LANDMARKS_MAX], done[MIM_LANDMARKS_MAX];
                 float in[3 * MIM_LANDMARKS_MAX], out[3 * MIM_LANDMARKS_MAX];
@@ -424,8 +492,9 @@ static int run(const char *name, const char *folder, const char *tmp, const moti
         printf("| %s | %.1f | %.1f | %.1f |\n", rows[row].name, sum / m, e[m / 2], e[(size_t)(0.95 * (m - 1))]);
     }
     free(e);
-    int rc = replay(s, store, name, motions, nm, truth, subject, n);
-    free(truth), free(subject);
+    int rc = replay(s, store, name, motions, nm, truth, subject, n, &lo);
+    loso_free(&lo);
+    free(truth), free(subject), free(pose);
     mim_session_close(&s);
     return rc;
 }
@@ -436,7 +505,7 @@ int main(int argc, char **argv)
     bench_sets_init(&sets);
     for (int i = 1; i < argc; i++) {
         if (bench_sets_arg(&sets, argc, argv, &i)) continue;
-        fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh]\n", argv[0]);
+        fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--imitation DEG | --no-imitation]\n", argv[0]);
         return 2;
     }
     mim_error_t err = {0};
@@ -475,6 +544,13 @@ int main(int argc, char **argv)
     int rc = mim_synth_create(&sy, &so, &err) || mim_synth_write_dataset(sy, synth_dir, &err);
     mim_synth_destroy(&sy);
     if (rc || run("synth", synth_dir, tmp, motions, nm)) rc = 1;
+    if (!rc && sets.imitation_deg > 0) { /* the same subjects, each imitating each pose its own way (issue 29) */
+        snprintf(synth_dir, sizeof synth_dir, "%s/imitation", tmp);
+        so.imitation_deg = sets.imitation_deg, so.tissue_mm = BENCH_TISSUE_MM, so.slide_mm = BENCH_SLIDE_MM;
+        rc = mim_synth_create(&sy, &so, &err) || mim_synth_write_dataset(sy, synth_dir, &err);
+        mim_synth_destroy(&sy);
+        if (rc || run("imitation", synth_dir, tmp, motions, nm)) rc = 1;
+    }
     if (!rc && !sets.no_mh) {
         if (mh && access(mh, R_OK) == 0) rc = run("mh-bodies", mh, tmp, motions, nm);
         else printf("\n(mh-bodies not found: skipped)\n");

@@ -1,5 +1,6 @@
 /* mimic complete: lost landmarks filled in from the store's templates
- * (issue 14; seed 002's completion by retrieval, session/complete.c). */
+ * (issue 14; seed 002's completion by retrieval) and the index's pose
+ * classes (issue 29; session/complete.c). */
 #include "args.h"
 #include "commands.h"
 #include "mim_session.h"
@@ -13,20 +14,26 @@
 static void help(FILE *out)
 {
     fprintf(out,
-            "usage: mimic complete --store DIR --landmarks FRAMES.json [--exclude-subject S] [--json]\n\n"
+            "usage: mimic complete --store DIR --landmarks FRAMES.json [--classes W] [--exclude-subject S]\n"
+            "                      [--json]\n\n"
             "Fills the null landmarks of each frame (schemas/landmark-frames.schema.json; up to all but %d\n"
             "may be null) from the store's templates: the templates nearest to the landmarks still seen\n"
             "(after each one's best similarity onto them), their median, blended onto the seen landmarks\n"
-            "with Gaussian weights (seed 002, Section 6).\n\n"
+            "with Gaussian weights (seed 002, Section 6); mixed with the index's pose classes' answer\n"
+            "(each class a Gaussian over the landmarks: its conditional mean given the seen ones).\n\n"
             "  --store DIR           the template store\n"
             "  --landmarks FILE      one frame or a batch, null where a landmark is lost\n"
-            "  --exclude-subject S   leave that subject's templates out (leave-one-subject-out)\n"
+            "  --classes W           the pose classes' share in 0..1 (default %.1f; 0: the templates\n"
+            "                        alone; 1: the classes alone, no scan of the templates); a store\n"
+            "                        without an index uses the templates alone\n"
+            "  --exclude-subject S   leave that subject's templates out (the classes stay as the index\n"
+            "                        was built: for a strict leave-one-out add --classes 0)\n"
             "  --json                {\"frames\": [{\"landmarks\": [...], \"completed\": [i, ...]}, ...]}\n"
             "                        (schemas/complete.schema.json); without it, one line per frame\n"
             "  -h, --help            this help\n\n"
             "Exit status: 0 done, 1 a frame could not be completed or the file is bad, 2 bad usage or the\n"
             "store cannot be opened.\n",
-            MIM_COMPLETE_MIN_SEEN);
+            MIM_COMPLETE_MIN_SEEN, MIM_COMPLETE_DEFAULT_GAUSSIAN);
 }
 
 int mim_cmd_complete(int argc, char **argv)
@@ -34,17 +41,21 @@ int mim_cmd_complete(int argc, char **argv)
     static const struct option longopts[] = {
         {"store", required_argument, 0, 's'}, {"landmarks", required_argument, 0, 'l'},
         {"exclude-subject", required_argument, 0, 'x'}, {"json", no_argument, 0, 'j'},
-        {"help", no_argument, 0, 'h'},        {0, 0, 0, 0},
+        {"classes", required_argument, 0, 'c'}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0},
     };
     const char *store = NULL, *lm_path = NULL, *exclude = NULL;
     int as_json = 0, c;
+    double classes = MIM_COMPLETE_DEFAULT_GAUSSIAN;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "s:l:x:jh", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "s:l:x:c:jh", longopts, NULL)) != -1) {
         switch (c) {
         case 's': store = optarg; break;
         case 'l': lm_path = optarg; break;
         case 'x': exclude = optarg; break;
+        case 'c':
+            if (mim_cli_real("complete", "classes", optarg, 0.0, 1.0, 0, "is not a share in 0..1", &classes)) return 2;
+            break;
         case 'j': as_json = 1; break;
         case 'h': help(stdout); return 0;
         default:
@@ -78,7 +89,7 @@ int mim_cmd_complete(int argc, char **argv)
         goto end;
     }
     for (uint32_t f = 0; f < fr.n_frames; f++) {
-        mim_session_complete_options_t co = {.exclude_subject = exclude};
+        mim_session_complete_options_t co = {.exclude_subject = exclude, .gaussian = classes > 0 ? classes : -1};
         if (mim_session_complete(s, fr.positions + (size_t)f * L * 3, fr.present + (size_t)f * L, &co, out, done,
                                  &err)) {
             fprintf(stderr, "mimic complete: %s: frame %u: %s\n", lm_path, f, mim_error_text(&err));

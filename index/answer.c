@@ -206,7 +206,20 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
     if (opt && opt->exclude_subject)
         for (uint32_t s = 0; s < ix->n_strings; s++)
             if (!strcmp(ix->strings[s], opt->exclude_subject)) ex = s;
-    if (masked) {
+    float full[3 * MIM_LANDMARKS_MAX];
+    uint32_t gauss_cls;
+    if (masked && ix->shape.n_classes && L <= MIM_LANDMARKS_MAX &&
+        !mim__shape_complete(&ix->shape, positions, present, full, &gauss_cls)) {
+        /* missing landmarks, and the classes' Gaussians: the missing
+         * angles are those of the frame completed by their conditional
+         * mean (issue 29, shape_complete.c), with no scan of the templates */
+        float qc_st[256], *qc = d <= 256 ? qc_st : malloc(sizeof *qc * d);
+        if (!qc) return MIM_ENOMEM;
+        mim_index_descriptor(full, NULL, L, ix->selected, d, qc);
+        for (uint32_t f = 0; f < d; f++)
+            if (!mask[f]) q[f] = qc[f], xd[f] = q[f] * ix->w[f];
+        if (qc != qc_st) free(qc);
+    } else if (masked) {
         /* missing landmarks: the SVMs were trained on all d angles, and a
          * kernel over the remaining ones misjudges the class (measured:
          * bench/RESULTS.md). Complete the descriptor instead with the

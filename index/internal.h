@@ -147,6 +147,17 @@ int mim__cholesky(double *a, uint32_t n);
 double mim__chol_forward(const double *l, uint32_t n, double *x);
 void mim__chol_solve(const double *l, uint32_t n, double *x);
 
+/* shape.c: the least-squares similarity y = s R (x - cx) + ct that brings
+ * the landmarks x (3L doubles) onto target over the present ones (NULL:
+ * all), and its application to the present landmarks (the others left). */
+typedef struct mim__similarity {
+    double s, R[3][3], cx[3], ct[3];
+} mim__similarity_t;
+void mim__similarity_fit(const double *target, const double *x, const uint8_t *present, uint32_t L,
+                         mim__similarity_t *f);
+void mim__similarity_apply(const mim__similarity_t *f, const double *x, const uint8_t *present, uint32_t L,
+                           double *y);
+
 /* shape.c: the classes as Gaussians in landmark space (issue 15). Build:
  * from in's templates of classes cls (input order, nc classes), at most
  * MIM__SHAPE_TEMPLATES of them (spread over the classes); none
@@ -166,7 +177,19 @@ int mim__shape_prepare(mim__shape_t *m);
  * discriminants or fewer than 3 landmarks; score (n_classes) gets every
  * class's log-likelihood (-inf for one that cannot be scored). */
 int64_t mim__shape_class(const mim__shape_t *m, const float *positions, const uint8_t *present, double *score);
+/* The frame's usable landmarks: here[l] (present and finite), idx the
+ * coordinates (3l + c) of those, x all 3L of positions in double (0 where
+ * not here); returns how many coordinates are here. */
+uint32_t mim__shape_present(uint32_t L, const float *positions, const uint8_t *present, uint8_t *here, uint32_t *idx,
+                            double *x);
 void mim__shape_free(mim__shape_t *m);
+/* shape_complete.c (issue 29): the frame's missing landmarks as the
+ * classes' Gaussians' conditional mean given the present ones, mixed by
+ * the classes' posteriors; out gets all L (present ones unchanged), cls
+ * the most probable class. 0, or -1 as mim__shape_class (none, fewer than
+ * 3 landmarks) or out of memory. */
+int mim__shape_complete(const mim__shape_t *m, const float *positions, const uint8_t *present, float *out,
+                        uint32_t *cls);
 
 /* classes.c: up to per_class templates of each class (cls, n templates,
  * nc classes), spread evenly over its templates in input order; their

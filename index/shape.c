@@ -75,15 +75,10 @@ static void top_eigenvector(double a[4][4], double v[4])
     for (int k = 0; k < 4; k++) v[k] = V[k][best];
 }
 
-/* The least-squares similarity y = s R (x - cx) + ct that brings x onto
- * target over the present landmarks (Horn's quaternion: the rotation is
- * the top eigenvector of his 4 x 4 matrix, so it is never a reflection;
- * the scale then Sum b . R a / Sum |a|^2, a = x - cx, b = target - ct). */
-typedef struct {
-    double s, R[3][3], cx[3], ct[3];
-} similarity_t;
-
-static void fit(const double *target, const double *x, const uint8_t *present, uint32_t L, similarity_t *f)
+/* Horn's quaternion: the rotation is the top eigenvector of his 4 x 4
+ * matrix, so it is never a reflection; the scale then
+ * Sum b . R a / Sum |a|^2, a = x - cx, b = target - ct. */
+void mim__similarity_fit(const double *target, const double *x, const uint8_t *present, uint32_t L, mim__similarity_t *f)
 {
     double ct[3] = {0}, cx[3] = {0};
     uint32_t n = 0;
@@ -115,8 +110,7 @@ static void fit(const double *target, const double *x, const uint8_t *present, u
     f->s = aa > 0 ? ba / aa : 1;
 }
 
-/* y = s R (x - cx) + ct for the present landmarks (the others left). */
-static void apply(const similarity_t *f, const double *x, const uint8_t *present, uint32_t L, double *y)
+void mim__similarity_apply(const mim__similarity_t *f, const double *x, const uint8_t *present, uint32_t L, double *y)
 {
     for (uint32_t l = 0; l < L; l++)
         if (!present || present[l])
@@ -129,9 +123,9 @@ static void apply(const similarity_t *f, const double *x, const uint8_t *present
 
 static void align(const double *target, const double *x, const uint8_t *present, uint32_t L, double *y)
 {
-    similarity_t f;
-    fit(target, x, present, L, &f);
-    apply(&f, x, present, L, y);
+    mim__similarity_t f;
+    mim__similarity_fit(target, x, present, L, &f);
+    mim__similarity_apply(&f, x, present, L, y);
 }
 
 /* Centred, unit RMS radius; 0, or -1 for a shape of one point. */
@@ -259,20 +253,28 @@ out:
     return rc;
 }
 
-int64_t mim__shape_class(const mim__shape_t *m, const float *positions, const uint8_t *present, double *score)
+uint32_t mim__shape_present(uint32_t L, const float *positions, const uint8_t *present, uint8_t *here, uint32_t *idx,
+                            double *x)
 {
-    if (!m->n_classes) return -1;
-    const uint32_t L = m->L, n = 3 * L, nc = m->n_classes;
-    uint32_t idx[NMAX], k = 0;
-    uint8_t here[MIM_LANDMARKS_MAX];
+    uint32_t k = 0;
     for (uint32_t l = 0; l < L; l++) {
         here[l] = (!present || present[l]) && isfinite(positions[3 * l]) && isfinite(positions[3 * l + 1]) &&
                   isfinite(positions[3 * l + 2]);
         for (int c = 0; here[l] && c < 3; c++) idx[k++] = 3 * l + (uint32_t)c;
     }
-    if (k < 9) return -1; /* fewer than three landmarks: no shape */
+    for (uint32_t i = 0; i < 3 * L; i++) x[i] = here[i / 3] ? positions[i] : 0;
+    return k;
+}
+
+int64_t mim__shape_class(const mim__shape_t *m, const float *positions, const uint8_t *present, double *score)
+{
+    if (!m->n_classes) return -1;
+    const uint32_t L = m->L, n = 3 * L, nc = m->n_classes;
+    uint32_t idx[NMAX];
+    uint8_t here[MIM_LANDMARKS_MAX];
     double x[NMAX], y[NMAX], z[NMAX], v2[MIM__SHAPE_LEVELS], logdet[MIM__SHAPE_LEVELS];
-    for (uint32_t i = 0; i < n; i++) x[i] = here[i / 3] ? positions[i] : 0;
+    const uint32_t k = mim__shape_present(L, positions, present, here, idx, x);
+    if (k < 9) return -1; /* fewer than three landmarks: no shape */
     for (int lv = 0; lv < MIM__SHAPE_LEVELS; lv++) {
         double v = m->noise_max * lv / (MIM__SHAPE_LEVELS - 1);
         v2[lv] = v * v;
@@ -315,8 +317,8 @@ int64_t mim__shape_class(const mim__shape_t *m, const float *positions, const ui
     int64_t arg = -1;
     for (uint32_t c = 0; c < nc; c++) {
         const double *mu = m->mu + (size_t)c * n;
-        similarity_t sim;
-        fit(mu, x, here, L, &sim);
+        mim__similarity_t sim;
+        mim__similarity_fit(mu, x, here, L, &sim);
         double best = -INFINITY;
         if (whole) { /* z = V^T (y - mu) = s Sum_rc R_rc W_rc + Sum_r ct_r U_r - V^T mu; every level from it */
             const double *Vmu = m->Vmu + (size_t)c * n;
@@ -336,7 +338,7 @@ int64_t mim__shape_class(const mim__shape_t *m, const float *positions, const ui
                 if (e > best) best = e;
             }
         } else {
-            apply(&sim, x, here, L, y);
+            mim__similarity_apply(&sim, x, here, L, y);
             for (int lv = 0; lv < MIM__SHAPE_LEVELS; lv++) {
                 for (uint32_t a = 0; a < k; a++) z[a] = y[idx[a]] - mu[idx[a]];
                 double e = -0.5 * (mim__chol_forward(F + (size_t)lv * k * k, k, z) + logdet[lv]);

@@ -13,7 +13,13 @@
  * is that median plus the Gaussian-weighted mean of the seen landmarks'
  * residuals (frame - median), weighted by the median pose's distance
  * between the lost landmark and each seen one (sigma): the nearer a seen
- * landmark, the more its offset carries over. */
+ * landmark, the more its offset carries over.
+ *
+ * Issue 29: that answer is mixed with the index's pose classes' (each
+ * class's Gaussian's conditional mean given the seen landmarks,
+ * mim_index_complete), their share MIM_COMPLETE_DEFAULT_GAUSSIAN: 0.85x
+ * the error of retrieval alone on the imitation set, 0.88x on mh-bodies
+ * (bench/RESULTS.md). */
 #include "internal.h"
 #include "mim_register.h"
 
@@ -44,6 +50,21 @@ int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t
     if (seen < MIM_COMPLETE_MIN_SEEN)
         return mim_error_set(err, MIM_EINVAL, "completion: %u landmarks seen, at least %d needed", seen,
                              MIM_COMPLETE_MIN_SEEN);
+    /* the pose classes' conditional answer, when there is an index to give it */
+    const double g = o.gaussian < 0 ? 0 : o.gaussian > 1 ? 1 : o.gaussian > 0 ? o.gaussian : MIM_COMPLETE_DEFAULT_GAUSSIAN;
+    const mim_index_t *ix = o.index ? o.index : s->query ? mim_query_index(s->query) : NULL;
+    float cond[3 * MIM_LANDMARKS_MAX];
+    int have_cond = 0;
+    if (g > 0 && ix) {
+        mim_index_info_t info;
+        mim_index_get_info(ix, &info);
+        have_cond = info.n_landmarks == L && !mim_index_complete(ix, positions, present, cond, NULL, NULL);
+    }
+    if (have_cond && g >= 1) {
+        for (uint32_t l = 0; l < L; l++)
+            if (!present[l]) memcpy(out + 3 * l, cond + 3 * l, 3 * sizeof *out), completed[l] = 1;
+        return 0;
+    }
     const float *table;
     char *const *subjects;
     uint32_t n;
@@ -102,8 +123,10 @@ int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t
             for (int c = 0; c < 3; c++) r[c] += w * (obs[3 * k + c] - mo[c]);
             wsum += w;
         }
-        for (int c = 0; c < 3; c++)
-            out[3 * l + c] = (float)(med[3 * l + c] + (wsum > 0 && !o.no_blend ? r[c] / wsum : 0.0));
+        for (int c = 0; c < 3; c++) {
+            double v = med[3 * l + c] + (wsum > 0 && !o.no_blend ? r[c] / wsum : 0.0);
+            out[3 * l + c] = (float)(have_cond ? (1 - g) * v + g * cond[3 * l + c] : v);
+        }
         completed[l] = 1;
     }
     return 0;

@@ -311,17 +311,26 @@ int mim_session_morph_oriented(mim_session_t *s, const mim_session_oriented_key_
 #define MIM_COMPLETE_DEFAULT_K 3
 #define MIM_COMPLETE_MAX_K 256
 #define MIM_COMPLETE_DEFAULT_SIGMA_M 0.3
+#define MIM_COMPLETE_DEFAULT_GAUSSIAN 0.7 /* lowest mean error on the imitation set (bench/RESULTS.md) */
 typedef struct mim_session_complete_options {
     uint32_t k;                  /* templates retrieved; 0: MIM_COMPLETE_DEFAULT_K (at most MIM_COMPLETE_MAX_K) */
     double sigma;                /* metres, the blend's Gaussian; 0: MIM_COMPLETE_DEFAULT_SIGMA_M */
     int no_blend;                /* 1: the median alone (with k 1: the nearest template alone, a baseline) */
     const char *exclude_subject; /* leave that subject's templates out; NULL: none */
+    /* the share of the pose classes' Gaussians' answer (mim_index_complete)
+     * in each lost landmark, the rest retrieval's: 0 means
+     * MIM_COMPLETE_DEFAULT_GAUSSIAN, < 0 none, 1 the Gaussians alone (no
+     * scan of the templates); without an index (or one without shape
+     * discriminants) retrieval alone */
+    double gaussian;
+    const mim_index_t *index;    /* whose Gaussians; NULL: the store's (a bench's leave-one-out index) */
 } mim_session_complete_options_t;
 /* Fills the landmarks that present marks 0 (positions: 3 * map count
  * floats, NaN or anything where lost): the store's templates nearest to the
  * seen landmarks (after each one's best similarity onto them), their
  * per-coordinate median, and that median blended onto the seen landmarks
- * with Gaussian weights (complete.c says how). out gets every landmark
+ * with Gaussian weights (complete.c says how); mixed with the pose
+ * classes' conditional answer (options' gaussian). out gets every landmark
  * (the seen ones unchanged), completed[l] 1 for each filled one. A
  * complete frame comes back as it is. opt may be NULL. The first call reads every template's
  * landmarks from the store (kept until close). Errors: MIM_EINVAL (fewer

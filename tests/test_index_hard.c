@@ -165,7 +165,12 @@ static void test_shape_discriminants(void **state)
     assert_true(noisy_a >= noisy_c + 0.05);
     assert_true(miss_a >= miss_b + 0.1);
     assert_true(accuracy(s, a, 0.03, &svm_only) == accuracy(s, b, 0.03, NULL)); /* the rest is the same build */
-    assert_true(accuracy_missing(s, a, 2, &svm_only) == miss_b);
+    /* the same SVMs, a frame's missing angles from the classes' Gaussians'
+     * completion (issue 29) rather than the nearest template's: measured
+     * 0.963 against 0.775 */
+    const double miss_svm_a = accuracy_missing(s, a, 2, &svm_only);
+    fprintf(stderr, "SVMs, 2 missing, completed by the classes' Gaussians %.3f, by the scan %.3f\n", miss_svm_a, miss_b);
+    assert_true(miss_svm_a >= miss_b + 0.1);
     /* a frame turned, moved and scaled is the same shape: the same class
      * and posterior (the alignment is a similarity's), whole or not */
     const uint32_t L = s->h.n_landmarks;

@@ -398,17 +398,16 @@ static void test_bad_inputs(void **s)
  * median of the 3 nearest, its own among them: within 2 cm, not exact by
  * design); leaving its subject out still lands within 8 cm; a frame that lost nothing comes back as
  * it is; too many nulls, and a store that cannot open, are refused. */
-static void test_complete(void **s)
+/* Subject 1's pose 2 (body read into body, its landmarks into x) written
+ * as a frame file named name with the wrists and the left ankle (7, 8,
+ * 13) lost (null); the file's path returned. */
+static char *lost_wrists_ankle(const char *name, mim_mesh_t *body, float *x)
 {
-    (void)s;
     char *path = body_path(1, 2);
-    mim_mesh_t body = {0};
-    read_mesh(path, &body);
+    read_mesh(path, body);
     free(path);
-    float x[3 * MIM_LANDMARKS_MAX];
-    for (uint32_t l = 0; l < map.count; l++) memcpy(x + 3 * l, body.positions + 3 * (size_t)map.vertex[l], 12);
-    char *lost = write_landmarks("lost.json", body.positions, NULL);
-    /* null the wrists and the left ankle (7, 8, 13) by rewriting the file */
+    for (uint32_t l = 0; l < map.count; l++) memcpy(x + 3 * l, body->positions + 3 * (size_t)map.vertex[l], 12);
+    char *lost = write_landmarks(name, body->positions, NULL);
     char *text = ts_read_file(lost, NULL);
     json_error_t je;
     json_t *root = json_loads(text, 0, &je), *arr = json_object_get(root, "landmarks");
@@ -416,6 +415,17 @@ static void test_complete(void **s)
     json_array_set_new(arr, 7, json_null()), json_array_set_new(arr, 8, json_null()), json_array_set_new(arr, 13, json_null());
     assert_int_equal(json_dump_file(root, lost, 0), 0);
     json_decref(root);
+    return lost;
+}
+
+static void test_complete(void **s)
+{
+    (void)s;
+    mim_mesh_t body = {0};
+    float x[3 * MIM_LANDMARKS_MAX];
+    char *lost = lost_wrists_ankle("lost.json", &body, x), *text;
+    json_error_t je;
+    json_t *root, *arr;
     for (int excl = 0; excl < 2; excl++) {
         const char *args[] = {"complete", "--store", store, "--landmarks", lost, "--json", excl ? "--exclude-subject" : NULL, "1", NULL};
         char *o = NULL, *e = NULL;
@@ -784,6 +794,70 @@ static void test_blend(void **s)
     free(truth_path), free(outp), free(lm);
 }
 
+/* mimic complete with the index's pose classes (issue 29; the store's
+ * index is built by test_blend, the test before): --classes 1 answers from
+ * the classes alone, 0 from the templates alone, the default is their
+ * documented mix (0.3 templates, 0.7 classes) landmark by landmark; the
+ * seen landmarks come back as given either way; a share outside 0..1 is
+ * refused in one line. */
+static double *complete_lost(const char *lost, const char *classes, const float *x, const uint32_t *which)
+{
+    const char *args[] = {"complete", "--store", store, "--landmarks", lost, "--json",
+                          classes ? "--classes" : NULL, classes, NULL};
+    char *o = NULL, *e = NULL;
+    if (ts_run_mimic(&o, &e, args)) fail_msg("%s", e);
+    json_error_t je;
+    json_t *j = json_loads(o, 0, &je), *lms = json_object_get(json_array_get(json_object_get(j, "frames"), 0), "landmarks");
+    double *got = malloc(9 * sizeof *got);
+    for (uint32_t l = 0; l < map.count; l++) {
+        int k = -1;
+        for (int q = 0; q < 3; q++)
+            if (which[q] == l) k = q;
+        for (int c = 0; c < 3; c++) {
+            double v = json_real_value(json_array_get(json_array_get(lms, l), (size_t)c));
+            if (k >= 0) got[3 * k + c] = v;
+            else assert_true(fabs(v - x[3 * l + c]) < 1e-5);
+        }
+    }
+    json_decref(j);
+    free(o), free(e);
+    return got;
+}
+
+static void test_complete_classes(void **s)
+{
+    (void)s;
+    mim_mesh_t body = {0};
+    float x[3 * MIM_LANDMARKS_MAX];
+    char *lost = lost_wrists_ankle("lost-classes.json", &body, x);
+    const uint32_t which[3] = {7, 8, 13};
+    double *t0 = complete_lost(lost, "0", x, which), *t1 = complete_lost(lost, "1", x, which),
+           *td = complete_lost(lost, NULL, x, which);
+    double apart = 0, off = 0, err1 = 0;
+    for (int k = 0; k < 9; k++) {
+        apart = fmax(apart, fabs(t1[k] - t0[k]));
+        off = fmax(off, fabs(td[k] - (0.3 * t0[k] + 0.7 * t1[k])));
+    }
+    for (int q = 0; q < 3; q++) {
+        double d2 = 0;
+        for (int c = 0; c < 3; c++) d2 += (t1[3 * q + c] - x[3 * which[q] + c]) * (t1[3 * q + c] - x[3 * which[q] + c]);
+        err1 = fmax(err1, sqrt(d2));
+    }
+    print_message("complete --classes: templates and classes %.1f mm apart; default %.3f mm off their mix; classes "
+                  "alone worst %.1f mm\n", 1e3 * apart, 1e3 * off, 1e3 * err1);
+    assert_true(apart > 1e-4);  /* the classes answer something of their own */
+    assert_true(off < 2e-5);    /* the default is the documented mix */
+    assert_true(err1 < 0.08);   /* and a body near the truth */
+    free(t0), free(t1), free(td);
+    char *o = NULL, *e = NULL;
+    const char *bad[] = {"complete", "--store", store, "--landmarks", lost, "--classes", "1.5", NULL};
+    assert_int_equal(ts_run_mimic(&o, &e, bad), 2);
+    assert_non_null(strstr(e, "--classes '1.5' is not a share in 0..1"));
+    free(o), free(e);
+    mim_mesh_free(&body);
+    free(lost);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -795,6 +869,7 @@ int main(void)
         cmocka_unit_test(test_complete),
         cmocka_unit_test(test_orientations),
         cmocka_unit_test(test_blend),
+        cmocka_unit_test(test_complete_classes),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
