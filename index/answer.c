@@ -130,12 +130,18 @@ static int vote(const mim_index_t *ix, const mim_index_query_options_t *opt, con
  * their log-likelihoods measured worse than the shape discriminants alone
  * (bench/RESULTS.md). -1: neither. */
 static int64_t discriminant_class(const mim_index_t *ix, const float *positions, const uint8_t *present,
-                                  uint32_t missing, double *posterior)
+                                  uint32_t missing, const double *shape_scores, double *posterior)
 {
     const uint32_t nc = ix->n_classes;
     double st[256], *a = nc <= 256 ? st : malloc(sizeof *a * nc);
     if (!a) return -1;
-    int64_t c = mim__shape_class(&ix->shape, positions, present, a);
+    int64_t c = -1;
+    if (shape_scores) { /* the completion scored the classes already (mim__shape_complete) */
+        memcpy(a, shape_scores, sizeof *a * nc);
+        for (uint32_t k = 0; k < nc; k++)
+            if (isfinite(a[k]) && (c < 0 || a[k] > a[c])) c = k;
+    } else
+        c = mim__shape_class(&ix->shape, positions, present, a);
     if (c < 0 && !missing && ix->lda.nf) c = mim__lda_class(&ix->lda, positions, ix->n_landmarks, a);
     if (c >= 0) {
         double z = 0;
@@ -208,8 +214,13 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
             if (!strcmp(ix->strings[s], opt->exclude_subject)) ex = s;
     float full[3 * MIM_LANDMARKS_MAX];
     uint32_t gauss_cls;
-    if (masked && ix->shape.n_classes && L <= MIM_LANDMARKS_MAX &&
-        !mim__shape_complete(&ix->shape, positions, present, full, &gauss_cls)) {
+    /* the classes' scores come with the completion (up to 256 classes:
+     * more are scored again below, as whole frames are) */
+    double scores_st[256], *shape_scores = ix->n_classes <= 256 ? scores_st : NULL;
+    const int gauss = masked && ix->shape.n_classes && L <= MIM_LANDMARKS_MAX &&
+                      !mim__shape_complete(&ix->shape, positions, present, full, &gauss_cls, shape_scores);
+    if (!gauss) shape_scores = NULL;
+    if (gauss) {
         /* missing landmarks, and the classes' Gaussians: the missing
          * angles are those of the frame completed by their conditional
          * mean (issue 29, shape_complete.c), with no scan of the templates */
@@ -257,7 +268,7 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
         int64_t lc = -1;
         double lp = 0;
         if (sa > 1) /* the discriminants alone: no SVM is evaluated */
-            lc = discriminant_class(ix, positions, present, ans->missing, &lp);
+            lc = discriminant_class(ix, positions, present, ans->missing, shape_scores, &lp);
         if (lc >= 0) {
             cls = (uint32_t)lc, prob = lp;
         } else {
@@ -270,7 +281,7 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
                 if (pr[c] > best) best = pr[c], cls = c;
             }
             prob = sum > 0 ? best / sum : 0;
-            if (sa > 0 && sa <= 1 && prob < sa && (lc = discriminant_class(ix, positions, present, ans->missing, &lp)) >= 0)
+            if (sa > 0 && sa <= 1 && prob < sa && (lc = discriminant_class(ix, positions, present, ans->missing, shape_scores, &lp)) >= 0)
                 cls = (uint32_t)lc, prob = lp;
             int vrc = 0;
             if (!(lc >= 0) && vb > 0 && prob < vb)

@@ -186,10 +186,11 @@ void mim__shape_free(mim__shape_t *m);
 /* shape_complete.c (issue 29): the frame's missing landmarks as the
  * classes' Gaussians' conditional mean given the present ones, mixed by
  * the classes' posteriors; out gets all L (present ones unchanged), cls
- * the most probable class. 0, or -1 as mim__shape_class (none, fewer than
- * 3 landmarks) or out of memory. */
+ * the most probable class, scores (n_classes; NULL: not wanted) every
+ * class's log-likelihood as mim__shape_class gives it. 0, or -1 as
+ * mim__shape_class (none, fewer than 3 landmarks) or out of memory. */
 int mim__shape_complete(const mim__shape_t *m, const float *positions, const uint8_t *present, float *out,
-                        uint32_t *cls);
+                        uint32_t *cls, double *scores);
 
 /* classes.c: up to per_class templates of each class (cls, n templates,
  * nc classes), spread evenly over its templates in input order; their

@@ -32,7 +32,7 @@
 #define NEGLIGIBLE_LOG (-20.0)
 
 int mim__shape_complete(const mim__shape_t *m, const float *positions, const uint8_t *present, float *out,
-                        uint32_t *cls)
+                        uint32_t *cls, double *scores)
 {
     if (!m->n_classes) return -1;
     const uint32_t L = m->L, n = 3 * L, nc = m->n_classes;
@@ -43,18 +43,18 @@ int mim__shape_complete(const mim__shape_t *m, const float *positions, const uin
     if (k < 9) return -1; /* fewer than three landmarks: no shape */
     for (uint32_t i = 0; i < n; i++) out[i] = (float)x[i];
     if (k == n) { /* nothing to complete: the class only */
-        double st[256], *score = nc <= 256 ? st : malloc(sizeof *score * nc);
+        double st[256], *score = scores ? scores : nc <= 256 ? st : malloc(sizeof *score * nc);
         if (!score) return -1;
         int64_t c = mim__shape_class(m, positions, present, score);
-        if (score != st) free(score);
+        if (score != st && score != scores) free(score);
         if (c < 0) return -1;
         *cls = (uint32_t)c;
         return 0;
     }
     /* each level's factor of the present block, S_ss + v^2 I, and its log determinant */
-    double *F = malloc(sizeof *F * MIM__SHAPE_LEVELS * k * k), *score = malloc(sizeof *score * nc);
+    double *F = malloc(sizeof *F * MIM__SHAPE_LEVELS * k * k), *score = scores ? scores : malloc(sizeof *score * nc);
     if (!F || !score) {
-        free(F), free(score);
+        free(F), free(score == scores ? NULL : score);
         return -1;
     }
     double v2[MIM__SHAPE_LEVELS], logdet[MIM__SHAPE_LEVELS];
@@ -64,7 +64,7 @@ int mim__shape_complete(const mim__shape_t *m, const float *positions, const uin
         for (uint32_t a = 0; a < k; a++)
             for (uint32_t b = 0; b < k; b++) A[a * k + b] = m->S[(size_t)idx[a] * n + idx[b]] + (a == b ? v2[lv] : 0);
         if (mim__cholesky(A, k)) {
-            free(F), free(score);
+            free(F), free(score == scores ? NULL : score);
             return -1;
         }
         logdet[lv] = 0;
@@ -87,7 +87,7 @@ int mim__shape_complete(const mim__shape_t *m, const float *positions, const uin
         if (isfinite(score[c]) && (arg < 0 || score[c] > score[arg])) arg = c;
     }
     if (arg < 0) {
-        free(F), free(score);
+        free(F), free(score == scores ? NULL : score);
         return -1;
     }
     /* the conditional means, back in the frame, mixed by the posteriors */
@@ -122,14 +122,14 @@ int mim__shape_complete(const mim__shape_t *m, const float *positions, const uin
         wsum += w;
     }
     if (!(wsum > 0)) {
-        free(F), free(score);
+        free(F), free(score == scores ? NULL : score);
         return -1;
     }
     for (uint32_t l = 0; l < L; l++)
         if (!here[l])
             for (int r = 0; r < 3; r++) out[3 * l + r] = (float)(acc[3 * l + r] / wsum);
     *cls = (uint32_t)arg;
-    free(F), free(score);
+    free(F), free(score == scores ? NULL : score);
     return 0;
 }
 
@@ -150,7 +150,7 @@ int mim_index_complete(const mim_index_t *ix, const float *positions, const uint
     }
     if (seen < 3) return mim_error_set(err, MIM_EINVAL, "completion: %u landmarks present, at least 3 needed", seen);
     uint32_t c = 0;
-    if (mim__shape_complete(&ix->shape, positions, present, out, &c))
+    if (mim__shape_complete(&ix->shape, positions, present, out, &c, NULL))
         return mim_error_set(err, MIM_EINVAL, "completion: the present landmarks span no shape");
     if (cls) *cls = c;
     return 0;
