@@ -349,8 +349,17 @@ static unsigned char *put_headers(struct lws *wsi, mim__http_tx_t *tx)
     char clen[32];
     snprintf(clen, sizeof clen, "%zu", rp->len);
     const char *cache = rp->cache ? rp->cache : "no-store";
-    if (lws_add_http_header_status(wsi, (unsigned)rp->status, &p, end) ||
-        add_header(wsi, "Content-Type:", rp->type, strlen(rp->type), &p, end) ||
+    if (lws_add_http_header_status(wsi, (unsigned)rp->status, &p, end))
+        return NULL;
+    /* libwebsockets has no reason phrase for 201 ("HTTP/1.1 201 "): RFC
+     * 9112 4 allows an empty one, but people and some clients read it */
+    static const char bare_201[] = "HTTP/1.1 201 \r\n", created[] = "HTTP/1.1 201 Created\r\n";
+    if (rp->status == 201 && p - start == (ptrdiff_t)sizeof bare_201 - 1 && !memcmp(start, bare_201, sizeof bare_201 - 1) &&
+        end - start > (ptrdiff_t)sizeof created) {
+        memcpy(start, created, sizeof created - 1);
+        p = start + sizeof created - 1;
+    }
+    if (add_header(wsi, "Content-Type:", rp->type, strlen(rp->type), &p, end) ||
         add_header(wsi, "Content-Length:", clen, strlen(clen), &p, end) ||
         add_header(wsi, "Cache-Control:", cache, strlen(cache), &p, end) ||
         (tx->close && add_header(wsi, "Connection:", "close", 5, &p, end)))

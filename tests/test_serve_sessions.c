@@ -211,7 +211,15 @@ static void test_add_and_remove(void **state)
     char body[4400];
     snprintf(body, sizeof body, "{\"name\": \"c\", \"avatar\": \"25\", \"vest\": \"serial:%s\"}", vc.link);
     json_t *j = NULL;
-    assert_int_equal(request("POST", "/api/sessions", body, &j), 201);
+    hc_reply_t created;
+    assert_int_equal(hc_request(&created, va.port, "POST", "/api/sessions", "Content-Type: application/json\r\n", body,
+                                strlen(body), 120000),
+                     HC_OK);
+    assert_int_equal(created.status, 201);
+    assert_non_null(created.head);
+    assert_memory_equal(created.head, "HTTP/1.1 201 Created\r\n", 22); /* issue 30 item 8: a reason phrase */
+    j = ss_json_body(&created);
+    hc_reply_free(&created);
     assert_string_equal(json_string_value(json_object_get(j, "name")), "c");
     assert_string_equal(json_string_value(json_object_get(j, "avatar")), "template 25");
     json_decref(j);
