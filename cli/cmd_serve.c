@@ -52,7 +52,9 @@ static void help(FILE *out)
             "                       frame the compute time affords, fewer when it cannot\n"
             "  --listen HOST:PORT   where to listen (default %s; port 0: any free port)\n"
             "  --max-body BYTES     request body limit (default %zu; larger bodies get 413)\n"
-            "  --max-clients N      WebSocket clients of one session at once (default %u)\n"
+            "  --max-clients N      WebSocket clients of one session at once (default %u); a\n"
+            "                       client that stopped reading yields its place after %g s and\n"
+            "                       is closed after %g s\n"
             "  --compute-cores C    cores the key frames of every session may take together\n"
             "                       (default 0.8 x the cores online; a share of a busy machine):\n"
             "                       past it, every auto session's key rate drops alike\n"
@@ -82,7 +84,7 @@ static void help(FILE *out)
             "  GET  /metrics        Prometheus text (mimic_*; per session: session=\"NAME\")\n"
             "Without ?session= a route means the first session.\n",
             MIM_SERVE_DEFAULT_LISTEN, MIM_SERVE_DEFAULT_MAX_BODY, MIM_SERVE_DEFAULT_MAX_CLIENTS,
-            MIM_SESSION_DEFAULT_BLEND);
+            MIM_SERVE_STALL_YIELD_S, MIM_SERVE_STALL_CLOSE_S, MIM_SESSION_DEFAULT_BLEND);
 }
 
 /* The sessions of --session and --sessions, in the order given. */

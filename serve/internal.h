@@ -37,6 +37,7 @@ typedef enum mim__counter {
     MIM__C_WS_SENT,     /* binary frames sent */
     MIM__C_WS_MESSAGES, /* client messages received */
     MIM__C_WS_BAD,      /* of which malformed */
+    MIM__C_WS_EVICTED,  /* clients closed for not reading (ws.c) */
     MIM__C_COUNT
 } mim__counter_t;
 

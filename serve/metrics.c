@@ -35,6 +35,7 @@ static const struct {
     {"mimic_ws_frames_sent_total", "Binary avatar frames sent to WebSocket clients."},
     {"mimic_ws_messages_total", "Messages received from WebSocket clients."},
     {"mimic_ws_bad_messages_total", "Client messages that were malformed (answered with an error)."},
+    {"mimic_ws_evicted_total", "WebSocket clients closed for not reading (stalled too long, or their place taken by a new viewer)."},
 };
 static const struct {
     const char *name, *help;

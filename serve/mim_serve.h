@@ -112,6 +112,14 @@ typedef struct mim_serve_options {
 } mim_serve_options_t;
 
 #define MIM_SERVE_DEFAULT_MAX_CLIENTS 64u
+/* A WebSocket client that has had frames dropped, with none written to
+ * it since, for MIM_SERVE_STALL_CLOSE_S is closed; stalled for
+ * MIM_SERVE_STALL_YIELD_S, it gives its place to a new viewer of its
+ * session when every place is taken (the one stalled longest first). A
+ * client that reads, however slowly, has a frame written at least every
+ * few frames and is never stalled that long. */
+#define MIM_SERVE_STALL_CLOSE_S 10.0
+#define MIM_SERVE_STALL_YIELD_S 1.0
 
 typedef struct mim_serve mim_serve_t;
 

@@ -23,6 +23,14 @@
  * reading the replies is stopped reading (lws rx flow control) while
  * TEXT_PAUSE replies wait, and closed at TEXT_MAX.
  *
+ * A client that does not read (issue 30, item 4) is stalled from the
+ * first frame dropped for it until a frame is written to it again: a
+ * client stalled for MIM_SERVE_STALL_CLOSE_S is closed, and a viewer that
+ * finds its session's places all taken takes the place of the client
+ * stalled longest, if one is for MIM_SERVE_STALL_YIELD_S, so clients that
+ * never read cannot lock viewers out. Neither waits for the client: lws kills the connection
+ * (a client that does not read would never take a close frame).
+ *
  * Client messages are capped at MIM__WS_MESSAGE_MAX bytes, fragments
  * joined (defect 1): lws hands a frame over in pieces of the protocol's
  * rx_buffer_size as they arrive, with the frame's remaining length, so a
@@ -75,6 +83,8 @@ typedef struct mim__ws_client {
     item_t q[RING];         /* under ws->lock: to send, oldest at head */
     unsigned head, count, frames, texts;
     uint64_t drops;
+    double stalled_since;   /* under ws->lock: mim_now() of the first drop since its last frame written; 0: not stalled */
+    int evicted;            /* under ws->lock: killed for not reading; no longer counted among its session's clients */
     int paused;             /* rx flow control off (service thread) */
     int in_msg, msg_binary; /* a client message is being read (service thread) */
     size_t msg_len;
@@ -218,6 +228,8 @@ static int push(client_t *c, msg_t *m, int text)
 {
     int dropped = 0;
     if (!text && c->frames == QUEUE) {
+        if (!c->stalled_since)
+            c->stalled_since = mim_now();
         unsigned i = 0;
         while (at(c, i)->text)
             i++;
@@ -296,17 +308,30 @@ void mim__ws_publish(mim__ws_t *ws, mim__vs_t *vs, const mim_serve_frame_t *f)
 }
 
 /* ---- the service thread ---- */
+/* Kills c's connection for not reading (under ws->lock, on the service
+ * thread): it is closed on lws's next pass, and no longer counted. */
+static void evict(client_t *c)
+{
+    c->evicted = 1;
+    lws_set_timeout(c->wsi, PENDING_TIMEOUT_USER_OK, LWS_TO_KILL_ASYNC);
+    mim__metrics_add(&c->vs->m, MIM__C_WS_EVICTED, 1);
+}
+
 void mim__ws_service(mim__ws_t *ws)
 {
     unsigned n = 0;
+    const double now = mim_now();
     pthread_mutex_lock(&ws->lock);
     if (ws->n_clients > ws->wake_cap) { /* sessions come and go: the scratch grows with the clients */
         struct lws **w = realloc(ws->wake, ws->n_clients * sizeof *w);
         if (w)
             ws->wake = w, ws->wake_cap = ws->n_clients;
     }
+    for (client_t *c = ws->clients; c; c = c->next)
+        if (!c->evicted && c->stalled_since && now - c->stalled_since >= MIM_SERVE_STALL_CLOSE_S)
+            evict(c);
     for (client_t *c = ws->clients; c && n < ws->wake_cap; c = c->next)
-        if (c->count || c->closing)
+        if (!c->evicted && (c->count || c->closing))
             ws->wake[n++] = c->wsi;
     pthread_mutex_unlock(&ws->lock);
     for (unsigned i = 0; i < n; i++)
@@ -407,6 +432,18 @@ int mim__ws_confirm(mim__ws_t *ws, struct lws *wsi, char *why, size_t why_size)
     if (status)
         return status;
     unsigned have = mim__ws_clients(ws, vs);
+    if (have >= ws->max_clients) { /* every place taken: the client stalled longest makes room */
+        client_t *worst = NULL;
+        const double now = mim_now();
+        pthread_mutex_lock(&ws->lock);
+        for (client_t *c = ws->clients; c; c = c->next)
+            if (c->vs == vs && !c->evicted && c->stalled_since && now - c->stalled_since >= MIM_SERVE_STALL_YIELD_S &&
+                (!worst || c->stalled_since < worst->stalled_since))
+                worst = c;
+        if (worst)
+            evict(worst), have--;
+        pthread_mutex_unlock(&ws->lock);
+    }
     mim__vs_release(vs);
     if (have >= ws->max_clients) {
         snprintf(why, why_size, "/ws: session %s has its %u clients (--max-clients); try again later", name,
@@ -486,8 +523,12 @@ static int on_writable(mim__ws_t *ws, client_t *c)
     msg_unref(it.m);
     if (w < 0)
         return -1; /* the peer is gone */
-    if (!it.text)
+    if (!it.text) {
         mim__metrics_add(&c->vs->m, MIM__C_WS_SENT, 1);
+        pthread_mutex_lock(&ws->lock);
+        c->stalled_since = 0; /* it reads again */
+        pthread_mutex_unlock(&ws->lock);
+    }
     if (c->paused && texts < TEXT_PAUSE / 2) {
         lws_rx_flow_control(c->wsi, 1);
         c->paused = 0;
@@ -718,7 +759,7 @@ unsigned mim__ws_clients(mim__ws_t *ws, const mim__vs_t *vs)
     pthread_mutex_lock(&ws->lock);
     unsigned n = 0;
     for (client_t *c = ws->clients; c; c = c->next)
-        n += !vs || c->vs == vs;
+        n += !c->evicted && (!vs || c->vs == vs);
     pthread_mutex_unlock(&ws->lock);
     return n;
 }

@@ -453,11 +453,66 @@ static void test_clean_exit(void **state)
     ss_svc_term(&A);
 }
 
+/* Clients that never read cannot lock viewers out (issue 30, item 4):
+ * with --max-clients 2 held by two clients that stopped reading after
+ * their hello, once frames are dropped for them a new viewer still gets
+ * in (the client stalled longest gives up its place) and receives the
+ * stream without a gap; the other stalled client is closed after
+ * MIM_SERVE_STALL_CLOSE_S; the reading viewer is never evicted. */
+static void test_stalled_clients_yield(void **state)
+{
+    (void)state;
+    ss_svc_t B;
+    const char *extra[] = {"--max-clients", "2", NULL};
+    assert_int_equal(ss_svc_start(&B, dir, store, "stall", NULL, extra), 0);
+    ws_client_t idle[2], viewer;
+    for (int k = 0; k < 2; k++)
+        json_decref(ss_ws_open(&idle[k], B.port, "/ws", 4096)); /* small buffers, then never read */
+    if (ws_connect(&viewer, B.port, "/ws", 0) == 0)
+        fail_msg("a third client was let in with --max-clients 2 before any client stalled");
+    assert_int_equal(viewer.http_status, 503);
+    double t0 = ss_now_s();
+    while (ss_metric(B.port, "mimic_frames_dropped_total") < 2 && ss_now_s() - t0 < 60)
+        ss_sleep_ms(100);
+    assert_true(ss_metric(B.port, "mimic_frames_dropped_total") >= 2);
+    print_message("stalled clients: frames dropped for them %.1f s after they stopped reading\n", ss_now_s() - t0);
+    int in = 0;
+    double t1 = ss_now_s();
+    while (!in && ss_now_s() - t1 < 30) { /* MIM_SERVE_STALL_YIELD_S after their first drop */
+        in = ws_connect(&viewer, B.port, "/ws", 0) == 0;
+        if (!in)
+            ss_sleep_ms(100);
+    }
+    if (!in)
+        fail_msg("a new viewer was kept out by two clients that never read");
+    assert_true(ss_metric(B.port, "mimic_ws_evicted_total") >= 1);
+    json_decref(ss_next_text(&viewer, 10000)); /* its hello */
+    size_t n = 0;
+    uint64_t *v = ss_collect_numbers(&viewer, 3000, &n);
+    ss_assert_consecutive(v, n, "the viewer that took a stalled client's place");
+    print_message("the new viewer: in %.1f s after the drops began, %zu frames in 3 s\n", ss_now_s() - t1 - 3, n);
+    assert_true(n > 0);
+    free(v);
+    /* the other stalled client is closed in time; the viewer that reads stays */
+    double t2 = ss_now_s();
+    while (ss_metric(B.port, "mimic_ws_evicted_total") < 2 && ss_now_s() - t2 < 60) {
+        free(ss_collect_numbers(&viewer, 250, &n));
+    }
+    assert_true(ss_metric(B.port, "mimic_ws_evicted_total") >= 2);
+    v = ss_collect_numbers(&viewer, 500, &n);
+    assert_true(n > 0); /* still streaming */
+    free(v);
+    assert_true(ss_metric(B.port, "mimic_ws_evicted_total") == 2);
+    ws_close(&viewer), ws_close(&idle[0]), ws_close(&idle[1]);
+    ss_svc_term(&B);
+    ss_svc_free(&B);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_message_cap), cmocka_unit_test(test_fragments),   cmocka_unit_test(test_starvation),
-        cmocka_unit_test(test_statuses),    cmocka_unit_test(test_max_clients), cmocka_unit_test(test_clean_exit),
+        cmocka_unit_test(test_statuses),    cmocka_unit_test(test_max_clients), cmocka_unit_test(test_stalled_clients_yield), cmocka_unit_test(test_clean_exit),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
