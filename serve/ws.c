@@ -293,7 +293,7 @@ void mim__ws_publish(mim__ws_t *ws, mim__vs_t *vs, const mim_serve_frame_t *f)
     }
     int woken = 0;
     for (client_t *c = ws->clients; c; c = c->next) {
-        if (c->vs != vs || c->closing || !m[c->format])
+        if (c->vs != vs || c->closing || c->evicted || !m[c->format])
             continue;
         dropped += (uint64_t)push(c, m[c->format], 0);
         woken = 1;
