@@ -1016,17 +1016,20 @@ static void test_gaussian_completion(void **s)
     x[3 * 2 + 1] = NAN; /* marked present */
     mim_error_t err = {0};
     assert_int_equal(mim_index_complete(ix, x, present, out, NULL, &err), MIM_ENONFINITE);
+    assert_non_null(strstr(err.msg, "landmark 2 is not a finite position"));
     memcpy(x, ss.lm + 48 * train, sizeof x);
     memset(present, 0, sizeof present);
     present[0] = present[1] = 1;
     mim_error_clear(&err);
     assert_int_equal(mim_index_complete(ix, x, present, out, NULL, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "2 landmarks present, at least 3 needed"));
     mim_index_close(&ix);
     mim_index_options_t no_shape = {.shape_noise = -1};
     assert_int_equal(mim_index_build(&ix, &in, &no_shape, NULL, NULL), 0);
     present[2] = present[3] = present[4] = 1;
     mim_error_clear(&err);
     assert_int_equal(mim_index_complete(ix, x, present, out, NULL, &err), MIM_ENOTFOUND);
+    assert_non_null(strstr(err.msg, "no shape discriminants"));
     mim_index_close(&ix);
     synth_set_free(&ss);
 }
