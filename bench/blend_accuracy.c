@@ -311,7 +311,8 @@ static int run_set(const bench_dataset_t *d, void *user)
         if (mim_vest_skeleton_estimate(&sk, &mesh, &d->map, &err))
             goto fail;
         mim_vest_skeleton_bones(&sk, bones);
-        if (mim_xfer_skin_from_bones(topo, rest, bones, MIM_SEGMENTS, MIM_XFER_DEFAULT_SKIN_SMOOTHING, skin, &err))
+        if (mim_xfer_skin_from_bones_wide(topo, rest, bones, MIM_SEGMENTS, MIM_XFER_DEFAULT_SKIN_SMOOTHING,
+                                          MIM_XFER_SKIN_WIDE_SEGMENTS, MIM_XFER_DEFAULT_SKIN_SMOOTHING_WIDE, skin, &err))
             goto fail;
         for (uint32_t i = 0; i < n; i++)
             region[i] = (uint8_t)bench_region_of_segment(skin[i].bone[0]);

@@ -28,7 +28,11 @@
  *   segment, the rigid fit's residual and the angle between each vertex's
  *   driven frame (skin at 0 degrees, or the template's) and the truth's.
  * - smoothing sweep: the orientation drive at 0 and 5 degrees for several
- *   skin smoothing steps (to choose MIM_XFER_DEFAULT_SKIN_SMOOTHING).
+ *   skin smoothing steps, one width everywhere or a wider band at the
+ *   shoulders, hips and spine (to choose MIM_XFER_DEFAULT_SKIN_SMOOTHING
+ *   and MIM_XFER_DEFAULT_SKIN_SMOOTHING_WIDE).
+ * - iterated once: the orientation drive's solution, its frames, one more
+ *   solve (what a second solve would buy).
  * - speed, same run: a key frame of each drive, median of --runs: (a)
  *   mim_xfer_skin_frames + one solve, (b) the iterated transfer with the
  *   template's frames; and the one-time costs of the skeleton and the skin.
@@ -57,7 +61,10 @@
 #define MAX_DRAWS 16
 #define MAX_LOST 3
 
-static const uint32_t smoothings[] = {0, 2, 4, 8, 16, 32};
+/* (steps, steps at MIM_XFER_SKIN_WIDE_SEGMENTS): one width everywhere,
+ * then wider bands at the shoulders, hips and spine only */
+static const uint32_t smoothings[][2] = {{0, 0},  {2, 2},  {4, 4},  {8, 8},   {16, 16},
+                                         {32, 32}, {8, 16}, {8, 32}, {8, 64}, {4, 32}};
 #define NSMOOTH (sizeof smoothings / sizeof smoothings[0])
 
 
@@ -68,11 +75,12 @@ typedef struct row {
     uint64_t rcnt[BENCH_REGIONS];
 } row_t;
 
-enum { R_TEMPLATE, R_O0, R_O5, R_O10, R_L1, R_L2, R_L3, R_CORR5, R_HYBRID, R_ORACLE,
+enum { R_TEMPLATE, R_O0, R_O5, R_O10, R_L1, R_L2, R_L3, R_NARROW5, R_IT5, R_CORR5, R_HYBRID, R_ORACLE,
        R_OTHER, R_OTHER_CORR5, NROW };
 static const char *row_names[NROW] = {
     "template drive (B's frames, iterated)", "orient 0 deg", "orient 5 deg", "orient 10 deg",
     "orient 5 deg, 1 lost", "orient 5 deg, 2 lost", "orient 5 deg, 3 lost",
+    "orient 5 deg, skin of 8 steps everywhere (before: no wide band)", "orient 5 deg, iterated once (a second solve)",
     "template corrected per segment, 5 deg (iterated)",
     "diagnostic: orient 5 deg, the template's frames on the hands",
     "diagnostic: A's own posed frames (the truth's), 1 solve",
@@ -263,10 +271,13 @@ static int avatar_build(avatar_t *av, const bench_dataset_t *d, const mim_xfer_t
     mim_vest_skeleton_bones(&sk, av->bones);
     mim_xfer_frames(topo, rest, av->Fa);
     mim_xfer_encode(topo, rest, av->Fa, av->W);
-    if ((rc = mim_xfer_skin_from_bones(topo, rest, av->bones, NSEG, MIM_XFER_DEFAULT_SKIN_SMOOTHING, av->skin, err)))
+    if ((rc = mim_xfer_skin_from_bones_wide(topo, rest, av->bones, NSEG, MIM_XFER_DEFAULT_SKIN_SMOOTHING,
+                                            MIM_XFER_SKIN_WIDE_SEGMENTS, MIM_XFER_DEFAULT_SKIN_SMOOTHING_WIDE, av->skin,
+                                            err)))
         return rc;
     for (size_t k = 0; k < NSMOOTH; k++)
-        if ((rc = mim_xfer_skin_from_bones(topo, rest, av->bones, NSEG, smoothings[k], av->sweep[k], err)))
+        if ((rc = mim_xfer_skin_from_bones_wide(topo, rest, av->bones, NSEG, smoothings[k][0],
+                                                MIM_XFER_SKIN_WIDE_SEGMENTS, smoothings[k][1], av->sweep[k], err)))
             return rc;
     for (uint32_t i = 0; i < n; i++)
         av->seg[i] = av->skin[i].bone[0], av->region[i] = (uint8_t)bench_region_of_segment(av->skin[i].bone[0]);
@@ -411,6 +422,15 @@ static int run_set(const bench_dataset_t *d, void *user)
                     if (orient_solve(ls, &av, av.skin, n, Rn, targets, c, F, out, &err))
                         goto done;
                     row_add(&rows[R_O5], out, truth, av.region, n, e_mm);
+                    /* iterated once: the frames of that solve, solved again */
+                    mim_xfer_frames(topo, out, Fp);
+                    if (mim_xfer_transfer(ls, av.W, n, Fp, targets, c, &o1, out, NULL, &err))
+                        goto done;
+                    row_add(&rows[R_IT5], out, truth, av.region, n, e_mm);
+                    /* the skin before the wide band: sweep entry {8, 8} */
+                    if (orient_solve(ls, &av, av.sweep[3], n, Rn, targets, c, F, out, &err))
+                        goto done;
+                    row_add(&rows[R_NARROW5], out, truth, av.region, n, e_mm);
                     /* the template corrected by the sensors, then iterated as the template drive */
                     corrected_frames(n, av.skin, av.seg, rest, d->pos[b * P + p], Ft, Rn, F);
                     if (mim_xfer_transfer(ls, av.W, n, F, targets, c, &o0, out, NULL, &err))
@@ -461,9 +481,9 @@ static int run_set(const bench_dataset_t *d, void *user)
     }
 
     printf("\n## %s: %u vertices, %u faces, %u subjects x %u poses, %llu of %llu pairs (A != B, p != 0), "
-           "%u draws of sensor error a pair, skin smoothing %u\n\n",
+           "%u draws of sensor error a pair, skin smoothing %u (%u wide)\n\n",
            d->name, n, d->n_faces, S, P, (unsigned long long)pairs, (unsigned long long)total, op->draws,
-           MIM_XFER_DEFAULT_SKIN_SMOOTHING);
+           MIM_XFER_DEFAULT_SKIN_SMOOTHING, MIM_XFER_DEFAULT_SKIN_SMOOTHING_WIDE);
     uint64_t rtot = 0;
     for (int g = 0; g < BENCH_REGIONS; g++)
         rtot += rows[R_TEMPLATE].rcnt[g];
@@ -508,12 +528,14 @@ static int run_set(const bench_dataset_t *d, void *user)
                seg_cnt[s] ? seg_ang_skin[s] / (double)seg_cnt[s] : NAN,
                seg_cnt[s] ? seg_ang_tmpl[s] / (double)seg_cnt[s] : NAN);
 
-    printf("\nskin smoothing sweep (orientation drive; default %u):\n\n", MIM_XFER_DEFAULT_SKIN_SMOOTHING);
-    printf("| smoothing steps | mean 0 deg | mean 5 deg | p95 5 deg | head 5 deg | hands 5 deg | feet 5 deg | "
+    printf("\nskin smoothing sweep (orientation drive; default %u, %u at the pelvis, chest, head, shoulders, upper arms "
+           "and thighs):\n\n",
+           MIM_XFER_DEFAULT_SKIN_SMOOTHING, MIM_XFER_DEFAULT_SKIN_SMOOTHING_WIDE);
+    printf("| smoothing steps (there) | mean 0 deg | mean 5 deg | p95 5 deg | head 5 deg | hands 5 deg | feet 5 deg | "
            "torso 5 deg | limbs 5 deg |\n|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     size_t best0 = 0, best5 = 0;
     for (size_t s = 0; s < NSMOOTH; s++) {
-        printf("| %u | %.2f | %.2f | %.2f |", smoothings[s], bench_err_mean(&sw0[s].e), bench_err_mean(&sw5[s].e),
+        printf("| %u (%u) | %.2f | %.2f | %.2f |", smoothings[s][0], smoothings[s][1], bench_err_mean(&sw0[s].e), bench_err_mean(&sw5[s].e),
                bench_err_p95(&sw5[s].e));
         for (int g = 0; g < BENCH_REGIONS; g++)
             printf(" %.2f |", row_reg(&sw5[s], g));
@@ -523,7 +545,8 @@ static int run_set(const bench_dataset_t *d, void *user)
         if (bench_err_mean(&sw5[s].e) < bench_err_mean(&sw5[best5].e))
             best5 = s;
     }
-    printf("\nlowest mean: %u steps at 5 deg, %u steps at 0 deg\n", smoothings[best5], smoothings[best0]);
+    printf("\nlowest mean: %u (%u) steps at 5 deg, %u (%u) steps at 0 deg\n", smoothings[best5][0], smoothings[best5][1],
+           smoothings[best0][0], smoothings[best0][1]);
 
     /* speed: A = 0, B = 1, the poses in turn */
     if (op->runs && S >= 2) {
@@ -574,8 +597,9 @@ static int run_set(const bench_dataset_t *d, void *user)
             mim_vest_skeleton_bones(&sk, bones);
             double tm = mim_now();
             sp_rc = sp_rc ? sp_rc
-                          : mim_xfer_skin_from_bones(topo, d->pos[0], bones, NSEG, MIM_XFER_DEFAULT_SKIN_SMOOTHING, tmp,
-                                                     &err);
+                          : mim_xfer_skin_from_bones_wide(topo, d->pos[0], bones, NSEG, MIM_XFER_DEFAULT_SKIN_SMOOTHING,
+                                                          MIM_XFER_SKIN_WIDE_SEGMENTS,
+                                                          MIM_XFER_DEFAULT_SKIN_SMOOTHING_WIDE, tmp, &err);
             t1[r] = tm - t0, t2[r] = mim_now() - tm;
         }
         free(tmp);
@@ -591,8 +615,9 @@ static int run_set(const bench_dataset_t *d, void *user)
                    iters / op->runs, 1e3 * mb);
             printf("| ratio a / b | %.3f |\n", ma / mb);
             printf("\none-time cost per avatar (median of 10): skeleton estimate %.2f ms, "
-                   "mim_xfer_skin_from_bones (smoothing %u) %.2f ms\n",
-                   1e3 * bench_median(t1, 10), MIM_XFER_DEFAULT_SKIN_SMOOTHING, 1e3 * bench_median(t2, 10));
+                   "the skin (smoothing %u, %u wide) %.2f ms\n",
+                   1e3 * bench_median(t1, 10), MIM_XFER_DEFAULT_SKIN_SMOOTHING, MIM_XFER_DEFAULT_SKIN_SMOOTHING_WIDE,
+                   1e3 * bench_median(t2, 10));
         }
         free(Fq), free(tg), free(Rp), free(ta), free(tf), free(tb);
         if (sp_rc)

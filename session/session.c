@@ -451,8 +451,9 @@ static void segment_avatar(mim_session_t *s)
             rc = mim_error_set(&s->skin_failed, MIM_ENOMEM, "out of memory for the avatar's segments");
     }
     if (!rc)
-        rc = mim_xfer_skin_from_bones(s->topo, s->mesh.positions, bones, MIM_VEST_SEGMENTS,
-                                      MIM_XFER_DEFAULT_SKIN_SMOOTHING, s->skin, &s->skin_failed);
+        rc = mim_xfer_skin_from_bones_wide(s->topo, s->mesh.positions, bones, MIM_VEST_SEGMENTS,
+                                           MIM_XFER_DEFAULT_SKIN_SMOOTHING, MIM_XFER_SKIN_WIDE_SEGMENTS,
+                                           MIM_XFER_DEFAULT_SKIN_SMOOTHING_WIDE, s->skin, &s->skin_failed);
     if (!rc)
         rig_weights(s);
     if (rc) {

@@ -111,6 +111,47 @@ static void test_weights(void **state)
     free(hard), free(soft);
 }
 
+/* The wide band (mim_xfer_skin_from_bones_wide, the session's skin): the
+ * shoulder blends over more of the upper arm than the narrow skin does,
+ * while a vertex whose heaviest bone is outside the mask (the forearm, the
+ * hand) keeps exactly the narrow weights; no wider steps, no change. */
+static void test_wide_band(void **state)
+{
+    (void)state;
+    mim_error_t err = {0};
+    const uint32_t n = fx.n;
+    mim_xfer_skin_t *narrow = skin_of(MIM_XFER_DEFAULT_SKIN_SMOOTHING), *wide = malloc(n * sizeof *wide),
+                    *same = malloc(n * sizeof *same);
+    assert_non_null(wide), assert_non_null(same);
+    assert_int_equal(mim_xfer_skin_from_bones_wide(fx.topo, fx.rest, fx.bones, MIM_VEST_SEGMENTS,
+                                                   MIM_XFER_DEFAULT_SKIN_SMOOTHING, MIM_XFER_SKIN_WIDE_SEGMENTS,
+                                                   MIM_XFER_DEFAULT_SKIN_SMOOTHING_WIDE, wide, &err),
+                     0);
+    assert_int_equal(mim_xfer_skin_from_bones_wide(fx.topo, fx.rest, fx.bones, MIM_VEST_SEGMENTS,
+                                                   MIM_XFER_DEFAULT_SKIN_SMOOTHING, MIM_XFER_SKIN_WIDE_SEGMENTS,
+                                                   MIM_XFER_DEFAULT_SKIN_SMOOTHING, same, &err),
+                     0);
+    assert_memory_equal(same, narrow, n * sizeof *same);
+    uint32_t kept = 0, changed = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t b = narrow[i].bone[0];
+        if (b < 64 && (MIM_XFER_SKIN_WIDE_SEGMENTS >> b & 1)) {
+            changed += memcmp(&wide[i], &narrow[i], sizeof wide[i]) != 0;
+        } else {
+            assert_memory_equal(&wide[i], &narrow[i], sizeof wide[i]);
+            kept++;
+        }
+    }
+    assert_true(kept > n / 4 && changed > n / 10);
+    /* a quarter down the upper arm: narrow, the arm's alone; wide, the shoulder still pulls */
+    mim_vec3 q = mim_v3_lerp(fx.sk.pivot[MIM_VEST_L_UPPERARM], fx.sk.end[MIM_VEST_L_UPPERARM], 0.25);
+    uint32_t v = nearest_vertex(q);
+    float parent_narrow = weight_of(&narrow[v], MIM_VEST_L_SHOULDER) + weight_of(&narrow[v], MIM_VEST_CHEST);
+    float parent_wide = weight_of(&wide[v], MIM_VEST_L_SHOULDER) + weight_of(&wide[v], MIM_VEST_CHEST);
+    assert_true(parent_wide > parent_narrow + 0.05f);
+    free(narrow), free(wide), free(same);
+}
+
 static void test_identity_and_rigid(void **state)
 {
     (void)state;
@@ -245,6 +286,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_weights),
+        cmocka_unit_test(test_wide_band),
         cmocka_unit_test(test_identity_and_rigid),
         cmocka_unit_test(test_twist),
         cmocka_unit_test(test_from_dense),

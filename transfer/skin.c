@@ -7,7 +7,9 @@
  * steps of w_i <- (w_i + sum of the one-ring's w_j) / (1 + deg_i), so that
  * frames blend across a joint over a few rings instead of jumping. The
  * diffusion follows the mesh, not space: an arm by the body does not leak
- * into the hip. Each vertex keeps its MIM_XFER_SKIN_INFLUENCES largest
+ * into the hip. Around the shoulders, hips and spine the band is wider
+ * (mim_xfer_skin_from_bones_wide): soft tissue there follows both
+ * segments far from the joint. Each vertex keeps its MIM_XFER_SKIN_INFLUENCES largest
  * weights, normalised (as a glTF skin's JOINTS_0 / WEIGHTS_0).
  *
  * Frames: a vertex's rotation is the normalised weighted sum of its
@@ -39,8 +41,30 @@ static double bone_distance2(const float *p, const double *bone)
     return d2;
 }
 
+/* One diffusion step of the dense weights w into next. */
+static void diffuse(const mim_xfer_topology_t *t, uint32_t n_bones, const float *w, float *next)
+{
+    for (uint32_t i = 0; i < t->n; i++) {
+        float *o = next + (size_t)i * n_bones;
+        memcpy(o, w + (size_t)i * n_bones, n_bones * sizeof *o);
+        uint32_t deg = t->adj_start[i + 1] - t->adj_start[i];
+        for (uint32_t k = t->adj_start[i]; k < t->adj_start[i + 1]; k++) {
+            const float *nb = w + (size_t)t->adj[k] * n_bones;
+            for (uint32_t b = 0; b < n_bones; b++) o[b] += nb[b];
+        }
+        for (uint32_t b = 0; b < n_bones; b++) o[b] /= (float)(1 + deg);
+    }
+}
+
 int mim_xfer_skin_from_bones(const mim_xfer_topology_t *t, const float *positions, const double *bones,
                              uint32_t n_bones, uint32_t smoothing, mim_xfer_skin_t *skin, mim_error_t *err)
+{
+    return mim_xfer_skin_from_bones_wide(t, positions, bones, n_bones, smoothing, 0, 0, skin, err);
+}
+
+int mim_xfer_skin_from_bones_wide(const mim_xfer_topology_t *t, const float *positions, const double *bones,
+                                  uint32_t n_bones, uint32_t smoothing, uint64_t wide_bones, uint32_t wide_smoothing,
+                                  mim_xfer_skin_t *skin, mim_error_t *err)
 {
     if (!t || !positions || !bones || !skin)
         return mim_error_set(err, MIM_EINVAL, "skin: NULL topology, positions, bones or output");
@@ -65,20 +89,21 @@ int mim_xfer_skin_from_bones(const mim_xfer_topology_t *t, const float *position
         w[(size_t)i * n_bones + at] = 1.0f;
     }
     for (uint32_t step = 0; step < smoothing; step++) {
-        for (uint32_t i = 0; i < n; i++) {
-            float *o = next + (size_t)i * n_bones;
-            memcpy(o, w + (size_t)i * n_bones, n_bones * sizeof *o);
-            uint32_t deg = t->adj_start[i + 1] - t->adj_start[i];
-            for (uint32_t k = t->adj_start[i]; k < t->adj_start[i + 1]; k++) {
-                const float *nb = w + (size_t)t->adj[k] * n_bones;
-                for (uint32_t b = 0; b < n_bones; b++) o[b] += nb[b];
-            }
-            for (uint32_t b = 0; b < n_bones; b++) o[b] /= (float)(1 + deg);
-        }
+        diffuse(t, n_bones, w, next);
         float *tmp = w;
         w = next, next = tmp;
     }
     mim_xfer_skin_from_dense(n, w, n_bones, NULL, skin); /* every row holds weight: no fallback needed */
+    if (wide_bones && wide_smoothing > smoothing) {
+        for (uint32_t step = smoothing; step < wide_smoothing; step++) {
+            diffuse(t, n_bones, w, next);
+            float *tmp = w;
+            w = next, next = tmp;
+        }
+        for (uint32_t i = 0; i < n; i++)
+            if (skin[i].bone[0] < 64 && (wide_bones >> skin[i].bone[0] & 1))
+                mim_xfer_skin_from_dense(1, w + (size_t)i * n_bones, n_bones, NULL, skin + i);
+    }
     free(w), free(next);
     return 0;
 }
