@@ -19,7 +19,8 @@ static void help(FILE *out)
             "Reads every mesh under each PATH (a file, or a folder walked recursively for\n"
             ".off .ply .obj .stl .gltf .glb), checks it, and stores it as a template.\n\n"
             "  --store DIR       the template store (created if missing)\n"
-            "  --landmarks FILE  landmark map for a new store (default: landmarks.json beside the meshes);\n"
+            "  --landmarks FILE  landmark map for a new store (default: landmarks.json beside the meshes,\n"
+            "                    else the built-in map of the first mesh's connectivity: mimic landmarks maps);\n"
             "                    with --register, a landmark map of the meshes' own connectivity\n"
             "  --manifest CSV    labels: a CSV with columns file,subject,pose (default: labels from\n"
             "                    file names: FAUST tr_reg_NNN, SCAPE meshNNN, NAME_sSS_pPP)\n"
@@ -28,7 +29,8 @@ static void help(FILE *out)
             "  --register        register meshes of another connectivity onto the store's (landmarks from\n"
             "                    NAME.landmarks.json beside each, --landmarks or landmarks.json beside the\n"
             "                    dataset as a map of their connectivity, or a built-in map such as SMPL's);\n"
-            "                    needs the store's index (mimic index)\n"
+            "                    needs the store's index (mimic index); into an empty store the meshes go\n"
+            "                    in as they are and make its connectivity\n"
             "  --max-distance-mm MM  refuse a registration whose surface distance p95 is over MM\n"
             "                    (default 15)\n"
             "  -q, --quiet       no per-file error lines\n"
@@ -37,6 +39,17 @@ static void help(FILE *out)
             "The same content is stored once. Bad files are reported and skipped.\n"
             "Exit status: 0 all files went in (or were already there), 1 some file failed, 2 bad usage or\n"
             "the ingest could not run.\n");
+}
+
+/* Whether the store holds no connectivity yet (nothing ingested). */
+static int store_is_empty(mim_db_t *db)
+{
+    mim_db_txn_t *t = NULL;
+    mim_db_topology_t topo;
+    if (mim_db_begin(db, 0, &t, NULL)) return 0;
+    int empty = mim_db_topology_get(t, &topo, NULL) == MIM_ENOTFOUND;
+    mim_db_abort(&t);
+    return empty;
 }
 
 int mim_cmd_ingest(int argc, char **argv)
@@ -98,6 +111,14 @@ int mim_cmd_ingest(int argc, char **argv)
         return 2;
     }
     mim_query_t *q = NULL;
+    if (do_register && store_is_empty(db)) {
+        /* nothing to register onto yet: the first meshes make the store's
+         * connectivity (never "run mimic index" on a store with nothing to index) */
+        fprintf(stderr, "mimic ingest: note: %s is empty: the meshes are ingested as they are and their "
+                        "connectivity becomes the store's; later ones of another connectivity are registered onto it\n",
+                mim_db_path(db));
+        do_register = 0;
+    }
     if (do_register && (rc = mim_cli_registrar_open(db, "ingest", &q, &opt.registrar))) {
         mim_db_close(&db);
         return rc;

@@ -10,6 +10,7 @@
  * hash, so it is not registered again). */
 #include "mim_ingest.h"
 #include "mim_io.h"
+#include "mim_register.h"
 #include "mim_transfer.h"
 
 #include <pthread.h>
@@ -241,6 +242,35 @@ static int set_reference(writer_t *wr, const char *path, const mim_mesh_t *m, mi
     return 0;
 }
 
+/* The landmark map of an empty store from the first readable mesh's
+ * connectivity, when mimic knows it (register/'s built-in maps by the
+ * faces' digest: SMPL's for FAUST and kin), so that a first ingest of such
+ * scans needs no file. A note says which map was taken. */
+static int builtin_map(mim_db_t *db, const mim_file_list_t *files, const mim_ingest_options_t *opt, writer_t *wr,
+                       mim_error_t *err)
+{
+    mim_ingest_known_map_fn known = opt->known_map ? opt->known_map : mim_reg_known_map;
+    for (size_t i = 0; i < files->count; i++) {
+        mim_mesh_t m = {0};
+        if (mim_io_read_mesh(files->paths[i], &m, NULL)) continue; /* reported with the others later */
+        const char *name = NULL;
+        int found = known(m.faces, m.n_faces, m.n_vertices, &wr->landmarks, &name);
+        uint32_t nv = m.n_vertices;
+        mim_mesh_free(&m);
+        if (!found) break;
+        wr->have_landmarks = 1;
+        mim_log_emit(opt->log, opt->log_ctx, MIM_LOG_WARN,
+                     "note: %s: landmarks from the built-in map %s (the connectivity of %s, %u vertices)",
+                     mim_db_path(db), name ? name : "?", files->paths[i], nv);
+        return 0;
+    }
+    return mim_error_set(err, MIM_ENOLANDMARKS,
+                         "%s: the store is empty and needs a landmark map: pass --landmarks FILE, put landmarks.json "
+                         "beside the meshes, or ingest meshes of a connectivity with a built-in map first (mimic "
+                         "landmarks maps)",
+                         mim_db_path(db));
+}
+
 int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_ingest_options_t *opt,
                    mim_ingest_report_t *report, mim_error_t *err)
 {
@@ -258,16 +288,16 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
     mim_ingest_landmark_sources_t sources = {0};
     mim_manifest_t *manifest = NULL;
     mim_file_list_t files = {0};
-    int rc = load_reference(db, &wr, err);
+    int rc = load_reference(db, &wr, err), builtin = 0;
     if (!rc && !wr.have_topology) {
-        /* An empty store needs a landmark map before anything goes in. */
+        /* An empty store needs a landmark map before anything goes in: a
+         * file, else the built-in map of the first mesh's connectivity
+         * (after the walk, below). */
         char found[4096];
         const char *lm = opt->landmarks_path;
         if (!lm && mim_discover_landmarks(paths, n_paths, found, sizeof found)) lm = found;
         if (!lm)
-            rc = mim_error_set(err, MIM_ENOLANDMARKS,
-                               "%s: the store is empty and needs a landmark map: pass --landmarks FILE or put landmarks.json beside the meshes",
-                               mim_db_path(db));
+            builtin = 1;
         else if (!(rc = mim_landmarks_read(&wr.landmarks, lm, err)))
             wr.have_landmarks = 1;
     } else if (!rc && opt->registrar) {
@@ -286,6 +316,7 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
     }
     if (!rc && opt->manifest_path) rc = mim_manifest_load(&manifest, opt->manifest_path, err);
     if (!rc) rc = mim_discover(paths, n_paths, &files, err);
+    if (!rc && builtin) rc = builtin_map(db, &files, opt, &wr, err);
     if (rc) goto out;
     /* what the walk found but cannot read: loops skipped, dangling links failed */
     for (size_t i = 0; i < files.n_skipped && !opt->quiet; i++)

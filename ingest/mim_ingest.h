@@ -111,6 +111,10 @@ int mim_ingest_register_mesh(mim_ingest_registrar_t *r, const mim_mesh_t *mesh, 
                              mim_error_t *err);
 
 /* ---- the pipeline ---- */
+/* Fills map (and *name) and returns 1 when the connectivity is known, 0
+ * when not: mim_reg_known_map's contract. */
+typedef int (*mim_ingest_known_map_fn)(const uint32_t *faces, uint32_t n_faces, uint32_t n_vertices,
+                                       mim_landmark_map_t *map, const char **name);
 typedef struct mim_ingest_options {
     const char *landmarks_path; /* NULL: landmarks.json beside the dataset */
     const char *manifest_path;  /* NULL: labels from file names */
@@ -131,6 +135,10 @@ typedef struct mim_ingest_options {
      * max_distance_mm is refused with the figures. */
     mim_ingest_registrar_t *registrar;
     double max_distance_mm;     /* 0: MIM_INGEST_DEFAULT_MAX_DISTANCE_MM */
+    /* The maps of known connectivities an empty store takes its landmark
+     * map from when no file is given or beside the meshes: NULL, the
+     * built-in ones (mim_reg_known_map). */
+    mim_ingest_known_map_fn known_map;
 } mim_ingest_options_t;
 #define MIM_INGEST_DEFAULT_MAX_DISTANCE_MM 15.0
 

@@ -85,7 +85,7 @@ int mim_query_build_index(mim_db_t *db, const mim_index_options_t *opt, mim_inde
     if ((rc = mim_db_meta_get(t, &meta, err))) goto out;
     rc = mim_db_landmarks_get(t, &map, err);
     if (rc == MIM_ENOTFOUND) {
-        rc = mim_error_set(err, MIM_ENOLANDMARKS, "%s: store has no landmark map (ingest with --landmarks)",
+        rc = mim_error_set(err, MIM_ENOLANDMARKS, "%s: store has no landmark map (it is empty: mimic ingest meshes into it first)",
                            mim_db_path(db));
         goto out;
     }

@@ -2,7 +2,9 @@
  * manifests, discovery, and the pipeline (bad files skipped, topology
  * mismatch, idempotency, landmark map checks). */
 #include "mim_db.h"
+#include "known_maps.h"
 #include "mim_ingest.h"
+#include "mim_register.h"
 #include "mim_io.h"
 #include "test_support.h"
 
@@ -540,6 +542,69 @@ static const char *heard_line(const heard_t *h, const char *phrase)
     return found;
 }
 
+/* A table of known connectivities holding the test sphere's: matched by
+ * register/'s own code (the faces' SHA-256 and vertex count), as the
+ * built-in SMPL map is matched on FAUST scans, which cannot ship here. */
+static char known_sphere_json[1024];
+static int known_sphere(const uint32_t *faces, uint32_t n_faces, uint32_t n_vertices, mim_landmark_map_t *map,
+                        const char **name)
+{
+    char hex[65];
+    mim_reg_faces_sha256(faces, n_faces, hex);
+    *name = "sphere-test.json";
+    return mim__known_map_match(known_sphere_json, *name, hex, n_vertices, map, NULL) == 1;
+}
+
+/* Issue 30 item 1: a new store takes meshes of a known connectivity with
+ * no landmark file (the map of their faces), says which map it took, and a
+ * mesh of an unknown one gets a message that names every way out. */
+static void test_builtin_map_first_ingest(void **s)
+{
+    (void)s;
+    mim_mesh_t tri;
+    ts_triangulate(&sphere, &tri);
+    char hex[65];
+    mim_reg_faces_sha256(tri.faces, tri.n_faces, hex);
+    snprintf(known_sphere_json, sizeof known_sphere_json,
+             "{\"topology_vertices\": %u, \"faces_sha256\": \"%s\", \"landmarks\":[{\"name\":\"top\",\"vertex\":0},"
+             "{\"name\":\"l_side\",\"vertex\":5},{\"name\":\"r_side\",\"vertex\":13},{\"name\":\"bottom\",\"vertex\":177}]}",
+             tri.n_vertices, hex);
+    mim_mesh_free(&tri);
+    char *data = make_dataset("ds_known", 3, 0);
+    char *store = ts_path(dir, "store_known");
+    mim_db_t *db;
+    mim_error_t err = {0};
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    heard_t h = {0};
+    mim_ingest_options_t opt = {.log = hear, .log_ctx = &h, .known_map = known_sphere};
+    mim_ingest_report_t rep;
+    char *paths[] = {data};
+    if (mim_ingest_run(db, paths, 1, &opt, &rep, &err)) fail_msg("%s", mim_error_text(&err));
+    assert_int_equal(rep.added, 3);
+    const char *note = heard_line(&h, "built-in map sphere-test.json");
+    assert_non_null(strstr(note, "ball_s00_p00.ply"));
+    mim_db_txn_t *t;
+    mim_landmark_map_t lm;
+    assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
+    assert_int_equal(mim_db_landmarks_get(t, &lm, &err), 0);
+    mim_db_abort(&t);
+    assert_int_equal(lm.count, 4);
+    assert_int_equal(lm.vertex[3], 177);
+    mim_db_close(&db);
+    /* the built-in maps do not know the sphere: the message names every way */
+    char *store2 = ts_path(dir, "store_unknown");
+    assert_int_equal(mim_db_open(&db, store2, NULL, &err), 0);
+    opt = (mim_ingest_options_t){.quiet = 1};
+    assert_int_equal(mim_ingest_run(db, paths, 1, &opt, &rep, &err), MIM_ENOLANDMARKS);
+    assert_non_null(strstr(err.msg, "--landmarks FILE"));
+    assert_non_null(strstr(err.msg, "built-in map"));
+    assert_non_null(strstr(err.msg, "mimic landmarks maps"));
+    assert_null(strchr(err.msg, '\n'));
+    mim_db_close(&db);
+    free(store2), free(store), free(data);
+}
+
+
 /* A folder with good meshes, a loop back to itself (a -> .), a link to its
  * parent (b -> ..), a link to itself and a dangling link: the good meshes go
  * in, each odd entry is one line, loops are skipped, the dangling link is a
@@ -787,6 +852,7 @@ int main(void)
         cmocka_unit_test(test_labels),
         cmocka_unit_test(test_manifest),        cmocka_unit_test(test_discover),
         cmocka_unit_test(test_pipeline),        cmocka_unit_test(test_landmark_requirements),
+        cmocka_unit_test(test_builtin_map_first_ingest),
         cmocka_unit_test(test_mh_bodies),       cmocka_unit_test(test_symlinks),
         cmocka_unit_test(test_gltf_uris),       cmocka_unit_test(test_implausible_meshes),
     };

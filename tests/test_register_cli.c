@@ -665,6 +665,17 @@ static void test_cli_ingest_register(void **s)
     assert_int_equal(rc, 2);
     expect_one_line(e, "ingest", "mimic index", NULL);
     free(o), free(e);
+    /* --register into an empty store (issue 30 item 1): nothing to register
+     * onto and nothing to index, so no "run mimic index": the meshes go in
+     * as they are, with a note, and make the store's connectivity */
+    char *fresh = ts_path(dir, "fresh_register"), *lm = ts_path(bodies, "landmarks.json");
+    const char *first[] = {"ingest", "--store", fresh, "--register", "--landmarks", lm, b00, NULL};
+    rc = ts_run_mimic(&o, &e, first);
+    if (rc) fail_msg("%s", e);
+    assert_non_null(strstr(o, "1 added"));
+    assert_null(strstr(e, "mimic index"));
+    expect_one_line(e, "ingest", "is empty", "connectivity becomes the store's");
+    free(o), free(e), free(fresh), free(lm);
     const char *bad_mm[] = {"ingest", "--store", st, "--register", "--max-distance-mm", "0", m1, NULL};
     rc = ts_run_mimic(&o, &e, bad_mm);
     assert_int_equal(rc, 2);
