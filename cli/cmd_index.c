@@ -2,18 +2,25 @@
  * and keep it in the store. JSON: schemas/index.schema.json. */
 #include "args.h"
 #include "commands.h"
+#include "mim_ingest.h"
 #include "mim_query.h"
 #include "output.h"
 
 #include <getopt.h>
 #include <jansson.h>
 #include <stdio.h>
+#include <string.h>
 #include <stdlib.h>
+
+static const char *pose_class(void *ctx, const char *dataset, const char *pose)
+{
+    return mim_pose_map_class(ctx, dataset, pose);
+}
 
 static void help(FILE *out)
 {
     fprintf(out, "usage: mimic index --store DIR [--features D] [--noise F] [--augment N] [--shape-noise F]\n"
-                 "                   [--discriminants F] [--json]\n\n"
+                 "                   [--discriminants F] [--pose-map CSV] [--json]\n\n"
                  "Builds the pose recognition index of a store and keeps it in the store, so that\n"
                  "mimic query opens it in milliseconds: the D most salient landmark angles (a\n"
                  "decision tree on the pose labels, mirrored samples included), one SVM per pose\n"
@@ -37,6 +44,11 @@ static void help(FILE *out)
                  "                  before the shape discriminants), trained with noise sigma F,\n"
                  "                  as --noise (0.04 measured best); used for whole frames when\n"
                  "                  there are no shape discriminants (default: none)\n"
+                 "  --pose-map CSV  which poses of different datasets are one class: a CSV with the\n"
+                 "                  columns dataset, pose, class. Without it, in a store of several\n"
+                 "                  datasets (mimic ingest --dataset) every dataset's poses and\n"
+                 "                  subjects are its own (\"faust/3\"); a class of one template is\n"
+                 "                  reported, as cross-validation cannot learn it from others\n"
                  "  --json          one JSON object on stdout (schemas/index.schema.json)\n"
                  "  -h, --help      this help\n");
 }
@@ -49,10 +61,11 @@ int mim_cmd_index(int argc, char **argv)
                                               {"augment", required_argument, 0, 'a'},
                                               {"discriminants", required_argument, 0, 'D'},
                                               {"shape-noise", required_argument, 0, 'S'},
+                                              {"pose-map", required_argument, 0, 'P'},
                                               {"json", no_argument, 0, 'j'},
                                               {"help", no_argument, 0, 'h'},
                                               {0, 0, 0, 0}};
-    const char *store = NULL;
+    const char *store = NULL, *pose_map_path = NULL;
     int as_json = 0, c;
     mim_index_options_t o = {0};
     optind = 0;
@@ -78,7 +91,8 @@ int mim_cmd_index(int argc, char **argv)
         } else if (c == 'a') {
             if (mim_cli_number("index", "augment", optarg, 1, 64, &v)) return 2;
             o.augment = (uint32_t)v;
-        } else if (c == 'j') as_json = 1;
+        } else if (c == 'P') pose_map_path = optarg;
+        else if (c == 'j') as_json = 1;
         else if (c == 'h') return help(stdout), 0;
         else {
             fprintf(stderr, "mimic index: unknown or incomplete option '%s' (see mimic index --help)\n",
@@ -91,6 +105,11 @@ int mim_cmd_index(int argc, char **argv)
         return 2;
     }
     mim_error_t err = {0};
+    mim_pose_map_t *pose_map = NULL;
+    if (pose_map_path && mim_pose_map_load(&pose_map, pose_map_path, &err)) {
+        fprintf(stderr, "mimic index: %s\n", mim_error_text(&err));
+        return 2;
+    }
     mim_db_t *db = NULL;
     mim_db_options_t ro = mim_cli_db_options(1), rw = mim_cli_db_options(0);
     /* open read-only first so that a wrong path is not made into a new store */
@@ -101,12 +120,24 @@ int mim_cmd_index(int argc, char **argv)
     o.progress = &pr;
     mim_index_report_t rep;
     mim_query_status_t st;
-    if (!rc) rc = mim_query_build_index(db, &o, &rep, &err);
+    mim_query_labels_report_t lab;
+    if (!rc) rc = mim_query_build_index_labelled(db, &o, pose_map ? pose_class : NULL, pose_map, &rep, &lab, &err);
     if (!rc) rc = mim_query_status(db, &st, &err);
+    mim_pose_map_free(&pose_map);
     if (rc) {
         fprintf(stderr, "mimic index: %s\n", mim_error_text(&err));
         mim_db_close(&db);
         return 2;
+    }
+    if (lab.single && lab.classes > 1) {
+        char ex[4 * sizeof lab.single_example[0]] = "";
+        for (uint32_t i = 0; i < lab.single && i < MIM_QUERY_EXAMPLES; i++)
+            snprintf(ex + strlen(ex), sizeof ex - strlen(ex), "%s%s", i ? ", " : "", lab.single_example[i]);
+        fprintf(stderr,
+                "mimic index: warning: %u of %u pose classes have one template (%s%s): they stay classes, but "
+                "cross-validation has no other template to learn them from and counts them as misses%s\n",
+                lab.single, lab.classes, ex, lab.single > MIM_QUERY_EXAMPLES ? ", ..." : "",
+                lab.datasets > 1 ? "; map poses of different datasets onto one class with --pose-map CSV" : "");
     }
     const char *source = rep.class_source == MIM_CLASSES_KMEANS ? "kmeans" : "labels";
     if (as_json) {
@@ -120,6 +151,9 @@ int mim_cmd_index(int argc, char **argv)
                                  "augment", (json_int_t)rep.augment, "noise", rep.noise, "weight", rep.weight,
                                  "discriminant_noise", rep.discriminant_noise, "shape_noise",
                                  rep.shape_noise > 0 ? rep.shape_noise : 0.0, "seconds", rep.seconds);
+        json_object_set_new(root, "datasets", json_integer(lab.datasets));
+        json_object_set_new(root, "mapped_templates", json_integer(lab.mapped));
+        json_object_set_new(root, "single_template_classes", json_integer(lab.single));
         char *s = json_dumps(root, JSON_INDENT(2) | JSON_PRESERVE_ORDER);
         printf("%s\n", s ? s : "{}");
         free(s);
@@ -128,6 +162,9 @@ int mim_cmd_index(int argc, char **argv)
         printf("index        %s: %llu templates, %u classes (%s), %u angles\n", store,
                (unsigned long long)st.templates, rep.n_classes,
                rep.class_source == MIM_CLASSES_KMEANS ? "k-means, no pose labels" : "pose labels", rep.d);
+        if (lab.datasets > 1)
+            printf("datasets     %u: subjects and poses are each dataset's own%s\n", lab.datasets,
+                   lab.mapped ? ", but for the poses the pose map places" : "");
         if (rep.n_classes < 2)
             printf("svm          one class: no SVM needed\n");
         else if (rep.cv_accuracy >= 0)

@@ -31,9 +31,25 @@ static int count_label(json_t *counts, const char *label)
 }
 
 typedef struct {
-    json_t *subjects, *poses;
+    json_t *subjects, *poses, *datasets;
     uint64_t unlabelled;
+    int several; /* more than one dataset: labels are each dataset's own */
 } tally_t;
+
+static int tally_dataset(const mim_template_view_t *t, void *user)
+{
+    tally_t *ta = user;
+    return count_label(ta->datasets, t->dataset);
+}
+
+/* A label as mim_db_labels_qualify makes it for the index. */
+static int count_qualified(const tally_t *ta, json_t *counts, const mim_template_view_t *t, const char *label)
+{
+    if (!ta->several || !t->dataset[0] || !label[0]) return count_label(counts, label);
+    char q[2 * 4096 + 2];
+    snprintf(q, sizeof q, "%s/%s", t->dataset, label);
+    return count_label(counts, q);
+}
 
 static int tally(const mim_template_view_t *t, void *user)
 {
@@ -42,8 +58,8 @@ static int tally(const mim_template_view_t *t, void *user)
         ta->unlabelled++;
         return 0;
     }
-    count_label(ta->subjects, t->subject);
-    count_label(ta->poses, t->pose);
+    count_qualified(ta, ta->subjects, t, t->subject);
+    count_qualified(ta, ta->poses, t, t->pose);
     return 0;
 }
 
@@ -97,7 +113,7 @@ int mim_cmd_info(int argc, char **argv)
     mim_db_topology_t topo;
     mim_landmark_map_t lm;
     mim_db_stat_t st;
-    tally_t ta = {json_object(), json_object(), 0};
+    tally_t ta = {json_object(), json_object(), json_object(), 0, 0};
     rc = mim_db_meta_get(t, &meta, &err);
     int have_topo = 0, have_lm = 0;
     if (!rc) {
@@ -110,6 +126,8 @@ int mim_cmd_info(int argc, char **argv)
         have_lm = r == 0;
         if (r && r != MIM_ENOTFOUND) rc = r;
     }
+    if (!rc) rc = mim_db_template_each(t, tally_dataset, &ta, &err);
+    ta.several = json_object_size(ta.datasets) > 1;
     if (!rc) rc = mim_db_template_each(t, tally, &ta, &err);
     if (!rc) rc = mim_db_stat(db, &st, &err);
     mim_query_status_t qs = {0};
@@ -127,6 +145,7 @@ int mim_cmd_info(int argc, char **argv)
         json_object_set_new(root, "templates", json_integer((json_int_t)meta.templates));
         json_object_set_new(root, "subjects", json_incref(ta.subjects));
         json_object_set_new(root, "poses", json_incref(ta.poses));
+        json_object_set_new(root, "datasets", json_incref(ta.datasets));
         json_object_set_new(root, "unlabelled", json_integer((json_int_t)ta.unlabelled));
         if (have_topo) {
             char hex[20];
@@ -166,6 +185,7 @@ int mim_cmd_info(int argc, char **argv)
         printf("templates    %llu\n", (unsigned long long)meta.templates);
         print_counts("subjects", ta.subjects);
         print_counts("poses", ta.poses);
+        print_counts("datasets", ta.datasets);
         if (ta.unlabelled) printf("unlabelled   %llu\n", (unsigned long long)ta.unlabelled);
         if (have_topo)
             printf("connectivity %u vertices, %u faces, hash %016llx\n", topo.n_vertices, topo.n_faces,
@@ -192,6 +212,7 @@ int mim_cmd_info(int argc, char **argv)
 done:
     json_decref(ta.subjects);
     json_decref(ta.poses);
+    json_decref(ta.datasets);
     mim_db_abort(&t);
     mim_db_close(&db);
     return rc ? 2 : 0;

@@ -15,7 +15,7 @@ static void help(FILE *out)
 {
     fprintf(out,
             "usage: mimic ingest --store DIR [--landmarks FILE] [--manifest CSV] [--batch N] [--threads N]\n"
-            "                    [--register [--max-distance-mm MM]] PATH...\n\n"
+            "                    [--dataset NAME] [--register [--max-distance-mm MM]] PATH...\n\n"
             "Reads every mesh under each PATH (a file, or a folder walked recursively for\n"
             ".off .ply .obj .stl .gltf .glb), checks it, and stores it as a template.\n\n"
             "  --store DIR       the template store (created if missing)\n"
@@ -24,6 +24,11 @@ static void help(FILE *out)
             "                    with --register, a landmark map of the meshes' own connectivity\n"
             "  --manifest CSV    labels: a CSV with columns file,subject,pose (default: labels from\n"
             "                    file names: FAUST tr_reg_NNN, SCAPE meshNNN, NAME_sSS_pPP)\n"
+            "  --dataset NAME    the dataset the templates belong to (default: the folder each was\n"
+            "                    ingested from, the PATH's own name for a folder). Subjects and poses are\n"
+            "                    a dataset's own: two datasets' subject \"0\" are two people, and their\n"
+            "                    poses form one class only when mimic index --pose-map maps them so\n"
+            "                    (NAME: letters, digits, '.', '_', '-')\n"
             "  --batch N         templates per committed transaction (default 64)\n"
             "  --threads N       reader threads (default: one per core)\n"
             "  --register        register meshes of another connectivity onto the store's (landmarks from\n"
@@ -59,7 +64,8 @@ int mim_cmd_ingest(int argc, char **argv)
         {"manifest", required_argument, 0, 'm'}, {"batch", required_argument, 0, 'b'},
         {"threads", required_argument, 0, 't'}, {"quiet", no_argument, 0, 'q'},
         {"register", no_argument, 0, 'r'},      {"max-distance-mm", required_argument, 0, 'D'},
-        {"help", no_argument, 0, 'h'},          {0, 0, 0, 0},
+        {"dataset", required_argument, 0, 'd'}, {"help", no_argument, 0, 'h'},
+        {0, 0, 0, 0},
     };
     int do_register = 0;
     const char *store = NULL;
@@ -83,6 +89,16 @@ int mim_cmd_ingest(int argc, char **argv)
             break;
         case 'q': opt.quiet = 1; break;
         case 'r': do_register = 1; break;
+        case 'd':
+            if (!mim_ingest_dataset_valid(optarg)) {
+                fprintf(stderr,
+                        "mimic ingest: --dataset '%s': a name is 1 to %d of the letters, digits, '.', '_' and '-' "
+                        "(not . or ..)\n",
+                        optarg, MIM_INGEST_DATASET_MAX);
+                return 2;
+            }
+            opt.dataset = optarg;
+            break;
         case 'D':
             if (mim_cli_real("ingest", "max-distance-mm", optarg, 0.0, 1000.0, 1, "is not a distance in (0, 1000] mm",
                              &opt.max_distance_mm))

@@ -41,8 +41,8 @@ static int row(const mim_template_view_t *t, void *user)
     if (rc && rc != MIM_ENOTFOUND) return rc; /* damage: the message is in l->err */
     const int registered = rc == 0;
     if (l->rows) {
-        json_t *o = json_pack("{s:I, s:s, s:s, s:s}", "id", (json_int_t)t->id, "subject", t->subject, "pose", t->pose,
-                              "source", t->source);
+        json_t *o = json_pack("{s:I, s:s, s:s, s:s, s:s}", "id", (json_int_t)t->id, "subject", t->subject, "pose",
+                              t->pose, "dataset", t->dataset, "source", t->source);
         if (o && registered)
             json_object_set_new(o, "registration",
                                 json_pack("{s:f, s:f, s:f, s:I, s:I}", "mean_mm", reg.mean_mm, "p95_mm", reg.p95_mm,
@@ -53,6 +53,7 @@ static int row(const mim_template_view_t *t, void *user)
     }
     printf("%8llu  %-10s %-10s %s", (unsigned long long)t->id, t->subject[0] ? t->subject : "-",
            t->pose[0] ? t->pose : "-", t->source);
+    if (t->dataset[0]) printf("  dataset %s", t->dataset);
     if (registered) printf("  registered %.2f/%.2f mm", reg.mean_mm, reg.p95_mm);
     printf("\n");
     return 0;

@@ -380,7 +380,7 @@ static int store_all(const char *store, uint64_t avatar_id, const char *samples_
         if (prefix) snprintf(pose, sizeof pose, "%s%ld-%c", prefix, items[i].line, items[i].person);
         else snprintf(pose, sizeof pose, "%s", classes->name[items[i].cls]);
         snprintf(source, sizeof source, "sampled:%s:%ld:%c", samples_real, items[i].line, items[i].person);
-        mim_template_in_t tin = {pos, n, mim_db_content_hash(pos, n), source, subject, pose};
+        mim_template_in_t tin = {pos, n, mim_db_content_hash(pos, n), source, subject, pose, NULL};
         uint64_t id;
         int existed;
         float *frames6 = pos + 3 * (size_t)n, *W = pos + 9 * (size_t)n;

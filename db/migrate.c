@@ -53,7 +53,8 @@ static int rewrite_template(mim_db_txn_t *t, uint64_t id, const MDB_val *rec, mi
     if (mim_db_content_hash(view.positions, view.n_vertices) != view.content_hash)
         return mim__db_damaged(t->db, err, "template %llu: positions do not match their content hash",
                                (unsigned long long)id);
-    mim_template_in_t in = {view.positions, view.n_vertices, view.content_hash, view.source, view.subject, view.pose};
+    mim_template_in_t in = {view.positions, view.n_vertices, view.content_hash, view.source, view.subject, view.pose,
+                            view.dataset};
     size_t pos_off, size = mim__db_template_size(&in, &pos_off), key = (size_t)id;
     MDB_val k = {sizeof key, &key}, v = {size, NULL};
     if ((rc = mdb_put(t->txn, t->db->dbi[DBI_TEMPLATES], &k, &v, MDB_RESERVE)))

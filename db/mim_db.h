@@ -115,6 +115,7 @@ typedef struct mim_template_in {
     const char *source;     /* where it came from; may be NULL */
     const char *subject;    /* label, or NULL / "" for none */
     const char *pose;       /* label, or NULL / "" for none */
+    const char *dataset;    /* the dataset it came with (its subjects and poses are its own), or NULL / "" */
 } mim_template_in_t;
 
 typedef struct mim_template_view {
@@ -125,7 +126,17 @@ typedef struct mim_template_view {
     const char *source;     /* "" when unknown; lent like positions */
     const char *subject;    /* "" when unlabelled */
     const char *pose;       /* "" when unlabelled */
+    const char *dataset;    /* "" when none (a template stored before datasets) */
 } mim_template_view_t;
+
+/* Labels across datasets (labels.c): whether the n templates' datasets
+ * ("" or NULL: none) hold more than one value, and, when they do, each
+ * labels[i] (malloc'd; "" stays) of a template with a dataset made the
+ * malloc'd "DATASET/LABEL" (dataset names hold no '/'), except where
+ * keep[i] (keep may be NULL). One dataset: labels untouched. Returns 0 or
+ * MIM_ENOMEM (the labels then stay valid, some qualified). */
+int mim_db_datasets_several(uint32_t n, const char *const *datasets);
+int mim_db_labels_qualify(uint32_t n, const char *const *datasets, char **labels, const unsigned char *keep);
 
 uint64_t mim_db_content_hash(const float *positions, uint32_t n_vertices);
 /* Stores a template unless one with the same content exists: then *existed

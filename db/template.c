@@ -4,8 +4,11 @@
  *   8  u64 checksum: XXH3-64 of every byte from 16 to the record's end
  *  16  u64 id           24  u64 content hash
  *  32  u32 n_vertices   36  u32 positions offset (multiple of 16)
- *  40  u16 source len   42  u16 subject len   44 u16 pose len   46 u16 0
- *  48  source NUL subject NUL pose NUL, zero padding, then float32 x y z.
+ *  40  u16 source len   42  u16 subject len   44 u16 pose len   46 u16 dataset len
+ *  48  source NUL subject NUL pose NUL [dataset NUL], zero padding, then
+ *      float32 x y z. The dataset (issue 30) took the u16 that was always
+ *      0: a record written before it reads as one of no dataset, and an
+ *      older mimic reads a newer record as before (it never read that u16).
  * Version 1 ("MTP1", no checksum) had id, content hash, n_vertices and the
  * positions offset at 8, 16, 24, 28, the lengths at 32, flags at 40; a
  * version-1 store opened read-only is read in that layout.
@@ -60,7 +63,7 @@ int mim__db_template_decode(const mim_db_txn_t *t, uint32_t version, const MDB_v
     if (v->mv_size < REC_HEADER || memcmp(p, magic, 4) != 0)
         return mim__db_damaged(t->db, err, "%s: record is not a template (bad magic)", what);
     uint32_t hdr, pos_off;
-    uint16_t ls, lsub, lpose;
+    uint16_t ls, lsub, lpose, lds = 0;
     memcpy(&hdr, p + 4, 4);
     if (version >= 2) {
         uint64_t ck;
@@ -77,18 +80,21 @@ int mim__db_template_decode(const mim_db_txn_t *t, uint32_t version, const MDB_v
     memcpy(&ls, f + 24, 2);
     memcpy(&lsub, f + 26, 2);
     memcpy(&lpose, f + 28, 2);
-    size_t strings_end = (size_t)hdr + ls + 1 + lsub + 1 + lpose + 1;
+    if (version >= 2) memcpy(&lds, f + 30, 2); /* version 1 kept flags there */
+    size_t strings_end = (size_t)hdr + ls + 1 + lsub + 1 + lpose + 1 + (lds ? lds + 1u : 0u);
     if (hdr != REC_HEADER || strings_end > pos_off || pos_off % 16 ||
         (uint64_t)pos_off + (uint64_t)out->n_vertices * 12 > v->mv_size || out->id != key)
         return mim__db_damaged(t->db, err, "%s: record layout is inconsistent", what);
     const char *s = (const char *)p + hdr;
-    if (s[ls] || s[ls + 1 + lsub] || s[ls + 1 + lsub + 1 + lpose])
+    const char *ds = s + ls + 1 + lsub + 1 + lpose + 1;
+    if (s[ls] || s[ls + 1 + lsub] || s[ls + 1 + lsub + 1 + lpose] || (lds && ds[lds]))
         return mim__db_damaged(t->db, err, "%s: label strings are not terminated", what);
     if ((uintptr_t)(p + pos_off) % sizeof(float))
         return mim__db_damaged(t->db, err, "%s: positions are misaligned in the map", what);
     out->source = s;
     out->subject = s + ls + 1;
     out->pose = s + ls + 1 + lsub + 1;
+    out->dataset = lds ? ds : "";
     out->positions = (const float *)(const void *)(p + pos_off);
     return 0;
 }
@@ -96,7 +102,8 @@ int mim__db_template_decode(const mim_db_txn_t *t, uint32_t version, const MDB_v
 size_t mim__db_template_size(const mim_template_in_t *in, size_t *pos_off)
 {
     size_t ls = str_len16(in->source), lsub = str_len16(in->subject), lpose = str_len16(in->pose);
-    *pos_off = (REC_HEADER + ls + lsub + lpose + 3 + 15) & ~(size_t)15;
+    size_t lds = str_len16(in->dataset);
+    *pos_off = (REC_HEADER + ls + lsub + lpose + 3 + (lds ? lds + 1 : 0) + 15) & ~(size_t)15;
     size_t size = *pos_off + (size_t)in->n_vertices * 12;
     return size < RECORD_MIN ? RECORD_MIN : size;
 }
@@ -104,11 +111,12 @@ size_t mim__db_template_size(const mim_template_in_t *in, size_t *pos_off)
 void mim__db_template_encode(unsigned char *p, size_t size, size_t pos_off, uint64_t id, const mim_template_in_t *in)
 {
     size_t ls = str_len16(in->source), lsub = str_len16(in->subject), lpose = str_len16(in->pose);
+    size_t lds = str_len16(in->dataset);
     size_t end = pos_off + (size_t)in->n_vertices * 12;
     memset(p, 0, pos_off);
     memcpy(p, "MTP2", 4);
     uint32_t hdr = REC_HEADER, po = (uint32_t)pos_off;
-    uint16_t l1 = (uint16_t)ls, l2 = (uint16_t)lsub, l3 = (uint16_t)lpose;
+    uint16_t l1 = (uint16_t)ls, l2 = (uint16_t)lsub, l3 = (uint16_t)lpose, l4 = (uint16_t)lds;
     memcpy(p + 4, &hdr, 4);
     memcpy(p + 16, &id, 8);
     memcpy(p + 24, &in->content_hash, 8);
@@ -117,10 +125,12 @@ void mim__db_template_encode(unsigned char *p, size_t size, size_t pos_off, uint
     memcpy(p + 40, &l1, 2);
     memcpy(p + 42, &l2, 2);
     memcpy(p + 44, &l3, 2);
+    memcpy(p + 46, &l4, 2);
     char *s = (char *)p + REC_HEADER;
     if (ls) memcpy(s, in->source, ls);
     if (lsub) memcpy(s + ls + 1, in->subject, lsub);
     if (lpose) memcpy(s + ls + 1 + lsub + 1, in->pose, lpose);
+    if (lds) memcpy(s + ls + 1 + lsub + 1 + lpose + 1, in->dataset, lds);
     memcpy(p + pos_off, in->positions, (size_t)in->n_vertices * 12);
     if (size > end) memset(p + end, 0, size - end);
     uint64_t ck = mim__db_checksum(p, size); /* last: covers everything above */

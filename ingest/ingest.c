@@ -288,6 +288,10 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
     mim_ingest_landmark_sources_t sources = {0};
     mim_manifest_t *manifest = NULL;
     mim_file_list_t files = {0};
+    if (opt->dataset && !mim_ingest_dataset_valid(opt->dataset))
+        return mim_error_set(err, MIM_EINVAL,
+                             "dataset '%s': a name is 1 to %d of the letters, digits, '.', '_' and '-' (not . or ..)",
+                             opt->dataset, MIM_INGEST_DATASET_MAX);
     int rc = load_reference(db, &wr, err), builtin = 0;
     if (!rc && !wr.have_topology) {
         /* An empty store needs a landmark map before anything goes in: a
@@ -371,9 +375,11 @@ int mim_ingest_run(mim_db_t *db, char *const *paths, size_t n_paths, const mim_i
             if (!wr.have_topology && (rc = set_reference(&wr, path, &s.mesh, err))) break;
             mim_labels_t lab = {{0}, {0}};
             if (!(manifest && mim_manifest_lookup(manifest, path, &lab))) mim_labels_from_name(path, &lab);
-            char real[4096];
+            char real[4096], dataset[MIM_INGEST_DATASET_MAX + 1];
+            if (opt->dataset) snprintf(dataset, sizeof dataset, "%s", opt->dataset);
+            else mim_ingest_dataset_of(paths, n_paths, path, dataset, sizeof dataset);
             mim_template_in_t tin = {s.mesh.positions, s.mesh.n_vertices, s.content_hash,
-                                     realpath(path, real) ? real : path, lab.subject, lab.pose};
+                                     realpath(path, real) ? real : path, lab.subject, lab.pose, dataset};
             uint64_t id;
             int existed;
             if ((rc = mim_db_template_put(wr.txn, &tin, &id, &existed, err))) break;

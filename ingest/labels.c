@@ -55,3 +55,51 @@ int mim_labels_from_name(const char *path, mim_labels_t *out)
     }
     return 0;
 }
+
+/* ---- datasets (issue 30) ---- */
+
+int mim_ingest_dataset_valid(const char *name)
+{
+    size_t n = name ? strlen(name) : 0;
+    if (!n || n > MIM_INGEST_DATASET_MAX) return 0;
+    for (size_t i = 0; i < n; i++)
+        if (!isalnum((unsigned char)name[i]) && !strchr("._-", name[i])) return 0;
+    return strcmp(name, ".") && strcmp(name, "..");
+}
+
+/* The last component of dir's real path, in the dataset character set
+ * (anything else becomes '_'). */
+static void folder_name(const char *dir, char *out, size_t size)
+{
+    char real[4096];
+    const char *p = realpath(dir, real) ? real : dir;
+    size_t l = strlen(p);
+    while (l > 1 && p[l - 1] == '/') l--;
+    size_t b = l;
+    while (b > 0 && p[b - 1] != '/') b--;
+    size_t k = 0;
+    for (size_t i = b; i < l && k + 1 < size && k < MIM_INGEST_DATASET_MAX; i++)
+        out[k++] = isalnum((unsigned char)p[i]) || strchr("._-", p[i]) ? p[i] : '_';
+    out[k] = 0;
+    if (!mim_ingest_dataset_valid(out)) snprintf(out, size, "root");
+}
+
+void mim_ingest_dataset_of(char *const *args, size_t n_args, const char *file, char *out, size_t size)
+{
+    if (!size) return;
+    for (size_t i = 0; i < n_args; i++) {
+        size_t l = strlen(args[i]);
+        while (l > 1 && args[i][l - 1] == '/') l--;
+        if (!strncmp(file, args[i], l) && file[l] == '/') { /* found under this folder */
+            char dir[4096];
+            snprintf(dir, sizeof dir, "%.*s", (int)l, args[i]);
+            folder_name(dir, out, size);
+            return;
+        }
+    }
+    char dir[4096]; /* a file given as itself: the folder that holds it */
+    const char *slash = strrchr(file, '/');
+    if (slash) snprintf(dir, sizeof dir, "%.*s", (int)(slash - file == 0 ? 1 : slash - file), file);
+    else snprintf(dir, sizeof dir, ".");
+    folder_name(dir, out, size);
+}

@@ -20,119 +20,51 @@ struct mim_manifest {
     size_t n;
 };
 
-/* Splits one CSV line in place; returns the field count (at most max). */
-static int split_csv(char *line, char **fields, int max)
-{
-    int n = 0;
-    char *p = line;
-    while (n < max) {
-        char *w = p, *start = p;
-        if (*p == '"') {
-            p++;
-            for (;;) {
-                if (!*p) break;
-                if (*p == '"' && p[1] == '"') {
-                    *w++ = '"';
-                    p += 2;
-                } else if (*p == '"') {
-                    p++;
-                    break;
-                } else {
-                    *w++ = *p++;
-                }
-            }
-            while (*p && *p != ',') p++;
-        } else {
-            while (*p && *p != ',') *w++ = *p++;
-        }
-        int last = !*p;
-        if (*p) p++;
-        *w = 0;
-        fields[n++] = start;
-        if (last) break;
-    }
-    return n;
-}
+typedef struct {
+    mim_manifest_t *m;
+    char dir[PATH_MAX];
+    size_t cap;
+} loading_t;
 
-static void trim(char *s)
+static int manifest_row(void *ctx, const char *const *f, size_t lineno, mim_error_t *err)
 {
-    size_t n = strlen(s);
-    while (n && (s[n - 1] == '\r' || s[n - 1] == '\n' || s[n - 1] == ' ')) s[--n] = 0;
-    size_t i = 0;
-    while (s[i] == ' ') i++;
-    if (i) memmove(s, s + i, n - i + 1);
+    (void)lineno, (void)err;
+    loading_t *l = ctx;
+    mim_manifest_t *m = l->m;
+    if (m->n == l->cap) {
+        l->cap = l->cap ? l->cap * 2 : 128;
+        entry_t *ne = realloc(m->e, l->cap * sizeof *ne);
+        if (!ne) return MIM_ENOMEM;
+        m->e = ne;
+    }
+    entry_t *e = &m->e[m->n++];
+    memset(e, 0, sizeof *e);
+    char full[PATH_MAX * 2], real[PATH_MAX];
+    if (f[0][0] == '/') snprintf(full, sizeof full, "%s", f[0]);
+    else snprintf(full, sizeof full, "%s/%s", l->dir, f[0]);
+    e->name = strdup(f[0]);
+    e->real = realpath(full, real) ? strdup(real) : NULL;
+    snprintf(e->labels.subject, sizeof e->labels.subject, "%s", f[1]);
+    snprintf(e->labels.pose, sizeof e->labels.pose, "%s", f[2]);
+    return 0;
 }
 
 int mim_manifest_load(mim_manifest_t **out, const char *path, mim_error_t *err)
 {
     *out = NULL;
-    FILE *f = fopen(path, "r");
-    if (!f) return mim_error_set(err, -errno, "%s: cannot open manifest: %s", path, strerror(errno));
-    mim_manifest_t *m = calloc(1, sizeof *m);
-    char dir[PATH_MAX];
-    snprintf(dir, sizeof dir, "%s", path);
-    char *slash = strrchr(dir, '/');
+    loading_t l = {.m = calloc(1, sizeof(mim_manifest_t))};
+    if (!l.m) return mim_error_set(err, MIM_ENOMEM, "out of memory");
+    snprintf(l.dir, sizeof l.dir, "%s", path);
+    char *slash = strrchr(l.dir, '/');
     if (slash) *slash = 0;
-    else snprintf(dir, sizeof dir, ".");
-
-    char line[8192];
-    char *fields[64];
-    int col_file = -1, col_subject = -1, col_pose = -1, rc = 0;
-    size_t cap = 0, lineno = 0;
-    while (!rc && m && fgets(line, sizeof line, f)) {
-        lineno++;
-        if (!strchr(line, '\n') && !feof(f)) {
-            rc = mim_error_set(err, MIM_EFORMAT, "%s:%zu: line is longer than %zu characters", path, lineno, sizeof line);
-            break;
-        }
-        trim(line);
-        if (!line[0] || line[0] == '#') continue;
-        int nf = split_csv(line, fields, 64);
-        for (int i = 0; i < nf; i++) trim(fields[i]);
-        if (col_file < 0) { /* header */
-            for (int i = 0; i < nf; i++) {
-                if (!strcmp(fields[i], "file")) col_file = i;
-                if (!strcmp(fields[i], "subject")) col_subject = i;
-                if (!strcmp(fields[i], "pose")) col_pose = i;
-            }
-            if (col_file < 0 || col_subject < 0 || col_pose < 0)
-                rc = mim_error_set(err, MIM_EFORMAT, "%s:%zu: header must name the columns file, subject and pose", path,
-                                   lineno);
-            continue;
-        }
-        int need = col_file > col_subject ? col_file : col_subject;
-        need = need > col_pose ? need : col_pose;
-        if (nf <= need) {
-            rc = mim_error_set(err, MIM_EFORMAT, "%s:%zu: expected at least %d fields, found %d", path, lineno,
-                               need + 1, nf);
-            break;
-        }
-        if (m->n == cap) {
-            cap = cap ? cap * 2 : 128;
-            entry_t *ne = realloc(m->e, cap * sizeof *ne);
-            if (!ne) {
-                rc = MIM_ENOMEM;
-                break;
-            }
-            m->e = ne;
-        }
-        entry_t *e = &m->e[m->n++];
-        memset(e, 0, sizeof *e);
-        char full[PATH_MAX * 2], real[PATH_MAX];
-        if (fields[col_file][0] == '/') snprintf(full, sizeof full, "%s", fields[col_file]);
-        else snprintf(full, sizeof full, "%s/%s", dir, fields[col_file]);
-        e->name = strdup(fields[col_file]);
-        e->real = realpath(full, real) ? strdup(real) : NULL;
-        snprintf(e->labels.subject, sizeof e->labels.subject, "%s", fields[col_subject]);
-        snprintf(e->labels.pose, sizeof e->labels.pose, "%s", fields[col_pose]);
-    }
-    fclose(f);
-    if (!rc && col_file < 0) rc = mim_error_set(err, MIM_EFORMAT, "%s: manifest is empty (no header line)", path);
+    else snprintf(l.dir, sizeof l.dir, ".");
+    static const char *const columns[] = {"file", "subject", "pose"};
+    int rc = mim_csv_read(path, "manifest", columns, 3, manifest_row, &l, err);
     if (rc) {
-        mim_manifest_free(&m);
+        mim_manifest_free(&l.m);
         return rc;
     }
-    *out = m;
+    *out = l.m;
     return 0;
 }
 

@@ -45,6 +45,37 @@ typedef struct mim_labels {
  * pose NNN%10), SCAPE meshNNN (subject 0, pose NNN), mimic synth and
  * mh-bodies NAME_sSS_pPP. Returns 1 if the name was recognised. */
 int mim_labels_from_name(const char *path, mim_labels_t *out);
+/* Datasets: a template's subject and pose are its dataset's own (one
+ * dataset's subject "0" is not another's). A name is 1..MIM_INGEST_DATASET_MAX
+ * of A-Z a-z 0-9 . _ - (not "." or ".."). */
+#define MIM_INGEST_DATASET_MAX 64
+int mim_ingest_dataset_valid(const char *name);
+/* The dataset a file found from the ingest's PATH arguments belongs to by
+ * default: the folder it was ingested from (the argument's own name when
+ * the file was found under it, else the folder that holds the file), its
+ * real path's last component with other characters made '_'. */
+void mim_ingest_dataset_of(char *const *args, size_t n_args, const char *file, char *out, size_t size);
+
+/* CSV tables (csv.c): the header line names the columns (any order, more
+ * allowed); each later row's fields of `columns`, in that order, go to row
+ * (a non-zero return stops the read and is returned). Errors name the file
+ * and line: MIM_EFORMAT, or -errno when it cannot be opened (`what` names
+ * the table in messages: "manifest", "pose map"). */
+typedef int (*mim_csv_row_fn)(void *ctx, const char *const *fields, size_t lineno, mim_error_t *err);
+int mim_csv_read(const char *path, const char *what, const char *const *columns, int n_columns, mim_csv_row_fn row,
+                 void *ctx, mim_error_t *err);
+
+/* Pose maps (pose_map.c): a CSV of dataset, pose, class; each row makes
+ * that dataset's pose a member of that pose class, so that poses of
+ * different datasets form one class only where the user says so. A pair
+ * mapped to two classes, an empty pose or class, or a bad dataset name is
+ * MIM_EFORMAT naming the line. The lookup is NULL for an unmapped pose.
+ * (A linear lookup: maps hold tens to hundreds of rows.) */
+typedef struct mim_pose_map mim_pose_map_t;
+int mim_pose_map_load(mim_pose_map_t **out, const char *path, mim_error_t *err);
+void mim_pose_map_free(mim_pose_map_t **m);
+size_t mim_pose_map_size(const mim_pose_map_t *m);
+const char *mim_pose_map_class(const mim_pose_map_t *m, const char *dataset, const char *pose);
 
 typedef struct mim_manifest mim_manifest_t;
 /* CSV with a header naming at least the columns file, subject, pose; file is
@@ -139,6 +170,9 @@ typedef struct mim_ingest_options {
      * map from when no file is given or beside the meshes: NULL, the
      * built-in ones (mim_reg_known_map). */
     mim_ingest_known_map_fn known_map;
+    /* The dataset of every template added (mim_ingest_dataset_valid);
+     * NULL: each file's folder (mim_ingest_dataset_of). */
+    const char *dataset;
 } mim_ingest_options_t;
 #define MIM_INGEST_DEFAULT_MAX_DISTANCE_MM 15.0
 

@@ -22,6 +22,26 @@ extern "C" {
 int mim_query_build_index(mim_db_t *db, const mim_index_options_t *opt, mim_index_report_t *report,
                           mim_error_t *err);
 
+/* Labels across datasets (issue 30). A pose class a caller's map gives
+ * (dataset, pose) (NULL: none, the pose stays its dataset's own). */
+typedef const char *(*mim_query_pose_class_fn)(void *ctx, const char *dataset, const char *pose);
+#define MIM_QUERY_EXAMPLES 3
+typedef struct mim_query_labels_report {
+    uint32_t datasets; /* distinct datasets of the templates (templates of none count as one) */
+    uint32_t mapped;   /* templates whose pose the map placed in a class */
+    uint32_t classes;  /* distinct pose labels (0: an unlabelled store) */
+    uint32_t single;   /* of them, classes of one template */
+    char single_example[MIM_QUERY_EXAMPLES][128]; /* the first of those, by template order */
+} mim_query_labels_report_t;
+/* mim_query_build_index where the store may hold several datasets: in a
+ * store of more than one, subjects and poses are qualified by their
+ * dataset (mim_db_labels_qualify), so that no two datasets share a
+ * subject or a pose class, except the poses pose_class maps (may be
+ * NULL). labels (may be NULL) says what was made. */
+int mim_query_build_index_labelled(mim_db_t *db, const mim_index_options_t *opt, mim_query_pose_class_fn pose_class,
+                                   void *pose_ctx, mim_index_report_t *report, mim_query_labels_report_t *labels,
+                                   mim_error_t *err);
+
 typedef struct mim_query_status {
     int has_index;           /* the store holds an index */
     int stale;               /* templates were added since it was built */

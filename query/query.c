@@ -30,7 +30,7 @@ typedef struct {
     uint32_t n, cap;
     float *lm;
     uint64_t *ids;
-    char **subjects, **poses;
+    char **subjects, **poses, **datasets;
     mim_progress_t *progress;
     mim_error_t *err;
 } gather_t;
@@ -53,7 +53,9 @@ static int gather(const mim_template_view_t *t, void *user)
         if (s) g->subjects = s;
         char **p = realloc(g->poses, sizeof(char *) * nc);
         if (p) g->poses = p;
-        if (!lm || !ids || !s || !p) return MIM_ENOMEM;
+        char **d = realloc(g->datasets, sizeof(char *) * nc);
+        if (d) g->datasets = d;
+        if (!lm || !ids || !s || !p || !d) return MIM_ENOMEM;
         g->cap = nc;
     }
     for (uint32_t l = 0; l < map->count; l++)
@@ -61,8 +63,9 @@ static int gather(const mim_template_view_t *t, void *user)
     g->ids[g->n] = t->id;
     g->subjects[g->n] = strdup(t->subject);
     g->poses[g->n] = strdup(t->pose);
-    if (!g->subjects[g->n] || !g->poses[g->n]) {
-        free(g->subjects[g->n]), free(g->poses[g->n]);
+    g->datasets[g->n] = strdup(t->dataset);
+    if (!g->subjects[g->n] || !g->poses[g->n] || !g->datasets[g->n]) {
+        free(g->subjects[g->n]), free(g->poses[g->n]), free(g->datasets[g->n]);
         return MIM_ENOMEM;
     }
     g->n++;
@@ -70,8 +73,66 @@ static int gather(const mim_template_view_t *t, void *user)
     return 0;
 }
 
+static int cmp_cstr(const void *a, const void *b)
+{
+    return strcmp(*(char *const *)a, *(char *const *)b);
+}
+
+/* The labels of the gathered templates across datasets: mapped poses take
+ * their class, the rest are qualified by dataset where there are several;
+ * then the classes and those of one template counted. */
+static int label_across_datasets(gather_t *g, mim_query_pose_class_fn pose_class, void *ctx,
+                                 mim_query_labels_report_t *r)
+{
+    memset(r, 0, sizeof *r);
+    unsigned char *keep = calloc(g->n ? g->n : 1, 1);
+    char **sorted = malloc(sizeof(char *) * (g->n ? g->n : 1));
+    if (!keep || !sorted) {
+        free(keep), free(sorted);
+        return MIM_ENOMEM;
+    }
+    for (uint32_t i = 0; i < g->n && pose_class; i++) {
+        const char *cls = g->poses[i][0] ? pose_class(ctx, g->datasets[i], g->poses[i]) : NULL;
+        if (!cls) continue;
+        char *c = strdup(cls);
+        if (!c) break;
+        free(g->poses[i]);
+        g->poses[i] = c, keep[i] = 1, r->mapped++;
+    }
+    const char *const *ds = (const char *const *)g->datasets;
+    int rc = mim_db_labels_qualify(g->n, ds, g->subjects, NULL);
+    if (!rc) rc = mim_db_labels_qualify(g->n, ds, g->poses, keep);
+    /* datasets and classes by sorting copies of the pointers */
+    for (int pass = 0; pass < 2 && !rc; pass++) {
+        char **src = pass ? g->poses : g->datasets;
+        uint32_t m = 0;
+        for (uint32_t i = 0; i < g->n; i++)
+            if (!pass || src[i][0]) sorted[m++] = src[i];
+        qsort(sorted, m, sizeof *sorted, cmp_cstr);
+        uint32_t distinct = 0;
+        for (uint32_t i = 0; i < m; i++) {
+            if (i && !strcmp(sorted[i], sorted[i - 1])) continue;
+            distinct++;
+            if (pass && (i + 1 == m || strcmp(sorted[i], sorted[i + 1])) && r->single++ < MIM_QUERY_EXAMPLES)
+                snprintf(r->single_example[r->single - 1], sizeof r->single_example[0], "%s", sorted[i]);
+        }
+        if (pass) r->classes = distinct;
+        else r->datasets = distinct;
+    }
+    free(keep), free(sorted);
+    return rc;
+}
+
 int mim_query_build_index(mim_db_t *db, const mim_index_options_t *opt, mim_index_report_t *report, mim_error_t *err)
 {
+    return mim_query_build_index_labelled(db, opt, NULL, NULL, report, NULL, err);
+}
+
+int mim_query_build_index_labelled(mim_db_t *db, const mim_index_options_t *opt, mim_query_pose_class_fn pose_class,
+                                   void *pose_ctx, mim_index_report_t *report, mim_query_labels_report_t *labels,
+                                   mim_error_t *err)
+{
+    mim_query_labels_report_t lrep;
     mim_db_txn_t *t = NULL;
     mim_landmark_map_t map;
     mim_db_meta_t meta;
@@ -104,6 +165,11 @@ int mim_query_build_index(mim_db_t *db, const mim_index_options_t *opt, mim_inde
         rc = mim_error_set(err, MIM_EEMPTY, "%s: store has no templates to index", mim_db_path(db));
         goto out;
     }
+    if ((rc = label_across_datasets(&g, pose_class, pose_ctx, &lrep))) {
+        rc = mim_error_set(err, rc, "out of memory labelling %u templates", g.n);
+        goto out;
+    }
+    if (labels) *labels = lrep;
     mim_index_input_t in = {g.n, map.count, g.lm, g.ids, (const char *const *)g.subjects,
                             (const char *const *)g.poses, map.mirror};
     if ((rc = mim_index_build(&ix, &in, opt, report, err))) goto out;
@@ -117,8 +183,8 @@ int mim_query_build_index(mim_db_t *db, const mim_index_options_t *opt, mim_inde
     rc = mim_db_commit(&t, err);
 out:
     mim_db_abort(&t);
-    for (uint32_t i = 0; i < g.n; i++) free(g.subjects[i]), free(g.poses[i]);
-    free(g.lm), free(g.ids), free(g.subjects), free(g.poses), free(blob);
+    for (uint32_t i = 0; i < g.n; i++) free(g.subjects[i]), free(g.poses[i]), free(g.datasets[i]);
+    free(g.lm), free(g.ids), free(g.subjects), free(g.poses), free(g.datasets), free(blob);
     mim_index_close(&ix);
     return rc;
 }

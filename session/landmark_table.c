@@ -9,6 +9,8 @@
 typedef struct {
     mim_session_t *s;
     mim_error_t *err;
+    char **datasets; /* each template's, to qualify the subjects as the index does */
+    uint32_t cap;
 } table_fill_t;
 
 static int table_add(const mim_template_view_t *v, void *user)
@@ -31,8 +33,17 @@ static int table_add(const mim_template_view_t *v, void *user)
     for (uint32_t l = 0; l < L; l++)
         memcpy(s->table_lm + ((size_t)s->table_count * L + l) * 3, v->positions + 3 * (size_t)s->map.vertex[l],
                3 * sizeof(float));
-    if (!(s->table_subject[s->table_count] = strdup(v->subject)))
+    if (f->cap < s->table_cap) {
+        char **d = realloc(f->datasets, s->table_cap * sizeof *d);
+        if (!d) return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
+        f->datasets = d, f->cap = s->table_cap;
+    }
+    if (!(f->datasets[s->table_count] = strdup(v->dataset)))
         return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
+    if (!(s->table_subject[s->table_count] = strdup(v->subject))) {
+        free(f->datasets[s->table_count]);
+        return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
+    }
     s->table_id[s->table_count] = v->id;
     s->table_count++;
     return 0;
@@ -50,10 +61,15 @@ int mim__session_landmark_table(mim_session_t *s, const float **lm, char *const 
         rc = mim_error_set(err, s->table_failed.code, "%s", s->table_failed.msg);
     } else if (!s->table_built) {
         mim_db_txn_t *t = NULL;
-        table_fill_t f = {s, &s->table_failed};
+        table_fill_t f = {s, &s->table_failed, NULL, 0};
         if (!(rc = mim_db_begin(s->db, 0, &t, &s->table_failed)))
             rc = mim_db_template_each(t, table_add, &f, &s->table_failed);
         mim_db_abort(&t);
+        /* subjects as the index names them: a dataset's own where there are several */
+        if (!rc && mim_db_labels_qualify(s->table_count, (const char *const *)f.datasets, s->table_subject, NULL))
+            rc = mim_error_set(&s->table_failed, MIM_ENOMEM, "completion: out of memory");
+        for (uint32_t i = 0; i < s->table_count; i++) free(f.datasets[i]);
+        free(f.datasets);
         s->table_built = !rc;
         if (rc) {
             if (!s->table_failed.code) mim_error_set(&s->table_failed, rc, "completion: %s", mim_strerror(rc));

@@ -68,7 +68,8 @@ static void test_round_trip(void **s)
         fill(p, sizes[i], (float)i);
         char subj[8];
         snprintf(subj, sizeof subj, "s%d", i);
-        mim_template_in_t in = {p, sizes[i], mim_db_content_hash(p, sizes[i]), "/data/x.ply", subj, i == 2 ? "" : "sit"};
+        mim_template_in_t in = {p, sizes[i], mim_db_content_hash(p, sizes[i]), "/data/x.ply", subj, i == 2 ? "" : "sit",
+                                i == 1 ? "faust" : NULL};
         int existed = -1;
         assert_int_equal(mim_db_template_put(t, &in, &ids[i], &existed, &err), 0);
         assert_int_equal(existed, 0);
@@ -111,6 +112,7 @@ static void test_round_trip(void **s)
         assert_int_equal((uintptr_t)v.positions % 16, 0); /* straight from the map, aligned */
         assert_string_equal(v.source, "/data/x.ply");
         assert_string_equal(v.pose, i == 2 ? "" : "sit");
+        assert_string_equal(v.dataset, i == 1 ? "faust" : ""); /* none given: none, as records before datasets */
         /* zero-copy: a second lookup lends the same bytes */
         mim_template_view_t again;
         assert_int_equal(mim_db_template_get(t, ids[i], &again, &err), 0);
@@ -142,8 +144,8 @@ static void test_dedupe(void **s)
     fill(a, 10, 1.0f);
     fill(b, 10, 2.0f);
     /* b claims a's hash: equal hashes alone must not merge different meshes */
-    mim_template_in_t ia = {a, 10, mim_db_content_hash(a, 10), "a", "", ""};
-    mim_template_in_t ib = {b, 10, ia.content_hash, "b", "", ""};
+    mim_template_in_t ia = {a, 10, mim_db_content_hash(a, 10), "a", "", "", NULL};
+    mim_template_in_t ib = {b, 10, ia.content_hash, "b", "", "", NULL};
     uint64_t id1, id2, id3;
     int e1, e2, e3;
     assert_int_equal(mim_db_template_put(t, &ia, &id1, &e1, &err), 0);
@@ -358,7 +360,7 @@ static void test_legacy_descriptors_table(void **s)
     assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
     float p[12];
     fill(p, 4, 1.0f);
-    mim_template_in_t in = {p, 4, mim_db_content_hash(p, 4), "a.ply", "s", "p"};
+    mim_template_in_t in = {p, 4, mim_db_content_hash(p, 4), "a.ply", "s", "p", NULL};
     uint64_t id = 0;
     assert_int_equal(mim_db_template_put(t, &in, &id, NULL, &err), 0);
     assert_int_equal(mim_db_commit(&t, &err), 0);
@@ -644,7 +646,7 @@ static void test_full_map(void **s)
         mim_db_txn_t *t;
         assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
         fill(p, N, (float)i);
-        mim_template_in_t in = {p, N, mim_db_content_hash(p, N), "x.ply", "", ""};
+        mim_template_in_t in = {p, N, mim_db_content_hash(p, N), "x.ply", "", "", NULL};
         rc = mim_db_template_put(t, &in, NULL, NULL, &err);
         if (!rc) rc = mim_db_commit(&t, &err);
         if (!rc) committed++;
@@ -684,7 +686,7 @@ static void make_store(const char *store, int n, int n_enc)
         fill(p, 4, (float)i);
         fill(frames, 8, (float)i);
         fill(W, 4, -(float)i);
-        mim_template_in_t in = {p, 4, mim_db_content_hash(p, 4), "src.ply", "s", "p"};
+        mim_template_in_t in = {p, 4, mim_db_content_hash(p, 4), "src.ply", "s", "p", NULL};
         uint64_t id = 0;
         assert_int_equal(mim_db_template_put(t, &in, &id, NULL, &err), 0);
         assert_int_equal(id, (uint64_t)i + 1);
