@@ -331,6 +331,12 @@ static void test_cli_query_and_bad_input(void **st)
     free(frames);
 }
 
+/* One body-like frame of 16 landmarks. */
+static const char one_frame[] =
+    "{\"landmarks\": [[0,1.6,0],[0,1.3,0],[0,1,0],[0.2,1.4,0],[-0.2,1.4,0],[0.45,1.4,0],[-0.45,1.4,0],"
+    "[0.7,1.4,0],[-0.7,1.4,0],[0.1,0.95,0],[-0.1,0.95,0],[0.1,0.5,0.02],[-0.1,0.5,0.02],[0.1,0.08,0],"
+    "[-0.1,0.08,0],[0,1.15,-0.05]]}";
+
 static void test_stale_and_info(void **st)
 {
     (void)st;
@@ -356,10 +362,7 @@ static void test_stale_and_info(void **st)
     assert_non_null(strstr(out, "\"stale\": true"));
     free(out);
     char *frames = ts_path(g_dir, "one.json");
-    const char *one = "{\"landmarks\": [[0,1.6,0],[0,1.3,0],[0,1,0],[0.2,1.4,0],[-0.2,1.4,0],[0.45,1.4,0],[-0.45,1.4,0],"
-                      "[0.7,1.4,0],[-0.7,1.4,0],[0.1,0.95,0],[-0.1,0.95,0],[0.1,0.5,0.02],[-0.1,0.5,0.02],[0.1,0.08,0],"
-                      "[-0.1,0.08,0],[0,1.15,-0.05]]}";
-    assert_int_equal(ts_write_file(frames, one, strlen(one)), 0);
+    assert_int_equal(ts_write_file(frames, one_frame, strlen(one_frame)), 0);
     const char *q[] = {"query", "--store", g_store, "--landmarks", frames, NULL};
     assert_int_equal(run(&out, &err, q), 0);
     assert_non_null(strstr(err, "stale"));
@@ -374,6 +377,45 @@ static void test_stale_and_info(void **st)
     assert_null(strstr(err, "stale"));
     free(out), free(err);
     free(more), free(frames);
+}
+
+/* Issue 30 item 14: an index blob of an older version in the store (of
+ * version 5's layout: the current blob with its version field made 5,
+ * which the head's checksum does not cover) makes mimic query exit 2 with
+ * one line that says to rebuild it; after mimic index it answers. */
+static void test_old_index_blob(void **st)
+{
+    (void)st;
+    const char *ix[] = {"index", "--store", g_store, NULL};
+    assert_int_equal(run(NULL, NULL, ix), 0);
+    mim_db_t *db;
+    mim_db_txn_t *t;
+    const void *blob;
+    size_t len;
+    mim_db_index_meta_t bm;
+    assert_int_equal(mim_db_open(&db, g_store, NULL, NULL), 0);
+    assert_int_equal(mim_db_begin(db, 1, &t, NULL), 0);
+    assert_int_equal(mim_db_index_get(t, &blob, &len, &bm, NULL), 0);
+    unsigned char *old = malloc(len);
+    memcpy(old, blob, len);
+    const uint32_t five = 5;
+    memcpy(old + 4, &five, 4);
+    assert_int_equal(mim_db_index_put(t, old, len, &bm, NULL), 0);
+    assert_int_equal(mim_db_commit(&t, NULL), 0);
+    mim_db_close(&db);
+    free(old);
+    char *frames = ts_path(g_dir, "old-index.json"), *out = NULL, *err = NULL;
+    assert_int_equal(ts_write_file(frames, one_frame, strlen(one_frame)), 0);
+    const char *q[] = {"query", "--store", g_store, "--landmarks", frames, NULL};
+    assert_int_equal(run(NULL, &err, q), 2);
+    assert_string_equal(err, "mimic query: index blob: version 5 is older than this mimic's (6): rebuild it (run mimic "
+                             "index)\n");
+    free(err);
+    assert_int_equal(run(NULL, NULL, ix), 0);
+    assert_int_equal(run(&out, &err, q), 0);
+    assert_non_null(strstr(out, "frame 0: class"));
+    assert_string_equal(err, "");
+    free(out), free(err), free(frames);
 }
 
 /* A store without pose labels is clustered, and info says so; a query on a
@@ -422,6 +464,7 @@ int main(void)
         cmocka_unit_test(test_no_index_then_round_trip),
         cmocka_unit_test(test_cli_query_and_bad_input),
         cmocka_unit_test(test_stale_and_info),
+        cmocka_unit_test(test_old_index_blob),
         cmocka_unit_test(test_unlabelled_store),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
