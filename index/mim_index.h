@@ -257,7 +257,10 @@ const uint32_t *mim_index_selected(const mim_index_t *ix); /* d2 candidate angle
 
 typedef struct mim_index_query_options {
     uint32_t k;                  /* 0 means 1 */
-    const char *exclude_subject; /* leave this subject's templates out; NULL: none */
+    /* Leave this subject's templates out of the answers and the k-NN vote
+     * (NULL: none); the angles, SVMs and discriminants were trained with
+     * them, so for a strict held-out test build an index without them. */
+    const char *exclude_subject;
     uint32_t checks;             /* kd-forest checks for this query; 0 means the index's */
     /* k-NN vote (issue 15): when the top SVM probability (normalised over
      * the classes) is below vote_below, the vote_k nearest templates (over

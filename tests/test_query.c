@@ -244,6 +244,8 @@ static void test_cli_query_and_bad_input(void **st)
     free(out);
     assert_int_equal(run(&out, NULL, h2), 0);
     assert_non_null(strstr(out, "--exclude-subject"));
+    /* issue 30: it says what the exclusion leaves in */
+    assert_non_null(strstr(out, "the index's classifier was built with them and still knows"));
     free(out);
     const char *ix[] = {"index", "--store", g_store, NULL};
     assert_int_equal(run(&out, NULL, ix), 0);
@@ -379,6 +381,39 @@ static void test_stale_and_info(void **st)
     free(more), free(frames);
 }
 
+/* Issue 30 item 3: the k-NN line of mimic index says how many classes are
+ * exact and how many kd-forests, naming no rest that is not there. On the
+ * store as test_stale_and_info leaves it: 12 pose classes, 3 of 4
+ * templates and 9 of 3. */
+static void test_index_knn_line(void **st)
+{
+    (void)st;
+    const struct {
+        const char *exact_max, *line;
+        int exact;
+    } cases[] = {{"3", "k-NN         9 of 12 classes exact, 3 kd-forests\n", 9},
+                 {"2", "k-NN         all 12 classes kd-forests\n", 0},
+                 {"4", "k-NN         all 12 classes exact\n", 12}};
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        char *out = NULL, want[64];
+        const char *ix[] = {"index", "--store", g_store, "--exact-max", cases[k].exact_max, NULL};
+        assert_int_equal(run(&out, NULL, ix), 0);
+        if (!strstr(out, cases[k].line)) fail_msg("--exact-max %s: %s", cases[k].exact_max, out);
+        assert_null(strstr(out, "the rest"));
+        free(out);
+        const char *ixj[] = {"index", "--store", g_store, "--exact-max", cases[k].exact_max, "--json", NULL};
+        assert_int_equal(run(&out, NULL, ixj), 0);
+        snprintf(want, sizeof want, "\"exact_classes\": %d,", cases[k].exact);
+        assert_non_null(strstr(out, want));
+        free(out);
+    }
+    const char *bad[] = {"index", "--store", g_store, "--exact-max", "0", NULL};
+    char *err = NULL;
+    assert_int_equal(run(NULL, &err, bad), 2);
+    assert_non_null(strstr(err, "exact-max"));
+    free(err);
+}
+
 /* Issue 30 item 14: an index blob of an older version in the store (of
  * version 5's layout: the current blob with its version field made 5,
  * which the head's checksum does not cover) makes mimic query exit 2 with
@@ -464,6 +499,7 @@ int main(void)
         cmocka_unit_test(test_no_index_then_round_trip),
         cmocka_unit_test(test_cli_query_and_bad_input),
         cmocka_unit_test(test_stale_and_info),
+        cmocka_unit_test(test_index_knn_line),
         cmocka_unit_test(test_old_index_blob),
         cmocka_unit_test(test_unlabelled_store),
     };
