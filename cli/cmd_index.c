@@ -20,7 +20,7 @@ static const char *pose_class(void *ctx, const char *dataset, const char *pose)
 static void help(FILE *out)
 {
     fprintf(out, "usage: mimic index --store DIR [--features D] [--noise F] [--augment N] [--shape-noise F]\n"
-                 "                   [--discriminants F] [--pose-map CSV] [--json]\n\n"
+                 "                   [--discriminants F] [--exact-max N] [--pose-map CSV] [--json]\n\n"
                  "Builds the pose recognition index of a store and keeps it in the store, so that\n"
                  "mimic query opens it in milliseconds: the D most salient landmark angles (a\n"
                  "decision tree on the pose labels, mirrored samples included), one SVM per pose\n"
@@ -44,6 +44,9 @@ static void help(FILE *out)
                  "                  before the shape discriminants), trained with noise sigma F,\n"
                  "                  as --noise (0.04 measured best); used for whole frames when\n"
                  "                  there are no shape discriminants (default: none)\n"
+                 "  --exact-max N   a class of up to N templates is searched by an exact scan, a\n"
+                 "                  larger one by a kd-forest (4 trees, 128 checks: approximate, a\n"
+                 "                  tenth of the scan's time at 1 000 000 templates); default 8192\n"
                  "  --pose-map CSV  which poses of different datasets are one class: a CSV with the\n"
                  "                  columns dataset, pose, class. Without it, in a store of several\n"
                  "                  datasets (mimic ingest --dataset) every dataset's poses and\n"
@@ -51,6 +54,16 @@ static void help(FILE *out)
                  "                  reported, as cross-validation cannot learn it from others\n"
                  "  --json          one JSON object on stdout (schemas/index.schema.json)\n"
                  "  -h, --help      this help\n");
+}
+
+/* How the classes' k-NN searches: each class an exact scan or a kd-forest. */
+static void print_knn(uint32_t exact, uint32_t n)
+{
+    uint32_t forests = n - exact;
+    if (n == 1) printf("k-NN         one class, %s\n", exact ? "exact" : "a kd-forest");
+    else if (!forests) printf("k-NN         all %u classes exact\n", n);
+    else if (!exact) printf("k-NN         all %u classes kd-forests\n", n);
+    else printf("k-NN         %u of %u classes exact, %u kd-forest%s\n", exact, n, forests, forests > 1 ? "s" : "");
 }
 
 int mim_cmd_index(int argc, char **argv)
@@ -61,6 +74,7 @@ int mim_cmd_index(int argc, char **argv)
                                               {"augment", required_argument, 0, 'a'},
                                               {"discriminants", required_argument, 0, 'D'},
                                               {"shape-noise", required_argument, 0, 'S'},
+                                              {"exact-max", required_argument, 0, 'x'},
                                               {"pose-map", required_argument, 0, 'P'},
                                               {"json", no_argument, 0, 'j'},
                                               {"help", no_argument, 0, 'h'},
@@ -70,7 +84,7 @@ int mim_cmd_index(int argc, char **argv)
     mim_index_options_t o = {0};
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "s:d:n:a:D:S:jh", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "s:d:n:a:D:S:x:jh", longopts, NULL)) != -1) {
         uint64_t v;
         if (c == 's') store = optarg;
         else if (c == 'd') {
@@ -91,6 +105,9 @@ int mim_cmd_index(int argc, char **argv)
         } else if (c == 'a') {
             if (mim_cli_number("index", "augment", optarg, 1, 64, &v)) return 2;
             o.augment = (uint32_t)v;
+        } else if (c == 'x') {
+            if (mim_cli_number("index", "exact-max", optarg, 1, UINT32_MAX, &v)) return 2;
+            o.exact_max = (uint32_t)v;
         } else if (c == 'P') pose_map_path = optarg;
         else if (c == 'j') as_json = 1;
         else if (c == 'h') return help(stdout), 0;
@@ -185,10 +202,7 @@ int mim_cmd_index(int argc, char **argv)
                    rep.discriminant_noise);
         if (rep.shape_noise < 0 && !(rep.discriminant_noise > 0))
             printf("discriminant none (frames go to the SVMs)\n");
-        if (rep.exact_classes == rep.n_classes)
-            printf("k-NN         all %u classes exact\n", rep.n_classes);
-        else
-            printf("k-NN         %u of %u classes exact, the rest kd-forests\n", rep.exact_classes, rep.n_classes);
+        print_knn(rep.exact_classes, rep.n_classes);
         printf("built in     %.2f s\n", rep.seconds);
     }
     mim_db_close(&db);

@@ -100,7 +100,7 @@ int mim_db_index_get(mim_db_txn_t *t, const void **blob, size_t *len, mim_db_ind
 
 /* The whole value's XXH3-64 left to mim_db_check: at 1 000 000 templates it
  * alone reads 739 MiB, and the blob checks itself by section as it is used
- * (index/blob_v5.c). The value is still checked to lie inside the file. */
+ * (index/blob.c). The value is still checked to lie inside the file. */
 int mim_db_index_lend(mim_db_txn_t *t, const void **blob, size_t *len, mim_db_index_meta_t *m, mim_error_t *err)
 {
     return index_get(t, blob, len, m, 0, err);

@@ -168,7 +168,7 @@ int mim_db_index_get(mim_db_txn_t *txn, const void **blob, size_t *len, mim_db_i
 /* As mim_db_index_get, lent the same way, but without the XXH3-64 of the
  * whole blob (the build record's own checksum is still checked, and the
  * blob is still checked to lie inside the file): for a reader that checks
- * the blob itself as it uses it (index/: a version 5 blob, by section).
+ * the blob itself as it uses it (index/: by section).
  * mim_db_check still checks the whole blob. */
 int mim_db_index_lend(mim_db_txn_t *txn, const void **blob, size_t *len, mim_db_index_meta_t *meta,
                       mim_error_t *err);

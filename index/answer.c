@@ -32,9 +32,9 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
                       float *w, mim_index_answer_t *ans, mim_index_hit_t *hits, cand_t *best_st, int *ind_st,
                       float *dist_st, mim_error_t *err);
 
-/* In place (blob version 5), the chunk of rows that holds row r is
- * verified before r is read (blob_v5.c); *last remembers the chunk
- * checked last, so a scan checks each chunk once. */
+/* In place, the chunk of rows that holds row r is verified before r is
+ * read (blob.c); *last remembers the chunk checked last, so a scan checks
+ * each chunk once. */
 static inline int row_ready(const mim_index_t *ix, uint32_t r, int extra, uint32_t *last, mim_error_t *err)
 {
     if (!ix->lazy) return 0;
@@ -126,9 +126,9 @@ static int vote(const mim_index_t *ix, const mim_index_query_options_t *opt, con
 /* The discriminants' class of a frame and its posterior (the softmax of
  * the classes' log-likelihoods): the shape discriminants' (shape.c, any
  * frame with three landmarks or more), else for a whole frame the angles'
- * (lda.c: blobs of version 5, or built on request). Not both: adding
- * their log-likelihoods measured worse than the shape discriminants alone
- * (bench/RESULTS.md). -1: neither. */
+ * (lda.c: built on request). Not both: adding their log-likelihoods
+ * measured worse than the shape discriminants alone (bench/RESULTS.md).
+ * -1: neither. */
 static int64_t discriminant_class(const mim_index_t *ix, const float *positions, const uint8_t *present,
                                   uint32_t missing, const double *shape_scores, double *posterior)
 {

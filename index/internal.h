@@ -57,7 +57,7 @@ struct mim_index {
         double *V, *lam, *Vmu;  /* S's eigenvectors (columns), eigenvalues, V^T mu_c: made at build and open */
         double *U;              /* 3 * 3L: V^T of a unit translation along x, y, z */
     } shape;
-    /* In place (blob version 5, blob_v5.c): the arrays above, the label
+    /* In place (blob.c): the arrays above, the label
      * strings and the SVMs' arrays point into the blob, which is not ours
      * (borrowed) or is our own aligned copy (own); lazy says which sections
      * are verified and which classes are ready. NULL lazy: all of it is. */
@@ -66,7 +66,7 @@ struct mim_index {
     struct mim__lazy *lazy;
 };
 
-/* blob_v5.c: the lazily verified sections of an index used in place.
+/* blob.c: the lazily verified sections of an index used in place.
  * Per chunk of `rows` templates, "base" covers ids, subject, pose and the
  * descriptor rows, "extra" the further angles; per class, its rows (base)
  * verified and its k-NN index (forest or exact scan) made, once. States:
@@ -95,35 +95,18 @@ int mim__class_ready(const mim_index_t *ix, uint32_t c, mim_error_t *err);
  * (model.c). */
 int mim__class_knn(mim_index_t *ix, uint32_t c, const void *bytes, size_t len, mim_error_t *err);
 struct FLANNParameters mim__flann_params(const mim_index_t *ix, int exact);
-/* blob_v5.c: the in-place layout, version 5 (no shape discriminants: the
- * tests' old blobs) or 6 (what mim_index_save writes). */
-int mim__index_save_v5(const mim_index_t *ix, uint32_t version, void **blob, size_t *len, mim_error_t *err);
-/* Parses a version 5 blob in place (p 8-byte aligned and lasting as long
+/* blob.c: parses a blob in place (p 8-byte aligned and lasting as long
  * as ix); the head is verified now, the rest lazily. check_head 0: the
  * head's checksum is not checked (the fuzz harness's sealing). */
-int mim__index_parse_v5(mim_index_t **out, const unsigned char *p, size_t len, int check_head, mim_error_t *err);
+int mim__index_parse(mim_index_t **out, const unsigned char *p, size_t len, int check_head, mim_error_t *err);
 void mim__lazy_free(mim_index_t *ix);
-void mim__index_seal_v5(unsigned char *p, size_t len); /* tests, fuzz: every checksum made right */
-/* blob.c: versions 1 to 4, copied */
-int mim__index_load_legacy(mim_index_t **out, const void *blob, size_t len, mim_error_t *err);
-int mim__index_save_v4(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err); /* tests */
+void mim__index_seal(unsigned char *p, size_t len); /* tests, fuzz: every checksum made right */
 
 /* Every random choice of an index build (samples, folds, k-means++ seeds,
  * the folds of the Platt fits) draws from core's generator (mim_rng_t),
  * seeded with this and a stream of its own, so the same store always gives
  * the same index. Nothing here touches libc's rand(). */
 #define MIM__INDEX_SEED 0x6d696dULL
-
-/* blob.c: a growing byte buffer, the blob writers' (versions 4 and 5):
- * appends n bytes of src (src may be NULL when n is 0), then zeros up to a
- * multiple of align (1: none); oom is set once memory runs out, and every
- * later put is then a no-op. */
-typedef struct {
-    unsigned char *p;
-    size_t len, cap;
-    int oom;
-} mim__wbuf_t;
-void mim__wbuf_put(mim__wbuf_t *b, const void *src, size_t n, size_t align);
 
 /* lda.c: linear discriminants over all angles (issue 15). Build: from in's
  * templates of classes cls (input order, nc classes) and noisy copies at
@@ -222,13 +205,7 @@ void mim__svm_free(mim__svm_t *m);
 int mim__forest_save(flann_index_t forest, void **bytes, size_t *len, mim_error_t *err);
 flann_index_t mim__forest_load(const void *bytes, size_t len, float *points, uint32_t rows, uint32_t cols);
 
-/* A class's saved kd-forest in a blob (len 0: none). */
-typedef struct {
-    const void *bytes;
-    size_t len;
-} mim__forest_bytes_t;
-/* model.c: the per-class FLANN indexes of a filled index: saved[c]'s
- * forest where it loads (saved may be NULL), else built. */
-int mim__index_build_knn(mim_index_t *ix, const mim__forest_bytes_t *saved, mim_error_t *err);
+/* model.c: the per-class FLANN indexes of a filled index, built. */
+int mim__index_build_knn(mim_index_t *ix, mim_error_t *err);
 
 #endif

@@ -159,8 +159,8 @@ typedef struct mim_index_options {
      * k-NN vote of mim_index_query) see each kept angle a multiplied by
      * s_a^-weight, s_a = the RMS change of a over the augmentation's noisy
      * copies (an angle between short segments moves more), the factors
-     * normalised to RMS 1 over the d descriptor angles. Stored in the index
-     * (blob version 4). Needs the augmentation (none without it). The k-NN
+     * normalised to RMS 1 over the d descriptor angles. Stored in the index.
+     * Needs the augmentation (none without it). The k-NN
      * inside a class, and the distances it reports, stay in radians. */
     double weight;            /* 0 means MIM_INDEX_WEIGHT_DEFAULT; < 0: none; at most 4 */
     /* Shape discriminants (issue 15; shape.c says what and why): the
@@ -168,14 +168,13 @@ typedef struct mim_index_options {
      * each frame brought onto each class's mean shape by a similarity,
      * at noise levels 0 .. shape_noise (a fraction of the bodies' RMS
      * radius). A frame's class is theirs unless the SVMs are sure
-     * (mim_index_query_options_t.svm_above). Stored in the index (blob
-     * version 6). */
+     * (mim_index_query_options_t.svm_above). Stored in the index. */
     double shape_noise;        /* 0 means MIM_INDEX_SHAPE_NOISE_DEFAULT; < 0: none; at most 1 */
     /* Linear discriminants over all angles (issue 15; lda.c), the default
      * before the shape discriminants, which take precedence when both are
      * there: learnt from the templates and noisy copies at sigma =
      * discriminant_noise x the bodies' scale; whole frames only. Stored in
-     * the index (blob versions 5 and 6). */
+     * the index. */
     double discriminant_noise; /* > 0: build them (MIM_INDEX_DISCRIMINANT_NOISE_MEASURED was their best); else none */
     mim_progress_t *progress; /* fn and ctx set by the caller, run by the build; NULL: quiet */
 } mim_index_options_t;
@@ -207,17 +206,18 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
 void mim_index_close(mim_index_t **ix); /* accepts NULL; nulls the pointer */
 
 /* Serialised form: one versioned blob with checksums (malloc'd; caller
- * frees), version 5 (layout: blob_v5.c). Saving an index opened in place
+ * frees), version 6 (layout: blob.c). Saving an index opened in place
  * first verifies what it had not yet (mim_index_verify), so that a damaged
  * section is never written out under fresh checksums.
  *
  * mim_index_load copies: the index owns everything and the caller may free
  * blob at once. It checks magic, version, sizes and every checksum, and
  * loads every saved kd-forest, before it returns: a damaged blob is
- * MIM_EFORMAT, never a crash. Versions 1 to 4 load too (a version 2 blob
- * builds its forests).
+ * MIM_EFORMAT, never a crash. Only the version mim_index_save writes is
+ * read: the index is made from the store again (mimic index), so an older
+ * blob is MIM_EFORMAT with a message that says to rebuild it.
  *
- * mim_index_open_in_place borrows: a version 5 blob at an 8-byte aligned
+ * mim_index_open_in_place borrows: a blob at an 8-byte aligned
  * address is used where it is (the store's memory map), and must stay
  * valid and unchanged until mim_index_close. Only the small head is read
  * and verified now (sizes, labels, classes, SVMs, and the checksums of the
@@ -225,8 +225,8 @@ void mim_index_close(mim_index_t **ix); /* accepts NULL; nulls the pointer */
  * verified and loaded, when a query first needs them, once, by one thread
  * (queries on other threads wait for that class, not for others). A query
  * that meets a damaged section fails with MIM_EFORMAT, as will every later
- * query that needs it; it never reads what did not verify. An older or
- * unaligned blob is copied (mim_index_load). */
+ * query that needs it; it never reads what did not verify. An unaligned
+ * blob is copied (mim_index_load). */
 int mim_index_save(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err);
 int mim_index_load(mim_index_t **out, const void *blob, size_t len, mim_error_t *err);
 int mim_index_open_in_place(mim_index_t **out, const void *blob, size_t len, mim_error_t *err);
@@ -245,10 +245,10 @@ typedef struct mim_index_info {
     double discriminant_noise; /* the linear discriminants' training noise / the bodies' scale (0: none) */
     double shape_noise;        /* the shape discriminants' top noise level / the RMS radius (-1: none) */
     /* kd-forests (classes above the exact scan's size) read from the blob
-     * and built when it was made or loaded (a blob before version 3, or a
-     * forest that would not load, builds them again) */
+     * and built when it was made or loaded (a forest that would not load
+     * is built again) */
     uint32_t forests_loaded, forests_built;
-    uint32_t in_place;      /* used in place (mim_index_open_in_place of a version 5 blob) */
+    uint32_t in_place;      /* used in place (mim_index_open_in_place of an aligned blob) */
     uint32_t classes_ready; /* classes verified and with their k-NN index (in place: those used so far) */
 } mim_index_info_t;
 void mim_index_get_info(const mim_index_t *ix, mim_index_info_t *out);
@@ -257,7 +257,10 @@ const uint32_t *mim_index_selected(const mim_index_t *ix); /* d2 candidate angle
 
 typedef struct mim_index_query_options {
     uint32_t k;                  /* 0 means 1 */
-    const char *exclude_subject; /* leave this subject's templates out; NULL: none */
+    /* Leave this subject's templates out of the answers and the k-NN vote
+     * (NULL: none); the angles, SVMs and discriminants were trained with
+     * them, so for a strict held-out test build an index without them. */
+    const char *exclude_subject;
     uint32_t checks;             /* kd-forest checks for this query; 0 means the index's */
     /* k-NN vote (issue 15): when the top SVM probability (normalised over
      * the classes) is below vote_below, the vote_k nearest templates (over

@@ -106,14 +106,14 @@ int mim__class_knn(mim_index_t *ix, uint32_t c, const void *bytes, size_t len, m
     return 0;
 }
 
-int mim__index_build_knn(mim_index_t *ix, const mim__forest_bytes_t *saved, mim_error_t *err)
+int mim__index_build_knn(mim_index_t *ix, mim_error_t *err)
 {
     ix->flann = calloc(ix->n_classes, sizeof *ix->flann);
     ix->flann_exact = calloc(ix->n_classes, sizeof *ix->flann_exact);
     if (!ix->flann || !ix->flann_exact) return MIM_ENOMEM;
     for (uint32_t c = 0; c < ix->n_classes; c++) {
         ix->flann_exact[c] = ix->class_start[c + 1] - ix->class_start[c] <= ix->exact_max;
-        int rc = mim__class_knn(ix, c, saved ? saved[c].bytes : NULL, saved ? saved[c].len : 0, err);
+        int rc = mim__class_knn(ix, c, NULL, 0, err);
         if (rc) return rc;
     }
     return 0;
@@ -607,7 +607,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
     }
     mim__svm_data_t sd = {sx, y, grp, sm * (1 + A), d, nc, n_groups};
     if ((rc = mim__svm_train_all(&sd, &opt, ix->svm, &ix->C, &ix->gamma, &ix->cv_accuracy, err))) goto out;
-    if ((rc = mim__index_build_knn(ix, NULL, err))) goto out;
+    if ((rc = mim__index_build_knn(ix, err))) goto out;
     ix->strings = st.s, ix->n_strings = st.n;
     st.s = NULL, st.n = 0;
     if (report) {

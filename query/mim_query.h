@@ -52,12 +52,14 @@ int mim_query_status(mim_db_t *db, mim_query_status_t *out, mim_error_t *err);
 
 typedef struct mim_query mim_query_t;
 /* Opens the stored index (MIM_ENOTFOUND when there is none: run mimic
- * index). A version 5 index is used in place, in the store's memory map:
- * the query holds one read-only transaction until mim_query_close (close
- * it before the store), and checks the index's sections as queries first
- * need them, so a damaged part makes those queries fail with MIM_EFORMAT
- * (mim_index_open_in_place). An older index is copied and checked whole,
- * and no transaction is kept. */
+ * index; MIM_EFORMAT, with a message that says to rebuild it, when it is
+ * of an older version). The index is used in place, in the store's memory
+ * map: the query holds one read-only transaction until mim_query_close
+ * (close it before the store), and checks the index's sections as queries
+ * first need them, so a damaged part makes those queries fail with
+ * MIM_EFORMAT (mim_index_open_in_place). An index the map does not hold
+ * 8-byte aligned is copied and checked whole, and no transaction is
+ * kept. */
 int mim_query_open(mim_query_t **out, mim_db_t *db, mim_error_t *err);
 void mim_query_close(mim_query_t **q); /* accepts NULL; nulls the pointer */
 const mim_query_status_t *mim_query_get_status(const mim_query_t *q);

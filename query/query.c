@@ -223,8 +223,8 @@ int mim_query_open(mim_query_t **out, mim_db_t *db, mim_error_t *err)
     mim_db_index_meta_t bm;
     mim_index_info_t info;
     /* lent without the whole blob's checksum: the blob checks itself, its
-     * head now and the rest by section on first use (version 5), or all of
-     * it as it is copied (older versions) */
+     * head now and the rest by section on first use (in place), or all of
+     * it as it is copied (unaligned) */
     int rc = mim_db_begin(db, 0, &q->txn, err);
     if (!rc) rc = status_in(q->txn, &q->status, err);
     if (!rc) rc = mim_db_index_lend(q->txn, &blob, &len, &bm, err);

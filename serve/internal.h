@@ -365,7 +365,7 @@ struct mim_serve {
     mim__fair_t fair;           /* the sessions' common key interval */
     /* The index readied on a thread of its own at start (server.c): a
      * store's index is used in place and each class is checked and its
-     * kd-forest loaded when a query first needs it (index/blob_v5.c), about
+     * kd-forest loaded when a query first needs it (index/blob.c), about
      * 0.1 s a class at 1 000 000 templates; done here, a vest's first key
      * frame in a pose does not pay for it. */
     pthread_t warm;

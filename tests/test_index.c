@@ -518,103 +518,12 @@ static void test_saved_forests(void **s)
     synth_set_free(&ss);
 }
 
-/* The forests' section of a blob is checked before FLANN sees a byte of
- * it: a count above the classes, a class out of range or named twice, a
- * length past the end or of zero, and bytes after the last forest are each
- * MIM_EFORMAT with the checksum made right (a damaged store fails the
- * checksum first). */
-/* index/'s writer of the old layout (version 4), kept for these tests */
-int mim__index_save_v4(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err);
-
-static void patch_checksum(unsigned char *blob, size_t len)
-{
-    uint64_t plen = len - 32, sum = mim_hash64(blob + 32, plen, 0x6d6978ULL);
-    memcpy(blob + 8, &plen, 8), memcpy(blob + 16, &sum, 8);
-}
-
-static void test_forest_section_hostile(void **s)
-{
-    (void)s;
-    synth_set_t ss;
-    synth_set(&ss, 4, 12, 37);
-    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
-    mim_index_options_t kd = {.features = 40, .exact_max = 2, .C = 10, .gamma = 1}, ex = kd;
-    ex.exact_max = 0;
-    mim_index_t *a = NULL, *b = NULL;
-    assert_int_equal(mim_index_build(&a, &in, &kd, NULL, NULL), 0);
-    assert_int_equal(mim_index_build(&b, &in, &ex, NULL, NULL), 0);
-    void *ka = NULL, *kb = NULL;
-    size_t la = 0, lb = 0;
-    assert_int_equal(mim__index_save_v4(a, &ka, &la, NULL), 0); /* this layout is version 4's */
-    assert_int_equal(mim__index_save_v4(b, &kb, &lb, NULL), 0);
-    mim_index_info_t info;
-    mim_index_get_info(a, &info);
-    mim_index_close(&a), mim_index_close(&b);
-    /* the exact index's blob ends with a forest count of 0: the kd one's
-     * forest section starts where that count is */
-    const size_t at = lb - 4;
-    uint32_t nf;
-    memcpy(&nf, (unsigned char *)ka + at, 4);
-    assert_int_equal(nf, info.n_classes);
-    struct {
-        const char *what;
-        size_t off; /* from the section's start */
-        uint64_t value;
-        int width;
-        const char *says;
-    } cases[] = {
-        {"count", 0, info.n_classes + 1, 4, "forests for"},
-        {"class", 4, info.n_classes, 4, "is for class"},
-        {"length", 8, 1ULL << 40, 8, "truncated"},
-        {"length 0", 8, 0, 8, "truncated"},
-    };
-    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
-        unsigned char *p = malloc(la);
-        memcpy(p, ka, la);
-        memcpy(p + at + cases[k].off, &cases[k].value, (size_t)cases[k].width);
-        patch_checksum(p, la);
-        mim_index_t *ix = NULL;
-        mim_error_t err = {0};
-        assert_int_equal(mim_index_load(&ix, p, la, &err), MIM_EFORMAT);
-        if (!strstr(mim_error_text(&err), cases[k].says)) fail_msg("%s: %s", cases[k].what, mim_error_text(&err));
-        assert_null(ix);
-        free(p);
-    }
-    /* the second forest names the first one's class */
-    uint64_t first_len;
-    memcpy(&first_len, (unsigned char *)ka + at + 8, 8);
-    unsigned char *p = malloc(la + 8);
-    memcpy(p, ka, la);
-    uint32_t c0;
-    memcpy(&c0, p + at + 4, 4);
-    memcpy(p + at + 4 + 12 + first_len, &c0, 4);
-    patch_checksum(p, la);
-    mim_index_t *ix = NULL;
-    mim_error_t err = {0};
-    assert_int_equal(mim_index_load(&ix, p, la, &err), MIM_EFORMAT);
-    assert_non_null(strstr(mim_error_text(&err), "or a second one"));
-    /* bytes after the last forest */
-    memcpy(p, ka, la);
-    memset(p + la, 0, 8);
-    patch_checksum(p, la + 8);
-    mim_error_t err2 = {0};
-    assert_int_equal(mim_index_load(&ix, p, la + 8, &err2), MIM_EFORMAT);
-    assert_non_null(strstr(mim_error_text(&err2), "left over after the last forest"));
-    /* the blob as saved loads, its forests read */
-    assert_int_equal(mim_index_load(&ix, ka, la, NULL), 0);
-    mim_index_get_info(ix, &info);
-    assert_int_equal(info.forests_loaded, info.n_classes);
-    mim_index_close(&ix);
-    free(p), free(ka), free(kb);
-    synth_set_free(&ss);
-}
-
-/* ---- versions 5 and 6: in place (issue 16) ---- */
-void mim__index_seal_v5(unsigned char *p, size_t len);
+/* ---- the blob in place (issue 16) ---- */
+void mim__index_seal(unsigned char *p, size_t len);
 
 static uint64_t up64(uint64_t x) { return (x + 63) / 64 * 64; }
 
-/* Offsets of a version 5 or 6 blob's bulk sections (blob_v5.c's layout). */
+/* Offsets of a blob's bulk sections (blob.c's layout). */
 static void v5_sections(const unsigned char *p, uint32_t n, uint32_t d, uint32_t d2, uint64_t *desc, uint64_t *extra,
                         uint64_t *forests)
 {
@@ -642,11 +551,10 @@ static void v5_frames(const synth_set_t *ss, float *frames, uint8_t *present)
     }
 }
 
-/* An index used in place answers exactly as the index that was saved, as
- * the same blob copied, and as its version 4 blob (still loaded, copied;
- * without the discriminants of versions 5 and 6, so as the others' SVMs),
- * with kd-forests so coarse (1 check) that the answers depend on the
- * trees; in place, nothing is verified or loaded before a query needs it. */
+/* An index used in place answers exactly as the index that was saved and
+ * as the same blob copied, with kd-forests so coarse (1 check) that the
+ * answers depend on the trees; in place, nothing is verified or loaded
+ * before a query needs it. */
 static void test_in_place_answers(void **s)
 {
     (void)s;
@@ -655,29 +563,22 @@ static void test_in_place_answers(void **s)
     mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
     for (int variant = 0; variant < 2; variant++) {
         mim_index_options_t o = {.features = 40, .exact_max = variant ? 2 : 0, .checks = 1};
-        mim_index_t *ix = NULL, *cp = NULL, *ip = NULL, *v4 = NULL;
+        mim_index_t *ix = NULL, *cp = NULL, *ip = NULL;
         assert_int_equal(mim_index_build(&ix, &in, &o, NULL, NULL), 0);
-        void *blob = NULL, *b4 = NULL;
-        size_t len = 0, l4 = 0;
+        void *blob = NULL;
+        size_t len = 0;
         assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
-        assert_int_equal(mim__index_save_v4(ix, &b4, &l4, NULL), 0);
         uint32_t ver;
         memcpy(&ver, (unsigned char *)blob + 4, 4);
         assert_int_equal(ver, 6);
-        memcpy(&ver, (unsigned char *)b4 + 4, 4);
-        assert_int_equal(ver, 4);
         assert_int_equal((uintptr_t)blob % 64, 0);
         assert_int_equal(mim_index_load(&cp, blob, len, NULL), 0);
         assert_int_equal(mim_index_open_in_place(&ip, blob, len, NULL), 0);
-        assert_int_equal(mim_index_open_in_place(&v4, b4, l4, NULL), 0); /* copied: version 4 */
         mim_index_info_t info;
         mim_index_get_info(ip, &info);
         assert_int_equal(info.in_place, 1);
         assert_int_equal(info.classes_ready, 0);
         assert_int_equal(info.forests_loaded + info.forests_built, 0);
-        mim_index_get_info(v4, &info);
-        assert_int_equal(info.in_place, 0);
-        assert_int_equal(info.forests_loaded, variant ? info.n_classes : 0);
         mim_index_get_info(cp, &info);
         assert_int_equal(info.in_place, 0);
         assert_int_equal(info.classes_ready, info.n_classes);
@@ -686,22 +587,13 @@ static void test_in_place_answers(void **s)
         v5_frames(&ss, frames, present);
         for (uint32_t f = 0; f < 2 * ss.n; f++) {
             mim_index_query_options_t qo = {.k = 3};
-            mim_index_answer_t a[4];
-            mim_index_hit_t h[4][3];
-            mim_index_t *each[4] = {ix, cp, ip, v4};
-            for (int k = 0; k < 4; k++)
+            mim_index_answer_t a[3];
+            mim_index_hit_t h[3][3];
+            mim_index_t *each[3] = {ix, cp, ip};
+            for (int k = 0; k < 3; k++)
                 assert_int_equal(mim_index_query(each[k], frames + 48 * f, present + 16 * f, &qo, &a[k], h[k], NULL), 0);
             for (int k = 1; k < 3; k++)
                 if (!same_answer(&a[0], h[0], &a[k], h[k])) fail_msg("variant %d frame %u: index %d answers otherwise", variant, f, k);
-            /* version 4 holds no discriminants: it answers a whole frame as
-             * the SVMs of the others (a frame with landmarks missing the
-             * others complete from the classes' Gaussians, version 4 by the
-             * scan: test_index_hard compares the two) */
-            int whole = !memchr(present + 16 * f, 0, 16);
-            mim_index_query_options_t svm_only = {.k = 3, .svm_above = -1};
-            assert_int_equal(mim_index_query(ix, frames + 48 * f, present + 16 * f, &svm_only, &a[0], h[0], NULL), 0);
-            if (whole && !same_answer(&a[0], h[0], &a[3], h[3]))
-                fail_msg("variant %d frame %u: index 3 answers otherwise", variant, f);
         }
         mim_index_get_info(ip, &info);
         assert_true(info.classes_ready > 0);
@@ -715,8 +607,8 @@ static void test_in_place_answers(void **s)
         mim_index_get_info(ip, &info);
         assert_int_equal(info.classes_ready, info.n_classes);
         free(again), free(frames), free(present);
-        mim_index_close(&ix), mim_index_close(&cp), mim_index_close(&ip), mim_index_close(&v4);
-        free(blob), free(b4);
+        mim_index_close(&ix), mim_index_close(&cp), mim_index_close(&ip);
+        free(blob);
     }
     synth_set_free(&ss);
 }
@@ -816,7 +708,7 @@ static void test_in_place_damage(void **s)
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
         memcpy(p, blob, len);
         memcpy(p + cases[k].off, &cases[k].value, (size_t)cases[k].width);
-        mim__index_seal_v5(p, len);
+        mim__index_seal(p, len);
         mim_error_clear(&err);
         assert_int_equal(mim_index_open_in_place(&ip, p, len, &err), MIM_EFORMAT);
         if (!strstr(err.msg, cases[k].says)) fail_msg("case %zu: %s", k, err.msg);
@@ -827,9 +719,20 @@ static void test_in_place_damage(void **s)
     p[50] = 1;
     assert_int_equal(mim_index_open_in_place(&ip, p, len, &err), MIM_EFORMAT);
     memcpy(p, blob, len);
-    mim__index_seal_v5(p, len); /* sealing an intact blob changes nothing */
+    mim__index_seal(p, len); /* sealing an intact blob changes nothing */
     assert_memory_equal(p, blob, len);
     assert_int_equal(mim_index_open_in_place(&ip, p, len - 8, &err), MIM_EFORMAT);
+    /* bytes after the last forest, counted by the header */
+    unsigned char *longer = NULL;
+    assert_int_equal(posix_memalign((void **)&longer, 64, len + 64), 0);
+    memcpy(longer, blob, len);
+    memset(longer + len, 0, 64);
+    const uint64_t after_header = len;
+    memcpy(longer + 8, &after_header, 8);
+    mim_error_clear(&err);
+    assert_int_equal(mim_index_open_in_place(&ip, longer, len + 64, &err), MIM_EFORMAT);
+    assert_non_null(strstr(err.msg, "left over after its last section"));
+    free(longer);
     /* an unaligned blob is copied, and answers */
     unsigned char *u = malloc(len + 1);
     memcpy(u + 1, blob, len);
@@ -1046,7 +949,6 @@ int main(void)
         cmocka_unit_test(test_reproducible_without_rand),
         cmocka_unit_test(test_concurrent_queries),
         cmocka_unit_test(test_saved_forests),
-        cmocka_unit_test(test_forest_section_hostile),
         cmocka_unit_test(test_in_place_answers),
         cmocka_unit_test(test_in_place_damage),
         cmocka_unit_test(test_in_place_first_use_threads),

@@ -4,9 +4,7 @@
  * two joints), the index built from 4 subjects and queried with the fifth
  * (leave one subject out, one fold). Seeded throughout: the same figures on
  * every run. The full run is bench/query_accuracy (bench/RESULTS.md). Also:
- * the noise-augmentation and weighting options are stored with the index,
- * and index blobs of versions 1 (before augmentation) and 3 (before the
- * weighting) still load. */
+ * the noise-augmentation and weighting options are stored with the index. */
 #include "hard_set.h"
 #include "mim_index.h"
 #include "test_support.h"
@@ -19,8 +17,8 @@
 enum { S = 5, P = 16, DRAWS = 5 };
 
 
-/* index/: every checksum of a version 5 or 6 blob made right (blob_v5.c) */
-void mim__index_seal_v5(unsigned char *p, size_t len);
+/* index/: every checksum of a blob made right (blob.c) */
+void mim__index_seal(unsigned char *p, size_t len);
 
 typedef struct {
     bench_hard_t h;
@@ -236,7 +234,7 @@ static void test_shape_discriminants(void **state)
         assert_int_equal(posix_memalign((void **)&v, 64, len), 0);
         memcpy(v, blob, len);
         memcpy(v + at + cases[k].off, &cases[k].value, 4);
-        mim__index_seal_v5(v, len);
+        mim__index_seal(v, len);
         mim_index_t *back = NULL;
         mim_error_t e = {0};
         assert_int_equal(mim_index_load(&back, v, len, &e), MIM_EFORMAT);
@@ -336,7 +334,7 @@ static void test_angle_discriminants(void **state)
         assert_int_equal(posix_memalign((void **)&v, 64, len), 0);
         memcpy(v, blob, len);
         memcpy(v + at + cases[c].off, &cases[c].value, 4);
-        mim__index_seal_v5(v, len);
+        mim__index_seal(v, len);
         mim_index_t *back = NULL;
         mim_error_t e = {0};
         assert_int_equal(mim_index_load(&back, v, len, &e), MIM_EFORMAT);
@@ -357,119 +355,44 @@ static void test_angle_discriminants(void **state)
     free(s);
 }
 
-/* index/'s writers of versions 4 and 5, kept for the tests of old blobs */
-int mim__index_save_v4(const mim_index_t *ix, void **blob, size_t *len, mim_error_t *err);
-int mim__index_save_v5(const mim_index_t *ix, uint32_t version, void **blob, size_t *len, mim_error_t *err);
-
-/* A blob of version 4 rewritten in an older layout: version 3 has
- * no angle weighting (the f64 weight and the f32 w[d2] after the selected
- * angles); version 1 also has no augmentation (the header's u32 augment and
- * f64 noise) and no forest count at the end (every class here is scanned
- * exactly, so the count is 0). Header and checksum made right. */
-static unsigned char *downgrade(const unsigned char *p, size_t len, uint32_t ver, size_t *out_len)
-{
-    uint32_t d2;
-    memcpy(&d2, p + 32 + 32, 4);
-    unsigned char *v = malloc(len);
-    size_t o = 32, sel = 112, w = sel + 4 * (size_t)d2, rest = w + 4 * (size_t)d2;
-    memcpy(v, p, 32);
-    if (ver == 1) {
-        memcpy(v + o, p + 32, 36), o += 36;      /* n_landmarks .. d2 */
-        memcpy(v + o, p + 72, 24), o += 24;      /* C, gamma, cv_accuracy */
-    } else {
-        memcpy(v + o, p + 32, 72), o += 72;      /* n_landmarks .. augment, C .. noise */
-    }
-    memcpy(v + o, p + sel, 4 * (size_t)d2), o += 4 * (size_t)d2; /* selected */
-    size_t tail = len - rest - (ver == 1 ? 4 : 0);
-    memcpy(v + o, p + rest, tail), o += tail;
-    uint64_t plen = o - 32, sum = mim_hash64(v + 32, plen, 0x6d6978ULL);
-    memcpy(v + 4, &ver, 4), memcpy(v + 8, &plen, 8), memcpy(v + 16, &sum, 8);
-    *out_len = o;
-    return v;
-}
-
-/* The augmentation and the angle weighting are stored with the index (blob
- * versions 2 and 4 on); blobs of versions 1 and 3 (no augmentation fields
- * and no forests; no weighting) still load, as indexes without them, and
- * answer as before; options out of range are refused. */
-static void test_blob_versions(void **state)
+/* The augmentation and the angle weighting are stored with the index: a
+ * weighted index and an unweighted one come back from their blobs as they
+ * were saved and answer the same; options out of range are refused. */
+static void test_blob_options(void **state)
 {
     (void)state;
     set_t *s = calloc(1, sizeof *s);
     set_make(s);
-    const float *frame = s->h.landmarks + (size_t)(S - 1) * P * s->h.n_landmarks * 3;
     mim_index_answer_t a1, a2;
     mim_index_hit_t h1, h2;
     mim_index_info_t info;
-    /* a weighted index: the weights round-trip and it answers the same */
-    mim_index_options_t ow = {.noise = 0.03, .augment = 2, .weight = 0.5, .C = 100, .gamma = 1};
-    mim_index_t *ix = build(s, &ow), *back = NULL;
-    void *blob = NULL;
-    size_t len = 0;
-    assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
-    uint32_t ver;
-    memcpy(&ver, (char *)blob + 4, 4);
-    assert_int_equal(ver, 6);
-    for (uint32_t want = 6; want >= 4; want--) { /* version 6 (mimic's now), and versions 5 and 4 still */
-        if (want < 6) {
-            free(blob);
-            if (want == 5) assert_int_equal(mim__index_save_v5(ix, 5, &blob, &len, NULL), 0);
-            else assert_int_equal(mim__index_save_v4(ix, &blob, &len, NULL), 0);
-            memcpy(&ver, (char *)blob + 4, 4);
-            assert_int_equal(ver, want);
-            mim_index_close(&back);
-        }
+    const mim_index_options_t opts[2] = {{.noise = 0.03, .augment = 2, .weight = 0.5, .C = 100, .gamma = 1},
+                                         {.noise = 0.03, .augment = 2, .weight = -1, .C = 100, .gamma = 1}};
+    mim_index_t *ix = NULL;
+    for (int k = 0; k < 2; k++) {
+        ix = build(s, &opts[k]);
+        mim_index_t *back = NULL;
+        void *blob = NULL;
+        size_t len = 0;
+        assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
         assert_int_equal(mim_index_load(&back, blob, len, NULL), 0);
         mim_index_get_info(back, &info);
         assert_int_equal(info.augment, 2);
         assert_true(info.noise == 0.03);
-        assert_true(info.weight == 0.5);
-        /* the shape discriminants are in version 6, not in 5 or 4: there the index answers by its SVMs */
-        assert_true(info.shape_noise == (want == 6 ? MIM_INDEX_SHAPE_NOISE_DEFAULT : -1));
+        assert_true(info.weight == (k ? 0 : 0.5));
+        assert_true(info.shape_noise == MIM_INDEX_SHAPE_NOISE_DEFAULT);
         assert_true(info.discriminant_noise == 0);
-        mim_index_query_options_t as_saved = {.svm_above = want < 6 ? -1 : 0};
         for (uint32_t p = 0; p < P; p++) {
             const float *f = s->h.landmarks + ((size_t)(S - 1) * P + p) * s->h.n_landmarks * 3;
-            assert_int_equal(mim_index_query(ix, f, NULL, &as_saved, &a1, &h1, NULL), 0);
+            assert_int_equal(mim_index_query(ix, f, NULL, NULL, &a1, &h1, NULL), 0);
             assert_int_equal(mim_index_query(back, f, NULL, NULL, &a2, &h2, NULL), 0);
             assert_int_equal(a1.cls, a2.cls);
             assert_true(h1.id == h2.id);
             assert_true(a1.probability == a2.probability);
         }
+        mim_index_close(&back), mim_index_close(&ix);
+        free(blob);
     }
-    mim_index_close(&back), mim_index_close(&ix);
-    free(blob);
-    /* an unweighted index, as versions 3 and 1 */
-    mim_index_options_t o = {.noise = 0.03, .augment = 2, .weight = -1, .C = 100, .gamma = 1};
-    ix = build(s, &o);
-    mim_index_get_info(ix, &info);
-    assert_true(info.weight == 0);
-    assert_int_equal(mim__index_save_v4(ix, &blob, &len, NULL), 0);
-    uint32_t n_forests;
-    memcpy(&n_forests, (char *)blob + len - 4, 4);
-    assert_int_equal(n_forests, 0);
-    for (uint32_t old = 1; old <= 3; old += 2) {
-        size_t olen = 0;
-        unsigned char *v = downgrade(blob, len, old, &olen);
-        mim_error_t err = {0};
-        int rc = mim_index_load(&back, v, olen, &err);
-        if (rc) fprintf(stderr, "v%u: %s\n", old, mim_error_text(&err));
-        assert_int_equal(rc, 0);
-        mim_index_get_info(back, &info);
-        assert_int_equal(info.augment, old == 1 ? 0 : 2);
-        assert_true(info.noise == (old == 1 ? 0 : 0.03));
-        assert_true(info.weight == 0);
-        assert_true(info.discriminant_noise == 0);
-        mim_index_query_options_t svm_only = {.svm_above = -1};
-        assert_int_equal(mim_index_query(ix, frame, NULL, &svm_only, &a1, &h1, NULL), 0);
-        assert_int_equal(mim_index_query(back, frame, NULL, NULL, &a2, &h2, NULL), 0);
-        assert_int_equal(a1.cls, a2.cls);
-        assert_true(h1.id == h2.id);
-        mim_index_close(&back);
-        free(v);
-    }
-    mim_index_close(&ix);
-    free(blob);
     /* out of range */
     mim_index_input_t in = {P, s->h.n_landmarks, s->h.landmarks, s->ids, s->subj, s->pose, s->h.mirror};
     mim_index_options_t bad1 = {.noise = 2}, bad2 = {.augment = 65}, bad3 = {.weight = 5};
@@ -487,7 +410,7 @@ int main(void)
         cmocka_unit_test(test_hard_set_accuracy),
         cmocka_unit_test(test_shape_discriminants),
         cmocka_unit_test(test_angle_discriminants),
-        cmocka_unit_test(test_blob_versions),
+        cmocka_unit_test(test_blob_options),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

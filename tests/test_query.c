@@ -244,6 +244,8 @@ static void test_cli_query_and_bad_input(void **st)
     free(out);
     assert_int_equal(run(&out, NULL, h2), 0);
     assert_non_null(strstr(out, "--exclude-subject"));
+    /* issue 30: it says what the exclusion leaves in */
+    assert_non_null(strstr(out, "the index's classifier was built with them and still knows"));
     free(out);
     const char *ix[] = {"index", "--store", g_store, NULL};
     assert_int_equal(run(&out, NULL, ix), 0);
@@ -331,6 +333,12 @@ static void test_cli_query_and_bad_input(void **st)
     free(frames);
 }
 
+/* One body-like frame of 16 landmarks. */
+static const char one_frame[] =
+    "{\"landmarks\": [[0,1.6,0],[0,1.3,0],[0,1,0],[0.2,1.4,0],[-0.2,1.4,0],[0.45,1.4,0],[-0.45,1.4,0],"
+    "[0.7,1.4,0],[-0.7,1.4,0],[0.1,0.95,0],[-0.1,0.95,0],[0.1,0.5,0.02],[-0.1,0.5,0.02],[0.1,0.08,0],"
+    "[-0.1,0.08,0],[0,1.15,-0.05]]}";
+
 static void test_stale_and_info(void **st)
 {
     (void)st;
@@ -356,10 +364,7 @@ static void test_stale_and_info(void **st)
     assert_non_null(strstr(out, "\"stale\": true"));
     free(out);
     char *frames = ts_path(g_dir, "one.json");
-    const char *one = "{\"landmarks\": [[0,1.6,0],[0,1.3,0],[0,1,0],[0.2,1.4,0],[-0.2,1.4,0],[0.45,1.4,0],[-0.45,1.4,0],"
-                      "[0.7,1.4,0],[-0.7,1.4,0],[0.1,0.95,0],[-0.1,0.95,0],[0.1,0.5,0.02],[-0.1,0.5,0.02],[0.1,0.08,0],"
-                      "[-0.1,0.08,0],[0,1.15,-0.05]]}";
-    assert_int_equal(ts_write_file(frames, one, strlen(one)), 0);
+    assert_int_equal(ts_write_file(frames, one_frame, strlen(one_frame)), 0);
     const char *q[] = {"query", "--store", g_store, "--landmarks", frames, NULL};
     assert_int_equal(run(&out, &err, q), 0);
     assert_non_null(strstr(err, "stale"));
@@ -374,6 +379,78 @@ static void test_stale_and_info(void **st)
     assert_null(strstr(err, "stale"));
     free(out), free(err);
     free(more), free(frames);
+}
+
+/* Issue 30 item 3: the k-NN line of mimic index says how many classes are
+ * exact and how many kd-forests, naming no rest that is not there. On the
+ * store as test_stale_and_info leaves it: 12 pose classes, 3 of 4
+ * templates and 9 of 3. */
+static void test_index_knn_line(void **st)
+{
+    (void)st;
+    const struct {
+        const char *exact_max, *line;
+        int exact;
+    } cases[] = {{"3", "k-NN         9 of 12 classes exact, 3 kd-forests\n", 9},
+                 {"2", "k-NN         all 12 classes kd-forests\n", 0},
+                 {"4", "k-NN         all 12 classes exact\n", 12}};
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        char *out = NULL, want[64];
+        const char *ix[] = {"index", "--store", g_store, "--exact-max", cases[k].exact_max, NULL};
+        assert_int_equal(run(&out, NULL, ix), 0);
+        if (!strstr(out, cases[k].line)) fail_msg("--exact-max %s: %s", cases[k].exact_max, out);
+        assert_null(strstr(out, "the rest"));
+        free(out);
+        const char *ixj[] = {"index", "--store", g_store, "--exact-max", cases[k].exact_max, "--json", NULL};
+        assert_int_equal(run(&out, NULL, ixj), 0);
+        snprintf(want, sizeof want, "\"exact_classes\": %d,", cases[k].exact);
+        assert_non_null(strstr(out, want));
+        free(out);
+    }
+    const char *bad[] = {"index", "--store", g_store, "--exact-max", "0", NULL};
+    char *err = NULL;
+    assert_int_equal(run(NULL, &err, bad), 2);
+    assert_non_null(strstr(err, "exact-max"));
+    free(err);
+}
+
+/* Issue 30 item 14: an index blob of an older version in the store (of
+ * version 5's layout: the current blob with its version field made 5,
+ * which the head's checksum does not cover) makes mimic query exit 2 with
+ * one line that says to rebuild it; after mimic index it answers. */
+static void test_old_index_blob(void **st)
+{
+    (void)st;
+    const char *ix[] = {"index", "--store", g_store, NULL};
+    assert_int_equal(run(NULL, NULL, ix), 0);
+    mim_db_t *db;
+    mim_db_txn_t *t;
+    const void *blob;
+    size_t len;
+    mim_db_index_meta_t bm;
+    assert_int_equal(mim_db_open(&db, g_store, NULL, NULL), 0);
+    assert_int_equal(mim_db_begin(db, 1, &t, NULL), 0);
+    assert_int_equal(mim_db_index_get(t, &blob, &len, &bm, NULL), 0);
+    unsigned char *old = malloc(len);
+    memcpy(old, blob, len);
+    const uint32_t five = 5;
+    memcpy(old + 4, &five, 4);
+    assert_int_equal(mim_db_index_put(t, old, len, &bm, NULL), 0);
+    assert_int_equal(mim_db_commit(&t, NULL), 0);
+    mim_db_close(&db);
+    free(old);
+    char *frames = ts_path(g_dir, "old-index.json"), *out = NULL, *err = NULL;
+    assert_int_equal(ts_write_file(frames, one_frame, strlen(one_frame)), 0);
+    const char *q[] = {"query", "--store", g_store, "--landmarks", frames, NULL};
+    assert_int_equal(run(NULL, &err, q), 2);
+    assert_string_equal(err, "mimic query: index blob: version 5 is older than this mimic's (6): rebuild it (run mimic "
+                             "index)\n");
+    free(err);
+    assert_int_equal(run(NULL, NULL, ix), 0);
+    assert_int_equal(run(&out, &err, q), 0);
+    assert_non_null(strstr(out, "frame 0: class"));
+    assert_string_equal(err, "");
+    free(out), free(err), free(frames);
 }
 
 /* A store without pose labels is clustered, and info says so; a query on a
@@ -422,6 +499,8 @@ int main(void)
         cmocka_unit_test(test_no_index_then_round_trip),
         cmocka_unit_test(test_cli_query_and_bad_input),
         cmocka_unit_test(test_stale_and_info),
+        cmocka_unit_test(test_index_knn_line),
+        cmocka_unit_test(test_old_index_blob),
         cmocka_unit_test(test_unlabelled_store),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

@@ -346,7 +346,7 @@ static void test_index_bulk_damage(void **s)
     assert_int_equal(mim_db_template_get(t, 2, &v, &err), 0);
     float frame[3 * MIM_LANDMARKS_MAX];
     for (uint32_t l = 0; l < map.count; l++) memcpy(frame + 3 * l, v.positions + 3 * (size_t)map.vertex[l], 12);
-    /* the descriptor section (index/blob_v5.c): after the head, ids,
+    /* the descriptor section (index/blob.c): after the head, ids,
      * subjects and poses, each 64-byte aligned */
     uint32_t ver, n;
     uint64_t hb;

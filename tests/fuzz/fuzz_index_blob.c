@@ -1,20 +1,17 @@
 /* libFuzzer harness: the recognition index blob as the store keeps it
- * (index/blob.c, index/blob_v5.c). The harness writes the header, and the
- * checksums, around the input, so that the fuzzer reaches the decoders
- * instead of stopping at a checksum. The first byte picks the layout:
- *   0, 1  version 1 or 2 (read by copying, blob.c); the input is the
- *         payload after the 32-byte header;
- *   2, 3  version 5 (4, 5: version 6, with the shape discriminants; used
- *         in place, blob_v5.c): bytes 1-2 give the head's
- *         size in units of 64 bytes, byte 3 the rows a chunk (1 + value),
- *         the rest is the blob after its 64-byte header; every checksum is
- *         then made right (mim__index_seal_v5), and for 3 one byte past the
- *         head is flipped after sealing (3, 5), so that a lazily verified
- *         section fails when a query first needs it.
- * Versions 3 to 5 hold kd-forests as FLANN's own bytes, which FLANN's
- * loader does not check; their checksum guards them against damage, but a
- * sealed input passes it, so the harness gives FLANN no forest: a version
- * 5 blob whose head lists one is only opened and closed. A blob that opens must answer
+ * (index/blob.c). The harness writes the 64-byte header, and the
+ * checksums, around the input, so that the fuzzer reaches the decoder
+ * instead of stopping at a checksum: bytes 1-2 of the input give the
+ * head's size in units of 64 bytes, byte 3 the rows a chunk (1 + value),
+ * the rest is the blob after its header; every checksum is then made
+ * right (mim__index_seal), and when the first byte is odd one byte past
+ * the head is flipped after sealing, so that a lazily verified section
+ * fails when a query first needs it. (Older versions are refused by their
+ * header's version alone: the index is rebuilt, not read.)
+ * A blob holds kd-forests as FLANN's own bytes, which FLANN's loader does
+ * not check; their checksum guards them against damage, but a sealed
+ * input passes it, so the harness gives FLANN no forest: a blob whose
+ * head lists one is only opened and closed. A blob that opens must answer
  * queries (or fail them with an error), be verified, saved and closed
  * without a memory error. */
 #include "mim_core.h"
@@ -23,7 +20,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-void mim__index_seal_v5(unsigned char *p, size_t len);
+void mim__index_seal(unsigned char *p, size_t len);
 
 static void exercise(mim_index_t *ix)
 {
@@ -43,31 +40,11 @@ static void exercise(mim_index_t *ix)
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     if (!size) return 0;
-    int mode = data[0] % 6;
+    int flip = data[0] % 2;
     data++, size--;
-    if (mode < 2) {
-        uint32_t version = 1 + (uint32_t)mode, order = 0x01020304, zero = 0;
-        unsigned char *blob = malloc(32 + size);
-        if (!blob) return 0;
-        uint64_t plen = size, sum = mim_hash64(data, size, 0x6d6978ULL);
-        memcpy(blob, "MIXB", 4);
-        memcpy(blob + 4, &version, 4);
-        memcpy(blob + 8, &plen, 8);
-        memcpy(blob + 16, &sum, 8);
-        memcpy(blob + 24, &order, 4);
-        memcpy(blob + 28, &zero, 4);
-        if (size) memcpy(blob + 32, data, size);
-        mim_index_t *ix = NULL;
-        if (mim_index_load(&ix, blob, 32 + size, NULL) == 0) {
-            exercise(ix);
-            mim_index_close(&ix);
-        }
-        free(blob);
-        return 0;
-    }
     if (size < 3) return 0;
     uint64_t hb = 64ull * (data[0] | (uint32_t)data[1] << 8);
-    uint32_t rows = 1u + data[2], version = mode < 4 ? 5 : 6, order = 0x01020304, hdr = 64;
+    uint32_t rows = 1u + data[2], version = 6, order = 0x01020304, hdr = 64;
     data += 3, size -= 3;
     if (hb > size) hb = size / 64 * 64;
     unsigned char *blob = NULL;
@@ -82,8 +59,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     memcpy(blob + 32, &hb, 8);
     memcpy(blob + 40, &rows, 4);
     if (size) memcpy(blob + 64, data, size);
-    mim__index_seal_v5(blob, 64 + size);
-    if (mode % 2 && size > hb) blob[64 + hb + (data[0] * 131u + data[size - 1]) % (size - hb)] ^= 0x10;
+    mim__index_seal(blob, 64 + size);
+    if (flip && size > hb) blob[64 + hb + (data[0] * 131u + data[size - 1]) % (size - hb)] ^= 0x10;
     /* a head that lists forests: FLANN must not see their (sealed, so
      * trusted) bytes; opening and the completion scan do not touch them */
     uint32_t nf = 0;
