@@ -353,7 +353,8 @@ static void test_stale_and_info(void **st)
     /* more templates: the index is stale until mimic index runs again */
     char *more = ts_path(g_dir, "more");
     const char *a1[] = {"synth", "--out", more, "--subjects", "1", "--poses", "3", "--vertices", "1500", "--seed", "77", NULL};
-    const char *a2[] = {"ingest", "--store", g_store, more, NULL};
+    /* more of the same dataset ("bodies", the first folder's name): its poses join the classes */
+    const char *a2[] = {"ingest", "--store", g_store, "--dataset", "bodies", more, NULL};
     assert_int_equal(run(NULL, NULL, a1), 0);
     assert_int_equal(run(NULL, NULL, a2), 0);
     assert_int_equal(run(&out, NULL, info), 0);
