@@ -200,6 +200,8 @@ int mim_cmd_transfer(int argc, char **argv)
     if (!rc) mim_session_output_parts(s, &n_parts);
     /* load: the store, the avatar and the template; factor: the avatar's Cholesky factor */
     const double t_load = t_open - t_factor + rep.seconds_query + rep.seconds_template, t_solve = rep.seconds_solve;
+    if (!rc && rep.degraded[0]) /* damage elsewhere in the store changed the output: never silently */
+        fprintf(stderr, "mimic transfer: warning: %s\n", rep.degraded);
     if (rc) {
         fprintf(stderr, "mimic transfer: %s\n", mim_error_text(&err));
     } else if (as_json) {
@@ -228,6 +230,7 @@ int mim_cmd_transfer(int argc, char **argv)
             json_object_set_new(j, "reference",
                                 rep.relative ? json_integer((json_int_t)rep.reference_id) : json_null());
             json_object_set_new(j, "references", refs);
+            json_object_set_new(j, "degraded", rep.degraded[0] ? json_string(rep.degraded) : json_null());
         } else {
             json_decref(ids);
         }

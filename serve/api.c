@@ -283,13 +283,16 @@ int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *r
         /* the label is "subject/pose" from the store: keep header-safe bytes */
         for (char *p = rep.label; *p; p++)
             if ((unsigned char)*p < 0x20 || *p == 0x7f) *p = '?';
+        for (char *p = rep.degraded; *p; p++)
+            if ((unsigned char)*p < 0x20 || *p >= 0x7f) *p = '?';
         status = mim__reply_take(rp, 200, "model/gltf-binary", glb, glen);
         glb = NULL;
         if (status == 200)
             snprintf(rp->headers, sizeof rp->headers,
                      "X-Mimic-Template: %llu\r\nX-Mimic-Template-Label: %s\r\nX-Mimic-Iterations: %u\r\n"
-                     "X-Mimic-Relative: %d\r\n",
-                     (unsigned long long)rep.template_id, rep.label, rep.xfer.iterations, rep.relative);
+                     "X-Mimic-Relative: %d\r\n%s%.300s%s",
+                     (unsigned long long)rep.template_id, rep.label, rep.xfer.iterations, rep.relative,
+                     rep.degraded[0] ? "X-Mimic-Degraded: " : "", rep.degraded, rep.degraded[0] ? "\r\n" : "");
     }
     if (own != out) free(own);
     free(glb), free(r), free(out);

@@ -106,7 +106,7 @@ typedef struct mim__reply {
     unsigned char *body;           /* malloc'd, owned; or NULL with */
     const unsigned char *fixed;    /* bytes that live as long as the program (viewer assets) */
     size_t len;
-    char headers[512];             /* extra header lines, each "Name: value\r\n" */
+    char headers[1024];            /* extra header lines, each "Name: value\r\n" */
     const char *cache;             /* Cache-Control value; NULL: no-store */
 } mim__reply_t;
 

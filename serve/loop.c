@@ -136,6 +136,7 @@ struct mim__loop {
     uint64_t recent_no[RECENT_FRAMES];               /* which frame each slot holds (frames_complete then) */
     float recent_u[RECENT_FRAMES][3 * MIM_LANDMARKS_MAX];
     char last_label[MIM_SESSION_LABEL_MAX];
+    char degraded[512]; /* the last key frame's mim_session_report_t.degraded: damage that changed it */
     double key_rate_hz, frame_rate_hz;
 };
 
@@ -309,6 +310,7 @@ static int make_key(mim__loop_t *l, const float *u, const mim_quat *R, const uin
     pthread_mutex_lock(&l->lock);
     l->last_template = rep->template_id;
     snprintf(l->last_label, sizeof l->last_label, "%s", k->label);
+    snprintf(l->degraded, sizeof l->degraded, "%s", rep->degraded);
     l->warm_starts += rep->warm_started;
     l->oriented_keys += rep->drive == MIM_DRIVE_ORIENTATION;
     l->iterations += rep->xfer.iterations;
@@ -807,6 +809,8 @@ json_t *mim__loop_status(mim__loop_t *l)
         "iterations_per_key", l->key_frames ? (double)l->iterations / (double)l->key_frames : 0.0,
         "completed_landmarks", (json_int_t)l->completed, "drive", mim_session_drive_names[l->opt.drive],
         "oriented_keys", (json_int_t)l->oriented_keys);
+    if (j)
+        json_object_set_new(j, "degraded", l->degraded[0] ? json_string(l->degraded) : json_null());
     pthread_mutex_unlock(&l->lock);
     return j;
 }

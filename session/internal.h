@@ -38,6 +38,7 @@ typedef struct subject_ref {
     double scale;               /* mim_xfer_encoding_scale (NaN: the blend takes 1) */
     double *W;                  /* its encoding, 3 * n */
     double *F;                  /* its frames, 9 * n; only when near (nothing else reads them) */
+    mim_error_t damage;         /* why it has none although the subject has templates: its record is damaged */
 } subject_ref_t;
 
 struct mim_session {
@@ -113,7 +114,10 @@ int mim__session_landmark_table(mim_session_t *s, const float **lm, char *const 
 
 /* Template id's reference for relative transfer (relative.c; under
  * s->lock), found on first need and kept in s->refs; *out NULL when it has
- * none (the plain path). */
-int mim__session_reference(mim_session_t *s, uint64_t id, subject_ref_t **out, mim_error_t *err);
+ * none (the plain path). When damage in the store is why (the landmark
+ * table or the reference's record cannot be read), *damage says so and
+ * the transfer reports it (mim_session_report_t.degraded). */
+int mim__session_reference(mim_session_t *s, uint64_t id, subject_ref_t **out, mim_error_t *damage,
+                           mim_error_t *err);
 
 #endif

@@ -252,6 +252,11 @@ typedef struct mim_session_report {
                                          turned (reference within the gate); the others gave their own */
     uint64_t reference_id;            /* with relative: the first template's reference; else 0 */
     uint64_t references[MIM_XFER_BLEND_MAX]; /* each template's (n_templates) */
+    /* Not empty when damage in the store changed this transfer: a record
+     * that could not be read made it take a fallback (relative transfer
+     * off for a subject or all). One line; the output is still a body, but
+     * not the one an undamaged store gives. */
+    char degraded[512];
 } mim_session_report_t;
 
 /* Transfers the avatar into one pose and writes its 3 * n positions to out:

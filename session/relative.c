@@ -69,6 +69,9 @@ static int make_reference(mim_session_t *s, const char *subject, const float *ta
          * avatar changes nothing; a reference that cannot be read (a damaged
          * record) leaves the subject on the plain path, once and for all */
         if (!rc && mim_session_template(s, ref->id, pos, F, NULL, 0, &terr)) {
+            mim_error_set(&ref->damage, terr.code, "relative transfer is off for subject %s: its reference, "
+                          "template %llu, cannot be read: %s", subject, (unsigned long long)ref->id,
+                          mim_error_text(&terr));
             free(ref->W), ref->W = NULL;
             ref->id = 0;
         }
@@ -90,10 +93,17 @@ static int make_reference(mim_session_t *s, const char *subject, const float *ta
     return 0;
 }
 
+static void damage_of(const subject_ref_t *ref, mim_error_t *damage)
+{
+    if (damage && ref->damage.code) *damage = ref->damage;
+}
+
 /* None when the template has no subject label, is not in the store's
  * landmark table (another connectivity), or the table cannot be read (a
- * damaged template elsewhere in the store must not stop transfers). */
-int mim__session_reference(mim_session_t *s, uint64_t id, subject_ref_t **out, mim_error_t *err)
+ * damaged template elsewhere in the store must not stop transfers, but it
+ * is reported: *damage). */
+int mim__session_reference(mim_session_t *s, uint64_t id, subject_ref_t **out, mim_error_t *damage,
+                           mim_error_t *err)
 {
     *out = NULL;
     const float *table;
@@ -101,8 +111,12 @@ int mim__session_reference(mim_session_t *s, uint64_t id, subject_ref_t **out, m
     const uint64_t *ids;
     uint32_t count;
     mim_error_t terr = {0};
-    if (mim__session_landmark_table(s, &table, &subjects, &ids, &count, &terr))
+    if (mim__session_landmark_table(s, &table, &subjects, &ids, &count, &terr)) {
+        if (damage)
+            mim_error_set(damage, terr.code, "relative transfer is off: the store's templates cannot be read: %s",
+                          mim_error_text(&terr));
         return 0;
+    }
     uint32_t lo = 0, hi = count; /* ids ascend */
     while (lo < hi) {
         uint32_t mid = lo + (hi - lo) / 2;
@@ -114,7 +128,10 @@ int mim__session_reference(mim_session_t *s, uint64_t id, subject_ref_t **out, m
     for (uint32_t i = 0; i < s->n_refs; i++)
         if (!strcmp(s->refs[i].subject, subjects[lo])) {
             *out = s->refs[i].id ? &s->refs[i] : NULL;
+            damage_of(&s->refs[i], damage);
             return 0;
         }
-    return make_reference(s, subjects[lo], table, subjects, ids, count, out, err);
+    int rc = make_reference(s, subjects[lo], table, subjects, ids, count, out, err);
+    if (!rc) damage_of(&s->refs[s->n_refs - 1], damage);
+    return rc;
 }

@@ -852,9 +852,12 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
     double keep_w[MIM_XFER_BLEND_MAX];
     for (uint32_t j = 0; relative && j < r->n_templates; j++) {
         subject_ref_t *found;
-        int rc = mim__session_reference(s, r->templates[j], &found, err);
+        mim_error_t damage = {0};
+        int rc = mim__session_reference(s, r->templates[j], &found, &damage, err);
         if (rc)
             return rc;
+        if (damage.code && !r->degraded[0])
+            snprintf(r->degraded, sizeof r->degraded, "%s", mim_error_text(&damage));
         if (!found || !found->near) continue;
         at[kept] = (size_t)(found - s->refs); /* an index: a later template's new reference may move s->refs */
         keep_id[kept] = r->templates[j], keep_w[kept] = weights ? weights[j] : 1.0;

@@ -9,6 +9,7 @@
 #include "mim_query.h"
 #include "serve_support.h"
 
+#include <jansson.h>
 #include <lmdb.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -329,6 +330,66 @@ static void test_flipped_byte(void **s)
  * issue 16): the index opens in place (only its head is read then), the
  * first query that needs those templates fails with MIM_EFORMAT, and every
  * later one, never reading them; mimic store check names the index. */
+/* mimic transfer --json with --avatar 1 --template 5 (subject 1's pose 1;
+ * its reference for relative transfer: template 4, subject 1 at rest) on
+ * store: exit 0, the report parsed, stderr in *errs. */
+static json_t *transfer_report(const char *store, char **errs)
+{
+    char *out = NULL, *o = ts_path(st_dir, "degraded.ply");
+    const char *args[] = {"transfer", "--store", store, "--avatar", "1", "--template", "5", "--json", "-o", o, NULL};
+    int code = st_exit_code(st_run(&out, errs, args), "transfer");
+    if (code) fail_msg("transfer on %s: exit %d: %s", store, code, *errs);
+    json_error_t je;
+    json_t *j = json_loads(out, 0, &je);
+    assert_non_null(j);
+    free(out), free(o);
+    return j;
+}
+
+/* Issue 30 item 6: damage elsewhere in the store (neither the avatar nor
+ * the chosen template) that makes a transfer take a fallback is said: a
+ * warning line and "degraded" in the report, not exit 0 in silence. */
+static void test_damage_fallback_reported(void **s)
+{
+    (void)s;
+    mim_db_t *db;
+    mim_db_txn_t *t;
+    mim_error_t err = {0};
+    st_begin_read(st_good, &db, &t);
+    mim_template_view_t v;
+    assert_int_equal(mim_db_template_get(t, 3, &v, &err), 0);
+    size_t n_pos = 12 * (size_t)v.n_vertices;
+    float *pos = malloc(n_pos);
+    memcpy(pos, v.positions, n_pos);
+    mim_db_abort(&t);
+    mim_db_close(&db);
+
+    /* undamaged: relative transfer over template 4, nothing degraded */
+    char *errs = NULL;
+    json_t *j = transfer_report(st_good, &errs);
+    assert_true(json_is_true(json_object_get(j, "relative")));
+    assert_int_equal(json_integer_value(json_object_get(j, "reference")), 4);
+    assert_true(json_is_null(json_object_get(j, "degraded")));
+    assert_null(strstr(errs, "warning"));
+    json_decref(j), free(errs);
+
+    /* another subject's template damaged: the templates cannot all be read */
+    char *store = st_copy_store("degraded_table", (size_t)-1);
+    st_flip_byte(store, st_find_bytes(store, pos, n_pos) + n_pos / 3);
+    j = transfer_report(store, &errs);
+    assert_true(json_is_false(json_object_get(j, "relative")));
+    const char *why = json_string_value(json_object_get(j, "degraded"));
+    assert_non_null(why);
+    assert_non_null(strstr(why, "relative transfer is off: the store's templates cannot be read"));
+    assert_non_null(strstr(why, "template 3: checksum mismatch"));
+    char want[1024];
+    snprintf(want, sizeof want, "mimic transfer: warning: %s\n", why);
+    assert_string_equal(errs, want);
+    json_decref(j), free(errs), free(store);
+
+    free(pos);
+}
+
 static void test_index_bulk_damage(void **s)
 {
     (void)s;
@@ -413,7 +474,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_truncated),  cmocka_unit_test(test_garbage),      cmocka_unit_test(test_not_mimic),
         cmocka_unit_test(test_every_page), cmocka_unit_test(test_flipped_byte),
-        cmocka_unit_test(test_index_bulk_damage),
+        cmocka_unit_test(test_index_bulk_damage), cmocka_unit_test(test_damage_fallback_reported),
     };
     return cmocka_run_group_tests(tests, st_setup, st_teardown);
 }
