@@ -275,6 +275,7 @@ typedef struct mim_pairs_samples {
     uint32_t n;
     double *joints;      /* n * 34 * 3, metres */
     double *log_density; /* n; NaN when the file gives null or none */
+    long *line;          /* n: each sample's line in the text (from 1); NULL in a set not parsed */
 } mim_pairs_samples_t;
 /* Parses a samples file: its header (the format and the 34 joint names, in
  * order) and every line after it (blank lines skipped). Errors, one line

@@ -34,7 +34,7 @@ char *mim_pairs_jsonl_line(const double *joints, double log_density)
 void mim_pairs_samples_free(mim_pairs_samples_t *s)
 {
     if (!s) return;
-    free(s->joints), free(s->log_density);
+    free(s->joints), free(s->log_density), free(s->line);
     memset(s, 0, sizeof *s);
 }
 
@@ -101,7 +101,9 @@ int mim_pairs_samples_parse(const char *text, size_t len, const char *origin, mi
             if (j) out->joints = j;
             double *d = realloc(out->log_density, (size_t)nc * sizeof *d);
             if (d) out->log_density = d;
-            if (!j || !d) {
+            long *l = realloc(out->line, (size_t)nc * sizeof *l);
+            if (l) out->line = l;
+            if (!j || !d || !l) {
                 rc = mim_error_set(err, MIM_ENOMEM, "%s: out of memory at %u samples", origin, out->n);
                 break;
             }
@@ -132,7 +134,10 @@ int mim_pairs_samples_parse(const char *text, size_t len, const char *origin, mi
                 else dst[3 * i + c] = x;
             }
         }
-        if (!rc) out->log_density[out->n++] = ld && json_is_number(ld) ? json_number_value(ld) : NAN;
+        if (!rc) {
+            out->line[out->n] = line_no;
+            out->log_density[out->n++] = ld && json_is_number(ld) ? json_number_value(ld) : NAN;
+        }
         json_decref(o);
     }
     if (!rc && !have_header) rc = mim_error_set(err, MIM_EEMPTY, "%s: empty: no header line", origin);

@@ -25,7 +25,8 @@
 # query and session compose them with db/ and io/ (no arrow sideways between
 # ingest and query; session sits above both: the one pipeline uses query,
 # a foreign avatar is registered through ingest's registrar; the orientation
-# drive segments the avatar over vest's skeleton); serve/ uses
+# drive segments the avatar over vest's skeleton; sampled pose-pairs become
+# templates through it, read with sample's joints); serve/ uses
 # everything below it; cli/ everything. synth/ (the procedural bodies) uses
 # core only. `*` means any module.
 TABLE='
@@ -40,7 +41,7 @@ sample:    core
 register:  core transfer
 query:     core db index
 ingest:    core db io transfer register
-session:   core db io transfer register index query ingest vest
+session:   core db io transfer register index query ingest vest sample
 serve:     core db io transfer register index query ingest sample vest synth session
 cli:       *
 '

@@ -5,11 +5,9 @@
  * the store checks clean, and mimic query recognises each sampled person
  * as its own new template, where before it answered an old one. Bad input
  * gets its exit status and one line, and leaves the store as it was. */
-#include "test_support.h"
+#include "pairs_support.h"
 
 #include "mim_db.h"
-#include "mim_io.h"
-#include "mim_sample.h"
 
 #include <jansson.h>
 #include <limits.h>
@@ -18,10 +16,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define SUBJECTS 3
-#define POSES 4
-#define OLD (SUBJECTS * POSES)
-#define J MIM_PAIR_PERSON_JOINTS
+#define OLD TP_OLD
+#define J TP_J
+#define PEOPLE TP_PEOPLE
 
 static char *dir, *bodies, *store;
 static mim_landmark_map_t map;
@@ -87,76 +84,15 @@ static json_t *find_template(json_t *list, uint64_t id)
 
 /* ---- people ---- */
 
-static int joint(const char *name)
-{
-    for (int j = 0; j < J; j++)
-        if (!strcmp(mim_sample_joint_names[j], name)) return j;
-    fail_msg("no joint %s", name);
-    return -1;
-}
-
-/* Turns the named joints about joint `about` by angle a around axis x, y
- * or z (radians). */
-static void turn(double p[J][3], const char *about, char axis, double a, const char *const *names)
-{
-    const double *c0 = p[joint(about)];
-    const double c[3] = {c0[0], c0[1], c0[2]}, ca = cos(a), sa = sin(a);
-    for (; *names; names++) {
-        double *q = p[joint(*names)], x = q[0] - c[0], y = q[1] - c[1], z = q[2] - c[2], u, v;
-        if (axis == 'x') u = y * ca - z * sa, v = y * sa + z * ca, y = u, z = v;
-        else if (axis == 'y') u = x * ca + z * sa, v = -x * sa + z * ca, x = u, z = v;
-        else u = x * ca - y * sa, v = x * sa + y * ca, x = u, y = v;
-        q[0] = c[0] + x, q[1] = c[1] + y, q[2] = c[2] + z;
-    }
-}
-
-/* The whole person turned about the vertical through the origin, then moved. */
-static void place(double p[J][3], double a, double dx, double dz)
-{
-    for (int j = 0; j < J; j++) {
-        double x = p[j][0], z = p[j][2];
-        p[j][0] = cos(a) * x + sin(a) * z + dx;
-        p[j][2] = -sin(a) * x + cos(a) * z + dz;
-    }
-}
-
-/* The four people of the samples file: subject 0 at rest, each with limbs
- * turned into a pose the store does not have (its poses: rest, T, arms up,
- * walk). Facing +Z, the body's left +X. */
-#define PEOPLE 4
+/* The four people of the samples file (tp_make_people). */
 static double people[PEOPLE][J][3];
 static const long people_line[PEOPLE] = {2, 2, 4, 4};
 static const char people_person[PEOPLE] = {'a', 'b', 'a', 'b'};
 
-static void make_people(void)
-{
-    for (int k = 0; k < PEOPLE; k++) memcpy(people[k], rest, sizeof rest);
-    /* 2a: the left arm straight forward */
-    turn(people[0], "l_shoulder", 'x', -1.4, (const char *[]){"l_elbow", "l_wrist", NULL});
-    /* 2b: the right leg lifted forward; turned to face person a, 1.5 m away */
-    turn(people[1], "r_hip", 'x', -1.2, (const char *[]){"r_knee", "r_ankle", NULL});
-    place(people[1], M_PI, 1.5, 0.3);
-    /* 4a: the right arm forward and up, the left forearm bent forward */
-    turn(people[2], "r_shoulder", 'x', -2.2, (const char *[]){"r_elbow", "r_wrist", NULL});
-    turn(people[2], "l_elbow", 'x', -1.5, (const char *[]){"l_wrist", NULL});
-    /* 4b: the left knee bent back, the left arm out and up; turned a
-     * quarter, elsewhere */
-    turn(people[3], "l_knee", 'x', 1.3, (const char *[]){"l_ankle", NULL});
-    turn(people[3], "l_shoulder", 'z', 2.0, (const char *[]){"l_elbow", "l_wrist", NULL});
-    place(people[3], M_PI / 2, -1.4, 0.2);
-}
-
-/* A person's landmarks in the store map's order (3 * count floats). */
-static void landmarks_of(double p[J][3], float *out)
-{
-    for (uint32_t l = 0; l < map.count; l++)
-        for (int c = 0; c < 3; c++) out[3 * l + c] = (float)p[joint(map.names[l])][c];
-}
-
 static char *write_frame(const char *name, double p[J][3])
 {
     float lm[3 * MIM_LANDMARKS_MAX];
-    landmarks_of(p, lm);
+    tp_landmarks_of(&map, p, lm);
     json_t *arr = json_array();
     for (uint32_t l = 0; l < map.count; l++)
         json_array_append_new(arr,
@@ -228,47 +164,14 @@ static uint64_t nearest(const char *st, double p[J][3], double *distance, char *
     return id;
 }
 
-/* A copy of the store (its data.mdb) in a new folder. */
-static char *copy_store(const char *name)
-{
-    char *to = ts_path(dir, name), *src = ts_path(store, "data.mdb"), *dst = ts_path(to, "data.mdb");
-    char cmd[PATH_MAX + 16];
-    snprintf(cmd, sizeof cmd, "mkdir -p '%s'", to);
-    assert_int_equal(system(cmd), 0);
-    size_t len = 0;
-    char *bytes = ts_read_file(src, &len);
-    assert_non_null(bytes);
-    assert_int_equal(ts_write_file(dst, bytes, len), 0);
-    free(bytes), free(src), free(dst);
-    return to;
-}
-
 /* ---- fixture ---- */
 
 static int setup(void **state)
 {
     (void)state;
     dir = ts_tempdir("pairstpl");
-    bodies = ts_path(dir, "bodies");
-    store = ts_path(dir, "store");
-    const char *synth[] = {"synth", "--out", bodies, "--subjects", "3", "--poses", "4", "--vertices", "1500", NULL};
-    const char *ingest[] = {"ingest", "--store", store, bodies, NULL};
-    const char *index[] = {"index", "--store", store, NULL};
-    int rc = run(NULL, NULL, synth);
-    if (!rc) rc = run(NULL, NULL, ingest);
-    if (!rc) rc = run(NULL, NULL, index);
-    char *lm = ts_path(bodies, "landmarks.json"), *ply = ts_path(bodies, "synth_s00_p00.ply");
-    mim_mesh_t m = {0};
-    if (!rc) rc = mim_landmarks_read(&map, lm, NULL);
-    if (!rc) rc = mim_io_read_mesh(ply, &m, NULL);
-    if (!rc) {
-        for (uint32_t l = 0; l < map.count; l++)
-            for (int c = 0; c < 3; c++) rest[joint(map.names[l])][c] = m.positions[3 * (size_t)map.vertex[l] + c];
-        for (int c = 0; c < 3; c++) rest[joint("neck")][c] = 0.5 * (rest[joint("head")][c] + rest[joint("chest")][c]);
-        make_people();
-    }
-    mim_mesh_free(&m);
-    free(lm), free(ply);
+    int rc = tp_synth_store(dir, &bodies, &store, &map, rest);
+    if (!rc) tp_make_people(rest, people);
     return rc;
 }
 
@@ -363,19 +266,15 @@ static void test_sampled_templates(void **s)
     /* each new template holds its person's landmarks (up to a rigid
      * motion: distances between landmarks kept within 5 mm), and has its
      * encoding */
-    mim_db_t *db = NULL;
-    mim_db_txn_t *t = NULL;
-    mim_db_options_t o = {.read_only = 1};
-    assert_int_equal(mim_db_open(&db, store, &o, NULL), 0);
-    assert_int_equal(mim_db_begin(db, 0, &t, NULL), 0);
+    mim_db_t *db;
+    mim_db_txn_t *t;
+    tp_begin_read(store, &db, &t);
     for (int k = 0; k < PEOPLE; k++) {
         mim_template_view_t v;
-        mim_db_encoding_t e;
-        assert_int_equal(mim_db_template_get(t, id[k], &v, NULL), 0);
-        assert_int_equal(mim_db_encoding_get(t, id[k], &e, NULL), 0);
+        tp_template_encoded(t, id[k], &v);
         assert_int_equal(mim_body_check(v.positions, v.n_vertices, "sampled", NULL), 0);
         float want[3 * MIM_LANDMARKS_MAX];
-        landmarks_of(people[k], want);
+        tp_landmarks_of(&map, people[k], want);
         double worst = 0;
         for (uint32_t a = 0; a < map.count; a++)
             for (uint32_t b = a + 1; b < map.count; b++) {
@@ -399,7 +298,7 @@ static void test_sampled_templates(void **s)
 static void test_options(void **s)
 {
     (void)s;
-    char *samples = good_samples(), *st = copy_store("options"), *out = NULL, *err = NULL;
+    char *samples = good_samples(), *st = tp_copy_store(dir, store, "options"), *out = NULL, *err = NULL;
     size_t n0 = count_templates(st);
     const char *a1[] = {"pairs", "templates", "--store", st, "--samples", samples, "--avatar", "5", "--person", "b",
                         "--max", "1", "--label-prefix", "x-", "--json", NULL};
@@ -435,7 +334,7 @@ static void test_options(void **s)
 static void test_bad_input(void **s)
 {
     (void)s;
-    char *st = copy_store("bad"), *good = good_samples();
+    char *st = tp_copy_store(dir, store, "bad"), *good = good_samples();
     const size_t n0 = count_templates(st);
     char *missing = ts_path(dir, "missing.jsonl");
     char *empty = write_samples("empty.jsonl", NULL, 0, 0);
@@ -448,7 +347,7 @@ static void test_bad_input(void **s)
     for (int j = 0; j < J; j++)
         for (int c = 0; c < 3; c++) point[j][c] = 0.5;
     memcpy(folded, people[0], sizeof folded);
-    memcpy(folded[joint("l_wrist")], folded[joint("l_elbow")], sizeof folded[0]);
+    memcpy(folded[tp_joint("l_wrist")], folded[tp_joint("l_elbow")], sizeof folded[0]);
     char *l1 = pair_line(people[0], point), *l2 = pair_line(folded, people[1]);
     char *degenerate = write_samples("point.jsonl", (const char *[]){l1}, 1, 1);
     char *coincident = write_samples("coincident.jsonl", (const char *[]){l2}, 1, 1);
