@@ -238,7 +238,7 @@ static int open_store(const char *store, mim_session_t **s)
             rc = mim_error_set(&err, MIM_EUNSUPPORTED, "%s: the store's landmark '%s' is not a joint of pose-pair "
                                                        "samples (head, chest, pelvis, ..., spine, neck)",
                                store, map->names[l]);
-    if (rc) { /* the command cannot run (README: exit status) */
+    if (rc) { /* the command cannot run (docs/reference.md: exit statuses) */
         fprintf(stderr, "mimic " CMD ": %s\n", mim_error_text(&err));
         mim_session_close(s);
         return 2;
