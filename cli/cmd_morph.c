@@ -144,7 +144,7 @@ int mim_cmd_morph(int argc, char **argv)
     mim_session_options_t so;
     mim_cli_session_options(&so, &av);
     int rc = mim_session_open(&s, store, &so, &err);
-    if (rc) { /* the command cannot run (README: exit status) */
+    if (rc) { /* the command cannot run (docs/reference.md: exit statuses) */
         fprintf(stderr, "mimic morph: %s\n", mim_error_text(&err));
         return 2;
     }

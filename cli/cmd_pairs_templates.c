@@ -76,7 +76,7 @@ static int open_store(const char *store, mim_session_t **s)
     mim_cli_session_options(&so, NULL);
     int rc = mim_session_open(s, store, &so, &err);
     if (!rc) rc = mim_session_pairs_check(*s, &err);
-    if (rc) { /* the command cannot run (README: exit status) */
+    if (rc) { /* the command cannot run (docs/reference.md: exit statuses) */
         fprintf(stderr, "mimic " CMD ": %s\n", mim_error_text(&err));
         mim_session_close(s);
         return 2;

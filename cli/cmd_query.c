@@ -70,7 +70,7 @@ int mim_cmd_query(int argc, char **argv)
     const mim_query_t *q = rc ? NULL : mim_session_query(s);
     if (!rc && !q)
         rc = mim_error_set(&err, MIM_ENOTFOUND, "%s: store has no index (run mimic index)", store);
-    if (rc) { /* the command cannot run (README: exit status) */
+    if (rc) { /* the command cannot run (docs/reference.md: exit statuses) */
         fprintf(stderr, "mimic query: %s\n", mim_error_text(&err));
         mim_session_close(&s);
         return 2;

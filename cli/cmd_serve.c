@@ -306,7 +306,7 @@ static int run(int argc, char **argv, spec_list_t *specs)
     mim_session_options_t so;
     mim_cli_session_options(&so, &av);
     rc = mim_session_open(&session, store, &so, &err);
-    if (rc) { /* the command cannot run (README: exit status) */
+    if (rc) { /* the command cannot run (docs/reference.md: exit statuses) */
         fprintf(stderr, "mimic serve: %s\n", mim_error_text(&err));
         return 2;
     }

@@ -150,7 +150,7 @@ int mim_cmd_transfer(int argc, char **argv)
     int rc = mim_session_open(&s, store, &so, &err);
     if (!rc && !tmpl_arg && !mim_session_query(s))
         rc = mim_error_set(&err, MIM_ENOTFOUND, "%s: store has no index (run mimic index)", store);
-    if (rc) { /* the command cannot run (README: exit status) */
+    if (rc) { /* the command cannot run (docs/reference.md: exit statuses) */
         mim_session_close(&s);
         fprintf(stderr, "mimic transfer: %s\n", mim_error_text(&err));
         return 2;

@@ -1,5 +1,5 @@
 /* Plausibility: what a body mesh and a landmark skeleton can be, stated once
- * (the limits are in mim_core.h, the README repeats them). Readers and the
+ * (the limits are in mim_core.h, docs/reference.md repeats them). Readers and the
  * landmark parser accept any finite numbers; these checks turn away what no
  * body gives (every vertex at one point, a coordinate of 3e38, 16 landmarks
  * at one point) with one line that says which vertex or landmark and why,

@@ -196,7 +196,7 @@ static void test_ingest_info_list(void **s)
 }
 
 /* The demo's path: synth -> ingest -> info, labels from the synth names. */
-/* README's exit-status table: a store that will not open is "the command
+/* The exit-status table (docs/reference.md): a store that will not open is "the command
  * could not run" (2) for every command that takes --store, with one line
  * that names the store. */
 static void test_store_open_exit_status(void **s)

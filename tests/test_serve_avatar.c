@@ -827,7 +827,7 @@ static void test_bad_avatars(void **state)
                         "127.0.0.1:0", NULL};
     expect_refused("a landmark file with a null", a3, 1, "nulls.json", "l_wrist");
     /* a store without index: the registration starts from the nearest
-     * template, which needs it; the command could not run (README: exit
+     * template, which needs it; the command could not run (docs/reference.md: exit
      * status 2, as for every "no index where one is needed") */
     const char *a4[] = {"serve", "--store", store_noidx, "--avatar", av_path, "--listen", "127.0.0.1:0", NULL};
     expect_refused("a store without index", a4, 2, "avatar.ply", "mimic index");

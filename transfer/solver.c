@@ -365,7 +365,7 @@ int mim_xfer_solver_open(mim_xfer_solver_t **out, const mim_xfer_topology_t *t,
     s->cc.print = 0;
     s->cc.supernodal = o.supernodal ? CHOLMOD_SUPERNODAL : CHOLMOD_SIMPLICIAL;
     /* AMD only: on these meshes METIS and NESDIS give more fill than AMD,
-     * not less, and take several times its analysis time (README.md,
+     * not less, and take several times its analysis time (docs/development.md,
      * "Notes on the libraries") */
     s->cc.nmethods = 1;
     s->cc.method[0].ordering = CHOLMOD_AMD;
