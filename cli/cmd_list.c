@@ -1,6 +1,7 @@
 /* mimic list: one row per template. JSON: schemas/list.schema.json. */
 #include "args.h"
 #include "commands.h"
+#include "mim_register.h"
 #include "mim_db.h"
 
 #include <getopt.h>
@@ -14,7 +15,10 @@ static void help(FILE *out)
     fprintf(out, "usage: mimic list --store DIR [--subject S] [--pose P] [--json]\n\n"
                  "Lists the templates of a store: id, subject, pose and source path, and for a\n"
                  "template registered from a mesh of another connectivity its fit to that mesh\n"
-                 "(\"registered MEAN/P95 mm\": mean and 95th-percentile surface distance).\n\n"
+                 "(\"registered MEAN/P95 mm\": mean and 95th-percentile surface distance) and its\n"
+                 "landmarks' mean distance to the mesh's; --json adds how well the correspondence\n"
+                 "holds: the largest landmark distance, the enclosed volume against the starting\n"
+                 "template's, and the distortion of each body region.\n\n"
                  "  --store DIR    the template store\n"
                  "  --subject S    only templates of subject S\n"
                  "  --pose P       only templates in pose P\n"
@@ -43,18 +47,27 @@ static int row(const mim_template_view_t *t, void *user)
     if (l->rows) {
         json_t *o = json_pack("{s:I, s:s, s:s, s:s, s:s}", "id", (json_int_t)t->id, "subject", t->subject, "pose",
                               t->pose, "dataset", t->dataset, "source", t->source);
-        if (o && registered)
-            json_object_set_new(o, "registration",
-                                json_pack("{s:f, s:f, s:f, s:I, s:I}", "mean_mm", reg.mean_mm, "p95_mm", reg.p95_mm,
-                                          "max_mm", reg.max_mm, "iterations", (json_int_t)reg.iterations,
-                                          "source_vertices", (json_int_t)reg.source_vertices));
+        json_t *rj = registered ? json_pack("{s:f, s:f, s:f, s:f, s:I, s:I}", "mean_mm", reg.mean_mm, "p95_mm",
+                                            reg.p95_mm, "max_mm", reg.max_mm, "landmark_mean_mm", reg.landmark_mean_mm,
+                                            "iterations", (json_int_t)reg.iterations, "source_vertices",
+                                            (json_int_t)reg.source_vertices)
+                                : NULL;
+        if (rj && reg.quality.present) { /* how well the correspondence holds, beside how close the surface lies */
+            json_t *dist = json_object();
+            for (int g = 0; g < MIM_DB_REG_REGIONS; g++)
+                json_object_set_new(dist, mim_reg_region_names[g], json_real(reg.quality.distortion_pct[g]));
+            json_object_set_new(rj, "landmark_max_mm", json_real(reg.quality.landmark_max_mm));
+            json_object_set_new(rj, "volume_ratio", json_real(reg.quality.volume_ratio));
+            json_object_set_new(rj, "distortion_percent", dist);
+        }
+        if (o && rj) json_object_set_new(o, "registration", rj);
         if (!o || json_array_append_new(l->rows, o)) return mim_error_set(l->err, MIM_ENOMEM, "out of memory");
         return 0;
     }
     printf("%8llu  %-10s %-10s %s", (unsigned long long)t->id, t->subject[0] ? t->subject : "-",
            t->pose[0] ? t->pose : "-", t->source);
     if (t->dataset[0]) printf("  dataset %s", t->dataset);
-    if (registered) printf("  registered %.2f/%.2f mm", reg.mean_mm, reg.p95_mm);
+    if (registered) printf("  registered %.2f/%.2f mm, landmarks %.1f mm", reg.mean_mm, reg.p95_mm, reg.landmark_mean_mm);
     printf("\n");
     return 0;
 }

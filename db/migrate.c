@@ -180,7 +180,17 @@ static int migrate_tables(mim_db_txn_t *t, mim_error_t *e)
     return 0;
 }
 
-_Static_assert(MIM_STORE_SCHEMA_VERSION == 3, "a new schema version needs its step in mim__db_migrate");
+/* 3 -> 4: nothing to rewrite. Version 4 added a template's dataset (the
+ * u16 at offset 46 every earlier record holds as 0: no dataset) and
+ * registration records with quality figures ("MRG4"; "MRG3" ones stay
+ * valid). An older mimic must refuse such a store rather than misread it. */
+static int migrate_none(mim_db_txn_t *t)
+{
+    t->version = 4;
+    return 0;
+}
+
+_Static_assert(MIM_STORE_SCHEMA_VERSION == 4, "a new schema version needs its step in mim__db_migrate");
 
 int mim__db_migrate(mim_db_txn_t *t, const mim_db_options_t *opt, mim_error_t *err)
 {
@@ -197,6 +207,7 @@ int mim__db_migrate(mim_db_txn_t *t, const mim_db_options_t *opt, mim_error_t *e
     mim_error_t e = {0};
     if (t->version == 1) rc = migrate_checksums(t, &prog, &e);
     if (!rc && t->version == 2) rc = migrate_tables(t, &e);
+    if (!rc && t->version == 3) rc = migrate_none(t);
     if (!rc) {
         uint64_t ver = MIM_STORE_SCHEMA_VERSION;
         MDB_val k = {14, "schema_version"}, d = {8, &ver};
@@ -212,10 +223,10 @@ int mim__db_migrate(mim_db_txn_t *t, const mim_db_options_t *opt, mim_error_t *e
         if (from == 1)
             snprintf(checksums, sizeof checksums, "%llu templates and %llu encodings now carry checksums; ",
                      (unsigned long long)st.ms_entries, (unsigned long long)se.ms_entries);
-        mim_log_emit(opt->log, opt->log_ctx, MIM_LOG_INFO,
-                     "%s: migrated from schema version %u to %d: %sadded the registrations, by_source and bindings "
-                     "tables (empty)",
-                     db->path, from, MIM_STORE_SCHEMA_VERSION, checksums);
+        mim_log_emit(opt->log, opt->log_ctx, MIM_LOG_INFO, "%s: migrated from schema version %u to %d: %s%s", db->path,
+                     from, MIM_STORE_SCHEMA_VERSION, checksums,
+                     from < 3 ? "added the registrations, by_source and bindings tables (empty)"
+                              : "nothing rewritten (templates may now carry a dataset, registrations quality figures)");
     }
     return 0;
 }

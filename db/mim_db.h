@@ -196,6 +196,7 @@ int mim_db_encoding_get(mim_db_txn_t *txn, uint64_t id, mim_db_encoding_t *out, 
  * ingest that meets the same source again finds it by the source's hash
  * (mim_db_registration_find), not by the template's content hash.
  * Layout: schemas/store.md. */
+#define MIM_DB_REG_REGIONS 6
 typedef struct mim_db_registration {
     uint64_t template_id;
     uint64_t source_hash;     /* the caller's hash of the source mesh (positions and faces) */
@@ -203,7 +204,17 @@ typedef struct mim_db_registration {
     uint32_t iterations;
     double mean_mm, p95_mm, max_mm; /* surface distance, registered result to the source */
     double landmark_mean_mm;
+    /* How well the correspondence holds (register/'s report), beside how
+     * close the surface lies: absent (present 0) in records of schema
+     * version 3. Regions: head, torso, arms, hands, legs, feet. */
+    struct mim_db_registration_quality {
+        int present;
+        double landmark_max_mm;
+        double volume_ratio;                       /* enclosed volume / the starting template's, > 0 */
+        double distortion_pct[MIM_DB_REG_REGIONS]; /* rms change of edge lengths from the starting template, % */
+    } quality;
 } mim_db_registration_t;
+typedef struct mim_db_registration_quality mim_db_registration_quality_t;
 /* Stores (or replaces) the registration of r->template_id, which must be
  * stored (MIM_ENOTFOUND otherwise: a registration never outlives its
  * template). source_vertices > 0; the distances finite and >= 0

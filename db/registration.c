@@ -1,13 +1,16 @@
-/* Registration records (schema version 3): how a template made by
+/* Registration records (schema versions 3 and 4): how a template made by
  * register/ from a mesh of another connectivity came about. Two tables
  * (schemas/store.md):
- *   registrations  u64 template id -> record (72 bytes, little-endian):
- *     0  "MRG3"            4  u32 record bytes (72)
- *     8  u64 checksum: XXH3-64 of bytes 16..71
+ *   registrations  u64 template id -> record (little-endian):
+ *     0  "MRG3" or "MRG4"  4  u32 record bytes (72 or 136)
+ *     8  u64 checksum: XXH3-64 of bytes 16..end
  *    16  u64 template id  24  u64 source hash
  *    32  u32 source vertices  36 u32 iterations
  *    40  f64 mean mm      48  f64 p95 mm     56  f64 max mm
  *    64  f64 landmark mean mm
+ *   MRG4 only, the correspondence quality:
+ *    72  f64 landmark max mm   80  f64 volume ratio
+ *    88  f64 distortion % x 6 (head, torso, arms, hands, legs, feet)
  *   by_source      u64 source hash -> sorted duplicate u64 template ids
  *                  (like by_hash): ingest's "is this source registered?"
  *                  in one lookup, without reading every registration.
@@ -22,9 +25,17 @@
 #include <stdio.h>
 #include <string.h>
 
-#define REG_SIZE 72
+#define REG_SIZE 72    /* MRG3 */
+#define REG4_SIZE 136  /* MRG4: REG_SIZE and the quality */
 
 static int is_distance(double x) { return isfinite(x) && x >= 0; }
+
+static int quality_valid(const mim_db_registration_quality_t *q)
+{
+    int ok = is_distance(q->landmark_max_mm) && isfinite(q->volume_ratio) && q->volume_ratio > 0;
+    for (int g = 0; g < MIM_DB_REG_REGIONS; g++) ok = ok && is_distance(q->distortion_pct[g]);
+    return ok;
+}
 
 int mim__db_registration_decode(const mim_db_txn_t *t, const MDB_val *v, uint64_t key, mim_db_registration_t *out,
                                 mim_error_t *err)
@@ -35,15 +46,16 @@ int mim__db_registration_decode(const mim_db_txn_t *t, const MDB_val *v, uint64_
     int rc = mim__db_span(t, v, what, err);
     if (rc) return rc;
     const unsigned char *p = v->mv_data;
-    if (v->mv_size < 16 || memcmp(p, "MRG3", 4))
+    const int v4 = v->mv_size >= 16 && !memcmp(p, "MRG4", 4);
+    if (v->mv_size < 16 || (!v4 && memcmp(p, "MRG3", 4)))
         return mim__db_damaged(t->db, err, "%s: record is not a registration (bad magic)", what);
-    uint32_t size;
+    uint32_t size, want = v4 ? REG4_SIZE : REG_SIZE;
     uint64_t ck;
     memcpy(&size, p + 4, 4);
     memcpy(&ck, p + MIM__CK_OFFSET, 8);
-    if (size != REG_SIZE || v->mv_size != REG_SIZE)
-        return mim__db_damaged(t->db, err, "%s: record has %zu bytes, its header says %u (a registration has %d)", what,
-                               v->mv_size, size, REG_SIZE);
+    if (size != want || v->mv_size != want)
+        return mim__db_damaged(t->db, err, "%s: record has %zu bytes, its header says %u (a registration has %u)", what,
+                               v->mv_size, size, want);
     if (ck != mim__db_checksum(p, v->mv_size)) return mim__db_damaged(t->db, err, "%s: checksum mismatch", what);
     mim_db_registration_t r;
     memcpy(&r.template_id, p + 16, 8);
@@ -54,8 +66,15 @@ int mim__db_registration_decode(const mim_db_txn_t *t, const MDB_val *v, uint64_
     memcpy(&r.p95_mm, p + 48, 8);
     memcpy(&r.max_mm, p + 56, 8);
     memcpy(&r.landmark_mean_mm, p + 64, 8);
+    memset(&r.quality, 0, sizeof r.quality);
+    if (v4) {
+        r.quality.present = 1;
+        memcpy(&r.quality.landmark_max_mm, p + 72, 8);
+        memcpy(&r.quality.volume_ratio, p + 80, 8);
+        memcpy(r.quality.distortion_pct, p + 88, 8 * MIM_DB_REG_REGIONS);
+    }
     if (r.template_id != key || r.source_vertices == 0 || !is_distance(r.mean_mm) || !is_distance(r.p95_mm) ||
-        !is_distance(r.max_mm) || !is_distance(r.landmark_mean_mm))
+        !is_distance(r.max_mm) || !is_distance(r.landmark_mean_mm) || (v4 && !quality_valid(&r.quality)))
         return mim__db_damaged(t->db, err, "%s: record layout is inconsistent", what);
     *out = r;
     return 0;
@@ -124,10 +143,11 @@ int mim_db_registration_put(mim_db_txn_t *t, const mim_db_registration_t *r, mim
     if (!t->write) return mim_error_set(err, MIM_EINVAL, "registration put needs a write transaction");
     unsigned long long id = (unsigned long long)r->template_id;
     if (r->source_vertices == 0 || !is_distance(r->mean_mm) || !is_distance(r->p95_mm) || !is_distance(r->max_mm) ||
-        !is_distance(r->landmark_mean_mm))
+        !is_distance(r->landmark_mean_mm) || (r->quality.present && !quality_valid(&r->quality)))
         return mim_error_set(err, MIM_EINVAL,
                              "registration of template %llu: %u source vertices, distances %g/%g/%g mm, landmarks %g "
-                             "mm (a source has vertices; distances are finite and >= 0)",
+                             "mm, or its quality figures (a source has vertices; distances and distortions are finite "
+                             "and >= 0, a volume ratio > 0)",
                              id, r->source_vertices, r->mean_mm, r->p95_mm, r->max_mm, r->landmark_mean_mm);
     /* a registration never outlives its template: the template must be here */
     size_t key = (size_t)r->template_id;
@@ -149,9 +169,10 @@ int mim_db_registration_put(mim_db_txn_t *t, const mim_db_registration_t *r, mim
         if (rc && rc != MDB_NOTFOUND) return mim__db_fail(t->db, err, rc, "source index");
     }
 
-    unsigned char rec[REG_SIZE] = {0};
-    uint32_t size = REG_SIZE;
-    memcpy(rec, "MRG3", 4);
+    /* without quality figures, the version 3 layout: nothing to leave blank */
+    unsigned char rec[REG4_SIZE] = {0};
+    uint32_t size = r->quality.present ? REG4_SIZE : REG_SIZE;
+    memcpy(rec, r->quality.present ? "MRG4" : "MRG3", 4);
     memcpy(rec + 4, &size, 4);
     memcpy(rec + 16, &r->template_id, 8);
     memcpy(rec + 24, &r->source_hash, 8);
@@ -161,9 +182,14 @@ int mim_db_registration_put(mim_db_txn_t *t, const mim_db_registration_t *r, mim
     memcpy(rec + 48, &r->p95_mm, 8);
     memcpy(rec + 56, &r->max_mm, 8);
     memcpy(rec + 64, &r->landmark_mean_mm, 8);
-    uint64_t ck = mim__db_checksum(rec, sizeof rec);
+    if (r->quality.present) {
+        memcpy(rec + 72, &r->quality.landmark_max_mm, 8);
+        memcpy(rec + 80, &r->quality.volume_ratio, 8);
+        memcpy(rec + 88, r->quality.distortion_pct, 8 * MIM_DB_REG_REGIONS);
+    }
+    uint64_t ck = mim__db_checksum(rec, size);
     memcpy(rec + MIM__CK_OFFSET, &ck, 8);
-    MDB_val d = {sizeof rec, rec};
+    MDB_val d = {size, rec};
     if ((rc = mdb_put(t->txn, t->db->dbi[DBI_REGISTRATIONS], &k, &d, 0))) return mim__db_fail(t->db, err, rc, "registration");
     size_t h = (size_t)r->source_hash;
     MDB_val hk = {sizeof h, &h}, hv = {sizeof key, &key};

@@ -13,6 +13,7 @@
 #include "mim_register.h"
 #include "mim_transfer.h"
 
+#include <math.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -120,7 +121,14 @@ static int register_foreign(work_t *w, slot_t *s, const char *path)
                              (unsigned long long)from);
     }
     s->reg = (mim_db_registration_t){0, hash, s->mesh.n_vertices, rep.iterations, rep.mean_mm, rep.p95_mm,
-                                     rep.max_mm, rep.landmark_mean_mm};
+                                     rep.max_mm, rep.landmark_mean_mm, {0}};
+    _Static_assert(MIM_DB_REG_REGIONS == MIM_REG_REGIONS, "the store keeps register/'s regions");
+    if (isfinite(rep.volume_ratio) && rep.volume_ratio > 0) { /* a template of no volume (open) has none to keep */
+        s->reg.quality.present = 1;
+        s->reg.quality.landmark_max_mm = rep.landmark_max_mm;
+        s->reg.quality.volume_ratio = rep.volume_ratio;
+        memcpy(s->reg.quality.distortion_pct, rep.distortion_pct, sizeof s->reg.quality.distortion_pct);
+    }
     mim_mesh_free(&s->mesh);
     s->mesh = out;
     s->registered = 1;

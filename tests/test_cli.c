@@ -153,7 +153,7 @@ static void test_ingest_info_list(void **s)
     assert_non_null(j);
     assert_true(json_is_integer(json_object_get(j, "templates")));
     assert_int_equal(json_integer_value(json_object_get(j, "templates")), 6);
-    assert_int_equal(json_integer_value(json_object_get(j, "schema_version")), 3); /* schemas/store-version */
+    assert_int_equal(json_integer_value(json_object_get(j, "schema_version")), 4); /* schemas/store-version */
     /* FAUST naming: tr_reg_010..015 are subject 1, poses 0..5 */
     json_t *subjects = json_object_get(j, "subjects");
     assert_int_equal(json_integer_value(json_object_get(subjects, "1")), 6);

@@ -609,7 +609,7 @@ static void test_fresh_environment(void **s)
     mim_db_check_report_t r;
     assert_int_equal(mim_db_check(db, NULL, &r, &err), 0);
     assert_int_equal(r.problems, 0);
-    assert_int_equal(r.schema_version, 3); /* schemas/store-version */
+    assert_int_equal(r.schema_version, 4); /* schemas/store-version */
     mim_db_close(&db);
 
     char *other = ts_path(dir, "committed_empty");
@@ -704,6 +704,13 @@ static void assert_same_registration(const mim_db_registration_t *a, const mim_d
     assert_int_equal(a->iterations, b->iterations);
     assert_true(a->mean_mm == b->mean_mm && a->p95_mm == b->p95_mm && a->max_mm == b->max_mm &&
                 a->landmark_mean_mm == b->landmark_mean_mm);
+    /* the quality figures (MRG4) round trip; a version 3 record has none */
+    assert_int_equal(a->quality.present, b->quality.present);
+    if (a->quality.present) {
+        assert_true(a->quality.landmark_max_mm == b->quality.landmark_max_mm &&
+                    a->quality.volume_ratio == b->quality.volume_ratio);
+        assert_memory_equal(a->quality.distortion_pct, b->quality.distortion_pct, sizeof a->quality.distortion_pct);
+    }
 }
 
 /* Registrations: put, get and find by the source's hash round trip; an
@@ -719,9 +726,9 @@ static void test_registrations(void **s)
     mim_db_t *db;
     mim_db_txn_t *t;
     mim_error_t err = {0};
-    mim_db_registration_t r1 = {1, 0xA1A1A1A1A1A1A1A1ULL, 6890, 24, 0.41, 1.12, 3.5, 2.25};
-    mim_db_registration_t r2 = {2, 0xB2, 12500, 30, 0.3, 0.9, 2.0, 1.5};
-    mim_db_registration_t r3 = {3, r1.source_hash, 6890, 12, 0.5, 1.5, 4.0, 2.5}; /* r1's source again */
+    mim_db_registration_t r1 = {1, 0xA1A1A1A1A1A1A1A1ULL, 6890, 24, 0.41, 1.12, 3.5, 2.25, {0}};
+    mim_db_registration_t r2 = {2, 0xB2, 12500, 30, 0.3, 0.9, 2.0, 1.5, {1, 4.5, 0.97, {1, 2, 3, 14, 5, 16}}}; /* MRG4 */
+    mim_db_registration_t r3 = {3, r1.source_hash, 6890, 12, 0.5, 1.5, 4.0, 2.5, {0}}; /* r1's source again */
     assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
     assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
     assert_int_equal(mim_db_registration_put(t, &r3, &err), 0);
@@ -809,14 +816,15 @@ static void test_registrations(void **s)
     assert_true(json_real_value(json_object_get(reg, "max_mm")) == 3.5);
     assert_int_equal(json_integer_value(json_object_get(reg, "iterations")), 24);
     assert_int_equal(json_integer_value(json_object_get(reg, "source_vertices")), 6890);
-    assert_int_equal(json_object_size(reg), 5);
+    assert_true(json_real_value(json_object_get(reg, "landmark_mean_mm")) == 2.25);
+    assert_int_equal(json_object_size(reg), 6); /* a version 3 record: no quality figures */
     assert_true(json_real_value(json_object_get(json_object_get(json_array_get(j, 1), "registration"), "mean_mm")) == 0.25);
     assert_null(json_object_get(json_array_get(j, 3), "registration"));
     json_decref(j);
     free(out), free(errs);
     const char *text_args[] = {"list", "--store", store, NULL};
     assert_int_equal(ts_run_mimic(&out, &errs, text_args), 0);
-    assert_non_null(strstr(out, "src.ply  registered 0.41/1.12 mm\n"));
+    assert_non_null(strstr(out, "src.ply  registered 0.41/1.12 mm, landmarks 2.2 mm\n"));
     assert_non_null(strstr(out, "       4  s          p          src.ply\n")); /* not registered: as before */
     free(out), free(errs), free(store);
 }
@@ -874,7 +882,7 @@ static void test_registration_damaged(void **s)
     mim_db_t *db;
     mim_db_txn_t *t;
     mim_error_t err = {0};
-    mim_db_registration_t r1 = {1, 0xA1, 6890, 24, 0.41, 1.12, 3.5, 2.25}, r2 = {2, 0xB2, 6890, 20, 0.3, 0.9, 2.0, 1.5};
+    mim_db_registration_t r1 = {1, 0xA1, 6890, 24, 0.41, 1.12, 3.5, 2.25, {0}}, r2 = {2, 0xB2, 6890, 20, 0.3, 0.9, 2.0, 1.5, {0}};
     assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
     assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
     assert_int_equal(mim_db_registration_put(t, &r1, &err), 0);
@@ -899,7 +907,7 @@ static void test_registration_damaged(void **s)
     MDB_val d = {72, rec};
     assert_int_equal(mdb_put(txn, regs, &k, &d, 0), 0);
     /* a registration of template 42, which is not stored, and not in the source index */
-    mim_db_registration_t r42 = {42, 0x42, 100, 1, 1, 2, 3, 4};
+    mim_db_registration_t r42 = {42, 0x42, 100, 1, 1, 2, 3, 4, {0}};
     registration_bytes(rec, &r42);
     key = 42;
     assert_int_equal(mdb_put(txn, regs, &k, &d, 0), 0);
@@ -1173,14 +1181,14 @@ static void test_migrate_v2(void **s)
     mim_db_close(&db);
     char want[512];
     snprintf(want, sizeof want,
-             "%s: migrated from schema version 2 to 3: added the registrations, by_source and bindings tables (empty)",
+             "%s: migrated from schema version 2 to 4: added the registrations, by_source and bindings tables (empty)",
              store);
     assert_string_equal(logged, want);
     for (int i = 0; i < 3; i++) assert_true(has_table(store, added[i]));
     assert_int_equal(mim_db_open(&db, store, &ro, &err), 0);
     assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
     assert_int_equal(mim_db_meta_get(t, &m, &err), 0);
-    assert_int_equal(m.schema_version, 3);
+    assert_int_equal(m.schema_version, 4);
     assert_int_equal(m.templates, 5);
     assert_int_equal(m.next_id, 6);
     for (uint64_t id = 1; id <= 5; id++) {
@@ -1195,7 +1203,7 @@ static void test_migrate_v2(void **s)
     mim_db_abort(&t);
     assert_int_equal(mim_db_check(db, NULL, &r, &err), 0);
     assert_int_equal(r.problems, 0);
-    assert_int_equal(r.schema_version, 3);
+    assert_int_equal(r.schema_version, 4);
     assert_int_equal(r.templates, 5);
     assert_int_equal(r.encodings, 3);
     mim_db_close(&db);
@@ -1204,7 +1212,7 @@ static void test_migrate_v2(void **s)
     assert_int_equal(mim_db_open(&db, store, &rw, &err), 0);
     assert_string_equal(logged, "");
     assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
-    mim_db_registration_t r1 = {1, 0xA1, 6890, 24, 0.41, 1.12, 3.5, 2.25};
+    mim_db_registration_t r1 = {1, 0xA1, 6890, 24, 0.41, 1.12, 3.5, 2.25, {0}};
     assert_int_equal(mim_db_registration_put(t, &r1, &err), 0);
     assert_int_equal(mim_db_binding_put(t, 1, "abc", 3, &err), 0);
     assert_int_equal(mim_db_commit(&t, &err), 0);

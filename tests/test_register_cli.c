@@ -564,9 +564,35 @@ static void test_cli_ingest_register(void **s)
         mim_db_registration_t reg;
         assert_int_equal(mim_db_registration_get(txn, ids[k], &reg, &err), 0);
         assert_int_equal(reg.source_vertices, k ? t2.n_vertices : t1.n_vertices);
+        /* and how well the correspondence holds (issue 29 item 3), kept with it */
+        assert_true(reg.quality.present);
+        assert_true(reg.quality.volume_ratio > 0.85 && reg.quality.volume_ratio < 1.15);
+        assert_true(reg.quality.landmark_max_mm >= reg.landmark_mean_mm);
+        for (int g = 0; g < MIM_DB_REG_REGIONS; g++)
+            assert_true(reg.quality.distortion_pct[g] >= 0 && reg.quality.distortion_pct[g] < 100);
     }
     mim_db_abort(&txn);
     mim_db_close(&db);
+    {
+        const char *lj[] = {"list", "--store", st, "--json", NULL};
+        char *lo = NULL, *le = NULL;
+        assert_int_equal(ts_run_mimic(&lo, &le, lj), 0);
+        json_error_t je;
+        json_t *rows = json_loads(lo, 0, &je), *r;
+        size_t i;
+        int shown = 0;
+        json_array_foreach(rows, i, r) {
+            json_t *reg = json_object_get(r, "registration");
+            if (!reg) continue;
+            shown++;
+            assert_int_equal(json_object_size(json_object_get(reg, "distortion_percent")), MIM_DB_REG_REGIONS);
+            assert_non_null(json_object_get(json_object_get(reg, "distortion_percent"), "hands"));
+            assert_true(json_real_value(json_object_get(reg, "volume_ratio")) > 0.85);
+            assert_non_null(json_object_get(reg, "landmark_max_mm"));
+        }
+        assert_int_equal(shown, 2);
+        json_decref(rows), free(lo), free(le);
+    }
 
     /* the same again: found by their hashes, nothing registered or added */
     rc = ts_run_mimic(&o, &e, args);

@@ -280,7 +280,7 @@ static void test_flipped_byte(void **s)
 
     /* a registration and a binding (schema version 3), added to a copy */
     store = st_copy_store("flip_registration", (size_t)-1);
-    mim_db_registration_t reg = {2, 0x5eed5eed5eed5eedULL, 6890, 24, 0.41, 1.12, 3.5, 2.25};
+    mim_db_registration_t reg = {2, 0x5eed5eed5eed5eedULL, 6890, 24, 0.41, 1.12, 3.5, 2.25, {0}};
     enum { BLOB = 64 << 10 };
     unsigned char *blob = malloc(BLOB);
     for (size_t i = 0; i < BLOB; i++) blob[i] = (unsigned char)(i * 131 + 7);
