@@ -12,8 +12,10 @@
  * recognition index (mim_index_query), as in mimic ingest --register.
  *
  * Rows: mimic's registration (similarity fit, transfer, non-rigid ICP),
- * and the baseline of the same code without ICP (landmark-guided Laplacian
- * editing of the nearest template). Correspondence error: per-vertex
+ * the baseline of the same code without ICP (landmark-guided Laplacian
+ * editing of the nearest template), and mimic's with the hands and feet
+ * fitted as the rest (extremity weight 1). Correspondence also by body
+ * region (each vertex by its nearest landmark). Correspondence error: per-vertex
  * distance to the truth, pooled over all vertices of all targets. Surface
  * distance: of every result vertex to the target's surface. Seconds: per
  * mesh, one core, median.
@@ -33,6 +35,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#define NM 3 /* methods: mimic's, the baseline, mimic's with the extremities fitted as the rest */
+
 typedef struct args {
     uint32_t target_vertices, subjects, poses;
 } args_t;
@@ -40,7 +44,37 @@ typedef struct args {
 typedef struct row {
     double *corr, *surf, *secs;
     size_t n_corr, n_surf, n_secs;
+    double region_sum[MIM_REG_REGIONS];
+    uint64_t region_n[MIM_REG_REGIONS];
 } row_t;
+
+/* Each vertex's body region (mim_reg_region_names) by its nearest landmark
+ * on the set's first body, as register/ reports distortion. */
+static void vertex_regions(const bench_dataset_t *d, uint8_t *region)
+{
+    static const char *const of[][2] = {{"head", "head"},       {"l_elbow", "arms"}, {"r_elbow", "arms"},
+                                        {"l_wrist", "hands"},   {"r_wrist", "hands"}, {"l_hip", "legs"},
+                                        {"r_hip", "legs"},      {"l_knee", "legs"},  {"r_knee", "legs"},
+                                        {"l_ankle", "feet"},    {"r_ankle", "feet"}};
+    int lm_region[MIM_LANDMARKS_MAX];
+    for (uint32_t l = 0; l < d->map.count; l++) {
+        lm_region[l] = 1; /* the torso */
+        for (size_t k = 0; k < sizeof of / sizeof *of; k++)
+            if (!strcmp(d->map.names[l], of[k][0]))
+                for (int g = 0; g < MIM_REG_REGIONS; g++)
+                    if (!strcmp(of[k][1], mim_reg_region_names[g])) lm_region[l] = g;
+    }
+    const float *b = d->pos[0];
+    for (uint32_t i = 0; i < d->n; i++) {
+        double best = INFINITY;
+        for (uint32_t l = 0; l < d->map.count; l++) {
+            const float *q = b + 3 * (size_t)d->map.vertex[l];
+            double e = 0;
+            for (int c = 0; c < 3; c++) e += (b[3 * i + c] - q[c]) * (b[3 * i + c] - q[c]);
+            if (e < best) best = e, region[i] = (uint8_t)lm_region[l];
+        }
+    }
+}
 
 static void row_push(double **v, size_t *n, double x)
 {
@@ -80,14 +114,14 @@ static int run_set(const bench_dataset_t *d, void *user)
         fprintf(stderr, "%s: %s\n", d->name, mim_error_text(&err));
         return 1;
     }
-    mim_reg_t *reg[2] = {NULL, NULL};
-    mim_reg_options_t ro[2] = {{0}, {.no_icp = 1}};
-    for (int m = 0; m < 2; m++)
+    mim_reg_t *reg[NM] = {NULL, NULL, NULL};
+    mim_reg_options_t ro[NM] = {{0}, {.no_icp = 1}, {.extremity_weight = -1}};
+    for (int m = 0; m < NM; m++)
         if (mim_reg_open(&reg[m], topo, &d->map, &ro[m], &err)) {
             fprintf(stderr, "%s: %s\n", d->name, mim_error_text(&err));
             return 1;
         }
-    row_t rows[2] = {{0}};
+    row_t rows[NM] = {{0}};
     double target_v = 0, iters = 0, picked_same_pose = 0;
     uint32_t runs = 0;
     float *out = malloc(sizeof(float) * 3 * n), *lm = malloc(sizeof(float) * 3 * L);
@@ -96,6 +130,8 @@ static int run_set(const bench_dataset_t *d, void *user)
     const char **sp = malloc(sizeof(char *) * d->subjects * d->poses), **pp = malloc(sizeof(char *) * d->subjects * d->poses);
     char (*lab)[2][16] = malloc(sizeof *lab * d->subjects * d->poses);
     double *dist = malloc(sizeof(double) * n);
+    uint8_t *region = malloc(n);
+    vertex_regions(d, region);
     for (uint32_t s = 0; s < S; s++) {
         uint32_t nt = 0;
         for (uint32_t t = 0; t < d->subjects * d->poses; t++) {
@@ -128,7 +164,7 @@ static int run_set(const bench_dataset_t *d, void *user)
             }
             picked_same_pose += (hit.id - 1) % d->poses == p;
             const float *tmpl = d->pos[hit.id - 1];
-            for (int m = 0; m < 2; m++) {
+            for (int m = 0; m < NM; m++) {
                 mim_reg_report_t rep;
                 if (mim_reg_run(reg[m], tmpl, &target, lm, "target", out, &rep, &err)) {
                     fprintf(stderr, "%s: s%u p%u: %s\n", d->name, s, p, mim_error_text(&err));
@@ -137,7 +173,9 @@ static int run_set(const bench_dataset_t *d, void *user)
                 for (uint32_t i = 0; i < n; i++) {
                     double dx = out[3 * i] - truth[3 * i], dy = out[3 * i + 1] - truth[3 * i + 1],
                            dz = out[3 * i + 2] - truth[3 * i + 2];
-                    row_push(&rows[m].corr, &rows[m].n_corr, 1000 * sqrt(dx * dx + dy * dy + dz * dz));
+                    double e = 1000 * sqrt(dx * dx + dy * dy + dz * dz);
+                    row_push(&rows[m].corr, &rows[m].n_corr, e);
+                    rows[m].region_sum[region[i]] += e, rows[m].region_n[region[i]]++;
                 }
                 if (mim_reg_surface_distance(&target, out, n, dist, &err)) return 1;
                 for (uint32_t i = 0; i < n; i++) row_push(&rows[m].surf, &rows[m].n_surf, 1000 * dist[i]);
@@ -156,17 +194,27 @@ static int run_set(const bench_dataset_t *d, void *user)
            d->name, runs, S, P, target_v / runs, n, 100.0 * picked_same_pose / runs, iters / runs);
     printf("| method | correspondence mean (mm) | correspondence p95 (mm) | surface distance mean (mm) | surface "
            "distance p95 (mm) | seconds per mesh (median) |\n|---|---|---|---|---|---|\n");
-    const char *names[2] = {"mimic register (similarity, transfer, non-rigid ICP)",
-                            "baseline: landmark-guided Laplacian editing of the nearest template, no ICP"};
-    for (int m = 0; m < 2; m++) {
+    const char *names[NM] = {"mimic register (similarity, transfer, non-rigid ICP)",
+                             "baseline: landmark-guided Laplacian editing of the nearest template, no ICP",
+                             "mimic register with the hands and feet fitted as the rest (extremity weight 1)"};
+    for (int m = 0; m < NM; m++) {
         double cm = mean(rows[m].corr, rows[m].n_corr), sm = mean(rows[m].surf, rows[m].n_surf);
         printf("| %s | %.1f | %.1f | %.2f | %.2f | %.3f |\n", names[m], cm, p95(rows[m].corr, rows[m].n_corr), sm,
                p95(rows[m].surf, rows[m].n_surf), bench_median(rows[m].secs, (int)rows[m].n_secs));
         free(rows[m].corr), free(rows[m].surf), free(rows[m].secs);
     }
-    for (int m = 0; m < 2; m++) mim_reg_close(&reg[m]);
+    printf("\ncorrespondence mean by region (mm; each vertex by its nearest landmark):\n\n| method |");
+    for (int g = 0; g < MIM_REG_REGIONS; g++) printf(" %s |", mim_reg_region_names[g]);
+    printf("\n|---|---:|---:|---:|---:|---:|---:|\n");
+    for (int m = 0; m < NM; m++) {
+        printf("| %s |", names[m]);
+        for (int g = 0; g < MIM_REG_REGIONS; g++)
+            printf(" %.1f |", rows[m].region_n[g] ? rows[m].region_sum[g] / (double)rows[m].region_n[g] : NAN);
+        printf("\n");
+    }
+    for (int m = 0; m < NM; m++) mim_reg_close(&reg[m]);
     mim_xfer_topology_close(&topo);
-    free(out), free(lm), free(tlm), free(ids), free(sp), free(pp), free(lab), free(dist);
+    free(out), free(lm), free(tlm), free(ids), free(sp), free(pp), free(lab), free(dist), free(region);
     return 0;
 }
 

@@ -49,13 +49,14 @@ int mim__reg_surface_closest(const mim__reg_surface_t *s, const float *queries, 
 
 /* Non-rigid ICP (nicp.c) over the connectivity topo, from x0 (3 * n
  * doubles) onto the surface, with landmark vertices lm_vertex (count) held
- * softly at lm_target (3 * count floats). */
+ * softly at lm_target (3 * count floats); data_w (n, NULL: all 1) weighs
+ * each vertex's closest point. */
 typedef struct mim__reg_nicp mim__reg_nicp_t;
 int mim__reg_nicp_open(mim__reg_nicp_t **out, const mim_xfer_topology_t *topo, mim_error_t *err);
 void mim__reg_nicp_close(mim__reg_nicp_t **p);
 int mim__reg_nicp_run(mim__reg_nicp_t *p, const mim_reg_options_t *opt, const mim__reg_surface_t *surface,
                       const uint32_t *lm_vertex, const float *lm_target, uint32_t count, const double *x0,
-                      double *x, uint32_t *iterations, double *rejected, mim_error_t *err);
+                      const double *data_w, double *x, uint32_t *iterations, double *rejected, mim_error_t *err);
 
 /* Options with defaults filled in. */
 mim_reg_options_t mim__reg_options(const mim_reg_options_t *opt);

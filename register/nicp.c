@@ -14,8 +14,11 @@
  * is the left wrist), ride along while the surface closes onto the
  * target. One step, for stiffness alpha and landmark weight beta:
  *
- *   E(X) = sum_i |x_i - c_i|^2 + alpha |L X - F W0|^2 + beta sum_l |x_l - u_l|^2
+ *   E(X) = sum_i w_i |x_i - c_i|^2 + alpha |L X - F W0|^2 + beta sum_l |x_l - u_l|^2
  *
+ * w_i: 1, and MIM_REG_DEFAULT_EXTREMITY_WEIGHT at the hands and feet,
+ * whose closest points lie on the wrong finger or the wrong surface more
+ * often than not (mim_register.h says what was measured).
  * c_i: the closest point on the target's surface to x_i, moved along the
  * surface's normal towards the target vertices whose nearest shape vertex
  * is i (the other direction, in the stiffer half of the stages), or their
@@ -26,7 +29,7 @@
  * uniform Laplacian (symmetric); u_l: the target's landmarks. The minimum
  * solves
  *
- *   (I + alpha L^T L + beta P) X = C + alpha L^T F W0 + beta P U,
+ *   (D + alpha L^T L + beta P) X = D C + alpha L^T F W0 + beta P U,   D = diag(w),
  *
  * three right-hand sides with one sparse SPD matrix. Its pattern is that
  * of L^T L (two rings) and never changes: CHOLMOD analyses it once per
@@ -199,7 +202,7 @@ static int backward(mim__reg_nicp_t *p, const mim__reg_surface_t *surface, doubl
 
 int mim__reg_nicp_run(mim__reg_nicp_t *p, const mim_reg_options_t *opt, const mim__reg_surface_t *surface,
                       const uint32_t *lm_vertex, const float *lm_target, uint32_t count, const double *x0,
-                      double *x, uint32_t *iterations, double *rejected, mim_error_t *err)
+                      const double *data_w, double *x, uint32_t *iterations, double *rejected, mim_error_t *err)
 {
     uint32_t n = p->n;
     *iterations = 0, *rejected = 0.0;
@@ -277,7 +280,7 @@ int mim__reg_nicp_run(mim__reg_nicp_t *p, const mim_reg_options_t *opt, const mi
                 for (int c = 0; c < 3; c++) {
                     double t = ok ? h->point[c] + 0.5 * dn * fnrm[c] : x[3 * i + c];
                     if (back_n[i] && !ok) t = back_sum[3 * i + c] / back_n[i];
-                    b[i + (size_t)c * n] = t + alpha * p->ltd[3 * i + c];
+                    b[i + (size_t)c * n] = (data_w ? data_w[i] : 1.0) * t + alpha * p->ltd[3 * i + c];
                 }
             }
             *rejected = 1.0 - (double)kept / n;
@@ -290,7 +293,7 @@ int mim__reg_nicp_run(mim__reg_nicp_t *p, const mim_reg_options_t *opt, const mi
                 for (size_t k = 0; k < nnz; k++)
                     ax[k] = alpha * ltl[k];
                 for (uint32_t i = 0; i < n; i++)
-                    ax[p->diag[i]] += 1.0;
+                    ax[p->diag[i]] += data_w ? data_w[i] : 1.0;
                 for (uint32_t l = 0; l < count; l++)
                     ax[p->diag[lm_vertex[l]]] += beta;
                 if (!cholmod_factorize(p->A, p->F, &p->cc) || p->cc.status != CHOLMOD_OK) {

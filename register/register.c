@@ -15,7 +15,8 @@ struct mim_reg {
     mim_xfer_solver_t *solver; /* on the landmark vertices: the initial shape's transfer */
     mim__reg_nicp_t *nicp;
     float *moved, *x0f, *tmpl_lm;
-    double *frames, *W, *x0, *x, *dist;
+    double *frames, *W, *x0, *x, *dist, *data_w;
+    uint8_t *region;
 };
 
 mim_reg_options_t mim__reg_options(const mim_reg_options_t *in)
@@ -29,6 +30,7 @@ mim_reg_options_t mim__reg_options(const mim_reg_options_t *in)
     if (!(o.landmark_weight > 0)) o.landmark_weight = MIM_REG_DEFAULT_LANDMARK_WEIGHT;
     if (!(o.max_angle_deg > 0)) o.max_angle_deg = MIM_REG_DEFAULT_MAX_ANGLE_DEG;
     if (!(o.max_distance > 0)) o.max_distance = MIM_REG_DEFAULT_MAX_DISTANCE;
+    if (!(o.extremity_weight > 0)) o.extremity_weight = o.extremity_weight < 0 ? 1.0 : MIM_REG_DEFAULT_EXTREMITY_WEIGHT;
     return o;
 }
 
@@ -39,6 +41,7 @@ void mim_reg_close(mim_reg_t **rp)
     mim_xfer_solver_close(&r->solver);
     mim__reg_nicp_close(&r->nicp);
     free(r->moved), free(r->x0f), free(r->tmpl_lm), free(r->frames), free(r->W), free(r->x0), free(r->x), free(r->dist);
+    free(r->data_w), free(r->region);
     free(r);
     *rp = NULL;
 }
@@ -64,7 +67,10 @@ int mim_reg_open(mim_reg_t **out, const mim_xfer_topology_t *topo, const mim_lan
     r->x0 = malloc(n3 * sizeof *r->x0);
     r->x = malloc(n3 * sizeof *r->x);
     r->dist = malloc((size_t)n * sizeof *r->dist);
-    if (!r->moved || !r->x0f || !r->tmpl_lm || !r->frames || !r->W || !r->x0 || !r->x || !r->dist) {
+    r->data_w = malloc((size_t)n * sizeof *r->data_w);
+    r->region = malloc(n);
+    if (!r->moved || !r->x0f || !r->tmpl_lm || !r->frames || !r->W || !r->x0 || !r->x || !r->dist || !r->data_w ||
+        !r->region) {
         mim_reg_close(&r);
         return mim_error_set(err, MIM_ENOMEM, "registration: out of memory");
     }
@@ -87,8 +93,14 @@ static int cmp_double(const void *a, const void *b)
 /* The handedness of a landmark skeleton (issue 29): the sign of
  * det(left, up, forward), left from the right shoulders and hips to the
  * left ones, up from the pelvis to the chest, forward from the spine
- * (back) to the chest (front); 0 without those landmarks or when they are
- * flat. A body and its mirror image have opposite signs. */
+ * (back) to the chest (front); 0 without those landmarks or when the three
+ * are not clearly a frame: |det| under MIN_FRAME of their lengths'
+ * product. Upright bodies give 0.45-0.55 (mh-bodies), 0.2-0.46 (synth);
+ * a deep bow brings up and forward together and the spine in front of the
+ * chest (mh-bodies' pose 10: -0.16 to +0.03), whose sign is noise: at
+ * 1e-3, mh_s05_p10 was refused as a mirror image. A body and its mirror
+ * image have opposite signs. */
+#define MIN_FRAME 0.25
 static int handedness(const mim_landmark_map_t *map, const float *lm)
 {
     static const char *const want[7] = {"l_shoulder", "r_shoulder", "l_hip", "r_hip", "pelvis", "chest", "spine"};
@@ -105,7 +117,7 @@ static int handedness(const mim_landmark_map_t *map, const float *lm)
                        L[2] * (U[0] * F[1] - U[1] * F[0]);
     const double size = sqrt((L[0] * L[0] + L[1] * L[1] + L[2] * L[2]) * (U[0] * U[0] + U[1] * U[1] + U[2] * U[2]) *
                              (F[0] * F[0] + F[1] * F[1] + F[2] * F[2]));
-    return !(size > 0) || fabs(det) < 1e-3 * size ? 0 : det > 0 ? 1 : -1;
+    return !(size > 0) || fabs(det) < MIN_FRAME * size ? 0 : det > 0 ? 1 : -1;
 }
 
 /* The enclosed volume of a mesh (divergence theorem; positive for faces
@@ -125,7 +137,9 @@ static double signed_volume(const uint32_t *faces, uint32_t nf, const float *x)
  * distance hides sliding): per body region (a vertex's nearest landmark:
  * head; torso; arms; hands; legs; feet), the rms of the log of each edge's
  * length against the moved template's, in percent. */
-static void distortion(const mim_reg_t *r, const float *moved, const float *out, double pct[MIM_REG_REGIONS])
+/* Each vertex's body region (mim_reg_region_names): its nearest landmark's
+ * on the shape x. */
+static void vertex_regions(const mim_reg_t *r, const float *x, uint8_t *region)
 {
     static const char *const region_of[][2] = {
         {"head", "head"},     {"chest", "torso"},    {"pelvis", "torso"},   {"spine", "torso"},  {"l_shoulder", "torso"},
@@ -140,18 +154,28 @@ static void distortion(const mim_reg_t *r, const float *moved, const float *out,
                 for (int g = 0; g < MIM_REG_REGIONS; g++)
                     if (!strcmp(region_of[k][1], mim_reg_region_names[g])) lm_region[l] = g;
     }
-    double ss[MIM_REG_REGIONS] = {0};
-    uint64_t cnt[MIM_REG_REGIONS] = {0};
     for (uint32_t v = 0; v < r->n; v++) {
-        /* the vertex's region: its nearest landmark on the moved template */
-        const float *p = moved + 3 * (size_t)v;
+        const float *p = x + 3 * (size_t)v;
         double best = INFINITY;
         int g = 1;
         for (uint32_t l = 0; l < r->map->count; l++) {
-            const float *q = moved + 3 * (size_t)r->map->vertex[l];
+            const float *q = x + 3 * (size_t)r->map->vertex[l];
             double d = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]);
             if (d < best) best = d, g = lm_region[l];
         }
+        region[v] = (uint8_t)g;
+    }
+}
+
+/* The rms change of edge lengths per region from the moved template to
+ * out, % (regions by the moved template's landmarks). */
+static void distortion(const mim_reg_t *r, const float *moved, const float *out, double pct[MIM_REG_REGIONS])
+{
+    double ss[MIM_REG_REGIONS] = {0};
+    uint64_t cnt[MIM_REG_REGIONS] = {0};
+    vertex_regions(r, moved, r->region);
+    for (uint32_t v = 0; v < r->n; v++) {
+        const int g = r->region[v];
         uint32_t nn = 0;
         const uint32_t *nb = mim_xfer_neighbors(r->topo, v, &nn);
         for (uint32_t k = 0; k < nn; k++) {
@@ -198,6 +222,8 @@ int mim_reg_run(mim_reg_t *r, const float *tmpl, const mim_mesh_t *target, const
     }
     rep.scale = sim.scale;
     mim_reg_similarity_apply(&sim, tmpl, n, r->moved);
+    mim_xfer_frames(r->topo, r->moved, r->frames);
+    mim_xfer_encode(r->topo, r->moved, r->frames, r->W);
     /* a mirror image cannot be registered (no rotation takes a body onto
      * it): refused before the solve turns the template inside out */
     const int hand_t = handedness(map, r->tmpl_lm), hand_g = handedness(map, target_landmarks);
@@ -212,8 +238,6 @@ int mim_reg_run(mim_reg_t *r, const float *tmpl, const mim_mesh_t *target, const
     /* 2. Initial shape: the moved template as its own avatar, transferred
      * into the target's landmark positions (seed 000, eq. 3); then ICP;
      * rounds times. */
-    mim_xfer_frames(r->topo, r->moved, r->frames);
-    mim_xfer_encode(r->topo, r->moved, r->frames, r->W);
     mim_xfer_options_t xo = {0};
     double t1 = t0;
     for (uint32_t round = 0; round < r->opt.rounds; round++) {
@@ -236,7 +260,14 @@ int mim_reg_run(mim_reg_t *r, const float *tmpl, const mim_mesh_t *target, const
             memcpy(r->x, r->x0, (size_t)3 * n * sizeof *r->x);
             break;
         }
-        if ((rc = mim__reg_nicp_run(r->nicp, &r->opt, &surface, map->vertex, target_landmarks, count, r->x0, r->x,
+        /* the hands and feet trust the initial shape's correspondence
+         * (MIM_REG_DEFAULT_EXTREMITY_WEIGHT), by the initial shape's regions */
+        vertex_regions(r, r->x0f, r->region);
+        for (uint32_t i = 0; i < n; i++)
+            r->data_w[i] = r->region[i] == MIM_REG_REGION_HANDS || r->region[i] == MIM_REG_REGION_FEET
+                               ? r->opt.extremity_weight
+                               : 1.0;
+        if ((rc = mim__reg_nicp_run(r->nicp, &r->opt, &surface, map->vertex, target_landmarks, count, r->x0, r->data_w, r->x,
                                     &steps, &rep.rejected, &sub))) {
             rc = mim_error_set(err, rc, "%s: %s", origin, mim_error_text(&sub));
             goto done;
