@@ -9,6 +9,7 @@
 #include "output.h"
 
 #include <getopt.h>
+#include <malloc.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -162,6 +163,20 @@ static int add_spec_file(spec_list_t *l, const char *path)
 
 static int run(int argc, char **argv, spec_list_t *specs);
 
+/* A session holds a few MB in arrays of 50 KB to 2 MB (frames, encodings,
+ * its factor's workspaces). Freed, they stay in glibc's heap (its mmap
+ * threshold rises as such blocks come and go): 256 sessions added and
+ * deleted kept all of their 1.3 GB (bench/RESULTS.md, "Memory of
+ * sessions"). When a removed session is freed, the heap's free pages go
+ * back to the system. (A fixed, low mmap threshold did that too, but cost
+ * every key frame a few mmap/munmap pairs of its 220 KB buffers.)
+ * Process-wide: decided here, by the command, never by a library. */
+static void give_back(void *user)
+{
+    (void)user;
+    malloc_trim(0);
+}
+
 int mim_cmd_serve(int argc, char **argv)
 {
     spec_list_t specs = {0};
@@ -192,7 +207,7 @@ static int run(int argc, char **argv, spec_list_t *specs)
                                               {0, 0, 0, 0}};
     const char *store = NULL, *avatar = NULL;
     mim_cli_avatar_t av = {0};
-    mim_serve_options_t o = {.log = mim_cli_log};
+    mim_serve_options_t o = {.log = mim_cli_log, .on_session_freed = give_back};
     int c, rc = 0;
     optind = 0;
     opterr = 0;

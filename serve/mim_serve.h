@@ -105,6 +105,11 @@ typedef struct mim_serve_options {
      * more than one session. */
     void (*on_frame)(void *user, const mim_serve_frame_t *frame);
     void *user;
+    /* Called (with user) after a removed session's memory was freed, on
+     * whichever thread let go of it last: where the program may give the
+     * freed memory back to the system (mimic serve: malloc_trim), which a
+     * library must not decide for the process. NULL: nothing. */
+    void (*on_session_freed)(void *user);
     /* The vest loop's notes (the vest lost, streaming again), one line each,
      * from the loop thread; NULL: quiet. */
     mim_log_fn log;

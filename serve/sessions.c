@@ -186,8 +186,10 @@ void mim__vs_release(mim__vs_t *vs)
                 break;
             }
     pthread_mutex_unlock(&sv->sessions_lock);
-    if (last)
+    if (last) {
         vs_free(vs);
+        if (sv->opt.on_session_freed) sv->opt.on_session_freed(sv->opt.user);
+    }
 }
 
 int mim__vs_removed(mim__vs_t *vs)
