@@ -7,8 +7,10 @@
  *
  * What a hostile client meets (issue 12, defect 2):
  *  - request headers must be whole within 10 s of the connection (lws's
- *    timeout_secs_ah_idle; a slowloris socket then closes); a header
- *    block over 4 KiB is refused by lws;
+ *    timeout_secs_ah_idle; a slowloris socket then closes); headers
+ *    over MIM_SERVE_MAX_HEADER_BYTES get 431 and the connection closes,
+ *    and a header block past lws's buffer (MIM_SERVE_HEADER_BUFFER) is
+ *    closed by lws without an answer;
  *  - a body must not pause for 10 s (lws's timeout_secs, reset by every
  *    piece) and must be whole 30 s after the request began (REQUEST_S,
  *    checked here: a trickle of one byte a second ends too);
@@ -351,13 +353,19 @@ static unsigned char *put_headers(struct lws *wsi, mim__http_tx_t *tx)
     const char *cache = rp->cache ? rp->cache : "no-store";
     if (lws_add_http_header_status(wsi, (unsigned)rp->status, &p, end))
         return NULL;
-    /* libwebsockets has no reason phrase for 201 ("HTTP/1.1 201 "): RFC
-     * 9112 4 allows an empty one, but people and some clients read it */
-    static const char bare_201[] = "HTTP/1.1 201 \r\n", created[] = "HTTP/1.1 201 Created\r\n";
-    if (rp->status == 201 && p - start == (ptrdiff_t)sizeof bare_201 - 1 && !memcmp(start, bare_201, sizeof bare_201 - 1) &&
-        end - start > (ptrdiff_t)sizeof created) {
-        memcpy(start, created, sizeof created - 1);
-        p = start + sizeof created - 1;
+    /* libwebsockets has no reason phrase for some statuses ("HTTP/1.1 201
+     * "): RFC 9112 4 allows an empty one, but people and some clients read it */
+    static const struct { int status; const char *line; } phrases[] = {
+        {201, "HTTP/1.1 201 Created\r\n"}, {431, "HTTP/1.1 431 Request Header Fields Too Large\r\n"}};
+    char bare[32];
+    int nb = snprintf(bare, sizeof bare, "HTTP/1.1 %d \r\n", rp->status);
+    for (size_t k = 0; k < sizeof phrases / sizeof *phrases; k++) {
+        size_t ll = strlen(phrases[k].line);
+        if (rp->status == phrases[k].status && p - start == nb && !memcmp(start, bare, (size_t)nb) &&
+            end - start > (ptrdiff_t)ll) {
+            memcpy(start, phrases[k].line, ll);
+            p = start + ll;
+        }
     }
     if (add_header(wsi, "Content-Type:", rp->type, strlen(rp->type), &p, end) ||
         add_header(wsi, "Content-Length:", clen, strlen(clen), &p, end) ||
@@ -652,6 +660,16 @@ static int on_request(mim_serve_t *sv, struct lws *wsi, mim__conn_t *conn, const
     tx->rq.head = tx->method == M_HEAD;
     mim__printable(in, len, tx->path, sizeof tx->path);
     tx->rq.path = tx->path; /* (in lives in lws's header buffer, which may go before the answer) */
+
+    /* headers over the limit: 431, and the connection closes */
+    size_t header_bytes = 0;
+    for (int t = 0; t < (int)WSI_TOKEN_COUNT; t++) {
+        int l = lws_hdr_total_length(wsi, (enum lws_token_indexes)t);
+        if (l > 0) header_bytes += (size_t)l;
+    }
+    if (header_bytes > MIM_SERVE_MAX_HEADER_BYTES)
+        return refuse(sv, wsi, tx, 431, "request headers: %zu bytes, more than the %d taken", header_bytes,
+                      MIM_SERVE_MAX_HEADER_BYTES);
 
     /* how the body is framed, before anything else: a request that cannot
      * be framed must not leave bytes behind for the next one */

@@ -43,6 +43,13 @@ extern "C" {
 
 #define MIM_SERVE_DEFAULT_LISTEN "127.0.0.1:8080"
 #define MIM_SERVE_DEFAULT_MAX_BODY ((size_t)1 << 20)
+/* A request's headers: up to MIM_SERVE_MAX_HEADER_BYTES of values are
+ * taken; more, up to MIM_SERVE_HEADER_BUFFER, is answered 431 (Request
+ * Header Fields Too Large) and closed; past the buffer libwebsockets
+ * closes the connection without an answer. Headers libwebsockets does not
+ * know are read and dropped, and count for neither. */
+#define MIM_SERVE_MAX_HEADER_BYTES 8192
+#define MIM_SERVE_HEADER_BUFFER 32768
 
 /* One frame the real-time loop publishes (what a /ws binary message holds).
  * The arrays are lent for the duration of the on_frame call only. */

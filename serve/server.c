@@ -266,6 +266,9 @@ int mim_serve_open(mim_serve_t **out, mim_session_t *s, const mim_serve_options_
      * header buffer while it sends headers: no slowloris can make others
      * wait for one (lws's default; said here because it matters) */
     ci.max_http_header_pool = 0;
+    /* room past the headers' limit, so that a request over it gets 431
+     * (http.c) rather than a closed connection */
+    ci.max_http_header_data = MIM_SERVE_HEADER_BUFFER;
     ci.fd_limit_per_thread = 0;
     sv->ctx = lws_create_context(&ci);
     if (!sv->ctx) {

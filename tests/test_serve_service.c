@@ -74,6 +74,16 @@ static void test_http_malformed(void **state)
     memset(huge + n, 'a', big);
     memcpy(huge + n + big, "\r\n\r\n", 4);
     expect_4xx_or_closed(p, huge, (size_t)n + big + 4, "a 64 KiB header", -1);
+    /* a known header over the limit but within the buffer: 431 with its reason phrase (issue 30 item 8) */
+    size_t cookie = 12 * 1024;
+    n = snprintf(huge, 256, "GET /api/status HTTP/1.1\r\nHost: x\r\nCookie: ");
+    memset(huge + n, 'c', cookie);
+    memcpy(huge + n + cookie, "\r\n\r\n", 4);
+    expect_4xx_or_closed(p, huge, (size_t)n + cookie + 4, "a 12 KiB cookie", 431);
+    hc_reply_t r431 = ss_http_raw(p, huge, (size_t)n + cookie + 4);
+    assert_non_null(strstr(r431.raw, "HTTP/1.1 431 Request Header Fields Too Large\r\n"));
+    assert_non_null(strstr(r431.raw, "more than the 8192 taken"));
+    hc_reply_free(&r431);
     free(huge);
     const char badlen[] = "POST /api/query HTTP/1.1\r\nHost: x\r\nContent-Length: twelve\r\n\r\n{}";
     expect_4xx_or_closed(p, badlen, sizeof badlen - 1, "Content-Length: twelve", -1);
