@@ -270,7 +270,7 @@ def register_cases(d, store, data, landmarks):
     shutil.copy(os.path.join(reg_store, "data.mdb"), os.path.join(damaged, "data.mdb"))
     with open(os.path.join(damaged, "data.mdb"), "r+b") as f:
         db = bytearray(f.read())
-        at = db.index(b"MRG3") + 40  # the registration's mean_mm (db/registration.c)
+        at = db.index(b"MRG4") + 40  # the registration's mean_mm (db/registration.c; MRG4: with its quality)
         db[at] ^= 0x10
         f.seek(0)
         f.write(db)
@@ -558,7 +558,7 @@ def main():
         # figures (none of synth's is registered: the key is absent)
         listed = json.loads(run("list", "--store", store, "--json"))
         registered = json.loads(json.dumps(listed))
-        registered[0]["registration"] = {"mean_mm": 0.41, "p95_mm": 1.12, "max_mm": 3.5, "iterations": 24,
+        registered[0]["registration"] = {"mean_mm": 0.41, "p95_mm": 1.12, "max_mm": 3.5, "landmark_mean_mm": 2.25, "iterations": 24,
                                          "source_vertices": 6890}
         if not any("registration" in t for t in listed) and \
                 not list(validator("/mimic/schemas/list.schema.json").iter_errors(registered)):
