@@ -21,9 +21,10 @@
  * vest's sensors would give, without the twist).
  *
  * --relative off: the template drive without relative transfer (issue 15;
- * the default is on, as mimic's).
+ * the default is on, as mimic's). --settle S: the iteration's
+ * mim_xfer_options_t.settle (< 0: none, as before issue 31).
  *
- *   bench_keyframe [--vertices N] [--keys K] [--relative on|off]
+ *   bench_keyframe [--vertices N] [--keys K] [--relative on|off] [--settle S]
  * Prints a Markdown table of medians; never passes or fails. */
 #include "bench_data.h"
 #include "mim_db.h"
@@ -44,7 +45,7 @@
 typedef struct {
     double *query, *tmpl, *solve, *total;
     double iterations;
-    uint32_t n, cache_hits;
+    uint32_t n, cache_hits, by_solves[5]; /* key frames of 1, 2, 3, 4, more solves */
 } phase_t;
 
 static double med(double *v, uint32_t n) { return bench_median(v, (int)n) * 1e3; }
@@ -127,13 +128,16 @@ int main(int argc, char **argv)
 {
     uint32_t vertices = 7000, keys = 600;
     int relative = 0;
+    double settle = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--vertices") && i + 1 < argc) vertices = (uint32_t)atol(argv[++i]);
         else if (!strcmp(argv[i], "--keys") && i + 1 < argc) keys = (uint32_t)atol(argv[++i]);
         else if (!strcmp(argv[i], "--relative") && i + 1 < argc && (!strcmp(argv[i + 1], "on") || !strcmp(argv[i + 1], "off")))
             relative = strcmp(argv[++i], "on") ? -1 : 1;
+        else if (!strcmp(argv[i], "--settle") && i + 1 < argc)
+            settle = strtod(argv[++i], NULL);
         else {
-            fprintf(stderr, "usage: bench_keyframe [--vertices N] [--keys K] [--relative on|off]\n");
+            fprintf(stderr, "usage: bench_keyframe [--vertices N] [--keys K] [--relative on|off] [--settle S]\n");
             return 2;
         }
     }
@@ -173,7 +177,7 @@ int main(int argc, char **argv)
     phase_t ph[2];
     for (int d = 0; d < 2; d++) {
         ph[d] = (phase_t){malloc(sizeof(double) * keys), malloc(sizeof(double) * keys), malloc(sizeof(double) * keys),
-                          malloc(sizeof(double) * keys), 0, 0, 0};
+                          malloc(sizeof(double) * keys), 0, 0, 0, {0}};
     }
     float u[3 * MIM_LANDMARKS_MAX];
     uint64_t last[2] = {0, 0};
@@ -190,7 +194,8 @@ int main(int argc, char **argv)
             mim_session_request_t req = {.landmarks = u,
                                          .drive = d ? MIM_DRIVE_ORIENTATION : MIM_DRIVE_TEMPLATE,
                                          .orientations = d ? R : NULL,
-                                         .relative = relative};
+                                         .relative = relative,
+                                         .xfer = {.settle = settle}};
             mim_session_report_t rep;
             double t0 = mim_now();
             if (mim_session_transfer(s, &req, out, &rep, &err)) {
@@ -201,6 +206,7 @@ int main(int argc, char **argv)
             q->total[q->n] = mim_now() - t0;
             q->query[q->n] = rep.seconds_query, q->tmpl[q->n] = rep.seconds_template, q->solve[q->n] = rep.seconds_solve;
             q->iterations += rep.xfer.iterations;
+            q->by_solves[rep.xfer.iterations < 5 ? rep.xfer.iterations - 1 : 4]++;
             q->cache_hits += rep.template_id == last[d];
             last[d] = rep.template_id;
             q->n++;
@@ -231,8 +237,9 @@ int main(int argc, char **argv)
         fprintf(stderr, "bench_keyframe: %s\n", mim_error_text(&err));
         return 1;
     }
-    printf("\n### synth, %u vertices, %u key frames a drive (subject 1's poses, %d key frames from one to the next)\n\n",
-           n, keys, STEPS);
+    printf("\n### synth, %u vertices, %u key frames a drive (subject 1's poses, %d key frames from one to the next; "
+           "settle %g)\n\n",
+           n, keys, STEPS, settle != 0 ? settle : MIM_XFER_DEFAULT_SETTLE);
     printf("| drive | query ms | frames ms | solve ms | key frame ms | solves a key frame | same template as the last |\n"
            "|---|---:|---:|---:|---:|---:|---:|\n");
     static const char *const names[2] = {"template (iterated)", "orientation (one solve)"};
@@ -249,6 +256,10 @@ int main(int argc, char **argv)
     printf("\nThe plain solve's columns split 2 + 1 over two threads (two solvers, a worker woken per solve): "
            "%.3f ms wall (%.2fx the plain solve), %.3f ms of solving in all (%.2fx).\n",
            split_wall * 1e3, split_wall * 1e3 / solve_ms, split_cpu * 1e3, split_cpu * 1e3 / solve_ms);
+    printf("\nThe template drive's key frames by solves: 1: %.0f %%, 2: %.0f %%, 3: %.0f %%, 4: %.0f %%, more: %.0f %%.\n",
+           100.0 * ph[0].by_solves[0] / ph[0].n, 100.0 * ph[0].by_solves[1] / ph[0].n,
+           100.0 * ph[0].by_solves[2] / ph[0].n, 100.0 * ph[0].by_solves[3] / ph[0].n,
+           100.0 * ph[0].by_solves[4] / ph[0].n);
     printf("\nKey frame / plain solve: template drive %.2fx, orientation drive %.2fx.\n",
            med(ph[0].total, ph[0].n) / solve_ms, med(ph[1].total, ph[1].n) / solve_ms);
     mim_xfer_solver_close(&solver);

@@ -31,6 +31,22 @@
 
 #define POS(i, c) (pf ? (double)pf[3 * (size_t)(i) + (c)] : pd[3 * (size_t)(i) + (c)])
 
+/* f2 from edge e: its projection onto the tangent plane of the normal f1
+ * (fr[0..2]), normalised into fr[3..5]; 0 (nothing written) when the
+ * projection is degenerate. */
+static inline int tangent_of(const double e[3], double *fr)
+{
+    const double nx = fr[0], ny = fr[1], nz = fr[2];
+    double dn = e[0] * nx + e[1] * ny + e[2] * nz;
+    double p0 = e[0] - dn * nx, p1 = e[1] - dn * ny, p2 = e[2] - dn * nz;
+    double pl2 = p0 * p0 + p1 * p1 + p2 * p2, el2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+    if (!(el2 > 0.0 && pl2 > MIM__XFER_TANGENT_MIN * MIM__XFER_TANGENT_MIN * el2))
+        return 0;
+    double inv = 1.0 / sqrt(pl2);
+    fr[3] = p0 * inv, fr[4] = p1 * inv, fr[5] = p2 * inv;
+    return 1;
+}
+
 /* f2 where the fixed neighbour's edge lies along the normal f1 (fr[0..2]):
  * the next neighbours in index order, else any axis not along the
  * normal, projected. Rare, so out of the frames' loop. */
@@ -38,18 +54,11 @@ static __attribute__((noinline)) void tangent_fallback(const mim_xfer_topology_t
                                                        uint32_t i, double *fr)
 {
     const double nx = fr[0], ny = fr[1], nz = fr[2];
-    const double xi0 = POS(i, 0), xi1 = POS(i, 1), xi2 = POS(i, 2);
     for (uint32_t k = t->adj_start[i] + 1; k < t->adj_start[i + 1]; k++) {
         uint32_t j = t->adj[k];
-        double e0 = POS(j, 0) - xi0, e1 = POS(j, 1) - xi1, e2 = POS(j, 2) - xi2;
-        double dn = e0 * nx + e1 * ny + e2 * nz;
-        double p0 = e0 - dn * nx, p1 = e1 - dn * ny, p2 = e2 - dn * nz;
-        double pl2 = p0 * p0 + p1 * p1 + p2 * p2, el2 = e0 * e0 + e1 * e1 + e2 * e2;
-        if (el2 > 0.0 && pl2 > MIM__XFER_TANGENT_MIN * MIM__XFER_TANGENT_MIN * el2) {
-            double inv = 1.0 / sqrt(pl2);
-            fr[3] = p0 * inv, fr[4] = p1 * inv, fr[5] = p2 * inv;
+        const double e[3] = {POS(j, 0) - POS(i, 0), POS(j, 1) - POS(i, 1), POS(j, 2) - POS(i, 2)};
+        if (tangent_of(e, fr))
             return;
-        }
     }
     double ax[3] = {1.0, 0.0, 0.0};
     if (fabs(nx) > 0.9)
@@ -127,16 +136,8 @@ static inline __attribute__((always_inline)) void frames_impl(const mim_xfer_top
             }
             fr[0] = nx, fr[1] = ny, fr[2] = nz;
             /* f2: the edge to the fixed (lowest-index) neighbour, projected */
-            const double e0 = r[3], e1 = r[4], e2 = r[5];
-            double dn = e0 * nx + e1 * ny + e2 * nz;
-            double p0 = e0 - dn * nx, p1 = e1 - dn * ny, p2 = e2 - dn * nz;
-            double pl2 = p0 * p0 + p1 * p1 + p2 * p2, el2 = e0 * e0 + e1 * e1 + e2 * e2;
-            if (el2 > 0.0 && pl2 > MIM__XFER_TANGENT_MIN * MIM__XFER_TANGENT_MIN * el2) {
-                double inv = 1.0 / sqrt(pl2);
-                fr[3] = p0 * inv, fr[4] = p1 * inv, fr[5] = p2 * inv;
-            } else {
+            if (!tangent_of(r + 3, fr))
                 tangent_fallback(t, pf, pd, i, fr);
-            }
             /* f3 = f1 x f2 */
             fr[6] = ny * fr[5] - nz * fr[4];
             fr[7] = nz * fr[3] - nx * fr[5];

@@ -136,12 +136,13 @@ int mim_xfer_solver_solve_columns(mim_xfer_solver_t *s, const double *rhs, uint3
 #define MIM_XFER_DEFAULT_TOL 1e-4     /* metres: largest vertex move */
 /* The result no longer moves: the iteration stops once the largest vertex
  * move falls below this fraction of the targets' extent (the diagonal of
- * their bounding box, about a person's height: 9 mm on a person). With
- * relative transfer the second solve moves no vertex more than 0.4 % of
- * it on synth, and the third solve then gains 0.01 mm; the solves after
- * the third do not lower the error on any set (bench/transfer_accuracy.c,
- * bench/blend_accuracy.c --settle; bench/RESULTS.md, "Key frames within
- * twice a solve"). */
+ * their bounding box: 18 mm on a person, whatever the unit). Against
+ * iterating on to the 0.1 mm floor: plain synth's mean error +0.75 %,
+ * imitation's unchanged (its poses lie between the templates: nothing
+ * settles early), mh-bodies' lower; the session's relative transfer on
+ * synth settles after two solves instead of 3.3. 1.25 % and more cost
+ * plain synth over 1 % (bench/transfer_accuracy.c, bench/blend_accuracy.c
+ * --settle; bench/RESULTS.md, "Key frames within twice a solve"). */
 #define MIM_XFER_DEFAULT_SETTLE 0.01
 /* Defaults measured with bench/transfer_accuracy.c (synth 7k and mh-bodies
  * 13k vertices): without damping the error is lowest at iteration 2 and
