@@ -28,9 +28,10 @@
  * bounds with A's own frames and encoding in the pose. The references and
  * their scales are per avatar and subject, computed outside the timing.
  *
- * usage: bench_blend_accuracy [--vertices N] [--mh DIR | --no-mh] [--iterations N]
+ * usage: bench_blend_accuracy [--vertices N] [--mh DIR | --no-mh] [--iterations N] [--settle S]
  *                             [--new-only] [--other-pose] [--no-rest-ref]
  *   --iterations N: N solves, no early stop (default: mimic's iteration)
+ *   --settle S: mim_xfer_options_t.settle (< 0: none, as before issue 31)
  *   --new-only: of the plain rows only the nearest and 2 nearest by 1/distance
  *   --other-pose: templates from poses other than the query's (all-angle 1-NN)
  *   --no-rest-ref: references from poses other than A's rest */
@@ -195,6 +196,7 @@ typedef struct row {
     uint64_t rcnt[BENCH_REGIONS];
     double *t_prep, *t_key;
     uint32_t runs;
+    uint64_t solves;
 } row_t;
 
 static int method_index(uint32_t ki, int weighting, int corrected)
@@ -222,8 +224,9 @@ static int cmp_double(const void *a, const void *b)
 
 /* One key frame's errors and times (t0 .. t1 the frames, .. t2 the solve). */
 static void record(row_t *r, const float *out, const float *truth, const uint8_t *region, uint32_t n, double t0,
-                   double t1, double t2)
+                   double t1, double t2, const mim_xfer_report_t *rep)
 {
+    r->solves += rep->iterations;
     if (r->runs < MAX_RUNS)
         r->t_prep[r->runs] = 1000 * (t1 - t0), r->t_key[r->runs] = 1000 * (t2 - t0);
     r->runs++;
@@ -243,7 +246,7 @@ static void print_row(row_t *r, const char *name)
     printf("| %s | %.2f | %.2f |", name, bench_err_mean(&r->e), bench_err_p95(&r->e));
     for (int g = 0; g < BENCH_REGIONS; g++)
         printf(" %.2f |", r->rcnt[g] ? r->rsum[g] / (double)r->rcnt[g] : 0.0);
-    printf(" %.3f | %.3f |\n", r->t_prep[nr / 2], r->t_key[nr / 2]);
+    printf(" %.3f | %.3f | %.2f |\n", r->t_prep[nr / 2], r->t_key[nr / 2], r->runs ? (double)r->solves / r->runs : 0.0);
 }
 
 static int run_set(const bench_dataset_t *d, void *user)
@@ -303,6 +306,7 @@ static int run_set(const bench_dataset_t *d, void *user)
         sp[t] = subj[t], pp[t] = pose[t], ids[t] = t + 1;
     }
     int rc = 1;
+    mim_xfer_report_t rep;
     for (uint32_t a = 0; a < S; a++) {
         const float *rest = d->pos[a * P];
         mim_mesh_t mesh = {n, d->n_faces, (float *)rest, d->faces};
@@ -424,11 +428,11 @@ static int run_set(const bench_dataset_t *d, void *user)
                             frames = Fb;
                         }
                         double t1 = mim_now();
-                        if (mim_xfer_transfer(ls, W, n, frames, u, L, xo, out, NULL, &err)) {
+                        if (mim_xfer_transfer(ls, W, n, frames, u, L, xo, out, &rep, &err)) {
                             mim_index_close(&ix);
                             goto fail;
                         }
-                        record(r, out, truth, region, n, t0, t1, mim_now());
+                        record(r, out, truth, region, n, t0, t1, mim_now(), &rep);
                     }
             /* the avatar's own frames, turned as its landmark skeleton
              * onto the targets (no template); then blended with the nearest */
@@ -447,11 +451,11 @@ static int run_set(const bench_dataset_t *d, void *user)
                     frames = Fb;
                 }
                 double t1 = mim_now();
-                if (mim_xfer_transfer(ls, W, n, frames, u, L, xo, out, NULL, &err)) {
+                if (mim_xfer_transfer(ls, W, n, frames, u, L, xo, out, &rep, &err)) {
                     mim_index_close(&ix);
                     goto fail;
                 }
-                record(&rows[N_METHOD + x], out, truth, region, n, t0, t1, mim_now());
+                record(&rows[N_METHOD + x], out, truth, region, n, t0, t1, mim_now(), &rep);
             }
             /* the hits by build, nearest A's first (the reference's rest landmarks) */
             mim_index_hit_t by_build[K_ASK];
@@ -521,11 +525,11 @@ static int run_set(const bench_dataset_t *d, void *user)
                     Wq = Wx;
                 }
                 double t1 = mim_now();
-                if (mim_xfer_transfer(ls, Wq, n, frames, u, L, xo, out, NULL, &err)) {
+                if (mim_xfer_transfer(ls, Wq, n, frames, u, L, xo, out, &rep, &err)) {
                     mim_index_close(&ix);
                     goto fail;
                 }
-                record(&rows[N_METHOD + N_EXTRA + m], out, truth, region, n, t0, t1, mim_now());
+                record(&rows[N_METHOD + N_EXTRA + m], out, truth, region, n, t0, t1, mim_now(), &rep);
             }
         }
         mim_index_close(&ix);
@@ -538,10 +542,10 @@ static int run_set(const bench_dataset_t *d, void *user)
     printf("| method | mean mm | p95 mm |");
     for (int g = 0; g < BENCH_REGIONS; g++)
         printf(" %s |", bench_region_names[g]);
-    printf(" frames ms | key frame ms |\n|---|---:|---:|");
+    printf(" frames ms | key frame ms | solves |\n|---|---:|---:|");
     for (int g = 0; g < BENCH_REGIONS; g++)
         printf("---:|");
-    printf("---:|---:|\n");
+    printf("---:|---:|---:|\n");
     for (uint32_t ki = 0; ki < N_K; ki++)
         for (int wt = 0; wt < N_WEIGHTING; wt++)
             for (int corrected = 0; corrected < 2; corrected++) {
@@ -602,11 +606,14 @@ int main(int argc, char **argv)
         } else if (!strcmp(argv[i], "--iterations") && i + 1 < argc) {
             xo.max_iterations = (uint32_t)strtoul(argv[++i], NULL, 10);
             xo.tol = -1, xo.no_early_stop = 1;
+        } else if (!strcmp(argv[i], "--settle") && i + 1 < argc) {
+            xo.settle = strtod(argv[++i], NULL);
         } else {
-            fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--iterations N] [--new-only] [--other-pose] [--no-rest-ref]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--iterations N] [--settle S] [--new-only] [--other-pose] [--no-rest-ref]\n", argv[0]);
             return 2;
         }
     }
-    printf("iterations: %s\n", xo.max_iterations ? "fixed" : "mimic's default");
+    printf("iterations: %s, settle %g\n", xo.max_iterations ? "fixed" : "mimic's default",
+           xo.settle != 0 ? xo.settle : MIM_XFER_DEFAULT_SETTLE);
     return bench_sets_run(&sets, 4, 12, run_set, &xo);
 }

@@ -8,7 +8,9 @@
  *
  * Timings are in bench/transfer.c.
  *
- * usage: bench_transfer_accuracy [--vertices N] [--mh DIR | --no-mh] [--pairs-max K]
+ * usage: bench_transfer_accuracy [--vertices N] [--mh DIR | --no-mh] [--pairs-max K] [--settle S]
+ *   --settle S: the default row's mim_xfer_options_t.settle (< 0: none; the
+ *   row "before issue 31" never settles, whatever S)
  * The mh-bodies folder defaults to $MIMIC_SHARED_DATA/mh-bodies, else
  * ../shared/data/mh-bodies beside the source tree; it is skipped when absent. */
 #include "bench_data.h"
@@ -30,13 +32,14 @@ typedef struct stat {
     uint64_t runs;
 } stat_t;
 
-enum { M_BASE1, M_BASE2, M_PAPER, M_LS10, M_DEFAULT, M_LS_D1, M_LS_D07, M_LS_D05R1, M_LS_D05R07, M_SQ_DEF, M_LS2, M_LS3, M_ANCHOR, M_RETARGET, M_COUNT };
+enum { M_BASE1, M_BASE2, M_PAPER, M_LS10, M_DEFAULT, M_NO_SETTLE, M_LS_D1, M_LS_D07, M_LS_D05R1, M_LS_D05R07, M_SQ_DEF, M_LS2, M_LS3, M_ANCHOR, M_RETARGET, M_COUNT };
 static const char *method_names[M_COUNT] = {
     "baseline 1: B moved to landmark centroid",
     "baseline 2: Laplacian editing, avatar rest frames",
     "paper: square, hard constraints, 10 it",
     "least squares, 10 it, no damping, no early stop",
-    "mimic default (least squares, damping 0.5, stop ratio 0.5)",
+    "mimic default (least squares, damping 0.5, stop ratio 0.5, settle)",
+    "mimic default before issue 31 (no settle: tol 0.1 mm alone)",
     "least squares, damping 1 (none), stop ratio 1",
     "least squares, damping 0.7, stop ratio 1",
     "least squares, damping 0.5, stop ratio 1",
@@ -47,6 +50,8 @@ static const char *method_names[M_COUNT] = {
     "mode (a) template only, the paper's way: pelvis anchor alone, LS defaults",
     "mode (a) template only, mimic: landmarks retargeted from the template, LS defaults",
 };
+
+static double settle; /* --settle: the default row's (0: mimic's default) */
 
 static int run_accuracy(const bench_dataset_t *d, uint32_t pairs_max)
 {
@@ -140,7 +145,8 @@ static int run_accuracy(const bench_dataset_t *d, uint32_t pairs_max)
                     {M_BASE2, sq, Fa, {.max_iterations = 1}, NULL},
                     {M_PAPER, sq, Ft, {.max_iterations = 10, .tol = -1, .damping = 1, .no_early_stop = 1, .truth = truth, .error_by_iteration = e_it}, err_sq},
                     {M_LS10, ls, Ft, {.max_iterations = 10, .tol = -1, .damping = 1, .no_early_stop = 1, .truth = truth, .error_by_iteration = e_it}, err_ls},
-                    {M_DEFAULT, ls, Ft, {0}, NULL},
+                    {M_DEFAULT, ls, Ft, {.settle = settle}, NULL},
+                    {M_NO_SETTLE, ls, Ft, {.settle = -1}, NULL},
                     {M_LS_D07, ls, Ft, {.damping = 0.7, .stop_ratio = 1}, NULL},
                     {M_LS_D1, ls, Ft, {.damping = 1, .stop_ratio = 1}, NULL},
                     {M_LS_D05R1, ls, Ft, {.damping = 0.5, .stop_ratio = 1}, NULL},
@@ -249,10 +255,13 @@ int main(int argc, char **argv)
             continue;
         if (!strcmp(argv[i], "--pairs-max") && i + 1 < argc) {
             pairs_max = (uint32_t)strtoul(argv[++i], NULL, 10);
+        } else if (!strcmp(argv[i], "--settle") && i + 1 < argc) {
+            settle = strtod(argv[++i], NULL);
         } else {
-            fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--pairs-max K]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--pairs-max K] [--settle S]\n", argv[0]);
             return 2;
         }
     }
+    printf("settle of the default row: %g\n", settle != 0 ? settle : MIM_XFER_DEFAULT_SETTLE);
     return bench_sets_run(&sets, 4, 12, run_set, &pairs_max);
 }

@@ -51,14 +51,15 @@ static void help(FILE *out)
             "                       (within %g degrees: one rig's bodies; real people's do not) (default\n"
             "                       on; off: the template's frames, rest W)\n"
             "  --iterations N       at most N solves (default %u)\n"
-            "  --tol T              stop when no vertex moves more than T metres (default %g)\n"
+            "  --tol T              stop when no vertex moves more than T metres (default: %g of the\n"
+            "                       landmarks' extent, at least %g)\n"
             "  --formulation F      least-squares (default: the landmark rows stay in the objective)\n"
             "                       or square (the paper's system (3))\n"
             "  -o, --output OUT     .ply .obj .off or .glb\n"
             "  --json               a JSON report on stdout (schemas/transfer.schema.json)\n"
             "  -h, --help           this help\n",
             MIM_XFER_BLEND_MAX, MIM_SESSION_DEFAULT_BLEND, MIM_SESSION_RELATIVE_GATE_DEG, MIM_XFER_DEFAULT_MAX_ITERATIONS,
-            MIM_XFER_DEFAULT_TOL);
+            MIM_XFER_DEFAULT_SETTLE, MIM_XFER_DEFAULT_TOL);
 }
 
 int mim_cmd_transfer(int argc, char **argv)

@@ -317,6 +317,18 @@ static inline void mim_quat_to_matrix(mim_quat q, double m[9])
     m[6] = 2 * (x * z + y * w), m[7] = 2 * (y * z - x * w), m[8] = 1 - 2 * (x * x + y * y);
 }
 
+/* v turned by the rotation of q / |q| (q not zero): v + w t + u x t with
+ * t = 2 (u x v) / |q|^2, u the vector part. A blend of unit quaternions
+ * turns vectors so without being normalised: a division, no square root.
+ * Inline for the per-vertex loops of transfer's drives. */
+static inline mim_vec3 mim_quat_rotate_unnormalized(mim_quat q, mim_vec3 v)
+{
+    const double s = 2.0 / (q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
+    const double tx = s * (q.y * v.z - q.z * v.y), ty = s * (q.z * v.x - q.x * v.z), tz = s * (q.x * v.y - q.y * v.x);
+    return mim_v3(v.x + q.w * tx + (q.y * tz - q.z * ty), v.y + q.w * ty + (q.z * tx - q.x * tz),
+                  v.z + q.w * tz + (q.x * ty - q.y * tx));
+}
+
 /* Spherical interpolation along the shorter arc, renormalised; linear when
  * the two are within ~1.8 degrees (sin of the angle is too small to divide
  * by). Inline for the same hot path as mim_quat_to_matrix. */

@@ -24,6 +24,8 @@ typedef struct template_slot {
     double *W;                  /* 3 * n, valid when has_W */
     double *rF;                 /* 9 * n, valid when has_rF */
     int has_W, has_rF;
+    double *Q;                  /* 4 * n: quaternions of F (Q_of 1) or rF (Q_of 2) for blends; 0: none */
+    int Q_of;
     char label[MIM_SESSION_LABEL_MAX];
 } template_slot_t;
 
@@ -81,7 +83,8 @@ struct mim_session {
     char **table_subject;
     uint64_t *table_id;         /* ascending (the store's id order) */
     double *W;                  /* the avatar's encoding, 3 * n */
-    double *restF;              /* the avatar's rest frames, 9 * n (the orientation drive turns them) */
+    double *restF;              /* the avatar's rest frames, 9 * n (relative transfer turns them) */
+    double *restD;              /* its rest offsets F W, 3 * n (the orientation drive turns them) */
     mim_xfer_skin_t *skin;      /* its segmentation over the 17 vest segments; NULL: skin_failed says why */
     mim_error_t skin_failed;
     int skin_from_rig;          /* the skin's weights are the avatar's own rig's (a skinned glTF) */
@@ -95,8 +98,9 @@ struct mim_session {
     mim_xfer_solver_t *solver;
     template_slot_t slot[MIM_XFER_BLEND_MAX];
     uint64_t tick;              /* the slots' clock (least recently used goes first) */
-    double *bF;                 /* 9 * n: the blended templates' frames */
-    double *oF;                 /* 9 * n: the orientation drive's frames */
+    double *bF;                 /* 9 * n: the blended templates' frames (with the segment correction) */
+    double *bD;                 /* 3 * n: the blended templates' offsets (without it) */
+    double *oD;                 /* 3 * n: the orientation drive's offsets */
     double *rW;                 /* 3 * n: relative transfer's W */
     subject_ref_t *refs;        /* the template subjects' references met so far */
     uint32_t n_refs, cap_refs;

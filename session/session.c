@@ -581,12 +581,16 @@ int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *e
     if (!s->W) {
         s->W = malloc(3 * (size_t)n * sizeof *s->W);
         s->bF = malloc(9 * (size_t)n * sizeof *s->bF);
-        s->oF = malloc(9 * (size_t)n * sizeof *s->oF);
+        s->bD = malloc(3 * (size_t)n * sizeof *s->bD);
+        s->oD = malloc(3 * (size_t)n * sizeof *s->oD);
+        s->restD = malloc(3 * (size_t)n * sizeof *s->restD);
         s->rW = malloc(3 * (size_t)n * sizeof *s->rW);
-        if (!s->W || !s->bF || !s->oF || !s->rW)
+        if (!s->W || !s->bF || !s->bD || !s->oD || !s->restD || !s->rW)
             return mim_error_set(err, MIM_ENOMEM, "out of memory for %u vertices", n);
     }
     int rc = load_avatar(s, avatar, err);
+    if (!rc)
+        mim_xfer_decode(n, s->restF, s->W, s->restD);
     if (!rc && !s->n_parts) { /* a template id: one part, the whole mesh */
         const mim_mesh_t *o = mim_session_output_mesh(s);
         if (!(s->parts = calloc(1, sizeof *s->parts))) return mim_error_set(err, MIM_ENOMEM, "out of memory");
@@ -631,11 +635,12 @@ void mim_session_close(mim_session_t **ps)
     free(s->crushed);
     free(s->out_work);
     for (int k = 0; k < MIM_XFER_BLEND_MAX; k++)
-        free(s->slot[k].pos), free(s->slot[k].F), free(s->slot[k].cF), free(s->slot[k].W), free(s->slot[k].rF);
+        free(s->slot[k].pos), free(s->slot[k].F), free(s->slot[k].cF), free(s->slot[k].W), free(s->slot[k].rF),
+            free(s->slot[k].Q);
     for (uint32_t i = 0; i < s->n_refs; i++)
         free(s->refs[i].subject), free(s->refs[i].W), free(s->refs[i].F);
     free(s->refs), free(s->rest_angles), free(s->rW);
-    free(s->W), free(s->bF), free(s->oF), free(s->restF), free(s->skin);
+    free(s->W), free(s->bF), free(s->bD), free(s->oD), free(s->restF), free(s->restD), free(s->skin);
     pthread_mutex_destroy(&s->lock);
     pthread_mutex_destroy(&s->out_lock);
     pthread_mutex_destroy(&s->table_lock);
@@ -776,7 +781,7 @@ static int cache_template(mim_session_t *s, uint64_t id, uint32_t slots, templat
             slot = &s->slot[k];
     }
     const size_t n = s->mesh.n_vertices;
-    slot->id = 0, slot->has_W = slot->has_rF = 0;
+    slot->id = 0, slot->has_W = slot->has_rF = slot->Q_of = 0;
     if (!slot->pos && !(slot->pos = malloc(3 * n * sizeof *slot->pos)))
         return mim_error_set(err, MIM_ENOMEM, "out of memory for a template of %zu vertices", n);
     if (!slot->F && !(slot->F = malloc(9 * n * sizeof *slot->F)))
@@ -791,12 +796,12 @@ static int cache_template(mim_session_t *s, uint64_t id, uint32_t slots, templat
 
 /* The rms difference (radians) of two angle descriptors over the angles
  * both have (a degenerate landmark triple is NaN); NaN when none. */
-/* The orientation drive's frames into s->oF (under s->lock): lost
- * segments from their neighbours, and the vertices whose heaviest segment
- * has no rotation at all from the template's frames, which are loaded
- * only then. */
-static int orientation_frames(mim_session_t *s, const mim_session_request_t *req, mim_session_report_t *r,
-                              mim_error_t *err)
+/* The orientation drive's offsets into s->oD (under s->lock): the rest
+ * offsets turned per segment, lost segments from their neighbours, and the
+ * vertices whose heaviest segment has no rotation at all from the
+ * template's frames, which are loaded only then. */
+static int orientation_offsets(mim_session_t *s, const mim_session_request_t *req, mim_session_report_t *r,
+                               mim_error_t *err)
 {
     const uint32_t n = s->mesh.n_vertices;
     mim_quat R[MIM_VEST_SEGMENTS];
@@ -807,7 +812,7 @@ static int orientation_frames(mim_session_t *s, const mim_session_request_t *req
         R[g] = have[g] ? req->orientations[g] : mim_quat_identity();
     }
     r->orient_filled = mim_vest_rotations_fill(R, have, from);
-    mim_xfer_skin_frames(n, s->skin, s->restF, R, s->oF);
+    mim_xfer_skin_offsets(n, s->skin, s->restD, R, s->oD);
     int unfilled = 0;
     for (int g = 0; g < MIM_VEST_SEGMENTS; g++)
         unfilled |= from[g] < 0;
@@ -819,7 +824,7 @@ static int orientation_frames(mim_session_t *s, const mim_session_request_t *req
         return rc;
     for (uint32_t i = 0; i < n; i++)
         if (from[s->skin[i].bone[0]] < 0) {
-            memcpy(s->oF + 9 * (size_t)i, t->F + 9 * (size_t)i, 9 * sizeof *s->oF);
+            mim_xfer_decode(1, t->F + 9 * (size_t)i, s->W + 3 * (size_t)i, s->oD + 3 * (size_t)i);
             r->orient_from_template++;
         }
     return 0;
@@ -831,10 +836,13 @@ static int orientation_frames(mim_session_t *s, const mim_session_request_t *req
  * segment correction from its landmark skeleton onto the targets u when
  * the avatar is segmented; then blended with these weights (issue 15).
  * *frames points at them, *W at the avatar's W or, relative, its W plus
- * the templates' change; the first template's slot in *first. */
+ * the templates' change; the first template's slot in *first. A blend
+ * without the correction gives its offsets in *offsets instead of frames
+ * (*frames NULL): each template's quaternions are kept with it, so a held
+ * pose pays for them once and each key frame only sums them. */
 static int template_frames(mim_session_t *s, const mim_session_request_t *req, mim_session_report_t *r,
-                           double *weights, const float *u, const double **frames, const double **W,
-                           template_slot_t **first, mim_error_t *err)
+                           double *weights, const float *u, const double **frames, const double **offsets,
+                           const double **W, template_slot_t **first, mim_error_t *err)
 {
     const uint32_t n = s->mesh.n_vertices, nl = s->map.count;
     const double *src[MIM_XFER_BLEND_MAX], *wp[MIM_XFER_BLEND_MAX], *wr[MIM_XFER_BLEND_MAX];
@@ -872,11 +880,14 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
     for (uint32_t j = 0; relative && j < r->n_templates; j++)
         ref[j] = &s->refs[at[j]];
     *W = s->W;
+    *frames = *offsets = NULL;
+    template_slot_t *slots[MIM_XFER_BLEND_MAX];
     for (uint32_t j = 0; j < r->n_templates; j++) {
         template_slot_t *t;
         int rc = cache_template(s, r->templates[j], r->n_templates, &t, err);
         if (rc)
             return rc;
+        slots[j] = t;
         if (!j)
             *first = t;
         src[j] = t->F;
@@ -925,8 +936,25 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
         *frames = src[0];
         return 0;
     }
-    mim_xfer_frames_blend(n, r->n_templates, src, weights, s->bF);
-    *frames = s->bF;
+    if (correct) { /* turned for these landmarks: nothing to keep */
+        mim_xfer_frames_blend(n, r->n_templates, src, weights, s->bF);
+        *frames = s->bF;
+        return 0;
+    }
+    const double *quats[MIM_XFER_BLEND_MAX];
+    for (uint32_t j = 0; j < r->n_templates; j++) {
+        template_slot_t *t = slots[j];
+        const int of = src[j] == t->rF ? 2 : 1;
+        if (t->Q_of != of) {
+            if (!t->Q && !(t->Q = malloc(4 * (size_t)n * sizeof *t->Q)))
+                return mim_error_set(err, MIM_ENOMEM, "out of memory for a template of %u vertices", n);
+            mim_xfer_frames_to_quats(n, src[j], t->Q);
+            t->Q_of = of;
+        }
+        quats[j] = t->Q;
+    }
+    mim_xfer_offsets_blend(n, r->n_templates, quats, weights, *W, s->bD);
+    *offsets = s->bD;
     return 0;
 }
 
@@ -993,12 +1021,12 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
     const uint32_t n = s->mesh.n_vertices, nl = s->map.count;
     float *u = r->landmarks;
     pthread_mutex_lock(&s->lock);
-    const double *frames = NULL, *W = s->W;
+    const double *frames = NULL, *offsets = NULL, *W = s->W;
     template_slot_t *first = NULL;
     if (r->drive == MIM_DRIVE_ORIENTATION) {
         r->n_templates = 1;
-        rc = orientation_frames(s, req, r, err);
-        frames = s->oF;
+        rc = orientation_offsets(s, req, r, err);
+        offsets = s->oD;
         /* the label without reading the template's mesh unless it is cached
          * (kept: a stream holds a pose) */
         for (int k = 0; !rc && k < MIM_XFER_BLEND_MAX && !r->label[0]; k++)
@@ -1022,7 +1050,7 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
         else if (!rc) /* mode (a): the first template's landmarks on the avatar's proportions */
             rc = mim_xfer_retarget_landmarks(&s->map, s->mesh.positions, t0slot->pos, u, err);
         if (!rc)
-            rc = template_frames(s, req, r, weights, u, &frames, &W, &first, err);
+            rc = template_frames(s, req, r, weights, u, &frames, &offsets, &W, &first, err);
         if (!rc)
             snprintf(r->label, sizeof r->label, "%s", first->label);
     }
@@ -1034,7 +1062,9 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
     if (r->drive == MIM_DRIVE_ORIENTATION) /* the frames are the pose's own: one solve, nothing to iterate */
         xo.max_iterations = 1, xo.start = NULL;
     r->warm_started = xo.start != NULL;
-    if (!rc)
+    if (!rc && offsets)
+        rc = mim_xfer_transfer_offsets(s->solver, W, n, offsets, u, nl, &xo, out, &r->xfer, err);
+    else if (!rc)
         rc = mim_xfer_transfer(s->solver, W, n, frames, u, nl, &xo, out, &r->xfer, err);
     pthread_mutex_unlock(&s->lock);
     r->seconds_solve = mim_now() - t2;

@@ -299,8 +299,8 @@ static void test_transfer(void **state)
     assert_glb(&on), assert_glb(&off);
     assert_non_null(strstr(on.head, "X-Mimic-Relative: 1"));
     assert_non_null(strstr(off.head, "X-Mimic-Relative: 0"));
-    assert_int_equal(on.len, off.len);
-    assert_true(memcmp(on.body, off.body, on.len) != 0);
+    /* other positions; the lengths may differ too (the accessors' min and max are text in the JSON) */
+    assert_true(on.len != off.len || memcmp(on.body, off.body, on.len) != 0);
     hc_reply_free(&on), hc_reply_free(&off);
 }
 

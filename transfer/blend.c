@@ -33,30 +33,79 @@
 #include <math.h>
 #include <string.h>
 
+/* The weighted sum of one vertex's k quaternions (q[j]), each in the
+ * hemisphere of the first that weighs, not normalised; w[j] == 0 skips. */
+static inline mim_quat blend_sum(uint32_t k, const mim_quat *q, const double *w)
+{
+    mim_quat sum = {0, 0, 0, 0}, first = {0, 0, 0, 1};
+    for (uint32_t j = 0; j < k; j++) {
+        if (w[j] == 0)
+            continue;
+        if (sum.w == 0 && sum.x == 0 && sum.y == 0 && sum.z == 0)
+            first = q[j];
+        double s = q[j].x * first.x + q[j].y * first.y + q[j].z * first.z + q[j].w * first.w < 0 ? -w[j] : w[j];
+        sum.x += s * q[j].x, sum.y += s * q[j].y, sum.z += s * q[j].z, sum.w += s * q[j].w;
+    }
+    return sum;
+}
+
+/* The weights as the blends take them into w; 0 when none weighs. */
+static int blend_weights(uint32_t *k, const double *weights, double w[MIM_XFER_BLEND_MAX])
+{
+    double total = 0;
+    *k = *k > MIM_XFER_BLEND_MAX ? MIM_XFER_BLEND_MAX : *k;
+    for (uint32_t j = 0; j < *k; j++)
+        total += w[j] = weights && weights[j] > 0 && isfinite(weights[j]) ? weights[j] : weights ? 0.0 : 1.0;
+    return *k && total > 0;
+}
+
 void mim_xfer_frames_blend(uint32_t n_vertices, uint32_t k, const double *const *frames, const double *weights,
                            double *out)
 {
-    double w[MIM_XFER_BLEND_MAX], total = 0;
-    k = k > MIM_XFER_BLEND_MAX ? MIM_XFER_BLEND_MAX : k;
-    for (uint32_t j = 0; j < k; j++)
-        total += w[j] = weights && weights[j] > 0 && isfinite(weights[j]) ? weights[j] : weights ? 0.0 : 1.0;
-    if (!k || !(total > 0)) { /* nothing to weigh: the first (or nothing) */
+    double w[MIM_XFER_BLEND_MAX];
+    if (!blend_weights(&k, weights, w)) { /* nothing to weigh: the first (or nothing) */
         if (k && out != frames[0])
             memcpy(out, frames[0], 9 * (size_t)n_vertices * sizeof *out);
         return;
     }
     for (uint32_t i = 0; i < n_vertices; i++) {
-        mim_quat sum = {0, 0, 0, 0}, first = {0, 0, 0, 1};
-        for (uint32_t j = 0; j < k; j++) {
-            if (w[j] == 0)
-                continue;
-            mim_quat q = mim_quat_from_matrix(frames[j] + 9 * (size_t)i);
-            if (sum.w == 0 && sum.x == 0 && sum.y == 0 && sum.z == 0)
-                first = q;
-            double s = q.x * first.x + q.y * first.y + q.z * first.z + q.w * first.w < 0 ? -w[j] : w[j];
-            sum.x += s * q.x, sum.y += s * q.y, sum.z += s * q.z, sum.w += s * q.w;
+        mim_quat q[MIM_XFER_BLEND_MAX];
+        for (uint32_t j = 0; j < k; j++)
+            if (w[j] != 0)
+                q[j] = mim_quat_from_matrix(frames[j] + 9 * (size_t)i);
+        mim_quat_to_matrix(mim_quat_normalize(blend_sum(k, q, w)), out + 9 * (size_t)i);
+    }
+}
+
+void mim_xfer_offsets_blend(uint32_t n_vertices, uint32_t k, const double *const *quats, const double *weights,
+                            const double *W, double *offsets)
+{
+    double w[MIM_XFER_BLEND_MAX];
+    if (!blend_weights(&k, weights, w)) /* nothing to weigh: the first's frames */
+        w[0] = 1.0, k = k ? 1 : 0;
+    /* the templates that weigh, the first of them the hemisphere's (as
+     * blend_sum takes it, but found once, not per vertex) */
+    const double *q[MIM_XFER_BLEND_MAX];
+    double wq[MIM_XFER_BLEND_MAX];
+    uint32_t m = 0;
+    for (uint32_t j = 0; j < k; j++)
+        if (w[j] != 0)
+            q[m] = quats[j], wq[m++] = w[j];
+    for (uint32_t i = 0; i < n_vertices; i++) {
+        const double *wi = W + 3 * (size_t)i;
+        mim_vec3 v = mim_v3(wi[0], wi[1], wi[2]);
+        if (m) {
+            const double *f = q[0] + 4 * (size_t)i;
+            mim_quat sum = {wq[0] * f[0], wq[0] * f[1], wq[0] * f[2], wq[0] * f[3]};
+            for (uint32_t j = 1; j < m; j++) {
+                const double *p = q[j] + 4 * (size_t)i;
+                const double s = p[0] * f[0] + p[1] * f[1] + p[2] * f[2] + p[3] * f[3] < 0 ? -wq[j] : wq[j];
+                sum.x += s * p[0], sum.y += s * p[1], sum.z += s * p[2], sum.w += s * p[3];
+            }
+            v = mim_quat_rotate_unnormalized(sum, v);
         }
-        mim_quat_to_matrix(mim_quat_normalize(sum), out + 9 * (size_t)i);
+        double *o = offsets + 3 * (size_t)i;
+        o[0] = v.x, o[1] = v.y, o[2] = v.z;
     }
 }
 

@@ -37,9 +37,9 @@ struct mim_xfer_solver {
     cholmod_dense *B, *X, *Y, *E;
     uint64_t analyses, factorizations, solves;
     double t_analyze, t_factorize;
-    /* transfer workspaces: 3n positions (current, previous), 9n frames,
-     * 3n right-hand side scratch */
-    double *pos, *prev, *frames, *r, *fn;
+    /* transfer workspaces: 3n positions (current, previous), 3n offsets
+     * F(X) W of the last iterate, 3n right-hand side scratch, face normals */
+    double *pos, *prev, *D, *r, *fn;
     double *mframes, *mW; /* morph: frames and W of one in-between pose */
     /* low-rank least squares: K = L_cf^T has -1 at (j, c) for each free
      * one-ring neighbour j of constrained vertex c (k_start/k_free, CSR
@@ -53,9 +53,10 @@ struct mim_xfer_solver {
     double *Zs, *rc;
 };
 
-/* mim_xfer_frames_d with a face-normal workspace (3 * n_faces doubles). */
-void mim__xfer_frames_ws(const mim_xfer_topology_t *t, const double *positions, double *frames,
-                         double *face_normals);
+/* The Laplacian offsets F(v_i) W_i (3 * n) of the frames mim_xfer_frames_d
+ * gives, with a face-normal workspace (3 * n_faces doubles). */
+void mim__xfer_offsets_ws(const mim_xfer_topology_t *t, const double *positions, const double *W, double *offsets,
+                          double *face_normals);
 
 /* Solves with s->B filled (nf x 3) and, for low-rank least squares,
  * s->rc (nc x 3); the solution is in s->X->x. */

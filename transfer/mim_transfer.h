@@ -124,10 +124,26 @@ void mim_xfer_solver_stats(const mim_xfer_solver_t *s, mim_xfer_solver_stats_t *
  * doubles, column-major x then y then z) into x (same layout): the
  * reference the bench measures an iteration against. */
 int mim_xfer_solver_solve(mim_xfer_solver_t *s, const double *rhs, double *x, mim_error_t *err);
+/* The same for the first `columns` (1..3) of the right-hand side (x gets
+ * as many): a thread's share of a solve split across threads, which
+ * bench/keyframe.c measures against the whole. A solver keeps workspaces
+ * for one column count: alternating counts reallocates them. */
+int mim_xfer_solver_solve_columns(mim_xfer_solver_t *s, const double *rhs, uint32_t columns, double *x,
+                                  mim_error_t *err);
 
 /* ---- the transfer iteration (transfer.c) ---- */
 #define MIM_XFER_DEFAULT_MAX_ITERATIONS 10u
 #define MIM_XFER_DEFAULT_TOL 1e-4     /* metres: largest vertex move */
+/* The result no longer moves: the iteration stops once the largest vertex
+ * move falls below this fraction of the targets' extent (the diagonal of
+ * their bounding box: 18 mm on a person, whatever the unit). Against
+ * iterating on to the 0.1 mm floor: plain synth's mean error +0.75 %,
+ * imitation's unchanged (its poses lie between the templates: nothing
+ * settles early), mh-bodies' lower; the session's relative transfer on
+ * synth settles after two solves instead of 3.3. 1.25 % and more cost
+ * plain synth over 1 % (bench/transfer_accuracy.c, bench/blend_accuracy.c
+ * --settle; bench/RESULTS.md, "Key frames within twice a solve"). */
+#define MIM_XFER_DEFAULT_SETTLE 0.01
 /* Defaults measured with bench/transfer_accuracy.c (synth 7k and mh-bodies
  * 13k vertices): without damping the error is lowest at iteration 2 and
  * then grows; damping 0.5 with an early stop as soon as the largest move no
@@ -138,7 +154,12 @@ int mim_xfer_solver_solve(mim_xfer_solver_t *s, const double *rhs, double *x, mi
 
 typedef struct mim_xfer_options {
     uint32_t max_iterations; /* 0: MIM_XFER_DEFAULT_MAX_ITERATIONS */
-    double tol;              /* 0: MIM_XFER_DEFAULT_TOL; < 0: never converge */
+    /* Convergence: stop when the largest vertex move falls below tol
+     * metres. 0: the larger of MIM_XFER_DEFAULT_TOL and settle times the
+     * targets' extent (the diagonal of their bounding box; 0 for one
+     * target); > 0: tol exactly; < 0: never converge. */
+    double tol;
+    double settle;           /* 0: MIM_XFER_DEFAULT_SETTLE; < 0: none (the default tol alone) */
     double damping;          /* 0: MIM_XFER_DEFAULT_DAMPING; in (0, 1] */
     /* Early stop. With k counting the iterates so far (the solves, plus one
      * for a warm start) and move_k the largest vertex move from iterate
@@ -162,7 +183,7 @@ typedef struct mim_xfer_options {
 typedef struct mim_xfer_report {
     uint32_t iterations; /* solves done */
     double last_move;    /* largest vertex move of the last iteration (metres) */
-    int converged;       /* last_move < tol */
+    int converged;       /* last_move under the tolerance (tol, or settle times the targets' extent) */
     int early_stopped;   /* stopped because the move no longer shrank by stop_ratio; the
                             result is the mean of the last two iterates */
 } mim_xfer_report_t;
@@ -186,6 +207,14 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
                       const double *frames0, const float *targets, uint32_t n_targets,
                       const mim_xfer_options_t *opt, float *out, mim_xfer_report_t *report,
                       mim_error_t *err);
+/* The same with the first solve's right-hand side given as Laplacian
+ * offsets (3 * n) instead of frames: offsets0_i = F0(v_i) W_i, as
+ * mim_xfer_skin_offsets and mim_xfer_offsets_blend make them without
+ * materialising frames; later solves take their frames from the result
+ * and W as mim_xfer_transfer's do. Errors as mim_xfer_transfer's. */
+int mim_xfer_transfer_offsets(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices, const double *offsets0,
+                              const float *targets, uint32_t n_targets, const mim_xfer_options_t *opt, float *out,
+                              mim_xfer_report_t *report, mim_error_t *err);
 
 /* ---- segment skinning for the orientation drive (skin.c; issue 17) ---- */
 #define MIM_XFER_SKIN_INFLUENCES 4 /* segments per vertex, as a glTF skin's JOINTS_0 */
@@ -249,6 +278,15 @@ mim_quat mim_xfer_skin_rotation(const mim_xfer_skin_t *s, const mim_quat *rot);
  * orientation-driven solve. */
 void mim_xfer_skin_frames(uint32_t n_vertices, const mim_xfer_skin_t *skin, const double *rest_frames,
                           const mim_quat *rot, double *frames);
+/* The Laplacian offsets (3 * n) the solve asks for in those frames,
+ * without the frames: each vertex's rest offset (rest_offsets,
+ * mim_xfer_decode of the rest frames and W) turned by its blended
+ * rotation, R_i F_i W_i. mim_xfer_transfer_offsets with them and one
+ * iteration is the orientation-driven solve, a few times cheaper than the
+ * frames' way and equal to it within rounding. No argument may be NULL;
+ * the arrays must not overlap. */
+void mim_xfer_skin_offsets(uint32_t n_vertices, const mim_xfer_skin_t *skin, const double *rest_offsets,
+                           const mim_quat *rot, double *offsets);
 /* ---- several templates (blend.c; issue 15) ---- */
 #define MIM_XFER_BLEND_MAX 16 /* templates one blend reads at most */
 /* The per-vertex weighted average of k templates' frames (each 9 * n,
@@ -258,6 +296,14 @@ void mim_xfer_skin_frames(uint32_t n_vertices, const mim_xfer_skin_t *skin, cons
  * reads the first MIM_XFER_BLEND_MAX. */
 void mim_xfer_frames_blend(uint32_t n_vertices, uint32_t k, const double *const *frames, const double *weights,
                            double *out);
+/* The Laplacian offsets (3 * n) of that blend applied to W (3 * n), without
+ * the frames: F_blend(v_i) W_i, with each template's frames given as
+ * quaternions (quats: k arrays of 4 * n, mim_xfer_frames_to_quats of its
+ * frames, which a caller keeps with the template). Weights as
+ * mim_xfer_frames_blend's; the same within rounding as
+ * mim_xfer_decode(n, blended frames, W) at a fraction of the cost. */
+void mim_xfer_offsets_blend(uint32_t n_vertices, uint32_t k, const double *const *quats, const double *weights,
+                            const double *W, double *offsets);
 /* The segment correction: the rotation of each of the MIM_SEGMENTS body
  * segments that takes the landmark skeleton `from` (3 * map->count floats,
  * a template's landmarks) onto `to` (the target's). With a skin,

@@ -16,7 +16,12 @@
  * segments' quaternions, each taken in the hemisphere of the heaviest one
  * (q and -q are one rotation), close to the rotation average for the
  * nearby rotations that meet at a joint; its rest frame turned by it is
- * the frame the solve asks for (seed 000 eq. 3: delta_i = R_i F_i W_i). */
+ * the frame the solve asks for (seed 000 eq. 3: delta_i = R_i F_i W_i).
+ * The solve needs only delta_i, so the orientation drive turns the rest
+ * offset F_i W_i, kept per avatar, instead (mim_xfer_skin_offsets): a
+ * vector turned by an unnormalised quaternion, where the frames cost a
+ * normalisation, a matrix and a 3x3 product per vertex, and the solve's
+ * right-hand side then read 9 doubles a vertex instead of 3. */
 #include "internal.h"
 
 #include <float.h>
@@ -137,20 +142,29 @@ uint32_t mim_xfer_skin_from_dense(uint32_t n_vertices, const float *w, uint32_t 
     return fell_back;
 }
 
-mim_quat mim_xfer_skin_rotation(const mim_xfer_skin_t *s, const mim_quat *rot)
+/* The weighted sum of a vertex's segment quaternions, each in the
+ * hemisphere of the heaviest one, not normalised; *h gets the heaviest. */
+static inline mim_quat blend_sum(const mim_xfer_skin_t *s, const mim_quat *rot, mim_quat *h)
 {
-    const mim_quat h = rot[s->bone[0]];
+    *h = rot[s->bone[0]];
     mim_quat q = {0, 0, 0, 0};
     for (int k = 0; k < MIM_XFER_SKIN_INFLUENCES && s->weight[k] > 0; k++) {
         mim_quat r = rot[s->bone[k]];
         double w = s->weight[k];
-        if (r.x * h.x + r.y * h.y + r.z * h.z + r.w * h.w < 0) w = -w;
+        if (r.x * h->x + r.y * h->y + r.z * h->z + r.w * h->w < 0) w = -w;
         q.x += w * r.x, q.y += w * r.y, q.z += w * r.z, q.w += w * r.w;
     }
-    double len = sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
-    if (!(len > 1e-12)) return h; /* opposite rotations cancelling: the heaviest decides */
-    q.x /= len, q.y /= len, q.z /= len, q.w /= len;
     return q;
+}
+
+/* opposite rotations cancelling: the heaviest decides */
+#define CANCELLED(q) (!((q).x * (q).x + (q).y * (q).y + (q).z * (q).z + (q).w * (q).w > 1e-24))
+
+mim_quat mim_xfer_skin_rotation(const mim_xfer_skin_t *s, const mim_quat *rot)
+{
+    mim_quat h, q = blend_sum(s, rot, &h);
+    if (CANCELLED(q)) return h;
+    return mim_quat_normalize(q);
 }
 
 void mim_xfer_skin_frames(uint32_t n_vertices, const mim_xfer_skin_t *skin, const double *rest_frames,
@@ -164,5 +178,18 @@ void mim_xfer_skin_frames(uint32_t n_vertices, const mim_xfer_skin_t *skin, cons
         for (int col = 0; col < 3; col++)
             for (int r = 0; r < 3; r++)
                 o[3 * col + r] = R[r] * f[3 * col] + R[3 + r] * f[3 * col + 1] + R[6 + r] * f[3 * col + 2];
+    }
+}
+
+void mim_xfer_skin_offsets(uint32_t n_vertices, const mim_xfer_skin_t *restrict skin, const double *restrict rest_offsets,
+                           const mim_quat *restrict rot, double *restrict offsets)
+{
+    for (uint32_t i = 0; i < n_vertices; i++) {
+        const double *d = rest_offsets + 3 * (size_t)i;
+        mim_quat h, q = blend_sum(skin + i, rot, &h);
+        if (CANCELLED(q)) q = h;
+        mim_vec3 v = mim_quat_rotate_unnormalized(q, mim_v3(d[0], d[1], d[2]));
+        double *o = offsets + 3 * (size_t)i;
+        o[0] = v.x, o[1] = v.y, o[2] = v.z;
     }
 }

@@ -325,11 +325,11 @@ int mim_xfer_solver_open(mim_xfer_solver_t **out, const mim_xfer_topology_t *t,
     s->pos = malloc(3 * (size_t)t->n * sizeof(double));
     s->prev = malloc(3 * (size_t)t->n * sizeof(double));
     s->r = malloc(3 * (size_t)t->n * sizeof(double));
-    s->frames = malloc(9 * (size_t)t->n * sizeof(double));
+    s->D = malloc(3 * (size_t)t->n * sizeof(double));
     s->fn = malloc(3 * (size_t)t->n_faces * sizeof(double));
     s->mframes = malloc(9 * (size_t)t->n * sizeof(double));
     s->mW = malloc(3 * (size_t)t->n * sizeof(double));
-    if (!s->mW || !s->cons || !s->slot || !s->free_v || !s->pos || !s->prev || !s->r || !s->frames || !s->fn ||
+    if (!s->mW || !s->cons || !s->slot || !s->free_v || !s->pos || !s->prev || !s->r || !s->D || !s->fn ||
         !s->mframes) {
         mim_xfer_solver_close(&s);
         return mim_error_set(err, MIM_ENOMEM, "transfer: out of memory for %u vertices", t->n);
@@ -448,7 +448,7 @@ void mim_xfer_solver_close(mim_xfer_solver_t **sp)
     free(s->pos);
     free(s->prev);
     free(s->r);
-    free(s->frames);
+    free(s->D);
     free(s->fn);
     free(s->mframes);
     free(s->mW);
@@ -470,6 +470,44 @@ static int plain_solve(mim_xfer_solver_t *s, mim_error_t *err)
     return 0;
 }
 
+/* X (nf x 3, column-major) += Zs d, Zs nf x nc, d nc x 3 (row-major),
+ * four columns of Zs a pass: the passes over X are what cost (each loads
+ * and stores X; one column a pass spent half the correction's time
+ * storing). Its own function, with restrict arguments, so that the row
+ * loop vectorises (inside the loop over columns GCC does not). */
+static void add_four_columns(double *restrict X0, double *restrict X1, double *restrict X2,
+                             const double *restrict z0, const double *restrict z1, const double *restrict z2,
+                             const double *restrict z3, const double *e, uint32_t nf)
+{
+    const double e0 = e[0], e1 = e[1], e2 = e[2], e3 = e[3], e4 = e[4], e5 = e[5], e6 = e[6], e7 = e[7], e8 = e[8],
+                 e9 = e[9], e10 = e[10], e11 = e[11];
+    for (uint32_t j = 0; j < nf; j++) {
+        const double a = z0[j], b = z1[j], g = z2[j], h = z3[j];
+        X0[j] += a * e0 + b * e3 + g * e6 + h * e9;
+        X1[j] += a * e1 + b * e4 + g * e7 + h * e10;
+        X2[j] += a * e2 + b * e5 + g * e8 + h * e11;
+    }
+}
+
+static void add_columns(double *X, const double *Zs, const double *d, uint32_t nf, uint32_t nc)
+{
+    double *restrict X0 = X, *restrict X1 = X + nf, *restrict X2 = X + 2 * (size_t)nf;
+    uint32_t c = 0;
+    for (; c + 4 <= nc; c += 4) {
+        const double *z = Zs + (size_t)c * nf;
+        add_four_columns(X0, X1, X2, z, z + nf, z + 2 * (size_t)nf, z + 3 * (size_t)nf, d + 3 * c, nf);
+    }
+    for (; c < nc; c++) {
+        const double *restrict z = Zs + (size_t)c * nf;
+        const double d0 = d[3 * c], d1 = d[3 * c + 1], d2 = d[3 * c + 2];
+        for (uint32_t j = 0; j < nf; j++) {
+            X0[j] += z[j] * d0;
+            X1[j] += z[j] * d1;
+            X2[j] += z[j] * d2;
+        }
+    }
+}
+
 int mim__xfer_solve(mim_xfer_solver_t *s, mim_error_t *err)
 {
     int rc = plain_solve(s, err);
@@ -485,30 +523,31 @@ int mim__xfer_solve(mim_xfer_solver_t *s, mim_error_t *err)
                 v += X[(size_t)k * nf + s->k_free[q]];
             d[3 * c + k] = v;
         }
-    /* column by column: three axpys of length nf per constraint, which
-     * the compiler vectorises (Zs is read once) */
-    double *restrict X0 = X, *restrict X1 = X + nf, *restrict X2 = X + 2 * (size_t)nf;
-    for (uint32_t c = 0; c < nc; c++) {
-        const double *restrict z = s->Zs + (size_t)c * nf;
-        const double d0 = d[3 * c], d1 = d[3 * c + 1], d2 = d[3 * c + 2];
-        for (uint32_t j = 0; j < nf; j++) {
-            X0[j] += z[j] * d0;
-            X1[j] += z[j] * d1;
-            X2[j] += z[j] * d2;
-        }
-    }
+    add_columns(X, s->Zs, d, nf, nc);
     return 0;
+}
+
+int mim_xfer_solver_solve_columns(mim_xfer_solver_t *s, const double *rhs, uint32_t columns, double *x,
+                                  mim_error_t *err)
+{
+    if (!s || !rhs || !x)
+        return mim_error_set(err, MIM_EINVAL, "transfer: NULL solver or array");
+    if (columns < 1 || columns > 3)
+        return mim_error_set(err, MIM_EINVAL, "transfer: %u right-hand sides (1..3)", columns);
+    const size_t count = (size_t)columns * s->nf;
+    memcpy(s->B->x, rhs, count * sizeof(double));
+    cholmod_dense all = *s->B;
+    s->B->ncol = columns, s->B->nzmax = count; /* a view of the first columns */
+    int rc = plain_solve(s, err);
+    *s->B = all;
+    if (!rc)
+        memcpy(x, s->X->x, count * sizeof(double));
+    return rc;
 }
 
 int mim_xfer_solver_solve(mim_xfer_solver_t *s, const double *rhs, double *x, mim_error_t *err)
 {
-    if (!s || !rhs || !x)
-        return mim_error_set(err, MIM_EINVAL, "transfer: NULL solver or array");
-    memcpy(s->B->x, rhs, 3 * (size_t)s->nf * sizeof(double));
-    int rc = plain_solve(s, err);
-    if (!rc)
-        memcpy(x, s->X->x, 3 * (size_t)s->nf * sizeof(double));
-    return rc;
+    return mim_xfer_solver_solve_columns(s, rhs, 3, x, err);
 }
 
 void mim_xfer_solver_stats(const mim_xfer_solver_t *s, mim_xfer_solver_stats_t *st)

@@ -3,7 +3,10 @@
  *   2) solve equation (3) (or its least-squares form, solver.c) for X*,
  *      three right-hand sides F*(v_i) W_i plus the constraint terms;
  *   3) recompute F* from X* (frames.c);
- *   4) stop when the largest vertex move falls below tol, or at the cap.
+ *   4) stop when the largest vertex move falls below tol, or at the cap
+ *      (the paper's "both X* and F* do not change much"; by default tol
+ *      is relative, a fraction of the targets' extent, so that a body in
+ *      millimetres or in metres settles alike).
  * mimic adds two things, because the iteration does not converge to a
  * tight tolerance (it improves for 2-3 iterations, then oscillates):
  * damping (each new X moves only a fraction of the way from the last one)
@@ -23,7 +26,23 @@
 #include <math.h>
 #include <string.h>
 
-static void build_rhs(mim_xfer_solver_t *s, const double *W, const double *F, const float *u)
+/* Vertex i's Laplacian offset F_i W_i, or D_i when the offsets are given
+ * (the first solve of mim_xfer_transfer_offsets, and every later solve:
+ * mim__xfer_offsets_ws makes them from the last iterate). */
+static inline void offset(const double *W, const double *F, const double *D, uint32_t i, double r[3])
+{
+    if (D) {
+        const double *d = D + 3 * (size_t)i;
+        r[0] = d[0], r[1] = d[1], r[2] = d[2];
+        return;
+    }
+    const double *f = F + 9 * (size_t)i, *w = W + 3 * (size_t)i;
+    r[0] = f[0] * w[0] + f[3] * w[1] + f[6] * w[2];
+    r[1] = f[1] * w[0] + f[4] * w[1] + f[7] * w[2];
+    r[2] = f[2] * w[0] + f[5] * w[1] + f[8] * w[2];
+}
+
+static void build_rhs(mim_xfer_solver_t *s, const double *W, const double *F, const double *D, const float *u)
 {
     const mim_xfer_topology_t *t = s->topo;
     const uint32_t nf = s->nf;
@@ -33,16 +52,14 @@ static void build_rhs(mim_xfer_solver_t *s, const double *W, const double *F, co
          * squares) into rc; then the constraint terms -L_:c U */
         double *restrict B0 = B, *restrict B1 = B + nf, *restrict B2 = B + 2 * (size_t)nf;
         for (uint32_t i = 0; i < s->n; i++) {
-            const double *f = F + 9 * (size_t)i, *w = W + 3 * (size_t)i;
-            double r0 = f[0] * w[0] + f[3] * w[1] + f[6] * w[2];
-            double r1 = f[1] * w[0] + f[4] * w[1] + f[7] * w[2];
-            double r2 = f[2] * w[0] + f[5] * w[1] + f[8] * w[2];
+            double r[3];
+            offset(W, F, D, i, r);
             int32_t q = s->slot[i];
             if (q >= 0) {
-                B0[q] = r0, B1[q] = r1, B2[q] = r2;
+                B0[q] = r[0], B1[q] = r[1], B2[q] = r[2];
             } else if (s->low_rank) {
                 double *rc = s->rc + 3 * (size_t)(-1 - q);
-                rc[0] = r0, rc[1] = r1, rc[2] = r2;
+                rc[0] = r[0], rc[1] = r[1], rc[2] = r[2];
             }
         }
         for (uint32_t e = 0; e < s->n_cterm; e++) {
@@ -62,10 +79,8 @@ static void build_rhs(mim_xfer_solver_t *s, const double *W, const double *F, co
     /* least squares on the normal factor: r as above, then B = (L r)_f */
     double *r = s->r;
     for (uint32_t i = 0; i < s->n; i++) {
-        const double *f = F + 9 * (size_t)i, *w = W + 3 * (size_t)i;
         double *ri = r + 3 * (size_t)i;
-        for (int c = 0; c < 3; c++)
-            ri[c] = f[c] * w[0] + f[3 + c] * w[1] + f[6 + c] * w[2];
+        offset(W, F, D, i, ri);
         int32_t qi = s->slot[i];
         if (qi < 0) {
             const float *uu = u + 3 * (size_t)(-1 - qi);
@@ -95,6 +110,18 @@ static void build_rhs(mim_xfer_solver_t *s, const double *W, const double *F, co
     }
 }
 
+/* The diagonal of the bounding box of n >= 1 points (3 * n floats). */
+static double extent(const float *p, uint32_t n)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, d2 = 0.0;
+    for (uint32_t i = 0; i < n; i++)
+        for (int c = 0; c < 3; c++)
+            lo[c] = fmin(lo[c], p[3 * (size_t)i + c]), hi[c] = fmax(hi[c], p[3 * (size_t)i + c]);
+    for (int c = 0; c < 3; c++)
+        d2 += (hi[c] - lo[c]) * (hi[c] - lo[c]);
+    return sqrt(d2);
+}
+
 static double mean_error(const double *pos, const float *truth, uint32_t n)
 {
     double sum = 0.0;
@@ -107,15 +134,15 @@ static double mean_error(const double *pos, const float *truth, uint32_t n)
     return sum / n;
 }
 
-int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices,
-                      const double *frames0, const float *targets, uint32_t n_targets,
-                      const mim_xfer_options_t *opt, float *out, mim_xfer_report_t *report,
-                      mim_error_t *err)
+/* The iteration from frames F0 or, when given, offsets D0. */
+static int iterate(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices, const double *F0, const double *D0,
+                   const float *targets, uint32_t n_targets, const mim_xfer_options_t *opt, float *out,
+                   mim_xfer_report_t *report, mim_error_t *err)
 {
     if (report)
         memset(report, 0, sizeof *report);
-    if (!s || !W || !frames0 || !targets || !out)
-        return mim_error_set(err, MIM_EINVAL, "transfer: NULL solver, encoding, frames, targets or output");
+    if (!s || !W || !(F0 || D0) || !targets || !out)
+        return mim_error_set(err, MIM_EINVAL, "transfer: NULL solver, encoding, frames (or offsets), targets or output");
     if (n_vertices != s->n)
         return mim_error_set(err, MIM_ETOPOLOGY, "transfer: mesh has %u vertices, the connectivity %u",
                              n_vertices, s->n);
@@ -127,13 +154,14 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
         o = *opt;
     uint32_t maxit = o.max_iterations ? o.max_iterations : MIM_XFER_DEFAULT_MAX_ITERATIONS;
     double tol = o.tol != 0.0 ? o.tol : MIM_XFER_DEFAULT_TOL;
+    const double settle = o.settle != 0.0 ? o.settle : MIM_XFER_DEFAULT_SETTLE;
     double alpha = o.damping != 0.0 ? o.damping : MIM_XFER_DEFAULT_DAMPING;
     double ratio = o.stop_ratio != 0.0 ? o.stop_ratio : MIM_XFER_DEFAULT_STOP_RATIO;
     if (!(ratio > 0.0))
         return mim_error_set(err, MIM_EINVAL, "transfer: stop ratio %g not positive", ratio);
     if (!(alpha > 0.0 && alpha <= 1.0))
         return mim_error_set(err, MIM_EINVAL, "transfer: damping %g outside (0, 1]", alpha);
-    if (isnan(tol))
+    if (isnan(tol) || isnan(settle))
         return mim_error_set(err, MIM_EINVAL, "transfer: tolerance is NaN");
     if (o.error_by_iteration && !o.truth)
         return mim_error_set(err, MIM_EINVAL, "transfer: error_by_iteration needs truth");
@@ -146,10 +174,12 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
     for (size_t i = 0; i < 3 * (size_t)s->n; i++)
         if (!isfinite(W[i]))
             return mim_error_set(err, MIM_ENONFINITE, "transfer: encoding of vertex %zu is not finite", i / 3);
+    if (o.tol == 0.0 && settle > 0.0) /* the default: relative to the body (the targets' extent) */
+        tol = fmax(tol, settle * extent(targets, s->nc));
 
     const uint32_t n = s->n, nf = s->nf;
     double *pos = s->pos, *prev = s->prev;
-    const double *F = frames0;
+    const double *F = F0, *D = D0;
     double last_prev_move = INFINITY, move = INFINITY;
     uint32_t it = 0, warm = 0;
     int converged = 0, early = 0;
@@ -162,7 +192,7 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
         warm = 1;
     }
     while (it < maxit) {
-        build_rhs(s, W, F, targets);
+        build_rhs(s, W, F, D, targets);
         int rc = mim__xfer_solve(s, err);
         if (rc)
             return rc;
@@ -209,8 +239,8 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
         pos = prev;
         prev = tmp;
         if (it < maxit) {
-            mim__xfer_frames_ws(s->topo, prev, s->frames, s->fn);
-            F = s->frames;
+            mim__xfer_offsets_ws(s->topo, prev, W, s->D, s->fn);
+            F = NULL, D = s->D;
         }
     }
     /* the result is in pos unless the loop ended by the cap after a swap */
@@ -224,4 +254,18 @@ int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices
         report->early_stopped = early;
     }
     return 0;
+}
+
+int mim_xfer_transfer(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices, const double *frames0,
+                      const float *targets, uint32_t n_targets, const mim_xfer_options_t *opt, float *out,
+                      mim_xfer_report_t *report, mim_error_t *err)
+{
+    return iterate(s, W, n_vertices, frames0, NULL, targets, n_targets, opt, out, report, err);
+}
+
+int mim_xfer_transfer_offsets(mim_xfer_solver_t *s, const double *W, uint32_t n_vertices, const double *offsets0,
+                              const float *targets, uint32_t n_targets, const mim_xfer_options_t *opt, float *out,
+                              mim_xfer_report_t *report, mim_error_t *err)
+{
+    return iterate(s, W, n_vertices, NULL, offsets0, targets, n_targets, opt, out, report, err);
 }
