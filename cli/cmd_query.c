@@ -9,6 +9,75 @@
 #include <jansson.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+
+/* The answers of a batch, gathered as its frames are read (each frame is
+ * queried as soon as the stream hands it over, and forgotten), so that a
+ * batch at the 64 MiB cap takes a few bytes a frame, not its text. They
+ * are printed once the whole file has proved valid: all or nothing. */
+typedef struct answers {
+    const mim_query_t *q;
+    const mim_index_query_options_t *qo;
+    const char *path;
+    mim_index_hit_t *scratch; /* k */
+    mim_index_answer_t *ans;
+    uint32_t n, cap;
+    mim_index_hit_t *hits; /* each answer's n_hits, one after the other */
+    size_t n_hits, hits_cap;
+} answers_t;
+
+static int answer_frame(void *user, const mim_landmark_frame_t *f, mim_error_t *err)
+{
+    answers_t *a = user;
+    mim_index_answer_t an;
+    mim_error_t e = {0};
+    int rc = mim_query_frame(a->q, f->positions, f->present, a->qo, &an, a->scratch, &e);
+    if (rc)
+        return mim_error_set(err, rc, "%s: frame %u: %s", a->path, f->index, mim_error_text(&e));
+    if (a->n == a->cap) {
+        uint32_t cap = a->cap ? 2 * a->cap : 1024;
+        mim_index_answer_t *ans = cap > a->cap ? realloc(a->ans, cap * sizeof *ans) : NULL;
+        if (!ans)
+            return mim_error_set(err, MIM_ENOMEM, "%s: out of memory for %u answers", a->path, a->n + 1);
+        a->ans = ans, a->cap = cap;
+    }
+    if (a->n_hits + an.n_hits > a->hits_cap) {
+        size_t cap = a->hits_cap ? 2 * a->hits_cap : 1024;
+        while (cap < a->n_hits + an.n_hits)
+            cap *= 2;
+        mim_index_hit_t *hits = realloc(a->hits, cap * sizeof *hits);
+        if (!hits)
+            return mim_error_set(err, MIM_ENOMEM, "%s: out of memory for %zu results", a->path, a->n_hits + an.n_hits);
+        a->hits = hits, a->hits_cap = cap;
+    }
+    a->ans[a->n++] = an;
+    memcpy(a->hits + a->n_hits, a->scratch, an.n_hits * sizeof *a->hits);
+    a->n_hits += an.n_hits;
+    return 0;
+}
+
+/* {"frames": [...]} as json_dumps(JSON_INDENT(2)) writes it, a frame at a
+ * time: the frames' objects indented two levels. */
+static int print_json(const answers_t *a)
+{
+    printf("{\n  \"frames\": [\n");
+    const mim_index_hit_t *h = a->hits;
+    for (uint32_t i = 0; i < a->n; h += a->ans[i].n_hits, i++) {
+        json_t *j = mim_session_answer_json(a->q, &a->ans[i], h);
+        char *s = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
+        json_decref(j);
+        if (!s)
+            return -1;
+        for (const char *line = s, *nl; line; line = nl ? nl + 1 : NULL) {
+            nl = strchr(line, '\n');
+            printf("    %.*s%s", (int)(nl ? (size_t)(nl - line) : strlen(line)), line, nl ? "\n" : "");
+        }
+        fputs(i + 1 < a->n ? ",\n" : "\n", stdout);
+        free(s);
+    }
+    printf("  ]\n}\n");
+    return 0;
+}
 
 static void help(FILE *out)
 {
@@ -81,47 +150,29 @@ int mim_cmd_query(int argc, char **argv)
                 "mimic query: warning: %s: the index is stale (built over %llu templates, the store has %llu; run "
                 "mimic index)\n",
                 store, (unsigned long long)st->built.templates, (unsigned long long)st->templates);
-    mim_landmark_frames_t f = {0};
-    rc = mim_landmark_frames_read(path, mim_query_landmark_count(q), 3, &f, &err);
-    mim_index_answer_t *ans = NULL;
-    mim_index_hit_t *hits = NULL;
-    if (!rc) {
-        ans = calloc(f.n_frames, sizeof *ans);
-        hits = calloc((size_t)f.n_frames * qo.k, sizeof *hits);
-        rc = ans && hits ? mim_query_batch(q, &f, &qo, ans, hits, &err) : MIM_ENOMEM;
-    }
+    answers_t a = {.q = q, .qo = &qo, .path = path, .scratch = calloc(qo.k, sizeof *a.scratch)};
+    rc = a.scratch ? mim_landmark_frames_scan_file(path, mim_query_landmark_count(q), 3, answer_frame, &a, &err)
+                   : mim_error_set(&err, MIM_ENOMEM, "out of memory for %u results", qo.k);
+    if (!rc && as_json && print_json(&a))
+        rc = mim_error_set(&err, MIM_ENOMEM, "out of memory for the JSON output");
     if (rc) {
         fprintf(stderr, "mimic query: %s\n", mim_error_text(&err));
         goto done;
     }
     const mim_index_t *ix = mim_query_index(q);
-    json_t *frames = as_json ? json_array() : NULL;
-    for (uint32_t i = 0; i < f.n_frames; i++) {
-        const mim_index_answer_t *a = &ans[i];
-        const mim_index_hit_t *h = hits + (size_t)i * qo.k;
-        const char *cls = mim_index_class_name(ix, a->cls);
-        if (as_json) {
-            json_array_append_new(frames, mim_session_answer_json(q, a, h));
-        } else {
-            printf("frame %u: class %s (probability %.3f)", i, cls, a->probability);
-            if (a->missing) printf(", %u landmark%s missing", a->missing, a->missing > 1 ? "s" : "");
-            printf("\n");
-            for (uint32_t j = 0; j < a->n_hits; j++)
-                printf("  %2u. template %-8llu subject %-10s pose %-10s distance %.4f\n", j + 1,
-                       (unsigned long long)h[j].id, h[j].subject[0] ? h[j].subject : "-",
-                       h[j].pose[0] ? h[j].pose : "-", (double)h[j].distance);
-        }
-    }
-    if (as_json) {
-        json_t *root = json_pack("{s:o}", "frames", frames);
-        char *s = json_dumps(root, JSON_INDENT(2) | JSON_PRESERVE_ORDER);
-        printf("%s\n", s ? s : "{}");
-        free(s);
-        json_decref(root);
+    const mim_index_hit_t *h = a.hits;
+    for (uint32_t i = 0; !as_json && i < a.n; h += a.ans[i].n_hits, i++) {
+        const mim_index_answer_t *an = &a.ans[i];
+        printf("frame %u: class %s (probability %.3f)", i, mim_index_class_name(ix, an->cls), an->probability);
+        if (an->missing) printf(", %u landmark%s missing", an->missing, an->missing > 1 ? "s" : "");
+        printf("\n");
+        for (uint32_t j = 0; j < an->n_hits; j++)
+            printf("  %2u. template %-8llu subject %-10s pose %-10s distance %.4f\n", j + 1,
+                   (unsigned long long)h[j].id, h[j].subject[0] ? h[j].subject : "-",
+                   h[j].pose[0] ? h[j].pose : "-", (double)h[j].distance);
     }
 done:
-    free(ans), free(hits);
-    mim_landmark_frames_free(&f);
+    free(a.scratch), free(a.ans), free(a.hits);
     mim_session_close(&s);
     return rc ? 1 : 0;
 }

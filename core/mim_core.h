@@ -161,24 +161,50 @@ typedef struct mim_landmark_frames {
     double *orientations;
     uint8_t *orient_present;
 } mim_landmark_frames_t;
-/* Errors: malformed JSON with file:line:column (MIM_EFORMAT); a frame whose
- * landmark count differs from n_landmarks, a coordinate that is not a
- * number, or more than max_missing nulls in a frame (MIM_EFORMAT, naming
- * the frame and landmark); a number that is not a finite float
- * (MIM_ENONFINITE); a frame that is no body (mim_landmarks_check,
- * MIM_EFORMAT); bad orientations (mim_orientations_parse's errors), or
- * "orientations" in a frame without "landmarks" or beside "frames"
- * (MIM_EFORMAT); a file that cannot be opened (MIM_ENOTFOUND/MIM_EIO).
- * mim_landmark_frames_read takes at most MIM_LANDMARK_FRAMES_MAX_BYTES
- * (64 MiB, about 100 000 frames of 16 landmarks: half an hour at 60 Hz):
- * the parsed JSON needs several times the file's size in memory, so a
- * longer file (or stream) is refused with a message naming its size and
- * the limit (MIM_EUNSUPPORTED); split it. On error *out is left empty. */
+/* Errors, one line each: malformed JSON with file:line:column
+ * (MIM_EFORMAT); a frame whose landmark count differs from n_landmarks, a
+ * coordinate that is not a number, or more than max_missing nulls in a
+ * frame (MIM_EFORMAT, naming the frame and landmark); a number that is not
+ * a finite float (MIM_ENONFINITE); a frame that is no body
+ * (mim_landmarks_check, MIM_EFORMAT); bad orientations
+ * (mim_orientations_parse's errors), or "orientations" in a frame without
+ * "landmarks" or beside "frames" (MIM_EFORMAT); a file that cannot be
+ * opened (MIM_ENOTFOUND/MIM_EIO). The text is read as a stream: memory is
+ * one frame (and, for _read and _parse, the frames gathered: 13 bytes a
+ * landmark), never a tree of the text. JSON is taken as jansson takes it
+ * (strict RFC 8259), except that members other than "frames",
+ * "landmarks" and "orientations" are checked for syntax only (two
+ * members of such a name are not an error) and a number may have at most
+ * 512 characters. The first error stops the reading.
+ * mim_landmark_frames_read (and _scan_file) takes at most
+ * MIM_LANDMARK_FRAMES_MAX_BYTES (64 MiB, about 100 000 frames of 16
+ * landmarks: half an hour at 60 Hz); a longer file (or stream) is refused
+ * with a message naming its size and the limit (MIM_EUNSUPPORTED): split
+ * it. On error *out is left empty. */
 #define MIM_LANDMARK_FRAMES_MAX_BYTES ((size_t)64 << 20)
 int mim_landmark_frames_read(const char *path, uint32_t n_landmarks, uint32_t max_missing,
                              mim_landmark_frames_t *out, mim_error_t *err);
 int mim_landmark_frames_parse(const char *text, size_t len, const char *origin, uint32_t n_landmarks,
                               uint32_t max_missing, mim_landmark_frames_t *out, mim_error_t *err);
+/* The same frames one at a time: fn has each as soon as it is read and
+ * checked, in order (the pointers are valid during the call), so that a
+ * batch of any length takes the memory of one frame. A nonzero return
+ * from fn stops the scan and is returned (fn records its error in err).
+ * Frames before an error in the text have been handed out: a caller that
+ * answers all or nothing waits for the scan's 0. */
+typedef struct mim_landmark_frame {
+    uint32_t index;               /* from 0, in the text's order */
+    uint32_t n_landmarks;
+    const float *positions;       /* n_landmarks * 3; NaN where missing */
+    const uint8_t *present;       /* n_landmarks: 1 present, 0 null */
+    const double *orientations;   /* MIM_SEGMENTS * 4 as in mim_landmark_frames_t; NULL: the frame has none */
+    const uint8_t *orient_present; /* MIM_SEGMENTS; NULL with orientations */
+} mim_landmark_frame_t;
+typedef int (*mim_landmark_frame_fn)(void *user, const mim_landmark_frame_t *frame, mim_error_t *err);
+int mim_landmark_frames_scan(const char *text, size_t len, const char *origin, uint32_t n_landmarks,
+                             uint32_t max_missing, mim_landmark_frame_fn fn, void *user, mim_error_t *err);
+int mim_landmark_frames_scan_file(const char *path, uint32_t n_landmarks, uint32_t max_missing,
+                                  mim_landmark_frame_fn fn, void *user, mim_error_t *err);
 void mim_landmark_frames_free(mim_landmark_frames_t *f); /* accepts NULL and an empty set */
 
 /* A landmark file for one mesh (landmark_file.c), of either form: a

@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 static char *g_dir, *g_bodies, *g_store;
@@ -64,6 +65,15 @@ static void read_store(mim_db_t *db, store_lm_t *s, mim_landmark_map_t *map)
     s->n = 0;
     assert_int_equal(mim_db_template_each(t, grab, s, NULL), 0);
     mim_db_abort(&t);
+}
+
+/* The same from the store at g_store, opened for it. */
+static void read_store_closed(store_lm_t *s, mim_landmark_map_t *map)
+{
+    mim_db_t *db;
+    assert_int_equal(mim_db_open(&db, g_store, &(mim_db_options_t){.read_only = 1}, NULL), 0);
+    read_store(db, s, map);
+    mim_db_close(&db);
 }
 
 /* Writes frames (one per template listed) as a landmark-frames file. */
@@ -256,12 +266,9 @@ static void test_cli_query_and_bad_input(void **st)
     assert_null(strstr(out, "the rest kd-forests"));
     free(out);
 
-    mim_db_t *db;
-    assert_int_equal(mim_db_open(&db, g_store, &(mim_db_options_t){.read_only = 1}, NULL), 0);
     static store_lm_t s;
     mim_landmark_map_t map;
-    read_store(db, &s, &map);
-    mim_db_close(&db);
+    read_store_closed(&s, &map);
     char *frames = ts_path(g_dir, "frames.json");
     uint32_t which[3] = {5, 17, 30};
     write_frames(frames, &s, which, 3, -1);
@@ -331,6 +338,49 @@ static void test_cli_query_and_bad_input(void **st)
     assert_non_null(strstr(err, "frames.json:1:"));
     free(err);
     free(frames);
+}
+
+/* A batch of about 20 MiB (the store's templates in turn): mimic query
+ * answers every frame, in memory bounded by the frames, not by the text
+ * (a tree of the text took 13 times its size). The peak of a run on one
+ * frame is the baseline. */
+static void test_cli_query_large_batch(void **st)
+{
+    (void)st;
+    static store_lm_t s;
+    mim_landmark_map_t map;
+    read_store_closed(&s, &map);
+    char *one = ts_path(g_dir, "one.json"), *big = ts_path(g_dir, "big.json");
+    uint32_t first = 0;
+    write_frames(one, &s, &first, 1, -1);
+    enum { N = 30000 };
+    uint32_t *which = malloc(N * sizeof *which);
+    for (uint32_t i = 0; i < N; i++) which[i] = i % s.n;
+    write_frames(big, &s, which, N, -1);
+    struct stat sb;
+    assert_int_equal(stat(big, &sb), 0);
+    assert_true(sb.st_size > (18 << 20));
+    char *out = NULL, *err = NULL;
+    long peak_one, peak_big;
+    const char *q1[] = {"query", "--store", g_store, "--landmarks", one, NULL};
+    const char *qb[] = {"query", "--store", g_store, "--landmarks", big, NULL};
+    assert_int_equal(ts_run_mimic_peak(&out, NULL, q1, &peak_one), 0);
+    free(out);
+    assert_int_equal(ts_run_mimic_peak(&out, &err, qb, &peak_big), 0);
+    /* every frame answered, the last one by its own template */
+    char needle[96];
+    snprintf(needle, sizeof needle, "frame %u: class %s ", N - 1, s.poses[which[N - 1]]);
+    char *last = strstr(out, needle);
+    assert_non_null(last);
+    snprintf(needle, sizeof needle, "   1. template %-8llu", (unsigned long long)s.ids[which[N - 1]]);
+    assert_non_null(strstr(last, needle));
+    double frames_kib = (double)N * 16 * 13 / 1024;
+    print_message("%lld bytes, %u frames: peak %ld KiB (one frame: %ld KiB)\n", (long long)sb.st_size, N, peak_big,
+                  peak_one);
+    if ((double)(peak_big - peak_one) > 3 * frames_kib)
+        fail_msg("mimic query took %ld KiB more for %lld bytes than for one frame, over 3 times the frames' %.0f KiB",
+                 peak_big - peak_one, (long long)sb.st_size, frames_kib);
+    free(out), free(err), free(which), free(one), free(big);
 }
 
 /* One body-like frame of 16 landmarks. */
@@ -499,6 +549,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_no_index_then_round_trip),
         cmocka_unit_test(test_cli_query_and_bad_input),
+        cmocka_unit_test(test_cli_query_large_batch),
         cmocka_unit_test(test_stale_and_info),
         cmocka_unit_test(test_index_knn_line),
         cmocka_unit_test(test_old_index_blob),

@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -64,7 +65,9 @@ int ts_write_file(const char *path, const void *data, size_t len)
 
 int ts_truncate(const char *path, size_t keep) { return truncate(path, (off_t)keep); }
 
-int ts_run_mimic(char **out, char **err, const char *const *args)
+int ts_run_mimic(char **out, char **err, const char *const *args) { return ts_run_mimic_peak(out, err, args, NULL); }
+
+int ts_run_mimic_peak(char **out, char **err, const char *const *args, long *peak_kib)
 {
     char *dir = ts_tempdir("run");
     char *o = ts_path(dir, "out"), *e = ts_path(dir, "err");
@@ -83,7 +86,9 @@ int ts_run_mimic(char **out, char **err, const char *const *args)
         _exit(127);
     }
     int status = 0;
-    waitpid(pid, &status, 0);
+    struct rusage ru = {0};
+    wait4(pid, &status, 0, &ru);
+    if (peak_kib) *peak_kib = ru.ru_maxrss;
     if (out) *out = ts_read_file(o, NULL);
     if (err) *err = ts_read_file(e, NULL);
     ts_rmtree(dir);

@@ -20,6 +20,10 @@ char *ts_path(const char *dir, const char *name);
 /* Runs `$MIMIC_BIN args...` (args is a shell-free argv, NULL-terminated).
  * Captures stdout and stderr (malloc'd, NUL-terminated; may be NULL args). */
 int ts_run_mimic(char **out, char **err, const char *const *args);
+/* The same, and the peak resident size of the mimic process in KiB (its
+ * ru_maxrss; the fork's copy of this process counts too, so compare two
+ * runs from the same state). */
+int ts_run_mimic_peak(char **out, char **err, const char *const *args, long *peak_kib);
 const char *ts_mimic_bin(void);
 /* ../shared/data beside the project ($MIMIC_SHARED_DATA overrides). */
 const char *ts_shared_data(void);
