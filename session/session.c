@@ -598,9 +598,13 @@ int mim_session_load_avatar(mim_session_t *s, const char *avatar, mim_error_t *e
         s->n_parts = 1;
     }
     if (!rc) {
+        /* one factor for every session of a store: it depends on the
+         * connectivity and the landmark vertices, not on the avatar */
         mim_xfer_solver_options_t so = {.formulation = s->opt.formulation};
+        mim_xfer_solver_t *shared = s->base && s->base->opt.formulation == s->opt.formulation ? s->base->solver : NULL;
         double t0 = mim_now();
-        rc = mim_xfer_solver_open(&s->solver, s->topo, s->map.vertex, s->map.count, &so, err);
+        rc = shared ? mim_xfer_solver_share(&s->solver, shared, err)
+                    : mim_xfer_solver_open(&s->solver, s->topo, s->map.vertex, s->map.count, &so, err);
         s->t_factor = mim_now() - t0;
     }
     if (!rc)

@@ -11,6 +11,7 @@
 #include "mim_transfer.h"
 
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -249,6 +250,71 @@ static void test_factor_reused(void **state)
     mim_xfer_solver_close(&s);
     mim_xfer_solver_close(&s); /* NULL is fine */
     free(a0), free(a1), free(t1), free(t2), free(F), free(W), free(W1), free(out);
+}
+
+/* Solvers sharing one factor (serve's sessions, issue 30 item 9): the same
+ * transfers as the solver they came from, bit for bit, with no analysis or
+ * factorisation of their own, at once on two threads, and after the
+ * original is closed (ASan would see a factor freed too soon). */
+typedef struct {
+    mim_xfer_solver_t *s;
+    const double *W, *F;
+    const float *u;
+    float *out;
+    int rc;
+} share_job_t;
+
+static void *share_job(void *arg)
+{
+    share_job_t *j = arg;
+    for (int k = 0; k < 20 && !j->rc; k++)
+        j->rc = mim_xfer_transfer(j->s, j->W, fx.n, j->F, j->u, fx.map.count, NULL, j->out, NULL, NULL);
+    return NULL;
+}
+
+static void test_factor_shared(void **state)
+{
+    (void)state;
+    float *a0 = body(0, 0), *t1 = body(2, 1), *t2 = body(1, 5);
+    double *F1 = malloc(9 * (size_t)fx.n * sizeof *F1), *F2 = malloc(9 * (size_t)fx.n * sizeof *F2),
+           *W = malloc(3 * (size_t)fx.n * sizeof *W);
+    float *want1 = malloc(3 * (size_t)fx.n * sizeof(float)), *want2 = malloc(3 * (size_t)fx.n * sizeof(float));
+    float *out1 = malloc(3 * (size_t)fx.n * sizeof(float)), *out2 = malloc(3 * (size_t)fx.n * sizeof(float));
+    float u1[3 * MIM_LANDMARKS_MAX], u2[3 * MIM_LANDMARKS_MAX];
+    mim_xfer_frames(fx.topo, a0, F1);
+    mim_xfer_encode(fx.topo, a0, F1, W);
+    mim_xfer_frames(fx.topo, t1, F1), landmark_positions(t1, u1);
+    mim_xfer_frames(fx.topo, t2, F2), landmark_positions(t2, u2);
+    mim_xfer_solver_t *base = NULL, *a = NULL, *b = NULL;
+    assert_int_equal(mim_xfer_solver_open(&base, fx.topo, fx.map.vertex, fx.map.count, NULL, NULL), 0);
+    assert_int_equal(mim_xfer_transfer(base, W, fx.n, F1, u1, fx.map.count, NULL, want1, NULL, NULL), 0);
+    assert_int_equal(mim_xfer_transfer(base, W, fx.n, F2, u2, fx.map.count, NULL, want2, NULL, NULL), 0);
+    assert_int_equal(mim_xfer_solver_share(&a, base, NULL), 0);
+    assert_int_equal(mim_xfer_solver_share(&b, a, NULL), 0); /* a share of a share: the same factor */
+    mim_xfer_solver_stats_t st;
+    mim_xfer_solver_stats(a, &st);
+    assert_int_equal(st.analyses, 0);
+    assert_int_equal(st.factorizations, 0);
+    /* two threads at once, each its own solver, one factor */
+    share_job_t ja = {a, W, F1, u1, out1, 0}, jb = {b, W, F2, u2, out2, 0};
+    pthread_t ta, tb;
+    assert_int_equal(pthread_create(&ta, NULL, share_job, &ja), 0);
+    assert_int_equal(pthread_create(&tb, NULL, share_job, &jb), 0);
+    pthread_join(ta, NULL), pthread_join(tb, NULL);
+    assert_int_equal(ja.rc, 0), assert_int_equal(jb.rc, 0);
+    assert_memory_equal(out1, want1, 3 * (size_t)fx.n * sizeof(float));
+    assert_memory_equal(out2, want2, 3 * (size_t)fx.n * sizeof(float));
+    /* the original closed first: the shares still solve */
+    mim_xfer_solver_close(&base);
+    memset(out1, 0, 3 * (size_t)fx.n * sizeof(float));
+    assert_int_equal(mim_xfer_transfer(a, W, fx.n, F1, u1, fx.map.count, NULL, out1, NULL, NULL), 0);
+    assert_memory_equal(out1, want1, 3 * (size_t)fx.n * sizeof(float));
+    mim_xfer_solver_close(&a);
+    assert_int_equal(mim_xfer_transfer(b, W, fx.n, F2, u2, fx.map.count, NULL, out2, NULL, NULL), 0);
+    assert_memory_equal(out2, want2, 3 * (size_t)fx.n * sizeof(float));
+    mim_xfer_solver_close(&b);
+    assert_int_equal(mim_xfer_solver_share(&a, NULL, NULL), MIM_EINVAL);
+    free(a0), free(t1), free(t2), free(F1), free(F2), free(W), free(want1), free(want2), free(out1), free(out2);
 }
 
 /* The least-squares solution through L^c and the rank-c (Woodbury) update
@@ -746,6 +812,7 @@ int main(void)
         cmocka_unit_test(test_round_trip),
         cmocka_unit_test(test_rigid_invariance),
         cmocka_unit_test(test_factor_reused),
+        cmocka_unit_test(test_factor_shared),
         cmocka_unit_test(test_low_rank_matches_normal_factor),
         cmocka_unit_test(test_morph_and_retarget),
         cmocka_unit_test(test_inbetween_skeleton),

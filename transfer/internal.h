@@ -51,6 +51,11 @@ struct mim_xfer_solver {
     struct mim__xfer_cterm { int32_t row; uint32_t con; double coef; } *cterm;
     uint32_t n_cterm;
     double *Zs, *rc;
+    /* cons, slot, free_v, L, k_start, k_free, cterm and Zs depend only on
+     * the connectivity and the constrained set: solvers made by
+     * mim_xfer_solver_share hold them with the one they came from, and the
+     * last to close frees them (owners counts the holders) */
+    int *owners;
 };
 
 /* The Laplacian offsets F(v_i) W_i (3 * n) of the frames mim_xfer_frames_d

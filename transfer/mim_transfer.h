@@ -111,6 +111,15 @@ int mim_xfer_solver_open(mim_xfer_solver_t **out, const mim_xfer_topology_t *t,
                          const uint32_t *constrained, uint32_t count,
                          const mim_xfer_solver_options_t *opt, mim_error_t *err);
 void mim_xfer_solver_close(mim_xfer_solver_t **s); /* accepts NULL, nulls */
+/* A solver of the same system as base (its connectivity, constrained set
+ * and formulation) that shares base's factor and everything else that
+ * depends only on those, read-only, with workspaces of its own: so that
+ * many avatars of one store (serve's sessions) hold one factor. Either
+ * may be closed first; the last frees the factor. Each solver is used by
+ * one thread at a time, as before; two sharing one factor may solve at
+ * once. Its stats count its own solves (no analysis, no factorisation).
+ * Errors: MIM_EINVAL, MIM_ENOMEM, MIM_EUNSUPPORTED. */
+int mim_xfer_solver_share(mim_xfer_solver_t **out, mim_xfer_solver_t *base, mim_error_t *err);
 
 typedef struct mim_xfer_solver_stats {
     uint32_t n_free, n_constrained;

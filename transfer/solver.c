@@ -45,6 +45,7 @@ static const char *chol_status(int st)
 }
 
 static int plain_solve(mim_xfer_solver_t *s, mim_error_t *err);
+static int own_workspaces(mim_xfer_solver_t *s, mim_error_t *err);
 
 /* CSC of L_ff, upper triangle (stype 1). */
 static cholmod_sparse *build_square(mim_xfer_solver_t *s)
@@ -309,8 +310,11 @@ int mim_xfer_solver_open(mim_xfer_solver_t **out, const mim_xfer_topology_t *t,
                                  constrained[c], c, t->n);
 
     mim_xfer_solver_t *s = calloc(1, sizeof *s);
-    if (!s)
+    if (!s || !(s->owners = malloc(sizeof *s->owners))) {
+        free(s);
         return mim_error_set(err, MIM_ENOMEM, "transfer: out of memory");
+    }
+    *s->owners = 1;
     s->topo = t;
     s->formulation = o.formulation;
     /* the rank-nc update pays for itself for a few landmarks, not for
@@ -322,17 +326,12 @@ int mim_xfer_solver_open(mim_xfer_solver_t **out, const mim_xfer_topology_t *t,
     s->cons = malloc(count * sizeof *s->cons);
     s->slot = malloc((size_t)t->n * sizeof *s->slot);
     s->free_v = malloc((size_t)s->nf * sizeof *s->free_v);
-    s->pos = malloc(3 * (size_t)t->n * sizeof(double));
-    s->prev = malloc(3 * (size_t)t->n * sizeof(double));
-    s->r = malloc(3 * (size_t)t->n * sizeof(double));
-    s->D = malloc(3 * (size_t)t->n * sizeof(double));
-    s->fn = malloc(3 * (size_t)t->n_faces * sizeof(double));
-    s->mframes = malloc(9 * (size_t)t->n * sizeof(double));
-    s->mW = malloc(3 * (size_t)t->n * sizeof(double));
-    if (!s->mW || !s->cons || !s->slot || !s->free_v || !s->pos || !s->prev || !s->r || !s->D || !s->fn ||
-        !s->mframes) {
+    int wrc = !s->cons || !s->slot || !s->free_v
+                  ? mim_error_set(err, MIM_ENOMEM, "transfer: out of memory for %u vertices", t->n)
+                  : own_workspaces(s, err);
+    if (wrc) {
         mim_xfer_solver_close(&s);
-        return mim_error_set(err, MIM_ENOMEM, "transfer: out of memory for %u vertices", t->n);
+        return wrc;
     }
     memcpy(s->cons, constrained, count * sizeof *s->cons);
     for (uint32_t v = 0; v < t->n; v++)
@@ -429,11 +428,72 @@ int mim_xfer_solver_open(mim_xfer_solver_t **out, const mim_xfer_topology_t *t,
     return 0;
 }
 
+/* Its own workspaces, and the first solve that allocates X, Y, E. */
+static int own_workspaces(mim_xfer_solver_t *s, mim_error_t *err)
+{
+    const mim_xfer_topology_t *t = s->topo;
+    s->pos = malloc(3 * (size_t)t->n * sizeof(double));
+    s->prev = malloc(3 * (size_t)t->n * sizeof(double));
+    s->r = malloc(3 * (size_t)t->n * sizeof(double));
+    s->D = malloc(3 * (size_t)t->n * sizeof(double));
+    s->fn = malloc(3 * (size_t)t->n_faces * sizeof(double));
+    s->mframes = malloc(9 * (size_t)t->n * sizeof(double));
+    s->mW = malloc(3 * (size_t)t->n * sizeof(double));
+    if (!s->mW || !s->pos || !s->prev || !s->r || !s->D || !s->fn || !s->mframes)
+        return mim_error_set(err, MIM_ENOMEM, "transfer: out of memory for %u vertices", t->n);
+    return 0;
+}
+
+int mim_xfer_solver_share(mim_xfer_solver_t **out, mim_xfer_solver_t *base, mim_error_t *err)
+{
+    if (!out)
+        return mim_error_set(err, MIM_EINVAL, "transfer: NULL solver handle");
+    *out = NULL;
+    if (!base)
+        return mim_error_set(err, MIM_EINVAL, "transfer: no solver to share");
+    mim_xfer_solver_t *s = calloc(1, sizeof *s);
+    if (!s)
+        return mim_error_set(err, MIM_ENOMEM, "transfer: out of memory");
+    s->topo = base->topo, s->formulation = base->formulation, s->low_rank = base->low_rank;
+    s->n = base->n, s->nc = base->nc, s->nf = base->nf;
+    s->cons = base->cons, s->slot = base->slot, s->free_v = base->free_v, s->L = base->L;
+    s->k_start = base->k_start, s->k_free = base->k_free, s->cterm = base->cterm, s->n_cterm = base->n_cterm;
+    s->Zs = base->Zs;
+    s->owners = base->owners;
+    __atomic_add_fetch(s->owners, 1, __ATOMIC_ACQ_REL);
+    int rc = own_workspaces(s, err);
+    if (!rc && s->low_rank && !(s->rc = malloc(6 * (size_t)s->nc * sizeof *s->rc)))
+        rc = mim_error_set(err, MIM_ENOMEM, "transfer: out of memory");
+    if (!rc) {
+        cholmod_start(&s->cc);
+        s->cc_started = 1;
+        s->cc.print = 0;
+        s->cc.supernodal = base->cc.supernodal;
+        if (!(s->B = cholmod_zeros(s->nf, 3, CHOLMOD_REAL, &s->cc)))
+            rc = mim_error_set(err, MIM_ENOMEM, "transfer: out of memory");
+    }
+    if (!rc && !(rc = plain_solve(s, err)))
+        s->solves = 0;
+    if (rc) {
+        mim_xfer_solver_close(&s);
+        return rc;
+    }
+    *out = s;
+    return 0;
+}
+
 void mim_xfer_solver_close(mim_xfer_solver_t **sp)
 {
     if (!sp || !*sp)
         return;
     mim_xfer_solver_t *s = *sp;
+    /* the factor and its company stay while another solver holds them */
+    if (s->owners && __atomic_sub_fetch(s->owners, 1, __ATOMIC_ACQ_REL) > 0) {
+        s->cons = NULL, s->slot = NULL, s->free_v = NULL, s->L = NULL;
+        s->k_start = NULL, s->k_free = NULL, s->cterm = NULL, s->Zs = NULL;
+    } else {
+        free(s->owners);
+    }
     if (s->cc_started) {
         cholmod_free_factor(&s->L, &s->cc);
         cholmod_free_dense(&s->B, &s->cc);
