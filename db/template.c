@@ -1,4 +1,4 @@
-/* Template records. Layout of schema version 2 (little-endian,
+/* Template records. Layout of schema versions 2 to 4 (little-endian,
  * schemas/store.md):
  *   0  "MTP2"            4  u32 header bytes (48)
  *   8  u64 checksum: XXH3-64 of every byte from 16 to the record's end
@@ -6,9 +6,8 @@
  *  32  u32 n_vertices   36  u32 positions offset (multiple of 16)
  *  40  u16 source len   42  u16 subject len   44 u16 pose len   46 u16 dataset len
  *  48  source NUL subject NUL pose NUL [dataset NUL], zero padding, then
- *      float32 x y z. The dataset (issue 30) took the u16 that was always
- *      0: a record written before it reads as one of no dataset, and an
- *      older mimic reads a newer record as before (it never read that u16).
+ *      float32 x y z. The dataset (schema version 4) took the u16 that
+ *      was always 0: a record written before it reads as one of no dataset.
  * Version 1 ("MTP1", no checksum) had id, content hash, n_vertices and the
  * positions offset at 8, 16, 24, 28, the lengths at 32, flags at 40; a
  * version-1 store opened read-only is read in that layout.
