@@ -4,16 +4,16 @@
  * The exhaustive scan computes D for every truth and sample. The default
  * computes it only where lower bounds (coverage_bounds.c) cannot rule the
  * sample out: each truth bounds every sample at once, then takes the
- * samples best-first, always the one of lowest known bound, and stops when
- * that bound is above the nearest distance found. For D_S a sample's first
- * bound leads to its second (after aligning it), and that one to its
- * distance. The nearest of the truth before (the truths of a take come in
- * order) is tried first. A sample that repeats an earlier one (a chain's
- * refused step) is skipped: it is exactly as far, and the scan keeps the
- * earlier. A sample is passed over only when a bound, hence its distance,
- * is above a distance found, and equal distances go to the lowest index as
- * in the scan: the answers are the scan's, to the bit. Truths are shared
- * among threads in chunks; the sum is made in the truths' order. */
+ * samples in increasing bound order and stops at the first bound above
+ * the nearest distance found. D_S goes on bounding a sample after aligning
+ * it, and gives up its distance part-way once a bound passes the nearest.
+ * The nearest of the truth before (the truths of a take come in order) is
+ * tried first. A sample that repeats an earlier one (a chain's refused
+ * step) is skipped: it is exactly as far, and the scan keeps the earlier.
+ * A sample is passed over only when a bound, hence its distance, is above
+ * a distance found, and equal distances go to the lowest index as in the
+ * scan: the answers are the scan's, to the bit. Truths are shared among
+ * threads in chunks; the sum is made in the truths' order. */
 #include "internal.h"
 
 #include <math.h>
@@ -38,7 +38,7 @@ typedef struct job {
     uint32_t *which; /* m */
     mim_progress_t *progress;
     _Atomic uint32_t next, done;
-    _Atomic uint64_t distances, aligned;
+    _Atomic uint64_t distances, aligned, cut;
 } job_t;
 
 static uint64_t joints_hash(const mim_pair_prep_t *p)
@@ -110,15 +110,6 @@ static uint64_t key(float lb, uint32_t j)
     return (uint64_t)u << 32 | j;
 }
 
-static float key_bound(uint64_t k)
-{
-    uint32_t u = (uint32_t)(k >> 32);
-    u = (u & 0x80000000u) ? u & 0x7fffffffu : ~u;
-    float lb;
-    memcpy(&lb, &u, sizeof lb);
-    return lb;
-}
-
 static void sift_down(uint64_t *h, uint32_t n, uint32_t i)
 {
     for (;;) {
@@ -129,13 +120,6 @@ static void sift_down(uint64_t *h, uint32_t n, uint32_t i)
         uint64_t t = h[i];
         h[i] = h[c], h[c] = t, i = c;
     }
-}
-
-static void push(uint64_t *h, uint32_t *n, uint64_t k)
-{
-    uint32_t i = (*n)++;
-    for (; i && h[(i - 1) / 2] > k; i = (i - 1) / 2) h[i] = h[(i - 1) / 2];
-    h[i] = k;
 }
 
 static uint64_t pop(uint64_t *h, uint32_t *n)
@@ -153,16 +137,16 @@ static void keep(double d, uint32_t j, double *best, uint32_t *bj)
     if (d < *best || (d == *best && d < INFINITY && j < *bj)) *best = d, *bj = j;
 }
 
-/* A worker's room: the first bounds of every sample, the two heaps (first
- * bounds; D_S's second bounds), the truth's features. */
+/* A worker's room: the first bounds of every sample, the heap of those
+ * that may still be nearest, the truth's features. */
 typedef struct room {
     float *lb, *fa;
-    uint64_t *h1, *h2;
+    uint64_t *heap;
     double rel_a[N * MIM__SC_R * MIM__SC_EL];
 } room_t;
 
 static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t hint, double *best, uint32_t *bj, uint64_t *nd,
-                    uint64_t *na)
+                    uint64_t *na, uint64_t *nc)
 {
     const mim_pair_prep_t *a = &jb->truth[i];
     *best = INFINITY, *bj = UINT32_MAX;
@@ -180,24 +164,21 @@ static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t hint, double *be
     mim__bound_lower(jb->metric, rm->fa, jb->feat, jb->k, slack, rm->lb);
     if (shape) mim__sc_histogram_marginals(a->sc, NULL, rm->rel_a);
     if (hint < jb->k) keep(mim_sample_distance(a, &jb->samples[hint], jb->metric), hint, best, bj), (*nd)++;
-    uint32_t n1 = 0, n2 = 0;
+    uint32_t n = 0;
     for (uint32_t j = 0; j < jb->k; j++)
-        if (!jb->repeat[j] && j != hint && !(rm->lb[j] > *best)) rm->h1[n1++] = key(rm->lb[j], j);
-    for (uint32_t h = n1 / 2; h-- > 0;) sift_down(rm->h1, n1, h);
-    while (n1 || n2) {
-        const int second = n2 && (!n1 || rm->h2[0] < rm->h1[0]);
-        if (key_bound(second ? rm->h2[0] : rm->h1[0]) > *best) break;
-        const uint32_t j = (uint32_t)pop(second ? rm->h2 : rm->h1, second ? &n2 : &n1);
+        if (!jb->repeat[j] && j != hint && !(rm->lb[j] > *best)) rm->heap[n++] = key(rm->lb[j], j);
+    for (uint32_t h = n / 2; h-- > 0;) sift_down(rm->heap, n, h);
+    while (n) {
+        const uint32_t j = (uint32_t)rm->heap[0];
+        if (rm->lb[j] > *best) break;
+        pop(rm->heap, &n);
         const mim_pair_prep_t *b = &jb->samples[j];
-        if (shape && !second) {
-            double bb[3 * N];
-            mim_sample_align(a->joints, b->joints, 3, bb);
+        if (shape) {
+            int exact;
+            const double d = mim__shape_distance_within(a, rm->rel_a, b, jb->feat + (size_t)j * jb->stride, slack, *best, &exact);
             (*na)++;
-            double lb2 = mim__bound_shape_aligned(rm->rel_a, bb, jb->feat + (size_t)j * jb->stride, slack);
-            /* as a float at or below it (the heap's order only) */
-            float f = (float)lb2;
-            if (f > lb2) f = nextafterf(f, -INFINITY);
-            if (!(lb2 > *best)) push(rm->h2, &n2, key(fmaxf(f, rm->lb[j]), j));
+            if (exact) keep(d, j, best, bj), (*nd)++;
+            else (*nc)++;
             continue;
         }
         keep(mim_sample_distance(a, b, jb->metric), j, best, bj), (*nd)++;
@@ -210,22 +191,22 @@ static void truths(void *ctx, uint32_t worker)
     room_t rm = {0};
     if (!j->exhaustive) {
         rm.lb = malloc((size_t)j->k * sizeof *rm.lb), rm.fa = malloc(j->stride * sizeof *rm.fa);
-        rm.h1 = malloc((size_t)j->k * sizeof *rm.h1), rm.h2 = malloc((size_t)j->k * sizeof *rm.h2);
-        if (!rm.lb || !rm.fa || !rm.h1 || !rm.h2) goto out; /* the others take this worker's share */
+        rm.heap = malloc((size_t)j->k * sizeof *rm.heap);
+        if (!rm.lb || !rm.fa || !rm.heap) goto out; /* the others take this worker's share */
     }
-    uint64_t nd = 0, na = 0;
+    uint64_t nd = 0, na = 0, nc = 0;
     for (uint32_t s; (s = atomic_fetch_add(&j->next, TRUTH_CHUNK)) < j->m;) {
         uint32_t hint = UINT32_MAX;
         for (uint32_t i = s; i < s + TRUTH_CHUNK && i < j->m; i++) {
-            nearest(j, &rm, i, hint, &j->nearest[i], &j->which[i], &nd, &na);
+            nearest(j, &rm, i, hint, &j->nearest[i], &j->which[i], &nd, &na, &nc);
             hint = j->which[i];
             uint32_t done = atomic_fetch_add(&j->done, 1) + 1;
             if (worker == 0 && j->progress) mim_progress_update(j->progress, done);
         }
     }
-    atomic_fetch_add(&j->distances, nd), atomic_fetch_add(&j->aligned, na);
+    atomic_fetch_add(&j->distances, nd), atomic_fetch_add(&j->aligned, na), atomic_fetch_add(&j->cut, nc);
 out:
-    free(rm.lb), free(rm.fa), free(rm.h1), free(rm.h2);
+    free(rm.lb), free(rm.fa), free(rm.heap);
 }
 
 int mim_sample_coverage(const mim_pair_prep_t *truth, uint32_t m, const mim_pair_prep_t *samples, uint32_t k,
@@ -263,6 +244,7 @@ int mim_sample_coverage(const mim_pair_prep_t *truth, uint32_t m, const mim_pair
     }
     if (j.progress) mim_progress_begin(j.progress, "coverage", m);
     atomic_init(&j.next, 0), atomic_init(&j.done, 0), atomic_init(&j.distances, 0), atomic_init(&j.aligned, 0);
+    atomic_init(&j.cut, 0);
     mim__parallel(threads, truths, &j);
     if (j.progress) mim_progress_end(j.progress);
     if (atomic_load(&j.done) < m) {
@@ -272,7 +254,7 @@ int mim_sample_coverage(const mim_pair_prep_t *truth, uint32_t m, const mim_pair
     double sum = 0;
     for (uint32_t i = 0; i < m; i++) sum += j.nearest[i];
     out->coverage = sum / m;
-    out->distances = atomic_load(&j.distances), out->aligned = atomic_load(&j.aligned);
+    out->distances = atomic_load(&j.distances), out->aligned = atomic_load(&j.aligned), out->cut = atomic_load(&j.cut);
 done:
     free(nearest), free(which), free(j.slack), free(j.feat), free(j.repeat), free(j.hash);
     return rc;

@@ -193,13 +193,59 @@ void mim__bound_lower(mim_sample_metric_t metric, const float *fa, const float *
     }
 }
 
-double mim__bound_shape_aligned(const double *rel_a, const double *bb, const float *fb, double slack)
+/* The second bound's terms joint by joint (lb: N), their sum returned. */
+static double shape_aligned_joints(const double *rel_a, const mim__sc_pairs_t *w, const float *fb, double *lb)
 {
-    double rel_b[S_REL], cost = 0;
-    mim__sc_radial_elevation(bb, fb + S_DIM, rel_b);
-    for (int i = 0; i < S_REL; i++) {
-        double x = rel_a[i], y = rel_b[i];
-        if (x + y > 0) cost += 0.5 * (x - y) * (x - y) / (x + y);
+    double rel_b[S_REL], sum = 0;
+    mim__sc_radial_elevation(w, fb + S_DIM, rel_b);
+    for (int i = 0; i < N; i++) {
+        lb[i] = 0;
+        for (int b = 0; b < MIM__SC_R * MIM__SC_EL; b++)
+            lb[i] += mim__chi_term(rel_a[i * MIM__SC_R * MIM__SC_EL + b], rel_b[i * MIM__SC_R * MIM__SC_EL + b]);
+        sum += lb[i];
     }
-    return cost / N * (1 - REL) - SC_SLACK - slack;
+    return sum;
+}
+
+double mim__shape_distance_within(const mim_pair_prep_t *a, const double *rel_a, const mim_pair_prep_t *b, const float *fb,
+                                  double slack, double best, int *exact)
+{
+    double bb[3 * N], lb[N], rest[N + 1], terms[N][MIM_SC_BINS];
+    mim__sc_pairs_t w;
+    mim_sample_align(a->joints, b->joints, 3, bb);
+    mim__sc_pairs_begin(bb, &w);
+    /* the second bound first: most samples end here */
+    const double lb2 = shape_aligned_joints(rel_a, &w, fb, lb) / N * (1 - REL) - SC_SLACK - slack;
+    if (lb2 > best) {
+        *exact = 0;
+        return lb2;
+    }
+    mim__sc_pairs_finish(&w);
+    /* the joints of the largest bounds first: those most likely to pass best */
+    int order[N];
+    for (int i = 0; i < N; i++) {
+        int t = i;
+        for (; t > 0 && lb[order[t - 1]] < lb[i]; t--) order[t] = order[t - 1];
+        order[t] = i;
+    }
+    rest[N] = 0;
+    for (int t = N; t-- > 0;) rest[t] = rest[t + 1] + lb[order[t]];
+    double done = 0;
+    for (int t = 0; t < N; t++) {
+        const int i = order[t];
+        float h[MIM_SC_BINS];
+        mim__sc_joint(&w, i, h);
+        for (int k = 0; k < MIM_SC_BINS; k++) done += terms[i][k] = mim__chi_term(a->sc[i][k], h[k]);
+        const double lower = (done + rest[t + 1]) / N * (1 - REL) - SC_SLACK - slack;
+        if (lower > best) {
+            *exact = 0;
+            return lower;
+        }
+    }
+    /* every joint made: the sum in mim__shape_cost's order, as the scan's */
+    double total = 0;
+    for (int i = 0; i < N; i++)
+        for (int k = 0; k < MIM_SC_BINS; k++) total += terms[i][k];
+    *exact = 1;
+    return total / N;
 }

@@ -42,21 +42,6 @@ static void spread(float *h, double fr, double fa, double fe, double cos_el, flo
             }
 }
 
-/* The log-radius range of a pair's bins: 1/8 to 2 of its mean joint distance. */
-static void log_range(const double *p, double *r0, double *r1)
-{
-    double mean = 0;
-    for (int i = 0; i < N; i++)
-        for (int j = i + 1; j < N; j++) {
-            double d2 = 0;
-            for (int c = 0; c < 3; c++) d2 += (p[3 * i + c] - p[3 * j + c]) * (p[3 * i + c] - p[3 * j + c]);
-            mean += sqrt(d2);
-        }
-    mean /= N * (N - 1) / 2.0;
-    if (!(mean > 0)) mean = 1.0;
-    *r0 = log(mean / 8.0), *r1 = log(mean * 2.0);
-}
-
 /* The vector from joint i to joint j and its length. */
 static double pair_vector(const double *p, int i, int j, double v[3])
 {
@@ -76,46 +61,70 @@ static double elevation_coordinate(double el) { return (el + M_PI / 2) / M_PI * 
 /* Every count weighs the same: 1 / (n - 1) as a float, as spread adds it. */
 static const float weight = 1.0f / (N - 1);
 
-#define PAIRS (N * (N - 1) / 2)
+#define PAIRS MIM__SC_PAIRS
 /* The pair (i, j), i < j, in row-by-row order. */
 static int pair_index(int i, int j) { return i * (2 * N - i - 1) / 2 + (j - i - 1); }
 
-void mim__shape_contexts(const double *p, float sc[MIM_PAIR_JOINTS][MIM_SC_BINS])
+/* j seen from i and i from j: one distance (v negated exactly), and
+ * opposite elevations of one cosine (asin odd, cos even) */
+void mim__sc_pairs_begin(const double *p, mim__sc_pairs_t *w)
 {
-    double r0, r1;
-    log_range(p, &r0, &r1);
-    /* j seen from i and i from j: one distance (v negated exactly), and
-     * opposite elevations of one cosine (asin odd, cos even) */
-    double fr[PAIRS], el[PAIRS], cos_el[PAIRS];
+    w->p = p;
     for (int i = 0, k = 0; i < N; i++)
         for (int j = i + 1; j < N; j++, k++) {
-            double v[3], r = pair_vector(p, i, j, v);
-            fr[k] = radial_coordinate(r, r0, r1), el[k] = elevation(v, r), cos_el[k] = cos(el[k]);
+            double v[3];
+            w->r[k] = pair_vector(p, i, j, v), w->el[k] = elevation(v, w->r[k]);
         }
-    /* each bin gets the same additions in the same order in either layout */
+}
+
+/* The pairs' radial bin coordinates from their distances; the bins' log
+ * range: 1/8 to 2 of the mean joint distance. */
+static void radial_coordinates(const double *r, double *fr)
+{
+    double mean = 0;
+    for (int k = 0; k < PAIRS; k++) mean += r[k];
+    mean /= N * (N - 1) / 2.0;
+    if (!(mean > 0)) mean = 1.0;
+    const double r0 = log(mean / 8.0), r1 = log(mean * 2.0);
+    for (int k = 0; k < PAIRS; k++) fr[k] = radial_coordinate(r[k], r0, r1);
+}
+
+void mim__sc_pairs_finish(mim__sc_pairs_t *w)
+{
+    radial_coordinates(w->r, w->fr);
+    for (int k = 0; k < PAIRS; k++) w->cos_el[k] = cos(w->el[k]);
+}
+
+void mim__sc_joint(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS])
+{
+    const double *p = w->p;
     float h[MIM_SC_BINS];
-    for (int i = 0; i < N; i++) {
-        memset(h, 0, sizeof h);
-        for (int j = 0; j < N; j++) {
-            if (j == i) continue;
-            const int k = i < j ? pair_index(i, j) : pair_index(j, i);
-            const double e = i < j ? el[k] : -el[k];
-            const double fa = (atan2(p[3 * j + 2] - p[3 * i + 2], p[3 * j] - p[3 * i]) + M_PI) / (2 * M_PI) * SC_AZ - 0.5;
-            spread(h, fr[k], fa, elevation_coordinate(e), cos_el[k], weight);
-        }
-        for (int r = 0; r < SC_R; r++)
-            for (int a = 0; a < SC_AZ; a++)
-                for (int e = 0; e < SC_EL; e++) sc[i][(r * SC_AZ + a) * SC_EL + e] = h[WORK(r, e, a)];
+    memset(h, 0, sizeof h);
+    for (int j = 0; j < N; j++) {
+        if (j == i) continue;
+        const int k = i < j ? pair_index(i, j) : pair_index(j, i);
+        const double e = i < j ? w->el[k] : -w->el[k];
+        const double fa = (atan2(p[3 * j + 2] - p[3 * i + 2], p[3 * j] - p[3 * i]) + M_PI) / (2 * M_PI) * SC_AZ - 0.5;
+        spread(h, w->fr[k], fa, elevation_coordinate(e), w->cos_el[k], weight);
     }
+    /* each bin got the same additions in the same order as in sc's layout */
+    for (int r = 0; r < SC_R; r++)
+        for (int a = 0; a < SC_AZ; a++)
+            for (int e = 0; e < SC_EL; e++) sc[(r * SC_AZ + a) * SC_EL + e] = h[WORK(r, e, a)];
+}
+
+void mim__shape_contexts(const double *p, float sc[MIM_PAIR_JOINTS][MIM_SC_BINS])
+{
+    mim__sc_pairs_t w;
+    mim__sc_pairs_begin(p, &w);
+    mim__sc_pairs_finish(&w);
+    for (int i = 0; i < N; i++) mim__sc_joint(&w, i, sc[i]);
 }
 
 double mim__shape_cost(const float *a, const float *b, int n, int bins)
 {
     double total = 0;
-    for (int i = 0; i < n * bins; i++) {
-        double x = a[i], y = b[i];
-        if (x + y > 0) total += 0.5 * (x - y) * (x - y) / (x + y);
-    }
+    for (int i = 0; i < n * bins; i++) total += mim__chi_term(a[i], b[i]);
     return total / n;
 }
 
@@ -126,17 +135,15 @@ double mim__shape_cost(const float *a, const float *b, int n, int bins)
  * over all). Summed over azimuth a count is w (1 - tr, tr) x (1 - te, te)
  * in (r, el); summed over elevation too, w (1 - tr, tr) in r. */
 
-/* The two bins a coordinate f is shared between and f's share t of the
- * upper; f is first kept within [-1, nbins] (beyond, both bins are the
- * end one) and floored without a call. */
-static void split(double f, int nbins, int b[2], double *t)
+/* The bins a coordinate f is shared between (b, b + 1) and the upper's
+ * share: spread's (1 - t, t), the end bins taking all beyond. */
+static int share(double f, int nbins, double *t)
 {
-    f = !(f > -1) ? -1 : f > nbins ? nbins : f;
-    int f0 = (int)f;
-    f0 -= f < f0;
-    *t = f - f0;
-    b[0] = f0 < 0 ? 0 : f0 >= nbins ? nbins - 1 : f0;
-    b[1] = f0 + 1 >= nbins ? nbins - 1 : f0 + 1;
+    f = f > 0 ? (f < nbins - 1 ? f : nbins - 1) : 0;
+    int b = (int)f;
+    b = b < nbins - 2 ? b : nbins - 2;
+    *t = f - b;
+    return b;
 }
 
 void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], double *rad, double *rel)
@@ -155,10 +162,11 @@ void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], d
 
 void mim__sc_pair_radii(const double *p, float *fr)
 {
-    double r0, r1, v[3];
-    log_range(p, &r0, &r1);
+    double r[PAIRS], f[PAIRS], v[3];
     for (int i = 0, k = 0; i < N; i++)
-        for (int j = i + 1; j < N; j++, k++) fr[k] = (float)radial_coordinate(pair_vector(p, i, j, v), r0, r1);
+        for (int j = i + 1; j < N; j++, k++) r[k] = pair_vector(p, i, j, v);
+    radial_coordinates(r, f);
+    for (int k = 0; k < PAIRS; k++) fr[k] = (float)f[k];
 }
 
 void mim__sc_radial(const float *fr, double *rad)
@@ -166,31 +174,28 @@ void mim__sc_radial(const float *fr, double *rad)
     memset(rad, 0, sizeof(double) * N * SC_R);
     for (int i = 0, k = 0; i < N; i++)
         for (int j = i + 1; j < N; j++, k++) {
-            int rb[2];
             double tr;
-            split(fr[k], SC_R, rb, &tr);
-            for (int d = 0; d < 2; d++) {
-                const double m = weight * (d ? tr : 1 - tr);
-                rad[i * SC_R + rb[d]] += m, rad[j * SC_R + rb[d]] += m;
-            }
+            const int r = share(fr[k], SC_R, &tr);
+            rad[i * SC_R + r] += weight * (1 - tr), rad[i * SC_R + r + 1] += weight * tr;
+            rad[j * SC_R + r] += weight * (1 - tr), rad[j * SC_R + r + 1] += weight * tr;
         }
 }
 
-void mim__sc_radial_elevation(const double *p, const float *fr, double *rel)
+void mim__sc_radial_elevation(const mim__sc_pairs_t *w, const float *fr, double *rel)
 {
     memset(rel, 0, sizeof(double) * N * SC_R * SC_EL);
-    for (int i = 0, k = 0; i < N; i++)
-        for (int j = i + 1; j < N; j++, k++) {
-            double v[3], r = pair_vector(p, i, j, v), el = elevation(v, r), tr, te[2];
-            int rb[2], eb[2][2];
-            split(fr[k], SC_R, rb, &tr);
-            split(elevation_coordinate(el), SC_EL, eb[0], &te[0]);
-            split(elevation_coordinate(-el), SC_EL, eb[1], &te[1]);
-            for (int dr = 0; dr < 2; dr++)
-                for (int de = 0; de < 2; de++) {
-                    const double m = weight * (dr ? tr : 1 - tr);
-                    rel[(i * SC_R + rb[dr]) * SC_EL + eb[0][de]] += m * (de ? te[0] : 1 - te[0]);
-                    rel[(j * SC_R + rb[dr]) * SC_EL + eb[1][de]] += m * (de ? te[1] : 1 - te[1]);
-                }
+    /* pairs (i, i + d) in turn along each diagonal d, so that one pair's
+     * additions seldom wait for the one's before (another joint's bins) */
+    for (int d = 1; d < N; d++)
+        for (int i = 0; i + d < N; i++) {
+            const int j = i + d, k = pair_index(i, j);
+            double tr, te;
+            const int r = share(fr[k], SC_R, &tr), e = share(elevation_coordinate(w->el[k]), SC_EL, &te);
+            const double m0 = weight * (1 - tr), m1 = weight * tr;
+            double *hi = rel + (i * SC_R + r) * SC_EL, *hj = rel + (j * SC_R + r) * SC_EL;
+            /* j sees i at the opposite elevation: bins mirrored */
+            hi[e] += m0 * (1 - te), hi[e + 1] += m0 * te, hi[SC_EL + e] += m1 * (1 - te), hi[SC_EL + e + 1] += m1 * te;
+            hj[SC_EL - 1 - e] += m0 * (1 - te), hj[SC_EL - 2 - e] += m0 * te;
+            hj[2 * SC_EL - 1 - e] += m1 * (1 - te), hj[2 * SC_EL - 2 - e] += m1 * te;
         }
 }

@@ -89,6 +89,31 @@ static void make_sets(uint64_t seed, uint32_t m, uint32_t k, mim_pair_prep_t **g
     free(tj), free(sj);
 }
 
+/* The histograms' sums made directly from the joints are the sums of the
+ * histograms, to their float rounding (the bounds' premise). */
+static void test_marginals(void **state)
+{
+    (void)state;
+    enum { M = 10, K = 60 };
+    mim_pair_prep_t *g, *s;
+    make_sets(5, M, K, &g, &s);
+    for (uint32_t j = 0; j < K; j++) {
+        float fr[MIM__SC_PAIRS];
+        double rad_h[J * MIM__SC_R], rel_h[J * MIM__SC_R * MIM__SC_EL], rad[J * MIM__SC_R], rel[J * MIM__SC_R * MIM__SC_EL];
+        mim__sc_pairs_t w;
+        mim__sc_histogram_marginals(s[j].sc, rad_h, rel_h);
+        mim__sc_pair_radii(s[j].joints, fr);
+        mim__sc_radial(fr, rad);
+        mim__sc_pairs_begin(s[j].joints, &w);
+        mim__sc_radial_elevation(&w, fr, rel);
+        for (int b = 0; b < J * MIM__SC_R; b++)
+            if (fabs(rad[b] - rad_h[b]) > 1e-5) fail_msg("sample %u, radial bin %d: %.9g, histogram %.9g", j, b, rad[b], rad_h[b]);
+        for (int b = 0; b < J * MIM__SC_R * MIM__SC_EL; b++)
+            if (fabs(rel[b] - rel_h[b]) > 1e-5) fail_msg("sample %u, bin %d: %.9g, histogram %.9g", j, b, rel[b], rel_h[b]);
+    }
+    free(g), free(s);
+}
+
 /* Every bound at or below the distance it bounds, for every pair of a set
  * (the degenerate ones among them). */
 static void test_bounds_below_distances(void **state)
@@ -118,11 +143,17 @@ static void test_bounds_below_distances(void **state)
                 if (!(lb[j] <= d)) fail_msg("metric %d, truth %u, sample %u: bound %.17g above %.17g", metric, i, j, lb[j], d);
                 ratio += d > 0 ? fmax(lb[j], 0) / d / (M * K) : 0;
                 if (mt != MIM_METRIC_SHAPE) continue;
-                double bb[3 * J];
-                mim_sample_align(g[i].joints, s[j].joints, 3, bb);
-                const double lb2 = mim__bound_shape_aligned(rel_a, bb, fb + (size_t)j * stride, slack);
-                if (!(lb2 <= d)) fail_msg("D_S, truth %u, sample %u: second bound %.17g above %.17g", i, j, lb2, d);
+                /* the second bound (any best below it returns it), bounds
+                 * part-way (best just below d) and the distance itself */
+                const float *f = fb + (size_t)j * stride;
+                int exact;
+                const double lb2 = mim__shape_distance_within(&g[i], rel_a, &s[j], f, slack, -1.0, &exact);
+                if (exact || !(lb2 <= d)) fail_msg("D_S, truth %u, sample %u: second bound %.17g above %.17g", i, j, lb2, d);
                 ratio2 += d > 0 ? fmax(lb2, 0) / d / (M * K) : 0;
+                const double part = mim__shape_distance_within(&g[i], rel_a, &s[j], f, slack, lb2 + 0.9 * (d - lb2), &exact);
+                if (!(part <= d)) fail_msg("D_S, truth %u, sample %u: bound part-way %.17g above %.17g", i, j, part, d);
+                const double whole = mim__shape_distance_within(&g[i], rel_a, &s[j], f, slack, INFINITY, &exact);
+                if (!exact || memcmp(&whole, &d, sizeof d)) fail_msg("D_S, truth %u, sample %u: %.17g, not %.17g", i, j, whole, d);
             }
         }
         /* and they bound something */
@@ -205,6 +236,7 @@ static void test_ties_and_one_sample(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_marginals),
         cmocka_unit_test(test_bounds_below_distances),
         cmocka_unit_test(test_pruned_equals_scan),
         cmocka_unit_test(test_ties_and_one_sample),
