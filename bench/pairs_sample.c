@@ -55,6 +55,7 @@
  * DIR: the shared data folder that holds cmu-pairs/ (default
  * $MIMIC_SHARED_DATA, else ../shared/data beside the source tree). */
 #include "bench_data.h"
+#include "synthetic_pairs.h"
 #include "mim_core.h"
 #include "mim_sample_mcmc.h"
 #include "mim_vest_motion.h"
@@ -138,22 +139,10 @@ done:
 }
 
 /* ---- a synthetic take: forward kinematics on slow sines ---- */
-/* A standing person (mim_sample_joint_names order), facing +z, metres. */
-static const double person_rest[PJ][3] = {
-    {0, 1.70, 0.02},     {0, 1.40, 0},         {0, 1.00, 0},      {0.19, 1.45, 0},   {-0.19, 1.45, 0},
-    {0.24, 1.17, 0},     {-0.24, 1.17, 0},     {0.27, 0.92, 0.05}, {-0.27, 0.92, 0.05}, {0.10, 0.95, 0},
-    {-0.10, 0.95, 0},    {0.11, 0.52, 0.02},   {-0.11, 0.52, 0.02}, {0.11, 0.08, 0},   {-0.11, 0.08, 0},
-    {0, 1.20, 0},        {0, 1.55, 0}};
-
 static int synthetic_take(uint32_t n, int which, take_t *t)
 {
     double rest[3 * J];
-    for (int k = 0; k < PJ; k++)
-        for (int c = 0; c < 3; c++) {
-            rest[3 * k + c] = person_rest[k][c];
-            /* B faces A (half a turn about y), 1.2 m along z */
-            rest[3 * (PJ + k) + c] = person_rest[k][c] * (c == 1 ? 1 : -1) + (c == 2 ? 1.2 : 0);
-        }
+    sp_rest_pair(rest);
     if (!(t->frames = malloc((size_t)n * 3 * J * sizeof *t->frames))) return -1;
     t->n = n;
     snprintf(t->name, sizeof t->name, "synthetic %d", which + 1);

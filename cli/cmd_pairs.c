@@ -14,12 +14,14 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 static void help(FILE *out)
 {
     fprintf(out,
             "usage: mimic pairs coverage --truth A.bvh,B.bvh [--truth ...] [--every N] [--offset K]\n"
-            "                            --samples SAMPLES.jsonl [--joint-map FILE.json] [--unit M] [--json]\n"
+            "                            --samples SAMPLES.jsonl [--threads N] [--joint-map FILE.json] [--unit M]\n"
+            "                            [--json]\n"
             "       mimic pairs export --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K]\n"
             "                          [--joint-map FILE.json] [--unit M] -o FRAMES.jsonl\n"
             "       mimic pairs annotate --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K] [--views V]\n"
@@ -37,7 +39,8 @@ static void help(FILE *out)
             "             offset + every, ... of each --truth take) of the distance to the nearest\n"
             "             sample of S (schemas/pair-samples.md), in D_I (interaction coordinates, eq. 8,\n"
             "             3D), D_C (joint RMS) and D_S (3D shape contexts), each after a rigid alignment\n"
-            "             (metres for D_I and D_C).\n\n"
+            "             (metres for D_I and D_C). Exact: a distance is skipped only where a lower\n"
+            "             bound proves that sample cannot be the nearest.\n\n"
             "  export     the pose-pairs of takes (frames offset, offset + every, ...) in the samples\n"
             "             format, log density null: motion capture to compare samples with, or to\n"
             "             measure what the capture itself covers.\n\n"
@@ -57,6 +60,7 @@ static void help(FILE *out)
             "  --every N          every N-th frame (default 1; annotate: 10)\n"
             "  --offset K         from frame K (default 0)\n"
             "  --unit M           metres per file unit (default: guessed from the people's size)\n"
+            "  --threads N        coverage: threads (default: one per core)\n"
             "  --json             {\"truth\": m, \"samples\": n, \"D_I\": ..., \"D_C\": ..., \"D_S\": ...}\n"
             "  -h, --help         this help\n\n"
             "Exit status: 0 done, 1 an input failed (a motion file, joints, samples), 2 bad usage.\n");
@@ -68,15 +72,17 @@ static int coverage(int argc, char **argv)
         {"truth", required_argument, 0, 'p'},     {"every", required_argument, 0, 'e'},
         {"offset", required_argument, 0, 'k'},    {"samples", required_argument, 0, 's'},
         {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
-        {"json", no_argument, 0, 'j'},            {"help", no_argument, 0, 'h'},
-        {0, 0, 0, 0},
+        {"json", no_argument, 0, 'j'},            {"threads", required_argument, 0, 't'},
+        {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
     };
     const char *samples_path = NULL;
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    uint64_t threads = cores > 0 ? (uint64_t)cores : 1;
     mim_cli_takes_t tk = {.cmd = "pairs coverage", .every = 1};
     int as_json = 0, c, taken;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "p:e:k:s:m:u:jh", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "p:e:k:s:m:u:jt:h", longopts, NULL)) != -1) {
         if ((taken = mim_cli_takes_option(&tk, c, optarg))) {
             if (taken < 0) return 2;
             continue;
@@ -84,6 +90,9 @@ static int coverage(int argc, char **argv)
         switch (c) {
         case 's': samples_path = optarg; break;
         case 'j': as_json = 1; break;
+        case 't':
+            if (mim_cli_number("pairs coverage", "threads", optarg, 1, 256, &threads)) return 2;
+            break;
         case 'h': help(stdout); return 0;
         default:
             fprintf(stderr, "mimic pairs coverage: unknown or incomplete option '%s' (see mimic pairs --help)\n",
@@ -119,13 +128,13 @@ static int coverage(int argc, char **argv)
             goto done;
         }
         g = grown;
-        for (uint32_t i = 0; i < nf; i++)
-            if (mim_pair_prepare(fr + (size_t)i * 3 * MIM_PAIR_JOINTS, &g[m + i], &err)) {
-                fprintf(stderr, "mimic pairs coverage: %s: frame %u: %s\n", tk.spec[t], (unsigned)(tk.offset + i * tk.every),
-                        mim_error_text(&err));
-                free(fr);
-                goto done;
-            }
+        uint32_t bad = 0;
+        if (mim_pair_prepare_many(fr, nf, (uint32_t)threads, g + m, &bad, &err)) {
+            fprintf(stderr, "mimic pairs coverage: %s: frame %u: %s\n", tk.spec[t], (unsigned)(tk.offset + bad * tk.every),
+                    mim_error_text(&err));
+            free(fr);
+            goto done;
+        }
         m += nf;
         free(fr);
     }
@@ -139,19 +148,22 @@ static int coverage(int argc, char **argv)
         fprintf(stderr, "mimic pairs coverage: out of memory for %u samples\n", smp.n);
         goto done;
     }
-    for (uint32_t i = 0; i < smp.n; i++)
-        if (mim_pair_prepare(smp.joints + (size_t)i * 3 * MIM_PAIR_JOINTS, &sp[i], &err)) {
-            fprintf(stderr, "mimic pairs coverage: %s: sample %u: %s\n", samples_path, i + 1, mim_error_text(&err));
-            goto done;
-        }
+    uint32_t bad = 0;
+    if (mim_pair_prepare_many(smp.joints, smp.n, (uint32_t)threads, sp, &bad, &err)) {
+        fprintf(stderr, "mimic pairs coverage: %s: sample %u: %s\n", samples_path, bad + 1, mim_error_text(&err));
+        goto done;
+    }
     double cov[3];
     static const char *const label[3] = {"D_I", "D_C", "D_S"};
     for (int k = 0; k < 3; k++) {
         mim_progress_t pr = {.fn = mim_cli_progress};
-        if (mim_sample_coverage(g, m, sp, smp.n, (mim_sample_metric_t)k, &pr, &cov[k], &err)) {
+        const mim_sample_coverage_options_t o = {.threads = (uint32_t)threads, .progress = &pr};
+        mim_sample_coverage_t res = {0};
+        if (mim_sample_coverage(g, m, sp, smp.n, (mim_sample_metric_t)k, &o, &res, &err)) {
             fprintf(stderr, "mimic pairs coverage: %s\n", mim_error_text(&err));
             goto done;
         }
+        cov[k] = res.coverage;
     }
     if (as_json) {
         json_t *j = json_pack("{s:I, s:I, s:f, s:f, s:f}", "truth", (json_int_t)m, "samples", (json_int_t)smp.n,

@@ -1,26 +1,261 @@
 /* Coverage of a set of pose-pairs by samples (seed 002, Section 6, eq.
- * 13): C(G, S) = 1/m sum_i D(g_i, s_i*), s_i* the sample nearest to g_i. */
-#include "mim_sample.h"
+ * 13): C(G, S) = 1/m sum_i D(g_i, s_i*), s_i* the sample nearest to g_i.
+ *
+ * The exhaustive scan computes D for every truth and sample. The default
+ * computes it only where lower bounds (coverage_bounds.c) cannot rule the
+ * sample out: each truth bounds every sample at once, then takes the
+ * samples in increasing bound order and stops at the first bound above
+ * the nearest distance found. D_S goes on bounding a sample after aligning
+ * it, and gives up its distance part-way once a bound passes the nearest.
+ * The nearest of the truth before (the truths of a take come in order) is
+ * tried first. A sample that repeats an earlier one (a chain's refused
+ * step) is skipped: it is exactly as far, and the scan keeps the earlier.
+ * A sample is passed over only when a bound, hence its distance, is above
+ * a distance found, and equal distances go to the lowest index as in the
+ * scan: the answers are the scan's, to the bit. Truths are shared among
+ * threads in chunks; the sum is made in the truths' order. */
+#include "internal.h"
 
 #include <math.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define N MIM_PAIR_JOINTS
+#define SAMPLE_CHUNK 256
+#define TRUTH_CHUNK 8 /* consecutive truths taken at once: each tries its predecessor's nearest first */
+
+typedef struct job {
+    const mim_pair_prep_t *truth, *samples;
+    uint32_t m, k, stride;
+    mim_sample_metric_t metric;
+    int exhaustive;
+    float *feat;     /* k x stride: the samples' bound features */
+    uint8_t *repeat; /* k: 1 when an earlier sample is the same pose-pair */
+    uint64_t *hash;  /* k: of each sample's joints, to find the repeats */
+    double *slack;   /* per worker, then [0]: the samples' largest mim__bound_slack */
+    double *nearest; /* m */
+    uint32_t *which; /* m */
+    mim_progress_t *progress;
+    _Atomic uint32_t next, done;
+    _Atomic uint64_t distances, aligned, cut;
+} job_t;
+
+static uint64_t joints_hash(const mim_pair_prep_t *p)
+{
+    uint64_t h = 0x9e3779b97f4a7c15u, w;
+    for (int i = 0; i < 3 * N; i++) {
+        memcpy(&w, &p->joints[i], sizeof w);
+        h = (h ^ w) * 0x100000001b3u;
+        h ^= h >> 29;
+    }
+    return h;
+}
+
+static void features(void *ctx, uint32_t worker)
+{
+    job_t *j = ctx;
+    double slack = 0;
+    for (uint32_t s; (s = atomic_fetch_add(&j->next, SAMPLE_CHUNK)) < j->k;)
+        for (uint32_t i = s; i < s + SAMPLE_CHUNK && i < j->k; i++) {
+            mim__bound_sample(j->metric, &j->samples[i], j->feat + (size_t)i * j->stride);
+            slack = fmax(slack, mim__bound_slack(j->metric, &j->samples[i]));
+            j->hash[i] = joints_hash(&j->samples[i]);
+        }
+    j->slack[worker] = slack;
+}
+
+/* What D takes from a sample: its joints and its triangulation. */
+static int same_pair(const mim_pair_prep_t *a, const mim_pair_prep_t *b)
+{
+    return !memcmp(a->joints, b->joints, sizeof a->joints) && a->ic.n_edges == b->ic.n_edges &&
+           !memcmp(a->ic.edge, b->ic.edge, a->ic.n_edges * sizeof a->ic.edge[0]);
+}
+
+typedef struct hashed {
+    uint64_t hash;
+    uint32_t i;
+} hashed_t;
+
+static int by_hash(const void *x, const void *y)
+{
+    const hashed_t *a = x, *b = y;
+    return a->hash != b->hash ? (a->hash < b->hash ? -1 : 1) : (a->i > b->i) - (a->i < b->i);
+}
+
+static int find_repeats(job_t *j)
+{
+    hashed_t *h = malloc((size_t)j->k * sizeof *h);
+    if (!h) return -1;
+    for (uint32_t i = 0; i < j->k; i++) h[i] = (hashed_t){j->hash[i], i};
+    qsort(h, j->k, sizeof *h, by_hash);
+    for (uint32_t s = 0, e; s < j->k; s = e) {
+        for (e = s + 1; e < j->k && h[e].hash == h[s].hash; e++) {}
+        for (uint32_t x = s + 1; x < e; x++)
+            for (uint32_t y = s; y < x && !j->repeat[h[x].i]; y++)
+                if (!j->repeat[h[y].i] && same_pair(&j->samples[h[x].i], &j->samples[h[y].i])) j->repeat[h[x].i] = 1;
+    }
+    free(h);
+    return 0;
+}
+
+/* Heap keys: a bound's bits made to sort as unsigned (a NaN bound is made
+ * -inf: it rules nothing out), then the sample's index. */
+static uint64_t key(float lb, uint32_t j)
+{
+    uint32_t u;
+    if (isnan(lb)) lb = -INFINITY;
+    memcpy(&u, &lb, sizeof u);
+    u = (u & 0x80000000u) ? ~u : u | 0x80000000u;
+    return (uint64_t)u << 32 | j;
+}
+
+static void sift_down(uint64_t *h, uint32_t n, uint32_t i)
+{
+    for (;;) {
+        uint32_t c = 2 * i + 1;
+        if (c >= n) return;
+        if (c + 1 < n && h[c + 1] < h[c]) c++;
+        if (h[i] <= h[c]) return;
+        uint64_t t = h[i];
+        h[i] = h[c], h[c] = t, i = c;
+    }
+}
+
+static uint64_t pop(uint64_t *h, uint32_t *n)
+{
+    uint64_t top = h[0];
+    h[0] = h[--*n];
+    sift_down(h, *n, 0);
+    return top;
+}
+
+/* Keeps (d, j) when it is nearer than (best, bj), or as near with a lower
+ * index: what the scan's first strict minimum gives. */
+static void keep(double d, uint32_t j, double *best, uint32_t *bj)
+{
+    if (d < *best || (d == *best && d < INFINITY && j < *bj)) *best = d, *bj = j;
+}
+
+/* A worker's room: the first bounds of every sample, the heap of those
+ * that may still be nearest, the truth's features. */
+typedef struct room {
+    float *lb, *fa;
+    uint64_t *heap;
+    double rel_a[N * MIM__SC_R * MIM__SC_EL];
+} room_t;
+
+static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t hint, double *best, uint32_t *bj, uint64_t *nd,
+                    uint64_t *na, uint64_t *nc)
+{
+    const mim_pair_prep_t *a = &jb->truth[i];
+    *best = INFINITY, *bj = UINT32_MAX;
+    if (jb->exhaustive) {
+        for (uint32_t j = 0; j < jb->k; j++) {
+            double d = mim_sample_distance(a, &jb->samples[j], jb->metric);
+            if (d < *best) *best = d, *bj = j;
+        }
+        *nd += jb->k;
+        return;
+    }
+    const int shape = jb->metric == MIM_METRIC_SHAPE;
+    const double slack = mim__bound_slack(jb->metric, a) + jb->slack[0];
+    mim__bound_truth(jb->metric, a, rm->fa);
+    mim__bound_lower(jb->metric, rm->fa, jb->feat, jb->k, slack, rm->lb);
+    if (shape) mim__sc_histogram_marginals(a->sc, NULL, rm->rel_a);
+    if (hint < jb->k) keep(mim_sample_distance(a, &jb->samples[hint], jb->metric), hint, best, bj), (*nd)++;
+    uint32_t n = 0;
+    for (uint32_t j = 0; j < jb->k; j++)
+        if (!jb->repeat[j] && j != hint && !(rm->lb[j] > *best)) rm->heap[n++] = key(rm->lb[j], j);
+    for (uint32_t h = n / 2; h-- > 0;) sift_down(rm->heap, n, h);
+    while (n) {
+        const uint32_t j = (uint32_t)rm->heap[0];
+        if (rm->lb[j] > *best) break;
+        pop(rm->heap, &n);
+        const mim_pair_prep_t *b = &jb->samples[j];
+        if (shape) {
+            int exact;
+            const double d = mim__shape_distance_within(a, rm->rel_a, b, jb->feat + (size_t)j * jb->stride, slack, *best, &exact);
+            (*na)++;
+            if (exact) keep(d, j, best, bj), (*nd)++;
+            else (*nc)++;
+            continue;
+        }
+        keep(mim_sample_distance(a, b, jb->metric), j, best, bj), (*nd)++;
+    }
+}
+
+static void truths(void *ctx, uint32_t worker)
+{
+    job_t *j = ctx;
+    room_t rm = {0};
+    if (!j->exhaustive) {
+        rm.lb = malloc((size_t)j->k * sizeof *rm.lb), rm.fa = malloc(j->stride * sizeof *rm.fa);
+        rm.heap = malloc((size_t)j->k * sizeof *rm.heap);
+        if (!rm.lb || !rm.fa || !rm.heap) goto out; /* the others take this worker's share */
+    }
+    uint64_t nd = 0, na = 0, nc = 0;
+    for (uint32_t s; (s = atomic_fetch_add(&j->next, TRUTH_CHUNK)) < j->m;) {
+        uint32_t hint = UINT32_MAX;
+        for (uint32_t i = s; i < s + TRUTH_CHUNK && i < j->m; i++) {
+            nearest(j, &rm, i, hint, &j->nearest[i], &j->which[i], &nd, &na, &nc);
+            hint = j->which[i];
+            uint32_t done = atomic_fetch_add(&j->done, 1) + 1;
+            if (worker == 0 && j->progress) mim_progress_update(j->progress, done);
+        }
+    }
+    atomic_fetch_add(&j->distances, nd), atomic_fetch_add(&j->aligned, na), atomic_fetch_add(&j->cut, nc);
+out:
+    free(rm.lb), free(rm.fa), free(rm.heap);
+}
 
 int mim_sample_coverage(const mim_pair_prep_t *truth, uint32_t m, const mim_pair_prep_t *samples, uint32_t k,
-                        mim_sample_metric_t metric, mim_progress_t *progress, double *out, mim_error_t *err)
+                        mim_sample_metric_t metric, const mim_sample_coverage_options_t *opt, mim_sample_coverage_t *out,
+                        mim_error_t *err)
 {
     if (!truth || !samples || !out || !m || !k)
         return mim_error_set(err, MIM_EINVAL, "coverage: needs truth pose-pairs and samples (%u and %u given)", m, k);
-    if (progress) mim_progress_begin(progress, "coverage", m);
-    double sum = 0;
-    for (uint32_t i = 0; i < m; i++) {
-        double best = INFINITY;
-        for (uint32_t j = 0; j < k; j++) {
-            double d = mim_sample_distance(&truth[i], &samples[j], metric);
-            if (d < best) best = d;
-        }
-        sum += best;
-        if (progress) mim_progress_update(progress, i + 1);
+    const mim_sample_coverage_options_t none = {0};
+    if (!opt) opt = &none;
+    const uint32_t threads = opt->threads ? opt->threads : 1;
+    job_t j = {.truth = truth, .samples = samples, .m = m, .k = k, .stride = mim__bound_stride(metric), .metric = metric,
+               .exhaustive = opt->exhaustive, .progress = opt->progress};
+    double *nearest = out->nearest ? NULL : malloc((size_t)m * sizeof *nearest);
+    uint32_t *which = out->which ? NULL : malloc((size_t)m * sizeof *which);
+    j.nearest = out->nearest ? out->nearest : nearest, j.which = out->which ? out->which : which;
+    j.slack = calloc(threads, sizeof *j.slack);
+    if (!j.exhaustive) {
+        j.feat = malloc((size_t)k * j.stride * sizeof *j.feat);
+        j.repeat = calloc(k, 1), j.hash = malloc((size_t)k * sizeof *j.hash);
     }
-    if (progress) mim_progress_end(progress);
-    *out = sum / m;
-    return 0;
+    int rc = 0;
+    if (!j.nearest || !j.which || !j.slack || (!j.exhaustive && (!j.feat || !j.repeat || !j.hash))) {
+        rc = mim_error_set(err, MIM_ENOMEM, "coverage: out of memory for %u truths and %u samples", m, k);
+        goto done;
+    }
+    if (!j.exhaustive) {
+        atomic_init(&j.next, 0);
+        mim__parallel(threads, features, &j);
+        for (uint32_t t = 1; t < threads; t++) j.slack[0] = fmax(j.slack[0], j.slack[t]);
+        if (find_repeats(&j)) {
+            rc = mim_error_set(err, MIM_ENOMEM, "coverage: out of memory for %u samples", k);
+            goto done;
+        }
+    }
+    if (j.progress) mim_progress_begin(j.progress, "coverage", m);
+    atomic_init(&j.next, 0), atomic_init(&j.done, 0), atomic_init(&j.distances, 0), atomic_init(&j.aligned, 0);
+    atomic_init(&j.cut, 0);
+    mim__parallel(threads, truths, &j);
+    if (j.progress) mim_progress_end(j.progress);
+    if (atomic_load(&j.done) < m) {
+        rc = mim_error_set(err, MIM_ENOMEM, "coverage: out of memory for %u samples' bounds", k);
+        goto done;
+    }
+    double sum = 0;
+    for (uint32_t i = 0; i < m; i++) sum += j.nearest[i];
+    out->coverage = sum / m;
+    out->distances = atomic_load(&j.distances), out->aligned = atomic_load(&j.aligned), out->cut = atomic_load(&j.cut);
+done:
+    free(nearest), free(which), free(j.slack), free(j.feat), free(j.repeat), free(j.hash);
+    return rc;
 }

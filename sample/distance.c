@@ -5,6 +5,7 @@
 
 #include <lapacke.h>
 #include <math.h>
+#include <stdatomic.h>
 #include <string.h>
 
 static double edge_term(const double *a, const double *b, int dim, const uint8_t e[2], double beta, double *w)
@@ -75,80 +76,49 @@ void mim_sample_align(const double *a, const double *b, int dim, double *out)
         }
 }
 
-/* ---- shape contexts ---- */
-#define SC_R 5
-#define SC_AZ 8
-#define SC_EL 4
-
-/* Soft binning (each count shared linearly between the two nearest bins
- * along log r, azimuth (circular) and elevation, and the azimuth's share
- * fading out towards the poles, where it is undefined): plain binning
- * jumps when a joint sits on a bin's edge or straight above another, which
- * skeletons do, so a pair and its own rigid copy would differ. */
-static void spread(float *h, double fr, double fa, double fe, double cos_el, float w)
-{
-    int r0 = (int)floor(fr), a0 = (int)floor(fa), e0 = (int)floor(fe);
-    double tr = fr - r0, ta = fa - a0, te = fe - e0;
-    for (int dr = 0; dr < 2; dr++)
-        for (int da = 0; da < 2; da++)
-            for (int de = 0; de < 2; de++) {
-                int r = r0 + dr, a = ((a0 + da) % SC_AZ + SC_AZ) % SC_AZ, e = e0 + de;
-                r = r < 0 ? 0 : r >= SC_R ? SC_R - 1 : r;
-                e = e < 0 ? 0 : e >= SC_EL ? SC_EL - 1 : e;
-                /* towards the poles the azimuth means less and less: its
-                 * share (cos el) goes to its bin, the rest to all alike */
-                double k = (dr ? tr : 1 - tr) * (de ? te : 1 - te);
-                h[(r * SC_AZ + a) * SC_EL + e] += (float)(w * k * cos_el * (da ? ta : 1 - ta));
-                if (da) continue;
-                for (int u = 0; u < SC_AZ; u++) h[(r * SC_AZ + u) * SC_EL + e] += (float)(w * k * (1 - cos_el) / SC_AZ);
-            }
-}
-
-static void shape_contexts(const double *p, float sc[MIM_PAIR_JOINTS][MIM_SC_BINS])
-{
-    const int n = MIM_PAIR_JOINTS;
-    double mean = 0;
-    for (int i = 0; i < n; i++)
-        for (int j = i + 1; j < n; j++) {
-            double d2 = 0;
-            for (int c = 0; c < 3; c++) d2 += (p[3 * i + c] - p[3 * j + c]) * (p[3 * i + c] - p[3 * j + c]);
-            mean += sqrt(d2);
-        }
-    mean /= n * (n - 1) / 2.0;
-    if (!(mean > 0)) mean = 1.0;
-    const double r0 = log(mean / 8.0), r1 = log(mean * 2.0);
-    memset(sc, 0, sizeof(float) * MIM_PAIR_JOINTS * MIM_SC_BINS);
-    for (int i = 0; i < n; i++)
-        for (int j = 0; j < n; j++) {
-            if (j == i) continue;
-            double v[3] = {p[3 * j] - p[3 * i], p[3 * j + 1] - p[3 * i + 1], p[3 * j + 2] - p[3 * i + 2]};
-            double r = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-            /* bin coordinates, bin centres at integers: log r, and up is y
-             * (the data's convention: mimic's bodies and BVH) */
-            double fr = r > 0 ? (log(r) - r0) / (r1 - r0) * SC_R - 0.5 : 0.0;
-            double az = atan2(v[2], v[0]), el = r > 0 ? asin(v[1] / r) : 0.0;
-            double fa = (az + M_PI) / (2 * M_PI) * SC_AZ - 0.5, fe = (el + M_PI / 2) / M_PI * SC_EL - 0.5;
-            spread(sc[i], fr, fa, fe, cos(el), 1.0f / (n - 1));
-        }
-}
-
 int mim_pair_prepare(const double *joints, mim_pair_prep_t *out, mim_error_t *err)
 {
     out->dim = 3;
     memcpy(out->joints, joints, sizeof out->joints);
     int rc = mim_ic_build(joints, 3, &out->ic, err);
-    if (!rc) shape_contexts(joints, out->sc);
+    if (!rc) mim__shape_contexts(joints, out->sc);
     return rc;
 }
 
-double mim__shape_cost(const float *a, const float *b, int n, int bins)
+/* Many pose-pairs on threads: chunks taken in turn; the first failure
+ * (the lowest index, whichever thread met it) is prepared again on the
+ * calling thread for its message. */
+#define PREP_CHUNK 64
+typedef struct prep_job {
+    const double *joints;
+    uint32_t n;
+    mim_pair_prep_t *out;
+    _Atomic uint32_t next, first_bad;
+} prep_job_t;
+
+static void prep_work(void *ctx, uint32_t worker)
 {
-    double total = 0;
-    for (int i = 0; i < n * bins; i++) {
-        double x = a[i], y = b[i];
-        if (x + y > 0) total += 0.5 * (x - y) * (x - y) / (x + y);
-    }
-    return total / n;
+    (void)worker;
+    prep_job_t *j = ctx;
+    for (uint32_t s; (s = atomic_fetch_add(&j->next, PREP_CHUNK)) < j->n;)
+        for (uint32_t i = s; i < s + PREP_CHUNK && i < j->n; i++)
+            if (mim_pair_prepare(j->joints + (size_t)i * 3 * MIM_PAIR_JOINTS, &j->out[i], NULL)) {
+                uint32_t was = atomic_load(&j->first_bad);
+                while (i < was && !atomic_compare_exchange_weak(&j->first_bad, &was, i)) {}
+                break;
+            }
+}
+
+int mim_pair_prepare_many(const double *joints, uint32_t n, uint32_t threads, mim_pair_prep_t *out, uint32_t *failed,
+                          mim_error_t *err)
+{
+    prep_job_t j = {.joints = joints, .n = n, .out = out};
+    atomic_init(&j.next, 0), atomic_init(&j.first_bad, n);
+    mim__parallel(threads, prep_work, &j);
+    uint32_t bad = atomic_load(&j.first_bad);
+    if (bad == n) return 0;
+    if (failed) *failed = bad;
+    return mim_pair_prepare(joints + (size_t)bad * 3 * MIM_PAIR_JOINTS, &out[bad], err);
 }
 
 double mim_sample_distance(const mim_pair_prep_t *a, const mim_pair_prep_t *b, mim_sample_metric_t metric)
@@ -162,7 +132,7 @@ double mim_sample_distance(const mim_pair_prep_t *a, const mim_pair_prep_t *b, m
     }
     if (metric == MIM_METRIC_SHAPE) {
         float sb[MIM_PAIR_JOINTS][MIM_SC_BINS];
-        shape_contexts(bb, sb);
+        mim__shape_contexts(bb, sb);
         return mim__shape_cost(&a->sc[0][0], &sb[0][0], MIM_PAIR_JOINTS, MIM_SC_BINS);
     }
     /* D_I: eq. 8 with each pair's own triangulation (a rigid motion keeps

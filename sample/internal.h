@@ -12,6 +12,70 @@
  * against it. */
 json_t *mim__pairs_joint_labels(void);
 
+/* ---- 3D shape contexts (shape_context.c; D_S) ---- */
+#define MIM__SC_R 5  /* radial bins */
+#define MIM__SC_AZ 8 /* azimuth */
+#define MIM__SC_EL 4 /* elevation */
+#define MIM__SC_PAIRS (MIM_PAIR_JOINTS * (MIM_PAIR_JOINTS - 1) / 2)
+void mim__shape_contexts(const double *p, float sc[MIM_PAIR_JOINTS][MIM_SC_BINS]);
+/* The same a joint at a time. What the joints share comes first: each
+ * joint pair's (i < j, row by row) distance and elevation (begin), then
+ * its radial bin coordinate and the elevation's cosine (finish); p must
+ * outlive w. */
+typedef struct mim__sc_pairs {
+    const double *p;
+    double r[MIM__SC_PAIRS], el[MIM__SC_PAIRS], fr[MIM__SC_PAIRS], cos_el[MIM__SC_PAIRS];
+} mim__sc_pairs_t;
+void mim__sc_pairs_begin(const double *p, mim__sc_pairs_t *w);
+void mim__sc_pairs_finish(mim__sc_pairs_t *w);
+void mim__sc_joint(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS]);
+/* One bin's chi-squared term: 0.5 (x - y)^2 / (x + y), 0 for empty bins. */
+static inline double mim__chi_term(double x, double y) { return x + y > 0 ? 0.5 * (x - y) * (x - y) / (x + y) : 0.0; }
+
+/* Their sums over bins, whose cost bounds D_S from below (coverage_bounds.c).
+ * fr: the joint pairs' radial bin coordinates as floats (which a rigid
+ * motion keeps). From them (and, for rel, the pairs' elevations in w),
+ * the histograms summed over azimuth and elevation (rad: 34 x MIM__SC_R)
+ * and over azimuth (rel: 34 x MIM__SC_R x MIM__SC_EL), in double: what
+ * mim__shape_contexts' histograms sum to in exact arithmetic; and the same
+ * sums of a computed histogram (either may be NULL). */
+void mim__sc_pair_radii(const double *p, float *fr);
+void mim__sc_radial(const float *fr, double *rad);
+void mim__sc_radial_elevation(const mim__sc_pairs_t *w, const float *fr, double *rel);
+void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], double *rad, double *rel);
+
+/* ---- work on threads (parallel.c) ---- */
+/* Runs fn(ctx, w) for w = 0 .. threads - 1 (0 means 1), w 0 on the calling
+ * thread and the others on threads of their own, and returns when all are
+ * done. fn takes its share from a counter in ctx, so that a thread that
+ * cannot be started only leaves its share to the others. */
+void mim__parallel(uint32_t threads, void (*fn)(void *ctx, uint32_t worker), void *ctx);
+
+/* ---- lower bounds of D_I, D_C and D_S (coverage_bounds.c) ---- */
+/* Floats per sample of a metric's first bound's features (a multiple of
+ * 8), and of all its features (D_S's second bound's after them). */
+uint32_t mim__bound_dim(mim_sample_metric_t metric);
+uint32_t mim__bound_stride(mim_sample_metric_t metric);
+/* The features of a sample (b of mim_sample_distance; stride floats) and
+ * of a truth (a; dim floats). */
+void mim__bound_sample(mim_sample_metric_t metric, const mim_pair_prep_t *b, float *f);
+void mim__bound_truth(mim_sample_metric_t metric, const mim_pair_prep_t *a, float *f);
+/* What a pose-pair adds to its bounds' slack (its rounding grows with its
+ * size and its distance from the origin). */
+double mim__bound_slack(mim_sample_metric_t metric, const mim_pair_prep_t *p);
+/* lb[j] <= D(a, b_j) as mim_sample_distance computes it, for the k
+ * samples' features fb (k x stride) against the truth's fa; slack: a's
+ * mim__bound_slack plus the samples' largest. */
+void mim__bound_lower(mim_sample_metric_t metric, const float *fa, const float *fb, uint32_t k, double slack, float *lb);
+/* D_S of sample b (its features fb) against truth a, as mim_sample_distance
+ * gives it, to the bit (*exact 1); or a lower bound of it above best
+ * (*exact 0) as soon as one turns up: first the second bound, once b is
+ * aligned, then the costs of the joints made so far with that bound's
+ * terms for the others. rel_a: a's histogram summed over azimuth
+ * (mim__sc_histogram_marginals). */
+double mim__shape_distance_within(const mim_pair_prep_t *a, const double *rel_a, const mim_pair_prep_t *b, const float *fb,
+                                  double slack, double best, int *exact);
+
 /* The chi-squared cost between shape contexts (Belongie et al.), the mean
  * over n joints of 0.5 sum (a - b)^2 / (a + b) over their bins: D_S in 3D
  * and the shape density's distance in 2D. */

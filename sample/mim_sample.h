@@ -117,6 +117,11 @@ typedef struct mim_pair_prep {
 } mim_pair_prep_t;
 /* Prepares a 3D pose-pair (34 x 3 doubles). Errors as mim_ic_build. */
 int mim_pair_prepare(const double *joints, mim_pair_prep_t *out, mim_error_t *err);
+/* Prepares n pose-pairs (n x 34 x 3 doubles) on `threads` threads (0: 1).
+ * On an error, *failed (may be NULL) is the first pair that failed and
+ * err says why, as mim_pair_prepare. */
+int mim_pair_prepare_many(const double *joints, uint32_t n, uint32_t threads, mim_pair_prep_t *out, uint32_t *failed,
+                          mim_error_t *err);
 
 /* D_I, D_C or D_S (Section 6) between prepared 3D pose-pairs a and b, after
  * bringing b onto a (mim_sample_align). D_I: eq. 8 on a's and b's own
@@ -317,11 +322,29 @@ double mim_pairs2d_align(const double *a, const double *b, double *c, double *s)
 void mim_pairs2d_rotate(const double *b, double c, double s, double *out);
 
 /* ---- coverage (coverage.c; eq. 13) ---- */
+typedef struct mim_sample_coverage_options {
+    uint32_t threads;         /* threads to work on, the calling one among them; 0: 1 */
+    int exhaustive;           /* 1: every truth against every sample, no bounds (the reference) */
+    mim_progress_t *progress; /* over the truth pairs, label "coverage"; NULL: quiet */
+} mim_sample_coverage_options_t;
+typedef struct mim_sample_coverage {
+    double coverage;    /* C(G, S) */
+    double *nearest;    /* NULL, or the caller's m entries: each truth's min_j D(g_i, s_j) */
+    uint32_t *which;    /* NULL, or the caller's m entries: that j, the lowest of equal ones
+                           (UINT32_MAX when no distance is below infinity) */
+    uint64_t distances; /* distances computed */
+    uint64_t aligned;   /* D_S: samples aligned and bounded again (coverage_bounds.c) */
+    uint64_t cut;       /* D_S: of those, the ones given up, a bound having passed the nearest */
+} mim_sample_coverage_t;
 /* C(G, S) = 1/m sum_i min_j D(g_i, s_j) over the m truth pairs g and the k
- * samples s, in the metric given. MIM_EINVAL for m or k of 0. Optional
- * progress over the truth pairs (label "coverage"). */
+ * samples s, in the metric given, into out (its nearest and which filled
+ * when given). A distance is computed only for the samples that lower
+ * bounds (coverage_bounds.c) leave as possibly nearest; every answer is
+ * the one the exhaustive scan gives, to the bit, whatever the threads.
+ * opt NULL: defaults. Errors: MIM_EINVAL (m or k of 0), MIM_ENOMEM. */
 int mim_sample_coverage(const mim_pair_prep_t *truth, uint32_t m, const mim_pair_prep_t *samples, uint32_t k,
-                        mim_sample_metric_t metric, mim_progress_t *progress, double *out, mim_error_t *err);
+                        mim_sample_metric_t metric, const mim_sample_coverage_options_t *opt, mim_sample_coverage_t *out,
+                        mim_error_t *err);
 
 #ifdef __cplusplus
 }

@@ -155,6 +155,14 @@ static void test_coverage_cli(void **s)
         assert_true(num(j1, m[k]) > num(jh, m[k]));
     }
     json_decref(jh), json_decref(j1);
+    /* the same figures on one thread as on several (the output is exact) */
+    const char *a6[] = {"pairs", "coverage", "--truth", spec, "--samples", half, "--threads", "1", NULL};
+    const char *a7[] = {"pairs", "coverage", "--truth", spec, "--samples", half, "--threads", "3", NULL};
+    char *o1 = NULL, *o3 = NULL, *e1 = NULL, *e3 = NULL;
+    assert_int_equal(ts_run_mimic(&o1, &e1, a6), 0);
+    assert_int_equal(ts_run_mimic(&o3, &e3, a7), 0);
+    assert_string_equal(o1, o3);
+    free(o1), free(o3), free(e1), free(e3);
     /* the human line */
     char *o = NULL, *e = NULL;
     const char *a5[] = {"pairs", "coverage", "--truth", spec, "--samples", all, NULL};
@@ -405,6 +413,8 @@ static void test_bad_input(void **s)
     expect_fail(c6, 2, "unknown subcommand 'frobnicate'");
     const char *c7[] = {"pairs", "coverage", "--truth", spec, "--samples", smp, "--unit", "-1", NULL};
     expect_fail(c7, 2, "--unit '-1'");
+    const char *c7t[] = {"pairs", "coverage", "--truth", spec, "--samples", smp, "--threads", "0", NULL};
+    expect_fail(c7t, 2, "--threads '0'");
     /* a unit that cannot be guessed: people ten times CMU's size (about
      * 300 units tall), unless --unit gives it */
     g_scale = 10.0;

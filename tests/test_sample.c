@@ -220,16 +220,17 @@ static void test_coverage(void **s)
     for (int i = 0; i < M; i++) random_pair(&r, 3, p), assert_int_equal(mim_pair_prepare(p, &g[i], &err), 0);
     for (int i = 0; i < K; i++) random_pair(&r, 3, p), assert_int_equal(mim_pair_prepare(p, &smp[i], &err), 0);
     for (int m = 0; m < 3; m++) {
-        double c, prev = INFINITY;
+        double prev = INFINITY;
+        mim_sample_coverage_t c = {0};
         assert_int_equal(mim_sample_coverage(g, M, g, M, (mim_sample_metric_t)m, NULL, &c, &err), 0);
-        assert_true(c < 1e-9);
+        assert_true(c.coverage < 1e-9);
         for (uint32_t k = 1; k <= K; k++) {
             assert_int_equal(mim_sample_coverage(g, M, smp, k, (mim_sample_metric_t)m, NULL, &c, &err), 0);
-            assert_true(c > 0 && c <= prev + 1e-15);
-            prev = c;
+            assert_true(c.coverage > 0 && c.coverage <= prev + 1e-15);
+            prev = c.coverage;
         }
     }
-    double c;
+    mim_sample_coverage_t c = {0};
     assert_int_equal(mim_sample_coverage(g, M, smp, 0, MIM_METRIC_IC, NULL, &c, &err), MIM_EINVAL);
     free(g), free(smp);
 }

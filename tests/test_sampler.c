@@ -4,6 +4,7 @@
  * allowances, the likelihood, and whole chains over synthetic pose-pairs. */
 #include "mim_sample_mcmc.h"
 
+#include "synthetic_pairs.h"
 #include "test_support.h"
 
 #include <ode/ode.h>
@@ -167,36 +168,6 @@ static void test_mh_truncation(void **s)
     free(t.out);
 }
 
-/* ---- synthetic pose-pairs ---- */
-/* A standing person (mim_sample_joint_names order), facing +z, metres. */
-static const double person_rest[MIM_PAIR_PERSON_JOINTS][3] = {
-    {0, 1.70, 0.02},  {0, 1.40, 0},    {0, 1.00, 0},     {0.19, 1.45, 0}, {-0.19, 1.45, 0}, {0.24, 1.17, 0},
-    {-0.24, 1.17, 0}, {0.27, 0.92, 0.05}, {-0.27, 0.92, 0.05}, {0.10, 0.95, 0}, {-0.10, 0.95, 0}, {0.11, 0.52, 0.02},
-    {-0.11, 0.52, 0.02}, {0.11, 0.08, 0}, {-0.11, 0.08, 0}, {0, 1.20, 0}, {0, 1.55, 0}};
-
-/* Two people facing each other 1.2 m apart, then joints turned at random
- * by up to `spread` radians (a pose-pair of the synthetic "motion"). */
-static void synthetic_pair(mim_rng_t *r, double spread, double *out)
-{
-    double rest[3 * MIM_PAIR_JOINTS];
-    for (int k = 0; k < MIM_PAIR_PERSON_JOINTS; k++)
-        for (int c = 0; c < 3; c++) {
-            rest[3 * k + c] = person_rest[k][c];
-            /* B: turned half a circle about y, 1.2 m along z */
-            double v = person_rest[k][c] * (c == 1 ? 1 : -1) + (c == 2 ? 1.2 : 0);
-            rest[3 * (MIM_PAIR_PERSON_JOINTS + k) + c] = v;
-        }
-    mim_pairs_pose_t pose;
-    mim_pairs_pose_rest(rest, &pose);
-    for (int p = 0; p < 2; p++)
-        for (int g = 1; g < MIM_PAIRS_ROT; g++) {
-            mim_vec3 axis = mim_v3_normalize(mim_v3(mim_rng_gauss(r), mim_rng_gauss(r), mim_rng_gauss(r)));
-            pose.rot[p][g] = mim_quat_axis_angle(axis, spread * mim_rng_unit(r));
-        }
-    pose.root[1][0] += 0.2 * (mim_rng_unit(r) - 0.5);
-    mim_pairs_pose_joints(&pose, out);
-}
-
 static double dist3(const double *a, const double *b)
 {
     return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
@@ -210,7 +181,7 @@ static void test_pose_model(void **s)
     mim_rng_t r;
     mim_rng_seed(&r, 2, 0);
     double pair[3 * MIM_PAIR_JOINTS], back[3 * MIM_PAIR_JOINTS];
-    synthetic_pair(&r, 0.5, pair);
+    sp_random_pair(&r, 0.5, pair);
     mim_pairs_pose_t pose;
     mim_pairs_pose_rest(pair, &pose);
     mim_pairs_pose_joints(&pose, back);
@@ -249,7 +220,7 @@ static void test_seed_jitter(void **s)
     mim_rng_seed(&r, 3, 0);
     mim_rng_seed(&j, 4, 0);
     double pair[3 * MIM_PAIR_JOINTS], out[3 * MIM_PAIR_JOINTS];
-    synthetic_pair(&r, 0.5, pair);
+    sp_random_pair(&r, 0.5, pair);
     mim_pairs_seed_jitter(pair, 0, 0, &j, out);
     for (int i = 0; i < 3 * MIM_PAIR_JOINTS; i++) assert_true(fabs(out[i] - pair[i]) < 1e-12);
     double moved = 0, moved_small = 0;
@@ -281,7 +252,7 @@ static void test_validity(void **s)
     mim_rng_seed(&r, 3, 0);
     const uint32_t n = 200;
     double *pairs = malloc(n * 3 * MIM_PAIR_JOINTS * sizeof *pairs);
-    for (uint32_t i = 0; i < n; i++) synthetic_pair(&r, 0.25, pairs + (size_t)i * 3 * MIM_PAIR_JOINTS);
+    for (uint32_t i = 0; i < n; i++) sp_random_pair(&r, 0.25, pairs + (size_t)i * 3 * MIM_PAIR_JOINTS);
     mim_pairs_validity_t *v = NULL;
     mim_error_t err = {0};
     assert_int_equal(mim_pairs_validity_learn(pairs, 0, &v, &err), MIM_EINVAL);
@@ -333,7 +304,7 @@ static void test_penetration_allowance(void **s)
     mim_rng_t r;
     mim_rng_seed(&r, 4, 0);
     double pair[3 * MIM_PAIR_JOINTS];
-    synthetic_pair(&r, 0.0, pair);
+    sp_random_pair(&r, 0.0, pair);
     /* B steps into A: their torsos overlap by a few centimetres */
     for (int k = MIM_PAIR_PERSON_JOINTS; k < MIM_PAIR_JOINTS; k++) pair[3 * k + 2] -= 1.0;
     double eta = mim_penetration_pair(p, pair, NULL);
@@ -373,7 +344,7 @@ static void world_build(world_t *w, mim_pairs_density_t density)
     double rest[3 * MIM_PAIR_JOINTS];
     mim_rng_t r;
     mim_rng_seed(&r, 9, 0);
-    synthetic_pair(&r, 0.0, rest);
+    sp_random_pair(&r, 0.0, rest);
     for (uint32_t f = 0; f < frames; f++) {
         mim_pairs_pose_t pose;
         mim_pairs_pose_rest(rest, &pose);

@@ -1,0 +1,251 @@
+/* Lower bounds of Section 6's D_C, D_I and D_S (distance.c), so that
+ * coverage (eq. 13, coverage.c) computes a distance only for the samples
+ * that can still be nearest. Each holds for every pair, whatever the
+ * alignment turns b by:
+ *
+ * - D_C. The alignment puts b's centroid on a's (bb_i = ca + R (b_i - cb),
+ *   R a rotation), so |bb_i - ca| = |b_i - cb| =: rb_i, and by the triangle
+ *   inequality |a_i - bb_i| >= | |a_i - ca| - rb_i |:
+ *   D_C >= sqrt(mean_i (ra_i - rb_i)^2), ra and rb the joints' distances
+ *   from their own centroid.
+ * - D_I (eq. 8). Each edge term |u_e(a) - u_e(bb)| >= | |u_e(a)| - |u_e(b)| |,
+ *   as a rigid motion keeps lengths; so each half of eq. 8 is at least its
+ *   weighted mean of length differences: D_I >= sum over the 561 joint pairs
+ *   p of (wa_p + wb_p) |La_p - Lb_p|, L the pairs' lengths and w_p a
+ *   triangulation's weight over its weights' sum (0 off its edges).
+ * - D_S. f(x, y) = (x - y)^2 / (x + y) is convex and positively homogeneous,
+ *   hence subadditive (f(s + t) = 2 f((s + t) / 2) <= f(s) + f(t)): adding
+ *   bins together never raises the chi-squared cost. Summed over azimuth and
+ *   elevation, a joint's histogram depends on distances alone, which the
+ *   alignment keeps: the first bound, with the sample's sums made once.
+ *   Summed over azimuth only, it needs bb's elevations: the second bound,
+ *   once b is aligned.
+ *
+ * Rounding: the bounds hold in exact arithmetic; each computed bound is
+ * lowered so that it stays at or below the distance as computed. The
+ * first bounds are sums of nonnegative float terms (relative error under
+ * 200 float epsilons: REL); a float feature is off by an epsilon of its
+ * size (LEN_SLACK times the largest length, metres); the alignment's
+ * rounding grows with the coordinates' size (FAR_SLACK times it, over the
+ * mean joint distance for D_S's bins: mim__bound_slack). D_S's histograms
+ * are floats summed by spread: at most 8 additions per other joint reach
+ * a bin, so a joint's histogram is off its exact value by at most
+ * 8 (n - 1) + 8 float epsilons in all (its counts sum to 1), and the
+ * samples' radial bin coordinates, kept as floats (|fr| < 4 where it
+ * counts), move at most 12 more; f is 3-Lipschitz in each argument and D_S
+ * is 0.5 f summed over bins over n: SC_SLACK. */
+#include "internal.h"
+
+#include <float.h>
+#include <math.h>
+#include <string.h>
+
+#define N MIM_PAIR_JOINTS
+#define PAIRS (N * (N - 1) / 2)
+#define PAD(x) (((x) + 7) / 8 * 8)
+#define C_DIM PAD(N)
+#define I_HALF PAD(PAIRS)
+#define S_DIM PAD(N * MIM__SC_R)
+#define S_REL (N * MIM__SC_R * MIM__SC_EL)
+
+#define REL 1e-4
+#define LEN_SLACK 1e-6
+#define FAR_SLACK 1e-12
+#define SC_SLACK (1.5 * (8.0 * (N - 1) + 8.0 + 12.0) * (FLT_EPSILON / 2) + 1e-9)
+/* added to x + y in the first D_S bound: a term can only get smaller, and
+ * 0 / 0 never arises (the loop stays free of branches) */
+#define TINY 1e-30f
+
+uint32_t mim__bound_dim(mim_sample_metric_t metric)
+{
+    return metric == MIM_METRIC_CARTESIAN ? C_DIM : metric == MIM_METRIC_SHAPE ? S_DIM : 2 * I_HALF;
+}
+
+uint32_t mim__bound_stride(mim_sample_metric_t metric)
+{
+    return mim__bound_dim(metric) + (metric == MIM_METRIC_SHAPE ? PAD(MIM__SC_PAIRS) : 0);
+}
+
+static void centroid_distances(const double *p, float *f)
+{
+    double c[3] = {0, 0, 0};
+    for (int i = 0; i < N; i++)
+        for (int k = 0; k < 3; k++) c[k] += p[3 * i + k] / N;
+    for (int i = 0; i < N; i++) {
+        double d2 = 0;
+        for (int k = 0; k < 3; k++) d2 += (p[3 * i + k] - c[k]) * (p[3 * i + k] - c[k]);
+        f[i] = (float)sqrt(d2);
+    }
+}
+
+/* Lengths of the 561 joint pairs (i < j, row by row), then each pair's
+ * share of eq. 8's weights in p's own triangulation. */
+static void pair_lengths(const mim_pair_prep_t *p, float *f)
+{
+    double len[N][N];
+    for (int i = 0, k = 0; i < N; i++)
+        for (int j = i + 1; j < N; j++, k++) {
+            double d2 = 0;
+            for (int c = 0; c < 3; c++) d2 += (p->joints[3 * j + c] - p->joints[3 * i + c]) * (p->joints[3 * j + c] - p->joints[3 * i + c]);
+            len[i][j] = sqrt(d2);
+            f[k] = (float)len[i][j];
+        }
+    double w[MIM_IC_MAX_EDGES], wsum = 0;
+    for (uint32_t e = 0; e < p->ic.n_edges; e++) {
+        double l = len[p->ic.edge[e][0]][p->ic.edge[e][1]];
+        w[e] = 1.0 / (l > MIM_IC_DEFAULT_BETA ? l : MIM_IC_DEFAULT_BETA);
+        wsum += w[e];
+    }
+    for (uint32_t e = 0; e < p->ic.n_edges; e++) {
+        int i = p->ic.edge[e][0], j = p->ic.edge[e][1];
+        f[I_HALF + i * (2 * N - i - 1) / 2 + (j - i - 1)] = (float)(w[e] / wsum);
+    }
+}
+
+static void shape_radial(const double *rad, float *f)
+{
+    for (int i = 0; i < N * MIM__SC_R; i++) f[i] = (float)rad[i];
+}
+
+void mim__bound_sample(mim_sample_metric_t metric, const mim_pair_prep_t *b, float *f)
+{
+    memset(f, 0, sizeof(float) * mim__bound_stride(metric));
+    if (metric == MIM_METRIC_CARTESIAN) {
+        centroid_distances(b->joints, f);
+    } else if (metric == MIM_METRIC_SHAPE) {
+        double rad[N * MIM__SC_R];
+        mim__sc_pair_radii(b->joints, f + S_DIM);
+        mim__sc_radial(f + S_DIM, rad);
+        shape_radial(rad, f);
+    } else {
+        pair_lengths(b, f);
+    }
+}
+
+void mim__bound_truth(mim_sample_metric_t metric, const mim_pair_prep_t *a, float *f)
+{
+    memset(f, 0, sizeof(float) * mim__bound_dim(metric));
+    if (metric == MIM_METRIC_CARTESIAN) {
+        centroid_distances(a->joints, f);
+    } else if (metric == MIM_METRIC_SHAPE) {
+        /* the truth's histogram itself: D_S compares it, not its exact value */
+        double rad[N * MIM__SC_R];
+        mim__sc_histogram_marginals(a->sc, rad, NULL);
+        shape_radial(rad, f);
+    } else {
+        pair_lengths(a, f);
+    }
+}
+
+double mim__bound_slack(mim_sample_metric_t metric, const mim_pair_prep_t *p)
+{
+    const double *x = p->joints;
+    double c[3] = {0, 0, 0}, far = 0, size = 0, mean = 0;
+    for (int i = 0; i < 3 * N; i++) far = fmax(far, fabs(x[i]));
+    for (int i = 0; i < N; i++)
+        for (int k = 0; k < 3; k++) c[k] += x[3 * i + k] / N;
+    for (int i = 0; i < N; i++)
+        size = fmax(size, sqrt((x[3 * i] - c[0]) * (x[3 * i] - c[0]) + (x[3 * i + 1] - c[1]) * (x[3 * i + 1] - c[1]) +
+                               (x[3 * i + 2] - c[2]) * (x[3 * i + 2] - c[2])));
+    if (metric != MIM_METRIC_SHAPE) return LEN_SLACK * 2 * size + FAR_SLACK * far;
+    for (int i = 0; i < N; i++)
+        for (int j = i + 1; j < N; j++)
+            mean += sqrt((x[3 * i] - x[3 * j]) * (x[3 * i] - x[3 * j]) + (x[3 * i + 1] - x[3 * j + 1]) * (x[3 * i + 1] - x[3 * j + 1]) +
+                         (x[3 * i + 2] - x[3 * j + 2]) * (x[3 * i + 2] - x[3 * j + 2])) / PAIRS;
+    return mean > 0 ? FAR_SLACK * (far + size) / mean : INFINITY;
+}
+
+/* The loops below sum in 8 lanes, so that the compiler may vectorise
+ * them without reordering a sum. */
+#define LANES 8
+static float lanes_sum(const float *acc)
+{
+    return ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));
+}
+
+void mim__bound_lower(mim_sample_metric_t metric, const float *fa, const float *fb, uint32_t k, double slack, float *lb)
+{
+    const uint32_t stride = mim__bound_stride(metric);
+    const float keep = (float)(1 - REL);
+    const float less = (float)((metric == MIM_METRIC_SHAPE ? SC_SLACK : LEN_SLACK) + slack);
+    for (uint32_t j = 0; j < k; j++) {
+        const float *b = fb + (size_t)j * stride;
+        float acc[LANES] = {0};
+        float s;
+        if (metric == MIM_METRIC_CARTESIAN) {
+            for (uint32_t i = 0; i < C_DIM; i += LANES)
+                for (int l = 0; l < LANES; l++) acc[l] += (fa[i + l] - b[i + l]) * (fa[i + l] - b[i + l]);
+            s = sqrtf(lanes_sum(acc) / N);
+        } else if (metric == MIM_METRIC_SHAPE) {
+            for (uint32_t i = 0; i < S_DIM; i += LANES)
+                for (int l = 0; l < LANES; l++) {
+                    float x = fa[i + l], y = b[i + l];
+                    acc[l] += (x - y) * (x - y) / (x + y + TINY);
+                }
+            s = 0.5f * lanes_sum(acc) / N;
+        } else {
+            for (uint32_t i = 0; i < I_HALF; i += LANES)
+                for (int l = 0; l < LANES; l++)
+                    acc[l] += (fa[I_HALF + i + l] + b[I_HALF + i + l]) * fabsf(fa[i + l] - b[i + l]);
+            s = lanes_sum(acc);
+        }
+        lb[j] = s * keep - less;
+    }
+}
+
+/* The second bound's terms joint by joint (lb: N), their sum returned. */
+static double shape_aligned_joints(const double *rel_a, const mim__sc_pairs_t *w, const float *fb, double *lb)
+{
+    double rel_b[S_REL], sum = 0;
+    mim__sc_radial_elevation(w, fb + S_DIM, rel_b);
+    for (int i = 0; i < N; i++) {
+        lb[i] = 0;
+        for (int b = 0; b < MIM__SC_R * MIM__SC_EL; b++)
+            lb[i] += mim__chi_term(rel_a[i * MIM__SC_R * MIM__SC_EL + b], rel_b[i * MIM__SC_R * MIM__SC_EL + b]);
+        sum += lb[i];
+    }
+    return sum;
+}
+
+double mim__shape_distance_within(const mim_pair_prep_t *a, const double *rel_a, const mim_pair_prep_t *b, const float *fb,
+                                  double slack, double best, int *exact)
+{
+    double bb[3 * N], lb[N], rest[N + 1], terms[N][MIM_SC_BINS];
+    mim__sc_pairs_t w;
+    mim_sample_align(a->joints, b->joints, 3, bb);
+    mim__sc_pairs_begin(bb, &w);
+    /* the second bound first: most samples end here */
+    const double lb2 = shape_aligned_joints(rel_a, &w, fb, lb) / N * (1 - REL) - SC_SLACK - slack;
+    if (lb2 > best) {
+        *exact = 0;
+        return lb2;
+    }
+    mim__sc_pairs_finish(&w);
+    /* the joints of the largest bounds first: those most likely to pass best */
+    int order[N];
+    for (int i = 0; i < N; i++) {
+        int t = i;
+        for (; t > 0 && lb[order[t - 1]] < lb[i]; t--) order[t] = order[t - 1];
+        order[t] = i;
+    }
+    rest[N] = 0;
+    for (int t = N; t-- > 0;) rest[t] = rest[t + 1] + lb[order[t]];
+    double done = 0;
+    for (int t = 0; t < N; t++) {
+        const int i = order[t];
+        float h[MIM_SC_BINS];
+        mim__sc_joint(&w, i, h);
+        for (int k = 0; k < MIM_SC_BINS; k++) done += terms[i][k] = mim__chi_term(a->sc[i][k], h[k]);
+        const double lower = (done + rest[t + 1]) / N * (1 - REL) - SC_SLACK - slack;
+        if (lower > best) {
+            *exact = 0;
+            return lower;
+        }
+    }
+    /* every joint made: the sum in mim__shape_cost's order, as the scan's */
+    double total = 0;
+    for (int i = 0; i < N; i++)
+        for (int k = 0; k < MIM_SC_BINS; k++) total += terms[i][k];
+    *exact = 1;
+    return total / N;
+}

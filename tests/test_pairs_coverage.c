@@ -1,0 +1,245 @@
+/* Coverage (seed 002, eq. 13) without computing every distance: the lower
+ * bounds of D_C, D_I and D_S (sample/coverage_bounds.c) never exceed the
+ * distance, and the pruned, threaded search gives the exhaustive scan's
+ * answers to the bit (each truth's nearest distance and sample, and C) on
+ * random sets with repeats, ties and degenerate pairs. */
+#include "internal.h"
+
+#include "synthetic_pairs.h"
+#include "test_support.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define J MIM_PAIR_JOINTS
+
+/* p turned about its centroid by angle about axis (x, y, z), scaled by s,
+ * then moved by t. */
+static void move(double *p, double x, double y, double z, double angle, double s, const double t[3])
+{
+    double c[3] = {0, 0, 0};
+    for (int i = 0; i < J; i++)
+        for (int k = 0; k < 3; k++) c[k] += p[3 * i + k] / J;
+    mim_quat q = mim_quat_axis_angle(mim_v3_normalize(mim_v3(x, y, z)), angle);
+    for (int i = 0; i < J; i++) {
+        mim_vec3 v = mim_quat_rotate(q, mim_v3(p[3 * i] - c[0], p[3 * i + 1] - c[1], p[3 * i + 2] - c[2]));
+        p[3 * i] = c[0] + s * v.x + t[0], p[3 * i + 1] = c[1] + s * v.y + t[1], p[3 * i + 2] = c[2] + s * v.z + t[2];
+    }
+}
+
+/* m truths and k samples. Truths: random pairs, every third a small step
+ * from the one before (as a take's frames), some far from the origin or
+ * small. Samples by index mod 10: 0 a repeat of an earlier sample, 1 a
+ * truth itself (several copies of one truth tie at 0), 2 a truth moved
+ * rigidly, 3 a truth scaled (D_S nearly 0, D_C not), 4 two joints at one
+ * place (merged by the triangulation, as CMU's hips), 5 a flat pair (qhull
+ * joggles it), 6 a pair 500 m away, else random. */
+static void make_sets(uint64_t seed, uint32_t m, uint32_t k, mim_pair_prep_t **g, mim_pair_prep_t **s)
+{
+    mim_rng_t r;
+    mim_rng_seed(&r, seed, 31);
+    double *tj = malloc((size_t)m * 3 * J * sizeof *tj), *sj = malloc((size_t)k * 3 * J * sizeof *sj);
+    assert_non_null(tj), assert_non_null(sj);
+    for (uint32_t i = 0; i < m; i++) {
+        double *p = tj + (size_t)i * 3 * J;
+        if (i % 3 == 1) {
+            memcpy(p, p - 3 * J, 3 * J * sizeof *p);
+            const double t[3] = {0.01, 0, -0.02};
+            move(p, mim_rng_gauss(&r), mim_rng_gauss(&r), mim_rng_gauss(&r), 0.05, 1.0, t);
+            continue;
+        }
+        sp_random_pair(&r, 0.8, p);
+        const double far[3] = {-200, 3, 700}, none[3] = {0, 0, 0};
+        if (i % 11 == 5) move(p, 0, 1, 0, 2.0, 1.0, far);
+        if (i % 13 == 7) move(p, 1, 0, 0, 0.3, 0.01, none);
+    }
+    for (uint32_t j = 0; j < k; j++) {
+        double *p = sj + (size_t)j * 3 * J;
+        const double *truth = tj + (size_t)mim_rng_below(&r, m) * 3 * J;
+        const double shift[3] = {mim_rng_gauss(&r), mim_rng_gauss(&r), mim_rng_gauss(&r)}, none[3] = {0, 0, 0};
+        switch (j % 10) {
+        case 0:
+            if (j) {
+                memcpy(p, sj + (size_t)mim_rng_below(&r, j) * 3 * J, 3 * J * sizeof *p);
+                break;
+            }
+            /* fall through */
+        case 1: memcpy(p, truth, 3 * J * sizeof *p); break;
+        case 2: memcpy(p, truth, 3 * J * sizeof *p), move(p, shift[0], shift[1], shift[2], 1.0, 1.0, shift); break;
+        case 3: memcpy(p, truth, 3 * J * sizeof *p), move(p, 0, 1, 0, 0.0, 1.3, none); break;
+        case 4: sp_random_pair(&r, 0.8, p), memcpy(p + 3 * 20, p + 3 * 3, 3 * sizeof *p); break;
+        case 5:
+            sp_random_pair(&r, 0.8, p);
+            for (int i = 0; i < J; i++) p[3 * i + 2] = 0.3;
+            break;
+        case 6: {
+            const double far[3] = {500, -20, 300};
+            sp_random_pair(&r, 0.8, p), move(p, 0, 1, 0, 1.0, 1.0, far);
+            break;
+        }
+        default: sp_random_pair(&r, 0.8, p);
+        }
+    }
+    *g = malloc((size_t)m * sizeof **g), *s = malloc((size_t)k * sizeof **s);
+    assert_non_null(*g), assert_non_null(*s);
+    mim_error_t err = {0};
+    assert_int_equal(mim_pair_prepare_many(tj, m, 2, *g, NULL, &err), 0);
+    assert_int_equal(mim_pair_prepare_many(sj, k, 2, *s, NULL, &err), 0);
+    free(tj), free(sj);
+}
+
+/* The histograms' sums made directly from the joints are the sums of the
+ * histograms, to their float rounding (the bounds' premise). */
+static void test_marginals(void **state)
+{
+    (void)state;
+    enum { M = 10, K = 60 };
+    mim_pair_prep_t *g, *s;
+    make_sets(5, M, K, &g, &s);
+    for (uint32_t j = 0; j < K; j++) {
+        float fr[MIM__SC_PAIRS];
+        double rad_h[J * MIM__SC_R], rel_h[J * MIM__SC_R * MIM__SC_EL], rad[J * MIM__SC_R], rel[J * MIM__SC_R * MIM__SC_EL];
+        mim__sc_pairs_t w;
+        mim__sc_histogram_marginals(s[j].sc, rad_h, rel_h);
+        mim__sc_pair_radii(s[j].joints, fr);
+        mim__sc_radial(fr, rad);
+        mim__sc_pairs_begin(s[j].joints, &w);
+        mim__sc_radial_elevation(&w, fr, rel);
+        for (int b = 0; b < J * MIM__SC_R; b++)
+            if (fabs(rad[b] - rad_h[b]) > 1e-5) fail_msg("sample %u, radial bin %d: %.9g, histogram %.9g", j, b, rad[b], rad_h[b]);
+        for (int b = 0; b < J * MIM__SC_R * MIM__SC_EL; b++)
+            if (fabs(rel[b] - rel_h[b]) > 1e-5) fail_msg("sample %u, bin %d: %.9g, histogram %.9g", j, b, rel[b], rel_h[b]);
+    }
+    free(g), free(s);
+}
+
+/* Every bound at or below the distance it bounds, for every pair of a set
+ * (the degenerate ones among them). */
+static void test_bounds_below_distances(void **state)
+{
+    (void)state;
+    enum { M = 40, K = 300 };
+    mim_pair_prep_t *g, *s;
+    make_sets(1, M, K, &g, &s);
+    for (int metric = 0; metric < 3; metric++) {
+        const mim_sample_metric_t mt = (mim_sample_metric_t)metric;
+        const uint32_t stride = mim__bound_stride(mt);
+        float *fb = malloc((size_t)K * stride * sizeof *fb), *fa = malloc(stride * sizeof *fa), lb[K];
+        assert_non_null(fb), assert_non_null(fa);
+        double slack_b = 0, rel_a[J * MIM__SC_R * MIM__SC_EL];
+        for (uint32_t j = 0; j < K; j++) {
+            mim__bound_sample(mt, &s[j], fb + (size_t)j * stride);
+            slack_b = fmax(slack_b, mim__bound_slack(mt, &s[j]));
+        }
+        double ratio = 0, ratio2 = 0;
+        for (uint32_t i = 0; i < M; i++) {
+            const double slack = mim__bound_slack(mt, &g[i]) + slack_b;
+            mim__bound_truth(mt, &g[i], fa);
+            mim__bound_lower(mt, fa, fb, K, slack, lb);
+            mim__sc_histogram_marginals(g[i].sc, NULL, rel_a);
+            for (uint32_t j = 0; j < K; j++) {
+                const double d = mim_sample_distance(&g[i], &s[j], mt);
+                if (!(lb[j] <= d)) fail_msg("metric %d, truth %u, sample %u: bound %.17g above %.17g", metric, i, j, lb[j], d);
+                ratio += d > 0 ? fmax(lb[j], 0) / d / (M * K) : 0;
+                if (mt != MIM_METRIC_SHAPE) continue;
+                /* the second bound (any best below it returns it), bounds
+                 * part-way (best just below d) and the distance itself */
+                const float *f = fb + (size_t)j * stride;
+                int exact;
+                const double lb2 = mim__shape_distance_within(&g[i], rel_a, &s[j], f, slack, -1.0, &exact);
+                if (exact || !(lb2 <= d)) fail_msg("D_S, truth %u, sample %u: second bound %.17g above %.17g", i, j, lb2, d);
+                ratio2 += d > 0 ? fmax(lb2, 0) / d / (M * K) : 0;
+                const double part = mim__shape_distance_within(&g[i], rel_a, &s[j], f, slack, lb2 + 0.9 * (d - lb2), &exact);
+                if (!(part <= d)) fail_msg("D_S, truth %u, sample %u: bound part-way %.17g above %.17g", i, j, part, d);
+                const double whole = mim__shape_distance_within(&g[i], rel_a, &s[j], f, slack, INFINITY, &exact);
+                if (!exact || memcmp(&whole, &d, sizeof d)) fail_msg("D_S, truth %u, sample %u: %.17g, not %.17g", i, j, whole, d);
+            }
+        }
+        /* and they bound something */
+        print_message("metric %d: bound / distance %.3f on average (D_S's second %.3f)\n", metric, ratio, ratio2);
+        assert_true(ratio > 0.1);
+        if (mt == MIM_METRIC_SHAPE) assert_true(ratio2 > ratio);
+        free(fb), free(fa);
+    }
+    free(g), free(s);
+}
+
+/* The pruned search on 1 and 2 threads against the exhaustive scan. */
+static void compare(const mim_pair_prep_t *g, uint32_t m, const mim_pair_prep_t *s, uint32_t k, mim_sample_metric_t metric,
+                    int pruned)
+{
+    double *near0 = malloc(m * sizeof *near0), *near1 = malloc(m * sizeof *near1);
+    uint32_t *which0 = malloc(m * sizeof *which0), *which1 = malloc(m * sizeof *which1);
+    assert_non_null(near0), assert_non_null(near1), assert_non_null(which0), assert_non_null(which1);
+    mim_error_t err = {0};
+    const mim_sample_coverage_options_t scan = {.threads = 2, .exhaustive = 1};
+    mim_sample_coverage_t ref = {.nearest = near0, .which = which0};
+    assert_int_equal(mim_sample_coverage(g, m, s, k, metric, &scan, &ref, &err), 0);
+    assert_true(ref.distances == (uint64_t)m * k);
+    uint64_t distances = 0;
+    for (uint32_t threads = 1; threads <= 2; threads++) {
+        const mim_sample_coverage_options_t o = {.threads = threads};
+        mim_sample_coverage_t res = {.nearest = near1, .which = which1};
+        assert_int_equal(mim_sample_coverage(g, m, s, k, metric, &o, &res, &err), 0);
+        for (uint32_t i = 0; i < m; i++)
+            if (memcmp(&near0[i], &near1[i], sizeof near0[i]) || which0[i] != which1[i])
+                fail_msg("metric %d, %u threads, truth %u: %.17g (sample %u) against the scan's %.17g (sample %u)", metric,
+                         threads, i, near1[i], which1[i], near0[i], which0[i]);
+        assert_memory_equal(&res.coverage, &ref.coverage, sizeof res.coverage);
+        /* fewer distances, and the same work whatever the threads */
+        if (pruned) assert_true(res.distances < ref.distances);
+        if (threads == 1) distances = res.distances;
+        assert_true(res.distances == distances);
+    }
+    free(near0), free(near1), free(which0), free(which1);
+}
+
+static void test_pruned_equals_scan(void **state)
+{
+    (void)state;
+    for (uint64_t seed = 1; seed <= 3; seed++) {
+        mim_pair_prep_t *g, *s;
+        make_sets(seed, 200, 2000, &g, &s);
+        compare(g, 200, s, 2000, MIM_METRIC_CARTESIAN, 1);
+        compare(g, 200, s, 2000, MIM_METRIC_IC, 1);
+        /* D_S costs 20 times more a distance: fewer of both */
+        compare(g, 60, s, 600, MIM_METRIC_SHAPE, 1);
+        free(g), free(s);
+    }
+}
+
+/* Samples all alike: the lowest index, as the scan keeps; one sample. */
+static void test_ties_and_one_sample(void **state)
+{
+    (void)state;
+    mim_pair_prep_t *g, *s;
+    make_sets(4, 30, 200, &g, &s);
+    /* every sample a copy of truth 0: all tie at 0 for it */
+    mim_pair_prep_t *same = malloc(50 * sizeof *same);
+    assert_non_null(same);
+    for (int j = 0; j < 50; j++) same[j] = g[0];
+    for (int metric = 0; metric < 3; metric++) {
+        double near[30];
+        uint32_t which[30];
+        mim_sample_coverage_t res = {.nearest = near, .which = which};
+        const mim_sample_coverage_options_t o = {.threads = 2};
+        mim_error_t err = {0};
+        assert_int_equal(mim_sample_coverage(g, 30, same, 50, (mim_sample_metric_t)metric, &o, &res, &err), 0);
+        assert_true(near[0] < 1e-9);
+        for (int i = 0; i < 30; i++) assert_int_equal(which[i], 0);
+        compare(g, 30, s, 1, (mim_sample_metric_t)metric, 0);
+    }
+    free(same), free(g), free(s);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_marginals),
+        cmocka_unit_test(test_bounds_below_distances),
+        cmocka_unit_test(test_pruned_equals_scan),
+        cmocka_unit_test(test_ties_and_one_sample),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
