@@ -24,6 +24,17 @@ double bench_quantile(double *v, int k, double q)
     return v[i < 0 ? 0 : i >= k ? k - 1 : i];
 }
 
+double bench_load_average(void)
+{
+    double load = -1;
+    FILE *f = fopen("/proc/loadavg", "r");
+    if (f) {
+        if (fscanf(f, "%lf", &load) != 1) load = -1;
+        fclose(f);
+    }
+    return load;
+}
+
 double bench_median(double *v, int k)
 {
     qsort(v, (size_t)k, sizeof *v, cmp_d);

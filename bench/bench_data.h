@@ -18,6 +18,10 @@ typedef struct bench_dataset {
     float **pos; /* [s * poses + p], 3 * n floats */
 } bench_dataset_t;
 
+/* The 1-minute load average (/proc/loadavg), -1 when unknown: printed
+ * beside figures measured on a shared machine. */
+double bench_load_average(void);
+
 /* Median of v[0..k) (sorts v), and the q-quantile (0..1). */
 double bench_median(double *v, int k);
 double bench_quantile(double *v, int k, double q);

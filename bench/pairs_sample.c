@@ -418,12 +418,7 @@ static void print_machine(void)
             break;
         }
     if (f) fclose(f);
-    double load = -1;
-    if ((f = fopen("/proc/loadavg", "r"))) {
-        if (fscanf(f, "%lf", &load) != 1) load = -1;
-        fclose(f);
-    }
-    printf("machine: %s, load average %.2f (one chain, one thread)\n", model, load);
+    printf("machine: %s, load average %.2f (one chain, one thread)\n", model, bench_load_average());
 }
 
 static const char *data_dir(char *buf, size_t size)

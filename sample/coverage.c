@@ -23,7 +23,10 @@
 
 #define N MIM_PAIR_JOINTS
 #define SAMPLE_CHUNK 256
-#define TRUTH_CHUNK 8 /* consecutive truths taken at once: each tries its predecessor's nearest first */
+/* Consecutive truths taken at once, each trying its predecessor's nearest
+ * first: up to 8, fewer for few truths (so that threads share them); never
+ * a matter of the threads, so that the work done is the same on any. */
+static uint32_t truth_chunk(uint32_t m) { return m >= 128 ? 8 : m >= 16 ? m / 16 : 1; }
 
 typedef struct job {
     const mim_pair_prep_t *truth, *samples;
@@ -58,7 +61,7 @@ static void features(void *ctx, uint32_t worker)
     double slack = 0;
     for (uint32_t s; (s = atomic_fetch_add(&j->next, SAMPLE_CHUNK)) < j->k;)
         for (uint32_t i = s; i < s + SAMPLE_CHUNK && i < j->k; i++) {
-            mim__bound_sample(j->metric, &j->samples[i], j->feat + (size_t)i * j->stride);
+            mim__bound_features(j->metric, &j->samples[i], 0, j->feat + (size_t)i * j->stride);
             slack = fmax(slack, mim__bound_slack(j->metric, &j->samples[i]));
             j->hash[i] = joints_hash(&j->samples[i]);
         }
@@ -160,7 +163,7 @@ static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t hint, double *be
     }
     const int shape = jb->metric == MIM_METRIC_SHAPE;
     const double slack = mim__bound_slack(jb->metric, a) + jb->slack[0];
-    mim__bound_truth(jb->metric, a, rm->fa);
+    mim__bound_features(jb->metric, a, 1, rm->fa);
     mim__bound_lower(jb->metric, rm->fa, jb->feat, jb->k, slack, rm->lb);
     if (shape) mim__sc_histogram_marginals(a->sc, NULL, rm->rel_a);
     if (hint < jb->k) keep(mim_sample_distance(a, &jb->samples[hint], jb->metric), hint, best, bj), (*nd)++;
@@ -195,9 +198,10 @@ static void truths(void *ctx, uint32_t worker)
         if (!rm.lb || !rm.fa || !rm.heap) goto out; /* the others take this worker's share */
     }
     uint64_t nd = 0, na = 0, nc = 0;
-    for (uint32_t s; (s = atomic_fetch_add(&j->next, TRUTH_CHUNK)) < j->m;) {
+    const uint32_t chunk = truth_chunk(j->m);
+    for (uint32_t s; (s = atomic_fetch_add(&j->next, chunk)) < j->m;) {
         uint32_t hint = UINT32_MAX;
-        for (uint32_t i = s; i < s + TRUTH_CHUNK && i < j->m; i++) {
+        for (uint32_t i = s; i < s + chunk && i < j->m; i++) {
             nearest(j, &rm, i, hint, &j->nearest[i], &j->which[i], &nd, &na, &nc);
             hint = j->which[i];
             uint32_t done = atomic_fetch_add(&j->done, 1) + 1;

@@ -41,7 +41,7 @@
 #include <string.h>
 
 #define N MIM_PAIR_JOINTS
-#define PAIRS (N * (N - 1) / 2)
+#define PAIRS MIM__JOINT_PAIRS
 #define PAD(x) (((x) + 7) / 8 * 8)
 #define C_DIM PAD(N)
 #define I_HALF PAD(PAIRS)
@@ -63,7 +63,7 @@ uint32_t mim__bound_dim(mim_sample_metric_t metric)
 
 uint32_t mim__bound_stride(mim_sample_metric_t metric)
 {
-    return mim__bound_dim(metric) + (metric == MIM_METRIC_SHAPE ? PAD(MIM__SC_PAIRS) : 0);
+    return mim__bound_dim(metric) + (metric == MIM_METRIC_SHAPE ? PAD(MIM__JOINT_PAIRS) : 0);
 }
 
 static void centroid_distances(const double *p, float *f)
@@ -78,80 +78,51 @@ static void centroid_distances(const double *p, float *f)
     }
 }
 
-/* Lengths of the 561 joint pairs (i < j, row by row), then each pair's
- * share of eq. 8's weights in p's own triangulation. */
+/* Lengths of the 561 joint pairs, then each pair's share of eq. 8's
+ * weights in p's own triangulation. */
 static void pair_lengths(const mim_pair_prep_t *p, float *f)
 {
-    double len[N][N];
-    for (int i = 0, k = 0; i < N; i++)
-        for (int j = i + 1; j < N; j++, k++) {
-            double d2 = 0;
-            for (int c = 0; c < 3; c++) d2 += (p->joints[3 * j + c] - p->joints[3 * i + c]) * (p->joints[3 * j + c] - p->joints[3 * i + c]);
-            len[i][j] = sqrt(d2);
-            f[k] = (float)len[i][j];
-        }
-    double w[MIM_IC_MAX_EDGES], wsum = 0;
+    double len[PAIRS], w[MIM_IC_MAX_EDGES], wsum = 0;
+    mim__pair_distances(p->joints, len);
+    for (int k = 0; k < PAIRS; k++) f[k] = (float)len[k];
     for (uint32_t e = 0; e < p->ic.n_edges; e++) {
-        double l = len[p->ic.edge[e][0]][p->ic.edge[e][1]];
-        w[e] = 1.0 / (l > MIM_IC_DEFAULT_BETA ? l : MIM_IC_DEFAULT_BETA);
+        w[e] = mim__ic_weight(len[mim__pair_index(p->ic.edge[e][0], p->ic.edge[e][1])], MIM_IC_DEFAULT_BETA);
         wsum += w[e];
     }
-    for (uint32_t e = 0; e < p->ic.n_edges; e++) {
-        int i = p->ic.edge[e][0], j = p->ic.edge[e][1];
-        f[I_HALF + i * (2 * N - i - 1) / 2 + (j - i - 1)] = (float)(w[e] / wsum);
-    }
+    for (uint32_t e = 0; e < p->ic.n_edges; e++)
+        f[I_HALF + mim__pair_index(p->ic.edge[e][0], p->ic.edge[e][1])] = (float)(w[e] / wsum);
 }
 
-static void shape_radial(const double *rad, float *f)
+void mim__bound_features(mim_sample_metric_t metric, const mim_pair_prep_t *p, int truth, float *f)
 {
-    for (int i = 0; i < N * MIM__SC_R; i++) f[i] = (float)rad[i];
-}
-
-void mim__bound_sample(mim_sample_metric_t metric, const mim_pair_prep_t *b, float *f)
-{
-    memset(f, 0, sizeof(float) * mim__bound_stride(metric));
+    memset(f, 0, sizeof(float) * (truth ? mim__bound_dim(metric) : mim__bound_stride(metric)));
     if (metric == MIM_METRIC_CARTESIAN) {
-        centroid_distances(b->joints, f);
+        centroid_distances(p->joints, f);
     } else if (metric == MIM_METRIC_SHAPE) {
         double rad[N * MIM__SC_R];
-        mim__sc_pair_radii(b->joints, f + S_DIM);
-        mim__sc_radial(f + S_DIM, rad);
-        shape_radial(rad, f);
+        if (truth) {
+            /* the truth's histogram itself: D_S compares it, not its exact value */
+            mim__sc_histogram_marginals(p->sc, rad, NULL);
+        } else {
+            mim__sc_pair_radii(p->joints, f + S_DIM);
+            mim__sc_radial(f + S_DIM, rad);
+        }
+        for (int i = 0; i < N * MIM__SC_R; i++) f[i] = (float)rad[i];
     } else {
-        pair_lengths(b, f);
-    }
-}
-
-void mim__bound_truth(mim_sample_metric_t metric, const mim_pair_prep_t *a, float *f)
-{
-    memset(f, 0, sizeof(float) * mim__bound_dim(metric));
-    if (metric == MIM_METRIC_CARTESIAN) {
-        centroid_distances(a->joints, f);
-    } else if (metric == MIM_METRIC_SHAPE) {
-        /* the truth's histogram itself: D_S compares it, not its exact value */
-        double rad[N * MIM__SC_R];
-        mim__sc_histogram_marginals(a->sc, rad, NULL);
-        shape_radial(rad, f);
-    } else {
-        pair_lengths(a, f);
+        pair_lengths(p, f);
     }
 }
 
 double mim__bound_slack(mim_sample_metric_t metric, const mim_pair_prep_t *p)
 {
-    const double *x = p->joints;
-    double c[3] = {0, 0, 0}, far = 0, size = 0, mean = 0;
-    for (int i = 0; i < 3 * N; i++) far = fmax(far, fabs(x[i]));
-    for (int i = 0; i < N; i++)
-        for (int k = 0; k < 3; k++) c[k] += x[3 * i + k] / N;
-    for (int i = 0; i < N; i++)
-        size = fmax(size, sqrt((x[3 * i] - c[0]) * (x[3 * i] - c[0]) + (x[3 * i + 1] - c[1]) * (x[3 * i + 1] - c[1]) +
-                               (x[3 * i + 2] - c[2]) * (x[3 * i + 2] - c[2])));
+    double far = 0, size = 0, mean = 0, len[PAIRS];
+    float r[C_DIM];
+    for (int i = 0; i < 3 * N; i++) far = fmax(far, fabs(p->joints[i]));
+    centroid_distances(p->joints, r);
+    for (int i = 0; i < N; i++) size = fmax(size, r[i]);
     if (metric != MIM_METRIC_SHAPE) return LEN_SLACK * 2 * size + FAR_SLACK * far;
-    for (int i = 0; i < N; i++)
-        for (int j = i + 1; j < N; j++)
-            mean += sqrt((x[3 * i] - x[3 * j]) * (x[3 * i] - x[3 * j]) + (x[3 * i + 1] - x[3 * j + 1]) * (x[3 * i + 1] - x[3 * j + 1]) +
-                         (x[3 * i + 2] - x[3 * j + 2]) * (x[3 * i + 2] - x[3 * j + 2])) / PAIRS;
+    mim__pair_distances(p->joints, len);
+    for (int k = 0; k < PAIRS; k++) mean += len[k] / PAIRS;
     return mean > 0 ? FAR_SLACK * (far + size) / mean : INFINITY;
 }
 

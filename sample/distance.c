@@ -16,7 +16,7 @@ static double edge_term(const double *a, const double *b, int dim, const uint8_t
         ua2 += ua * ua, d2 += (ua - ub) * (ua - ub);
     }
     double len = sqrt(ua2);
-    *w = 1.0 / (len > beta ? len : beta);
+    *w = mim__ic_weight(len, beta);
     return *w * sqrt(d2);
 }
 

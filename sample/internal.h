@@ -12,11 +12,18 @@
  * against it. */
 json_t *mim__pairs_joint_labels(void);
 
+/* The joint pair (i, j), i < j, among the 561 taken row by row. */
+#define MIM__JOINT_PAIRS (MIM_PAIR_JOINTS * (MIM_PAIR_JOINTS - 1) / 2)
+static inline int mim__pair_index(int i, int j) { return i * (2 * MIM_PAIR_JOINTS - i - 1) / 2 + (j - i - 1); }
+/* The 561 pairs' distances (shape_context.c). */
+void mim__pair_distances(const double *p, double *len);
+/* eq. 8's weight of an edge of length len (distance.c). */
+static inline double mim__ic_weight(double len, double beta) { return 1.0 / (len > beta ? len : beta); }
+
 /* ---- 3D shape contexts (shape_context.c; D_S) ---- */
 #define MIM__SC_R 5  /* radial bins */
 #define MIM__SC_AZ 8 /* azimuth */
 #define MIM__SC_EL 4 /* elevation */
-#define MIM__SC_PAIRS (MIM_PAIR_JOINTS * (MIM_PAIR_JOINTS - 1) / 2)
 void mim__shape_contexts(const double *p, float sc[MIM_PAIR_JOINTS][MIM_SC_BINS]);
 /* The same a joint at a time. What the joints share comes first: each
  * joint pair's (i < j, row by row) distance and elevation (begin), then
@@ -24,7 +31,7 @@ void mim__shape_contexts(const double *p, float sc[MIM_PAIR_JOINTS][MIM_SC_BINS]
  * outlive w. */
 typedef struct mim__sc_pairs {
     const double *p;
-    double r[MIM__SC_PAIRS], el[MIM__SC_PAIRS], fr[MIM__SC_PAIRS], cos_el[MIM__SC_PAIRS];
+    double r[MIM__JOINT_PAIRS], el[MIM__JOINT_PAIRS], fr[MIM__JOINT_PAIRS], cos_el[MIM__JOINT_PAIRS];
 } mim__sc_pairs_t;
 void mim__sc_pairs_begin(const double *p, mim__sc_pairs_t *w);
 void mim__sc_pairs_finish(mim__sc_pairs_t *w);
@@ -56,10 +63,9 @@ void mim__parallel(uint32_t threads, void (*fn)(void *ctx, uint32_t worker), voi
  * 8), and of all its features (D_S's second bound's after them). */
 uint32_t mim__bound_dim(mim_sample_metric_t metric);
 uint32_t mim__bound_stride(mim_sample_metric_t metric);
-/* The features of a sample (b of mim_sample_distance; stride floats) and
- * of a truth (a; dim floats). */
-void mim__bound_sample(mim_sample_metric_t metric, const mim_pair_prep_t *b, float *f);
-void mim__bound_truth(mim_sample_metric_t metric, const mim_pair_prep_t *a, float *f);
+/* The features of a sample (b of mim_sample_distance; stride floats) or
+ * of a truth (a, truth 1; dim floats). */
+void mim__bound_features(mim_sample_metric_t metric, const mim_pair_prep_t *p, int truth, float *f);
 /* What a pose-pair adds to its bounds' slack (its rounding grows with its
  * size and its distance from the origin). */
 double mim__bound_slack(mim_sample_metric_t metric, const mim_pair_prep_t *p);

@@ -61,9 +61,7 @@ static double elevation_coordinate(double el) { return (el + M_PI / 2) / M_PI * 
 /* Every count weighs the same: 1 / (n - 1) as a float, as spread adds it. */
 static const float weight = 1.0f / (N - 1);
 
-#define PAIRS MIM__SC_PAIRS
-/* The pair (i, j), i < j, in row-by-row order. */
-static int pair_index(int i, int j) { return i * (2 * N - i - 1) / 2 + (j - i - 1); }
+#define PAIRS MIM__JOINT_PAIRS
 
 /* j seen from i and i from j: one distance (v negated exactly), and
  * opposite elevations of one cosine (asin odd, cos even) */
@@ -102,7 +100,7 @@ void mim__sc_joint(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS])
     memset(h, 0, sizeof h);
     for (int j = 0; j < N; j++) {
         if (j == i) continue;
-        const int k = i < j ? pair_index(i, j) : pair_index(j, i);
+        const int k = i < j ? mim__pair_index(i, j) : mim__pair_index(j, i);
         const double e = i < j ? w->el[k] : -w->el[k];
         const double fa = (atan2(p[3 * j + 2] - p[3 * i + 2], p[3 * j] - p[3 * i]) + M_PI) / (2 * M_PI) * SC_AZ - 0.5;
         spread(h, w->fr[k], fa, elevation_coordinate(e), w->cos_el[k], weight);
@@ -160,11 +158,17 @@ void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], d
                 }
 }
 
+void mim__pair_distances(const double *p, double *len)
+{
+    double v[3];
+    for (int i = 0, k = 0; i < N; i++)
+        for (int j = i + 1; j < N; j++, k++) len[k] = pair_vector(p, i, j, v);
+}
+
 void mim__sc_pair_radii(const double *p, float *fr)
 {
-    double r[PAIRS], f[PAIRS], v[3];
-    for (int i = 0, k = 0; i < N; i++)
-        for (int j = i + 1; j < N; j++, k++) r[k] = pair_vector(p, i, j, v);
+    double r[PAIRS], f[PAIRS];
+    mim__pair_distances(p, r);
     radial_coordinates(r, f);
     for (int k = 0; k < PAIRS; k++) fr[k] = (float)f[k];
 }
@@ -188,7 +192,7 @@ void mim__sc_radial_elevation(const mim__sc_pairs_t *w, const float *fr, double 
      * additions seldom wait for the one's before (another joint's bins) */
     for (int d = 1; d < N; d++)
         for (int i = 0; i + d < N; i++) {
-            const int j = i + d, k = pair_index(i, j);
+            const int j = i + d, k = mim__pair_index(i, j);
             double tr, te;
             const int r = share(fr[k], SC_R, &tr), e = share(elevation_coordinate(w->el[k]), SC_EL, &te);
             const double m0 = weight * (1 - tr), m1 = weight * tr;

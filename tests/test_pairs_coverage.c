@@ -98,7 +98,7 @@ static void test_marginals(void **state)
     mim_pair_prep_t *g, *s;
     make_sets(5, M, K, &g, &s);
     for (uint32_t j = 0; j < K; j++) {
-        float fr[MIM__SC_PAIRS];
+        float fr[MIM__JOINT_PAIRS];
         double rad_h[J * MIM__SC_R], rel_h[J * MIM__SC_R * MIM__SC_EL], rad[J * MIM__SC_R], rel[J * MIM__SC_R * MIM__SC_EL];
         mim__sc_pairs_t w;
         mim__sc_histogram_marginals(s[j].sc, rad_h, rel_h);
@@ -129,13 +129,13 @@ static void test_bounds_below_distances(void **state)
         assert_non_null(fb), assert_non_null(fa);
         double slack_b = 0, rel_a[J * MIM__SC_R * MIM__SC_EL];
         for (uint32_t j = 0; j < K; j++) {
-            mim__bound_sample(mt, &s[j], fb + (size_t)j * stride);
+            mim__bound_features(mt, &s[j], 0, fb + (size_t)j * stride);
             slack_b = fmax(slack_b, mim__bound_slack(mt, &s[j]));
         }
         double ratio = 0, ratio2 = 0;
         for (uint32_t i = 0; i < M; i++) {
             const double slack = mim__bound_slack(mt, &g[i]) + slack_b;
-            mim__bound_truth(mt, &g[i], fa);
+            mim__bound_features(mt, &g[i], 1, fa);
             mim__bound_lower(mt, fa, fb, K, slack, lb);
             mim__sc_histogram_marginals(g[i].sc, NULL, rel_a);
             for (uint32_t j = 0; j < K; j++) {
