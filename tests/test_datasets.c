@@ -138,6 +138,8 @@ static void test_bad_input(void **state)
     free(o), free(e);
     const char *slash[] = {"ingest", "--store", store, "--dataset", "a/b", set_c, NULL};
     assert_int_equal(ts_run_mimic(&o, &e, slash), 2);
+    assert_non_null(strstr(e, "--dataset 'a/b': a name is 1 to 64 of the letters, digits"));
+    assert_int_equal(strchr(e, '\n')[1], '\0');
     free(o), free(e);
     char *pm = ts_path(dir, "bad.csv");
     const char *csv = "dataset,pose,class\nsetA,1,a\nsetA,1,b\n";

@@ -591,6 +591,14 @@ static void test_builtin_map_first_ingest(void **s)
     assert_int_equal(lm.count, 4);
     assert_int_equal(lm.vertex[3], 177);
     mim_db_close(&db);
+    /* a dataset name outside the set: refused by the library, before anything is read */
+    opt = (mim_ingest_options_t){.quiet = 1, .dataset = "../x"};
+    assert_int_equal(mim_db_open(&db, store, NULL, &err), 0);
+    assert_int_equal(mim_ingest_run(db, paths, 1, &opt, &rep, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "dataset '../x': a name is 1 to 64 of the letters"));
+    assert_int_equal(rep.added, 0);
+    mim_db_close(&db);
+    mim_error_clear(&err);
     /* the built-in maps do not know the sphere: the message names every way */
     char *store2 = ts_path(dir, "store_unknown");
     assert_int_equal(mim_db_open(&db, store2, NULL, &err), 0);

@@ -179,6 +179,22 @@ void st_begin_read(const char *store, mim_db_t **db, mim_db_txn_t **t)
     assert_int_equal(mim_db_begin(*db, 0, t, &err), 0);
 }
 
+float *st_template_positions(const char *store, uint64_t id, size_t *bytes)
+{
+    mim_db_t *db;
+    mim_db_txn_t *t;
+    mim_template_view_t v;
+    st_begin_read(store, &db, &t);
+    assert_int_equal(mim_db_template_get(t, id, &v, NULL), 0);
+    *bytes = 12 * (size_t)v.n_vertices;
+    float *pos = malloc(*bytes);
+    assert_non_null(pos);
+    memcpy(pos, v.positions, *bytes);
+    mim_db_abort(&t);
+    mim_db_close(&db);
+    return pos;
+}
+
 /* The offset in data.mdb of n bytes equal to p (asserts they are there once). */
 size_t st_find_bytes(const char *store, const void *p, size_t n)
 {

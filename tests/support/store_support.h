@@ -48,6 +48,9 @@ void st_assert_refused(const char *store);
 /* ---- reading a store ---- */
 /* Opens store read-only and begins a read transaction (asserts both). */
 void st_begin_read(const char *store, mim_db_t **db, mim_db_txn_t **t);
+/* A copy of template id's positions (malloc'd; *bytes gets their size):
+ * the bytes to find in data.mdb to damage that record. */
+float *st_template_positions(const char *store, uint64_t id, size_t *bytes);
 
 /* ---- a damaged record ---- */
 /* The offset in data.mdb of n bytes equal to p (asserts they are there once). */
