@@ -21,12 +21,12 @@ static void help(FILE *out)
     fprintf(out,
             "usage: mimic pairs coverage --truth A.bvh,B.bvh [--truth ...] [--every N] [--offset K]\n"
             "                            --samples SAMPLES.jsonl [--threads N] [--joint-map FILE.json] [--unit M]\n"
-            "                            [--json]\n"
+            "                            [--up AXIS] [--json]\n"
             "       mimic pairs export --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K]\n"
-            "                          [--joint-map FILE.json] [--unit M] -o FRAMES.jsonl\n"
+            "                          [--joint-map FILE.json] [--unit M] [--up AXIS] -o FRAMES.jsonl\n"
             "       mimic pairs annotate --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K] [--views V]\n"
             "                            [--video] [--noise-px P] [--seed S] [--joint-map FILE.json] [--unit M]\n"
-            "                            -o ANN.json [--cameras CAMS.json]\n"
+            "                            [--up AXIS] -o ANN.json [--cameras CAMS.json]\n"
             "       mimic pairs sample --prior A.bvh,B.bvh ... -o SAMPLES.jsonl   (mimic pairs sample --help)\n"
             "       mimic pairs templates --store DIR --samples SAMPLES.jsonl --avatar ID ...\n"
             "                                                            (mimic pairs templates --help)\n\n"
@@ -60,6 +60,9 @@ static void help(FILE *out)
             "  --every N          every N-th frame (default 1; annotate: 10)\n"
             "  --offset K         from frame K (default 0)\n"
             "  --unit M           metres per file unit (default: guessed from the people's size)\n"
+            "  --up AXIS          the files' up axis, x, y, z, -x, -y or -z (default: found per take, the\n"
+            "                     head above the feet in the rest pose, else over the frames, and said);\n"
+            "                     pose-pairs are turned to mimic's y up as they are read\n"
             "  --threads N        coverage: threads (default: one per core)\n"
             "  --json             {\"truth\": m, \"samples\": n, \"D_I\": ..., \"D_C\": ..., \"D_S\": ...}\n"
             "  -h, --help         this help\n\n"
@@ -71,7 +74,7 @@ static int coverage(int argc, char **argv)
     static const struct option longopts[] = {
         {"truth", required_argument, 0, 'p'},     {"every", required_argument, 0, 'e'},
         {"offset", required_argument, 0, 'k'},    {"samples", required_argument, 0, 's'},
-        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
+        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'}, {"up", required_argument, 0, MIM_CLI_OPT_UP},
         {"json", no_argument, 0, 'j'},            {"threads", required_argument, 0, 't'},
         {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
     };
@@ -193,7 +196,7 @@ static int export_pairs(int argc, char **argv)
     static const struct option longopts[] = {
         {"pair", required_argument, 0, 'p'},      {"every", required_argument, 0, 'e'},
         {"offset", required_argument, 0, 'k'},    {"output", required_argument, 0, 'o'},
-        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
+        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'}, {"up", required_argument, 0, MIM_CLI_OPT_UP},
         {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
     };
     const char *outp = NULL;
@@ -240,7 +243,7 @@ static int annotate(int argc, char **argv)
         {"offset", required_argument, 0, 'k'},    {"views", required_argument, 0, 'v'},
         {"noise-px", required_argument, 0, 'n'},  {"seed", required_argument, 0, 'S'},
         {"output", required_argument, 0, 'o'},    {"cameras", required_argument, 0, 'c'},
-        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
+        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'}, {"up", required_argument, 0, MIM_CLI_OPT_UP},
         {"video", no_argument, 0, 'V'},           {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
     };
