@@ -165,7 +165,7 @@ static void test_three_axes(void **s)
     (void)s;
     static const int ups[3] = {2, 3, 1};
     static const char *const names[3] = {"+y", "+z", "+x"};
-    json_t *frames[3], *ann[3], *samples[3], *cover[3];
+    json_t *frames[3], *ann[3], *cams[3], *samples[3], *cover[3];
     for (int u = 0; u < 3; u++) {
         char name[16], file[64];
         snprintf(name, sizeof name, "take%d", u);
@@ -182,9 +182,14 @@ static void test_three_axes(void **s)
 
         snprintf(file, sizeof file, "ann%d.json", u);
         char *an = ts_path(dir, file);
-        const char *aa[] = {"pairs", "annotate", "--pair", spec, "--every", "4", "--views", "2", "--seed", "9", "-o", an, NULL};
+        snprintf(file, sizeof file, "cams%d.json", u);
+        char *cm = ts_path(dir, file);
+        const char *aa[] = {"pairs", "annotate", "--pair", spec, "--every", "4", "--views", "2", "--seed", "9", "-o", an,
+                            "--cameras", cm, NULL};
         free(run(0, NULL, aa));
         ann[u] = load(an);
+        cams[u] = load(cm);
+        free(cm);
 
         snprintf(file, sizeof file, "samples%d.jsonl", u);
         char *sa = ts_path(dir, file);
@@ -209,13 +214,26 @@ static void test_three_axes(void **s)
             assert_true(head > ankle + 1.0); /* metres */
         }
     }
+    /* every camera above the floor (the lowest joint of the take) */
+    double floor_y = INFINITY;
+    for (size_t f = 1; f < json_array_size(frames[0]); f++) {
+        json_t *J = json_object_get(json_array_get(frames[0], f), "joints");
+        for (size_t i = 0; i < json_array_size(J); i++)
+            floor_y = fmin(floor_y, json_number_value(json_array_get(json_array_get(J, i), 1)));
+    }
+    json_t *list = json_object_get(cams[1], "cameras");
+    assert_true(json_array_size(list) >= 2 * (FRAMES / 4));
+    for (size_t i = 0; i < json_array_size(list); i++)
+        assert_true(json_number_value(json_array_get(json_object_get(json_array_get(list, i), "position"), 1)) > floor_y);
     for (int u = 1; u < 3; u++) {
+        assert_true(same_numbers(cams[0], cams[u], 1e-6) > 2 * (FRAMES / 4) * 12);
         assert_true(same_numbers(frames[0], frames[u], 1e-5) >= FRAMES * 34 * 3);
         assert_true(same_numbers(ann[0], ann[u], 1e-4) > 100);
         assert_true(same_numbers(samples[0], samples[u], 1e-4) > 200 * 34 * 3);
         assert_int_equal(same_numbers(cover[0], cover[u], 1e-6), 5); /* truth, samples, D_I, D_C, D_S */
     }
-    for (int u = 0; u < 3; u++) json_decref(frames[u]), json_decref(ann[u]), json_decref(samples[u]), json_decref(cover[u]);
+    for (int u = 0; u < 3; u++)
+        json_decref(frames[u]), json_decref(ann[u]), json_decref(cams[u]), json_decref(samples[u]), json_decref(cover[u]);
 }
 
 /* --up is taken as given, and said nothing about; wrong, it lays the take
@@ -316,6 +334,29 @@ static void test_joint_up_fallback(void **s)
     assert_int_equal(mim_vest_joint_motion_up(&m, 0, 1, 7, &from_rest), 0); /* a joint out of range */
 }
 
+/* Cameras never under the floor: a pair lying on it (push-ups), drawn 300
+ * times, and a video camera following a pair that goes down to it. */
+static void test_cameras_above_floor(void **s)
+{
+    (void)s;
+    mim_rng_t r;
+    mim_rng_seed(&r, 4, 0);
+    double lying[3 * MIM_PAIR_JOINTS], standing[3 * MIM_PAIR_JOINTS];
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++) {
+        lying[3 * i] = 2 * mim_rng_unit(&r), lying[3 * i + 1] = 0.3 * mim_rng_unit(&r);
+        lying[3 * i + 2] = (i < 17 ? 0 : 1) + 0.4 * mim_rng_unit(&r);
+        standing[3 * i] = lying[3 * i + 2], standing[3 * i + 1] = 1.8 * lying[3 * i] / 2, standing[3 * i + 2] = lying[3 * i];
+    }
+    for (int k = 0; k < 300; k++) {
+        mim_pairs_camera_t cam;
+        assert_int_equal(mim_pairs_camera_random(&r, lying, &cam), 0);
+        assert_true(cam.position[1] >= 0.3 - 1e-9); /* the lowest joint is at y >= 0 */
+        assert_int_equal(mim_pairs_camera_random(&r, standing, &cam), 0);
+        mim_pairs_camera_follow(&cam, lying);
+        assert_true(cam.position[1] >= 0.3 - 1e-9);
+    }
+}
+
 int main(void)
 {
     dir = ts_tempdir("pairs_up");
@@ -324,6 +365,7 @@ int main(void)
         cmocka_unit_test(test_override_and_refusals),
         cmocka_unit_test(test_vest_motion_axes),
         cmocka_unit_test(test_joint_up_fallback),
+        cmocka_unit_test(test_cameras_above_floor),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);
     ts_rmtree(dir);
