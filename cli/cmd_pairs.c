@@ -29,7 +29,9 @@ static void help(FILE *out)
             "                            [--up AXIS] -o ANN.json [--cameras CAMS.json]\n"
             "       mimic pairs sample --prior A.bvh,B.bvh ... -o SAMPLES.jsonl   (mimic pairs sample --help)\n"
             "       mimic pairs templates --store DIR --samples SAMPLES.jsonl --avatar ID ...\n"
-            "                                                            (mimic pairs templates --help)\n\n"
+            "                                                            (mimic pairs templates --help)\n"
+            "       mimic pairs retrieve --annotations ANN.json --samples SAMPLES.jsonl -o LIFTED.jsonl ...\n"
+            "                                                            (mimic pairs retrieve --help)\n\n"
             "Two-person pose-pairs (seed 002, Yin et al.). A pose-pair is two people's 17 joints each\n"
             "(the 16 landmarks and the neck) in one world frame, read from the two motion files of one\n"
             "take with the root translation kept; joints are found by their names (CMU/Biovision,\n"
@@ -57,6 +59,7 @@ static void help(FILE *out)
             "             The same --seed gives the same bytes.\n\n"
             "  sample     3D pose-pairs lifted from annotations by MCMC sampling (Sections 3-5).\n\n"
             "  templates  sampled people as templates of a store, so that mimic query knows their poses.\n\n"
+            "  retrieve   a 3D pose-pair for each 2D annotation: the sample that projects onto it best.\n\n"
             "  --every N          every N-th frame (default 1; annotate: 10)\n"
             "  --offset K         from frame K (default 0)\n"
             "  --unit M           metres per file unit (default: guessed from the people's size)\n"
@@ -336,6 +339,7 @@ int mim_cmd_pairs(int argc, char **argv)
     if (!strcmp(argv[1], "annotate")) return annotate(argc - 1, argv + 1);
     if (!strcmp(argv[1], "sample")) return mim_cmd_pairs_sample(argc - 1, argv + 1);
     if (!strcmp(argv[1], "templates")) return mim_cmd_pairs_templates(argc - 1, argv + 1);
+    if (!strcmp(argv[1], "retrieve")) return mim_cmd_pairs_retrieve(argc - 1, argv + 1);
     fprintf(stderr, "mimic pairs: unknown subcommand '%s' (see mimic pairs --help)\n", argv[1]);
     return 2;
 }

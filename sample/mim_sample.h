@@ -321,6 +321,25 @@ double mim_pairs2d_normalise(const double *in, double *out);
 double mim_pairs2d_align(const double *a, const double *b, double *c, double *s);
 void mim_pairs2d_rotate(const double *b, double c, double s, double *out);
 
+/* ---- retrieval: a 3D pose-pair for a 2D annotation (retrieve.c; Fig. 2) ---- */
+typedef struct mim_pairs_match {
+    uint32_t sample; /* the sample's index; UINT32_MAX: none */
+    double residual; /* eq. 9's 2D distance (mim_pairs2d_align): mean squared distance per joint of the
+                      * two point sets at unit RMS radius after the in-plane rotation; 0 a perfect match */
+    double dir[3];   /* the view: the unit direction the camera looks along, the samples' frame (y up) */
+} mim_pairs_match_t;
+/* The sample of samples (n x 34 x 3, metres, y up) whose orthographic
+ * projection best matches the annotation uv (34 [u, v] pixels) over views
+ * (the search and where it can miss: retrieve.c). Ties go to the lowest
+ * index. 0; MIM_EINVAL for no samples or an annotation whose points are
+ * all at one place or NaN; MIM_ENOTFOUND when no sample projects. */
+int mim_pairs_retrieve(const double *samples, uint32_t n, const double *uv, mim_pairs_match_t *out);
+/* mim_pairs_retrieve for every annotation of ann into out[ann->n] (an
+ * annotation that fails keeps sample UINT32_MAX), on threads (0: 1), with
+ * progress "retrieve" over the annotations (NULL: quiet). */
+void mim_pairs_retrieve_many(const double *samples, uint32_t n, const mim_pairs_annotations_t *ann, uint32_t threads,
+                             mim_progress_t *progress, mim_pairs_match_t *out);
+
 /* ---- coverage (coverage.c; eq. 13) ---- */
 typedef struct mim_sample_coverage_options {
     uint32_t threads;         /* threads to work on, the calling one among them; 0: 1 */
