@@ -31,7 +31,9 @@ static void help(FILE *out)
             "       mimic pairs templates --store DIR --samples SAMPLES.jsonl --avatar ID ...\n"
             "                                                            (mimic pairs templates --help)\n"
             "       mimic pairs retrieve --annotations ANN.json --samples SAMPLES.jsonl -o LIFTED.jsonl ...\n"
-            "                                                            (mimic pairs retrieve --help)\n\n"
+            "                                                            (mimic pairs retrieve --help)\n"
+            "       mimic pairs complete --pairs IN.jsonl --missing JOINTS --samples SAMPLES.jsonl -o OUT.jsonl\n"
+            "                                                            (mimic pairs complete --help)\n\n"
             "Two-person pose-pairs (seed 002, Yin et al.). A pose-pair is two people's 17 joints each\n"
             "(the 16 landmarks and the neck) in one world frame, read from the two motion files of one\n"
             "take with the root translation kept; joints are found by their names (CMU/Biovision,\n"
@@ -60,6 +62,7 @@ static void help(FILE *out)
             "  sample     3D pose-pairs lifted from annotations by MCMC sampling (Sections 3-5).\n\n"
             "  templates  sampled people as templates of a store, so that mimic query knows their poses.\n\n"
             "  retrieve   a 3D pose-pair for each 2D annotation: the sample that projects onto it best.\n\n"
+            "  complete   the joints of pose-pairs that were not seen, filled in from the samples.\n\n"
             "  --every N          every N-th frame (default 1; annotate: 10)\n"
             "  --offset K         from frame K (default 0)\n"
             "  --unit M           metres per file unit (default: guessed from the people's size)\n"
@@ -340,6 +343,7 @@ int mim_cmd_pairs(int argc, char **argv)
     if (!strcmp(argv[1], "sample")) return mim_cmd_pairs_sample(argc - 1, argv + 1);
     if (!strcmp(argv[1], "templates")) return mim_cmd_pairs_templates(argc - 1, argv + 1);
     if (!strcmp(argv[1], "retrieve")) return mim_cmd_pairs_retrieve(argc - 1, argv + 1);
+    if (!strcmp(argv[1], "complete")) return mim_cmd_pairs_complete(argc - 1, argv + 1);
     fprintf(stderr, "mimic pairs: unknown subcommand '%s' (see mimic pairs --help)\n", argv[1]);
     return 2;
 }

@@ -49,34 +49,6 @@ static void help(FILE *out)
             "Exit status: 0 done, 1 an input failed (annotations, samples, takes, cameras), 2 bad usage.\n");
 }
 
-/* The rotation R of the rigid fit that took b onto a (aligned = R (b - cb)
- * + ca), recovered by least squares from the fit's output: 0, or -1 when b
- * spans no volume. */
-static int fit_rotation(const double *b, const double *aligned, double R[9])
-{
-    double ca[3] = {0}, cb[3] = {0}, M[9] = {0}, S[9] = {0};
-    for (int i = 0; i < N; i++)
-        for (int c = 0; c < 3; c++) ca[c] += aligned[3 * i + c] / N, cb[c] += b[3 * i + c] / N;
-    for (int i = 0; i < N; i++)
-        for (int r = 0; r < 3; r++)
-            for (int c = 0; c < 3; c++) {
-                M[3 * r + c] += (aligned[3 * i + r] - ca[r]) * (b[3 * i + c] - cb[c]);
-                S[3 * r + c] += (b[3 * i + r] - cb[r]) * (b[3 * i + c] - cb[c]);
-            }
-    /* R = M S^-1, S symmetric: its inverse by cofactors */
-    double det = S[0] * (S[4] * S[8] - S[5] * S[7]) - S[1] * (S[3] * S[8] - S[5] * S[6]) + S[2] * (S[3] * S[7] - S[4] * S[6]);
-    if (!(fabs(det) > 1e-18)) return -1;
-    double Si[9] = {S[4] * S[8] - S[5] * S[7], S[2] * S[7] - S[1] * S[8], S[1] * S[5] - S[2] * S[4],
-                    S[5] * S[6] - S[3] * S[8], S[0] * S[8] - S[2] * S[6], S[2] * S[3] - S[0] * S[5],
-                    S[3] * S[7] - S[4] * S[6], S[1] * S[6] - S[0] * S[7], S[0] * S[4] - S[1] * S[3]};
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++) {
-            R[3 * r + c] = 0;
-            for (int k = 0; k < 3; k++) R[3 * r + c] += M[3 * r + k] * Si[3 * k + c] / det;
-        }
-    return 0;
-}
-
 /* Mean, median and 95th percentile of v[n] (sorted in place) as a JSON object; null for none. */
 static json_t *summary(double *v, uint32_t n)
 {
@@ -297,21 +269,20 @@ int mim_cmd_pairs_retrieve(int argc, char **argv)
         res[found++] = m[i].residual;
         if (!tk.n) continue;
         const double *g = truth[ann.take[i]] + (size_t)ann.frame[i] * 3 * N, *s = smp.joints + (size_t)m[i].sample * 3 * N;
-        double al[3 * N], d = 0, R[9];
+        double al[3 * N], d = 0, R[9], t[3];
         mim_sample_align(g, s, 3, al);
         for (int k = 0; k < N; k++)
             d += sqrt((g[3 * k] - al[3 * k]) * (g[3 * k] - al[3 * k]) + (g[3 * k + 1] - al[3 * k + 1]) * (g[3 * k + 1] - al[3 * k + 1]) +
                       (g[3 * k + 2] - al[3 * k + 2]) * (g[3 * k + 2] - al[3 * k + 2])) / N;
         err3d[i] = d;
         if (cams_path) {
-            view_err[i] = NAN;
-            if (!fit_rotation(s, al, R)) {
-                double w[3] = {0, 0, 0}, dot = 0, nw = 0;
-                for (int r = 0; r < 3; r++)
-                    for (int k = 0; k < 3; k++) w[r] += R[3 * r + k] * m[i].dir[k];
-                for (int r = 0; r < 3; r++) dot += w[r] * fwd[3 * i + r], nw += w[r] * w[r];
-                view_err[i] = acos(fmax(-1.0, fmin(1.0, dot / sqrt(nw)))) * 180 / M_PI;
-            }
+            /* the view found, turned by the fit into the truth's frame, against the camera's forward axis */
+            mim_sample_rigid_fit(g, s, NULL, R, t);
+            double w[3] = {0, 0, 0}, dot = 0;
+            for (int r = 0; r < 3; r++)
+                for (int k = 0; k < 3; k++) w[r] += R[3 * r + k] * m[i].dir[k];
+            for (int r = 0; r < 3; r++) dot += w[r] * fwd[3 * i + r];
+            view_err[i] = acos(fmax(-1.0, fmin(1.0, dot))) * 180 / M_PI;
         }
     }
     if (write_lifted(out_path, &ann, &smp, m, err3d, view_err)) goto done;

@@ -103,6 +103,10 @@ double mim_ic_distance(const double *a, const mim_ic_t *ta, const double *b, con
 /* The least-squares rigid motion (rotation, no reflection, and translation)
  * that brings b onto a over the 34 joints (dim 2 or 3), applied: b_aligned. */
 void mim_sample_align(const double *a, const double *b, int dim, double *b_aligned);
+/* The same fit in 3D over the joints with use[i] (NULL: all 34; at least
+ * 3 not on one line for a unique answer) as a rotation R (row-major) and
+ * a translation t: a_i ~ R b_i + t. */
+void mim_sample_rigid_fit(const double *a, const double *b, const uint8_t *use, double R[9], double t[3]);
 
 typedef enum mim_sample_metric { MIM_METRIC_IC = 0, MIM_METRIC_CARTESIAN = 1, MIM_METRIC_SHAPE = 2 } mim_sample_metric_t;
 
@@ -339,6 +343,24 @@ int mim_pairs_retrieve(const double *samples, uint32_t n, const double *uv, mim_
  * progress "retrieve" over the annotations (NULL: quiet). */
 void mim_pairs_retrieve_many(const double *samples, uint32_t n, const mim_pairs_annotations_t *ann, uint32_t threads,
                              mim_progress_t *progress, mim_pairs_match_t *out);
+
+/* ---- pose-pair completion (pair_complete.c; Fig. 12) ---- */
+#define MIM_PAIRS_COMPLETE_DEFAULT_K 3
+#define MIM_PAIRS_COMPLETE_MAX_K 64
+typedef struct mim_pairs_complete_options {
+    uint32_t k;      /* samples whose answers are blended (0: the default; at most MAX_K) */
+    int person_only; /* 1: match on the missing joints' own person only (single-person completion) */
+} mim_pairs_complete_options_t;
+/* pair (34 x 3, metres) with the joints where missing[j] is 1 filled in
+ * from the samples (n x 34 x 3) into out (the seen joints copied): the k
+ * samples that fit the seen joints best after a rigid fit, each placing a
+ * missing joint by its offsets from the seen joints around it (method:
+ * pair_complete.c). o may be NULL. 0; MIM_EINVAL (no samples, NULL, k over
+ * the most); MIM_EEMPTY (fewer than 3 joints to match on);
+ * MIM_ENONFINITE (a seen joint that is not finite); MIM_ENOTFOUND (no
+ * sample fits). Nothing missing: out is pair. */
+int mim_pairs_complete(const double *samples, uint32_t n, const double *pair, const uint8_t *missing,
+                       const mim_pairs_complete_options_t *o, double *out);
 
 /* ---- coverage (coverage.c; eq. 13) ---- */
 typedef struct mim_sample_coverage_options {
