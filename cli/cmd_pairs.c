@@ -21,15 +21,19 @@ static void help(FILE *out)
     fprintf(out,
             "usage: mimic pairs coverage --truth A.bvh,B.bvh [--truth ...] [--every N] [--offset K]\n"
             "                            --samples SAMPLES.jsonl [--threads N] [--joint-map FILE.json] [--unit M]\n"
-            "                            [--json]\n"
+            "                            [--up AXIS] [--json]\n"
             "       mimic pairs export --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K]\n"
-            "                          [--joint-map FILE.json] [--unit M] -o FRAMES.jsonl\n"
+            "                          [--joint-map FILE.json] [--unit M] [--up AXIS] -o FRAMES.jsonl\n"
             "       mimic pairs annotate --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K] [--views V]\n"
             "                            [--video] [--noise-px P] [--seed S] [--joint-map FILE.json] [--unit M]\n"
-            "                            -o ANN.json [--cameras CAMS.json]\n"
+            "                            [--up AXIS] -o ANN.json [--cameras CAMS.json]\n"
             "       mimic pairs sample --prior A.bvh,B.bvh ... -o SAMPLES.jsonl   (mimic pairs sample --help)\n"
             "       mimic pairs templates --store DIR --samples SAMPLES.jsonl --avatar ID ...\n"
-            "                                                            (mimic pairs templates --help)\n\n"
+            "                                                            (mimic pairs templates --help)\n"
+            "       mimic pairs retrieve --annotations ANN.json --samples SAMPLES.jsonl -o LIFTED.jsonl ...\n"
+            "                                                            (mimic pairs retrieve --help)\n"
+            "       mimic pairs complete --pairs IN.jsonl --missing JOINTS --samples SAMPLES.jsonl -o OUT.jsonl\n"
+            "                                                            (mimic pairs complete --help)\n\n"
             "Two-person pose-pairs (seed 002, Yin et al.). A pose-pair is two people's 17 joints each\n"
             "(the 16 landmarks and the neck) in one world frame, read from the two motion files of one\n"
             "take with the root translation kept; joints are found by their names (CMU/Biovision,\n"
@@ -57,9 +61,14 @@ static void help(FILE *out)
             "             The same --seed gives the same bytes.\n\n"
             "  sample     3D pose-pairs lifted from annotations by MCMC sampling (Sections 3-5).\n\n"
             "  templates  sampled people as templates of a store, so that mimic query knows their poses.\n\n"
+            "  retrieve   a 3D pose-pair for each 2D annotation: the sample that projects onto it best.\n\n"
+            "  complete   the joints of pose-pairs that were not seen, filled in from the samples.\n\n"
             "  --every N          every N-th frame (default 1; annotate: 10)\n"
             "  --offset K         from frame K (default 0)\n"
             "  --unit M           metres per file unit (default: guessed from the people's size)\n"
+            "  --up AXIS          the files' up axis, x, y, z, -x, -y or -z (default: found per take, the\n"
+            "                     head above the feet in the rest pose, else over the frames, and said);\n"
+            "                     pose-pairs are turned to mimic's y up as they are read\n"
             "  --threads N        coverage: threads (default: one per core)\n"
             "  --json             {\"truth\": m, \"samples\": n, \"D_I\": ..., \"D_C\": ..., \"D_S\": ...}\n"
             "  -h, --help         this help\n\n"
@@ -71,7 +80,7 @@ static int coverage(int argc, char **argv)
     static const struct option longopts[] = {
         {"truth", required_argument, 0, 'p'},     {"every", required_argument, 0, 'e'},
         {"offset", required_argument, 0, 'k'},    {"samples", required_argument, 0, 's'},
-        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
+        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'}, {"up", required_argument, 0, MIM_CLI_OPT_UP},
         {"json", no_argument, 0, 'j'},            {"threads", required_argument, 0, 't'},
         {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
     };
@@ -193,7 +202,7 @@ static int export_pairs(int argc, char **argv)
     static const struct option longopts[] = {
         {"pair", required_argument, 0, 'p'},      {"every", required_argument, 0, 'e'},
         {"offset", required_argument, 0, 'k'},    {"output", required_argument, 0, 'o'},
-        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
+        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'}, {"up", required_argument, 0, MIM_CLI_OPT_UP},
         {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
     };
     const char *outp = NULL;
@@ -240,7 +249,7 @@ static int annotate(int argc, char **argv)
         {"offset", required_argument, 0, 'k'},    {"views", required_argument, 0, 'v'},
         {"noise-px", required_argument, 0, 'n'},  {"seed", required_argument, 0, 'S'},
         {"output", required_argument, 0, 'o'},    {"cameras", required_argument, 0, 'c'},
-        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'},
+        {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'}, {"up", required_argument, 0, MIM_CLI_OPT_UP},
         {"video", no_argument, 0, 'V'},           {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
     };
@@ -333,6 +342,8 @@ int mim_cmd_pairs(int argc, char **argv)
     if (!strcmp(argv[1], "annotate")) return annotate(argc - 1, argv + 1);
     if (!strcmp(argv[1], "sample")) return mim_cmd_pairs_sample(argc - 1, argv + 1);
     if (!strcmp(argv[1], "templates")) return mim_cmd_pairs_templates(argc - 1, argv + 1);
+    if (!strcmp(argv[1], "retrieve")) return mim_cmd_pairs_retrieve(argc - 1, argv + 1);
+    if (!strcmp(argv[1], "complete")) return mim_cmd_pairs_complete(argc - 1, argv + 1);
     fprintf(stderr, "mimic pairs: unknown subcommand '%s' (see mimic pairs --help)\n", argv[1]);
     return 2;
 }

@@ -35,7 +35,7 @@ static void help(FILE *out)
             "                          [--seed S] [--restart-every N] [--velocity-scale V]\n"
             "                          [--start SAMPLES.jsonl[:LINE[,LINE...]]] [--seed-jitter DEG,M]\n"
             "                          [--bvh DIR]\n"
-            "                          [--joint-map FILE.json] [--unit M] [--json] -o SAMPLES.jsonl\n\n"
+            "                          [--joint-map FILE.json] [--unit M] [--up AXIS] [--json] -o SAMPLES.jsonl\n\n"
             "3D pose-pairs sampled by Metropolis-Hastings from the posterior of seed 002 (Yin et al.):\n"
             "the physical prior (joint limits learned from the --prior motions' frames, offset,\n"
             "offset + every, ...; bone penetration through ODE) times the likelihood of the 2D\n"
@@ -59,7 +59,9 @@ static void help(FILE *out)
             "                   random rotation of DEG degrees a component, B moved by M metres a\n"
             "                   component (a rough lifting, as the paper's hand-edited seed; redrawn\n"
             "                   while the prior forbids it; default 0,0)\n"
-            "  --bvh DIR        also DIR/chainK_A.bvh and chainK_B.bvh, a frame per sample\n"
+            "  --bvh DIR        also DIR/chainK_A.bvh and chainK_B.bvh, a frame per sample (y up)\n"
+            "  --up AXIS        the --prior files' up axis, x, y, z, -x, -y or -z (default: found per\n"
+            "                   take and said; mimic pairs --help)\n"
             "  --json           a report: samples, seconds, samples_per_second, acceptance per chain,\n"
             "                   parameters\n"
             "  -o FILE          the samples (schemas/pair-samples.md), chain after chain\n\n"
@@ -233,7 +235,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
     static const struct option longopts[] = {
         {"prior", required_argument, 0, 'p'},     {"every", required_argument, 0, 'e'},
         {"offset", required_argument, 0, 'k'},    {"joint-map", required_argument, 0, 'm'},
-        {"unit", required_argument, 0, 'u'},      {"annotations", required_argument, 0, 'a'},
+        {"unit", required_argument, 0, 'u'}, {"up", required_argument, 0, MIM_CLI_OPT_UP},      {"annotations", required_argument, 0, 'a'},
         {"samples", required_argument, 0, 'n'},   {"chains", required_argument, 0, 'C'},
         {"density", required_argument, 0, 'd'},   {"views", required_argument, 0, 'v'},
         {"sigma-l", required_argument, 0, 'l'},   {"seed", required_argument, 0, 'S'},

@@ -503,6 +503,8 @@ static const char simulate_help[] =
     "  --motion FILE   BVH, or AMC with --asf (CMU); 'demo': the built-in motion\n"
     "                  (eight poses in 12 s, T-pose rest)\n"
     "  --asf FILE      the ASF skeleton of an AMC motion\n"
+    "  --up AXIS       the motion file's up axis, x, y, z, -x, -y or -z (default: the\n"
+    "                  rest pose's, head above pelvis; said on stderr)\n"
     "  --rate HZ       stream frames per second, 1..2000 (default 60)\n"
     "  --faults LIST   drop=P and corrupt=P per packet (0..1), disconnect=T seconds\n"
     "                  into the stream for down=S seconds (default 0.5); sensor\n"
@@ -531,10 +533,11 @@ static int cmd_simulate(int argc, char **argv)
         {"seed", required_argument, 0, 'k'},   {"avatar", required_argument, 0, 'a'},
         {"map", required_argument, 0, 'p'},    {"pose", required_argument, 0, 'P'},
         {"expected", required_argument, 0, 'e'}, {"realtime", no_argument, 0, 'R'},
-        {"help", no_argument, 0, 'h'},         {0, 0, 0, 0}};
+        {"up", required_argument, 0, 'U'},     {"help", no_argument, 0, 'h'},
+        {0, 0, 0, 0}};
     const char *motion = NULL, *asf = NULL, *out = NULL, *avatar = NULL, *map = NULL, *expected = NULL;
     mim_vest_sim_options_t so = {0};
-    int pose = MIM_VEST_POSE_REST, pose_given = 0, realtime = 0, c;
+    int pose = MIM_VEST_POSE_REST, pose_given = 0, realtime = 0, up = 0, c;
     optind = 0, opterr = 0;
     while ((c = getopt_long(argc, argv, ":h", lo, NULL)) != -1) {
         uint64_t v;
@@ -546,6 +549,9 @@ static int cmd_simulate(int argc, char **argv)
         else if (c == 'p') map = optarg;
         else if (c == 'e') expected = optarg;
         else if (c == 'R') realtime = 1;
+        else if (c == 'U') {
+            if (mim_axis_parse(optarg, &up)) return usage_error("simulate", "--up: give x, y, z, -x, -y or -z");
+        }
         else if (c == 'P') { if (mim_cli_pose("vest simulate", "pose", optarg, &pose)) return 2; pose_given = 1; }
         else if (c == 'r') { if (mim_cli_real("vest simulate", "rate", optarg, 1, 2000, 0, NULL, &so.rate_hz)) return 2; }
         else if (c == 'f') { if (faults_arg(optarg, &so)) return 2; }
@@ -554,7 +560,7 @@ static int cmd_simulate(int argc, char **argv)
     }
     if (!motion || !out) return usage_error("simulate", "--motion FILE and --out are required");
     mim_error_t err = {0};
-    mim_vest_motion_t m;
+    mim_vest_motion_t m = {0};
     size_t ml = strlen(motion);
     int rc;
     if (!strcmp(motion, "demo")) {
@@ -568,10 +574,14 @@ static int cmd_simulate(int argc, char **argv)
     } else {
         rc = mim_vest_motion_read_bvh(&m, motion, &err);
     }
+    if (!rc && up) rc = mim_vest_motion_set_up(&m, up, &err);
     if (rc) {
         fprintf(stderr, "mimic vest simulate: %s\n", mim_error_text(&err));
+        mim_vest_motion_free(&m);
         return 1;
     }
+    if (strcmp(motion, "demo") && (up || m.up != 2)) /* a file turned upright: say so */
+        mim_cli_logf("%s: %s is up (%s)", motion, mim_axis_name(m.up), up ? "given" : "the rest pose's; --up to change");
     if (m.rest_arm_deg >= 0) {
         int tpose = m.rest_arm_deg > 67.5;
         if (!pose_given) pose = tpose ? MIM_VEST_POSE_T : MIM_VEST_POSE_A;

@@ -22,5 +22,7 @@ int mim_cmd_pairs(int argc, char **argv);
 int mim_cmd_complete(int argc, char **argv);
 int mim_cmd_pairs_sample(int argc, char **argv);    /* mimic pairs sample */
 int mim_cmd_pairs_templates(int argc, char **argv); /* mimic pairs templates */
+int mim_cmd_pairs_retrieve(int argc, char **argv);  /* mimic pairs retrieve */
+int mim_cmd_pairs_complete(int argc, char **argv);  /* mimic pairs complete */
 
 #endif

@@ -47,8 +47,34 @@ static int person(const char *path, const char *joint_map, double unit, mim_vest
     return 0;
 }
 
-int mim_cli_pairs_read(const char *spec, const char *joint_map, double unit, uint32_t every, uint32_t offset,
-                       double **frames, uint32_t *n_frames, char *msg, size_t size)
+/* The take's up axis: given, or each person's (mim_vest_joint_motion_up:
+ * head above the ankles), which must agree. 0, or -1 with msg. */
+static int take_up(const char *a, const char *b, const mim_vest_joint_motion_t *ma, const int32_t *map_a,
+                   const mim_vest_joint_motion_t *mb, const int32_t *map_b, mim_cli_up_t *up, char *msg, size_t size)
+{
+    if (up->axis) {
+        up->how = "given";
+        return 0;
+    }
+    int rest_a, rest_b;
+    int ua = mim_vest_joint_motion_up(ma, map_a[0], map_a[13], map_a[14], &rest_a);
+    int ub = mim_vest_joint_motion_up(mb, map_b[0], map_b[13], map_b[14], &rest_b);
+    if (!ua || !ub) {
+        snprintf(msg, size, "%s: cannot tell which way is up (neither its rest pose nor its frames stand the head "
+                            "above the feet along one axis); give --up x|y|z|-x|-y|-z", ua ? b : a);
+        return -1;
+    }
+    if (ua != ub) {
+        snprintf(msg, size, "%s is %s up and %s %s up: give --up", a, mim_axis_name(ua), b, mim_axis_name(ub));
+        return -1;
+    }
+    up->axis = ua;
+    up->how = rest_a && rest_b ? "found from the rest pose" : "found from the frames";
+    return 0;
+}
+
+int mim_cli_pairs_read(const char *spec, const char *joint_map, double unit, mim_cli_up_t *up, uint32_t every,
+                       uint32_t offset, double **frames, uint32_t *n_frames, char *msg, size_t size)
 {
     char a[4096], *b;
     snprintf(a, sizeof a, "%s", spec);
@@ -77,6 +103,8 @@ int mim_cli_pairs_read(const char *spec, const char *joint_map, double unit, uin
         snprintf(msg, size, "%s and %s: the units differ (%g and %g m per unit): give --unit", a, b, sa, sb);
         goto done;
     }
+    if (take_up(a, b, &ma, map_a, &mb, map_b, up, msg, size))
+        goto done;
     uint32_t step = every ? every : 1, count = offset < ma.n_frames ? (ma.n_frames - offset + step - 1) / step : 0;
     if (!count) {
         snprintf(msg, size, "%s: %u frames, none from frame %u on", a, ma.n_frames, offset);
@@ -94,6 +122,8 @@ int mim_cli_pairs_read(const char *spec, const char *joint_map, double unit, uin
             const float *pa = joint_at(&ma, f, map_a[j]), *pb = joint_at(&mb, f, map_b[j]);
             for (int c = 0; c < 3; c++)
                 dst[3 * j + c] = pa[c] * sa, dst[3 * (j + MIM_PAIR_PERSON_JOINTS) + c] = pb[c] * sb;
+            mim_axis_stand_up(up->axis, dst + 3 * j); /* mimic's y up */
+            mim_axis_stand_up(up->axis, dst + 3 * (j + MIM_PAIR_PERSON_JOINTS));
         }
     }
     *frames = out, *n_frames = count;
@@ -119,6 +149,12 @@ int mim_cli_takes_option(mim_cli_takes_t *t, int c, const char *arg)
     case 'm': t->map_path = arg; return 1;
     case 'u':
         return mim_cli_real(t->cmd, "unit", arg, 0.0, 1000.0, 1, "is not a number of metres per unit", &t->unit) ? -1 : 1;
+    case MIM_CLI_OPT_UP:
+        if (mim_axis_parse(arg, &t->up)) {
+            fprintf(stderr, "mimic %s: --up '%s': give x, y, z, -x, -y or -z\n", t->cmd, arg);
+            return -1;
+        }
+        return 1;
     default: return 0;
     }
 }
@@ -135,9 +171,14 @@ int mim_cli_takes_begin(mim_cli_takes_t *t)
 int mim_cli_takes_read(const mim_cli_takes_t *t, int i, double **frames, uint32_t *n)
 {
     char msg[1024];
-    if (!mim_cli_pairs_read(t->spec[i], t->map_text, t->unit, (uint32_t)t->every, (uint32_t)t->offset, frames, n, msg,
-                            sizeof msg))
+    mim_cli_up_t up = {t->up, NULL};
+    if (!mim_cli_pairs_read(t->spec[i], t->map_text, t->unit, &up, (uint32_t)t->every, (uint32_t)t->offset, frames, n,
+                            msg, sizeof msg)) {
+        if (!t->up && up.axis != 2) /* a take turned upright: say which way was taken, and how to change it */
+            fprintf(stderr, "mimic %s: %s: %s is up (%s; --up to change)\n", t->cmd, t->spec[i], mim_axis_name(up.axis),
+                    up.how);
         return 0;
+    }
     fprintf(stderr, "mimic %s: %s\n", t->cmd, msg);
     return -1;
 }

@@ -325,6 +325,21 @@ mim_quat mim_quat_mul(mim_quat a, mim_quat b); /* a then... : rotates by b first
 mim_quat mim_quat_normalize(mim_quat q);
 mim_vec3 mim_quat_rotate(mim_quat q, mim_vec3 v);
 
+/* ---- signed coordinate axes (axis.c): a motion file's up axis ---- */
+/* An axis is +x 1, +y 2, +z 3, -x -1, -y -2, -z -3 (0: none). */
+/* "x", "+x", "-z", ... (either case) into *axis: 0, or -1. */
+int mim_axis_parse(const char *s, int *axis);
+/* "+x" ... "-z", or "none". */
+const char *mim_axis_name(int axis);
+/* The signed axis nearest to v, or 0 when v is zero or its largest
+ * component is under min_share of its length (no clear axis). */
+int mim_axis_snap(mim_vec3 v, double min_share);
+/* Turns the point p (a file's coordinates) so that the file's `up` axis
+ * becomes +y: a quarter turn about x for +z (x, y, z -> x, z, -y) and -z
+ * (x, -z, y), about z for +x (-y, x, z) and -x (y, -x, z), a half turn
+ * about x for -y (x, -y, -z); +y as it is. Exact: only swaps and signs. */
+void mim_axis_stand_up(int up, double p[3]);
+
 /* Rotation matrices are 9 doubles, column-major: m[3 * c + r] is row r of
  * column c, so the columns are the images of the x, y and z axes (a local
  * frame f1 f2 f3 stored one column after the other).

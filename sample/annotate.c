@@ -6,9 +6,11 @@
  * degrees below to 35 above the horizon, upright (no roll), with a
  * 1920 x 1080 image and a focal length of 1000 to 1800 pixels (a 47 to 88
  * degree horizontal field of view, phone to wide lens); a camera that
- * leaves a joint behind it or outside the image is drawn again. A video
- * camera keeps its offset from the pair's centre and its lens from frame
- * to frame (mim_pairs_camera_follow). */
+ * leaves a joint behind it or outside the image is drawn again. No camera
+ * stands under the floor: one lower than MIN_HEIGHT above the pair's lowest
+ * joint is raised to that height and aimed at the centre again (a low
+ * tripod). A video camera keeps its offset from the pair's centre and its
+ * lens from frame to frame (mim_pairs_camera_follow), raised likewise. */
 #include "mim_sample.h"
 
 #include <math.h>
@@ -20,6 +22,27 @@ static mim_vec3 centre(const double *joints)
     mim_vec3 c = {0, 0, 0};
     for (int i = 0; i < MIM_PAIR_JOINTS; i++) c = mim_v3_add(c, mim_v3(joints[3 * i], joints[3 * i + 1], joints[3 * i + 2]));
     return mim_v3_scale(c, 1.0 / MIM_PAIR_JOINTS);
+}
+
+#define MIN_HEIGHT 0.3 /* metres above the pair's lowest joint: the floor, near enough */
+
+static double floor_of(const double *joints)
+{
+    double y = joints[1];
+    for (int i = 1; i < MIM_PAIR_JOINTS; i++) y = fmin(y, joints[3 * i + 1]);
+    return y;
+}
+
+/* cam at pos, upright (no roll), looking at c from there. */
+static void aim(mim_pairs_camera_t *cam, mim_vec3 pos, mim_vec3 c)
+{
+    mim_vec3 fwd = mim_v3_normalize(mim_v3_sub(c, pos));
+    mim_vec3 right = mim_v3_normalize(mim_v3_cross(fwd, mim_v3(0, 1, 0)));
+    mim_vec3 down = mim_v3_cross(fwd, right);
+    cam->position[0] = pos.x, cam->position[1] = pos.y, cam->position[2] = pos.z;
+    cam->dist = mim_v3_norm(mim_v3_sub(c, pos));
+    double rows[3][3] = {{right.x, right.y, right.z}, {down.x, down.y, down.z}, {fwd.x, fwd.y, fwd.z}};
+    memcpy(cam->R, rows, sizeof rows);
 }
 
 int mim_pairs_project(const mim_pairs_camera_t *cam, const double *joints, double *uv)
@@ -52,6 +75,9 @@ int mim_pairs_camera_follow(mim_pairs_camera_t *cam, const double *joints)
     mim_vec3 old = mim_v3_add(pos, mim_v3_scale(fwd, cam->dist));
     pos = mim_v3_add(pos, mim_v3_sub(c, old));
     cam->position[0] = pos.x, cam->position[1] = pos.y, cam->position[2] = pos.z;
+    const double low = floor_of(joints) + MIN_HEIGHT;
+    if (pos.y < low) /* the pair went down (a crouch, push-ups): the camera stays above the floor */
+        pos.y = low, aim(cam, pos, c);
     double uv[2 * MIM_PAIR_JOINTS];
     return mim_pairs_project(cam, joints, uv);
 }
@@ -69,13 +95,8 @@ int mim_pairs_camera_random(mim_rng_t *rng, const double *joints, mim_pairs_came
         /* up is y: the camera sits at the centre plus dist along (az, el) */
         mim_vec3 dir = mim_v3(cos(el) * sin(az), sin(el), cos(el) * cos(az));
         mim_vec3 pos = mim_v3_add(c, mim_v3_scale(dir, dist));
-        mim_vec3 fwd = mim_v3_normalize(mim_v3_sub(c, pos));
-        mim_vec3 right = mim_v3_normalize(mim_v3_cross(fwd, mim_v3(0, 1, 0)));
-        mim_vec3 down = mim_v3_cross(fwd, right);
-        cam->position[0] = pos.x, cam->position[1] = pos.y, cam->position[2] = pos.z;
-        cam->dist = dist;
-        double rows[3][3] = {{right.x, right.y, right.z}, {down.x, down.y, down.z}, {fwd.x, fwd.y, fwd.z}};
-        memcpy(cam->R, rows, sizeof rows);
+        pos.y = fmax(pos.y, floor_of(joints) + MIN_HEIGHT);
+        aim(cam, pos, c);
         if (mim_pairs_project(cam, joints, uv)) return 0;
     }
     return MIM_ENOTFOUND;

@@ -42,18 +42,25 @@ static double det3(const double m[9])
     return m[0] * (m[4] * m[8] - m[5] * m[7]) - m[3] * (m[1] * m[8] - m[2] * m[7]) + m[6] * (m[1] * m[5] - m[2] * m[4]);
 }
 
-void mim_sample_align(const double *a, const double *b, int dim, double *out)
+/* Kabsch: the rotation R (column-major dim x dim) and the centroids ca, cb
+ * of the least-squares fit a ~ ca + R (b - cb) over the joints with use[i]
+ * (NULL: all). */
+static void fit(const double *a, const double *b, int dim, const uint8_t *use, double R[9], double ca[3], double cb[3])
 {
     const int n = MIM_PAIR_JOINTS;
-    double ca[3] = {0}, cb[3] = {0};
+    int used = 0;
+    for (int i = 0; i < n; i++) used += !use || use[i];
+    ca[0] = ca[1] = ca[2] = cb[0] = cb[1] = cb[2] = 0;
     for (int i = 0; i < n; i++)
-        for (int c = 0; c < dim; c++) ca[c] += a[dim * i + c] / n, cb[c] += b[dim * i + c] / n;
+        if (!use || use[i])
+            for (int c = 0; c < dim; c++) ca[c] += a[dim * i + c] / used, cb[c] += b[dim * i + c] / used;
     /* H = sum (b - cb)(a - ca)^T, column-major dim x dim; R = V U^T of H = U S V^T */
     double H[9] = {0}, U[9], Vt[9], s[3], superb[2];
     for (int i = 0; i < n; i++)
-        for (int r = 0; r < dim; r++)
-            for (int c = 0; c < dim; c++) H[dim * c + r] += (b[dim * i + r] - cb[r]) * (a[dim * i + c] - ca[c]);
-    double R[9] = {0};
+        if (!use || use[i])
+            for (int r = 0; r < dim; r++)
+                for (int c = 0; c < dim; c++) H[dim * c + r] += (b[dim * i + r] - cb[r]) * (a[dim * i + c] - ca[c]);
+    memset(R, 0, 9 * sizeof *R);
     if (LAPACKE_dgesvd(LAPACK_COL_MAJOR, 'A', 'A', dim, dim, H, dim, s, U, dim, Vt, dim, superb) == 0) {
         /* d keeps R a rotation (no reflection) */
         double d = 1.0;
@@ -68,12 +75,28 @@ void mim_sample_align(const double *a, const double *b, int dim, double *out)
     } else {
         for (int k = 0; k < dim; k++) R[dim * k + k] = 1.0;
     }
-    for (int i = 0; i < n; i++)
+}
+
+void mim_sample_align(const double *a, const double *b, int dim, double *out)
+{
+    double R[9], ca[3], cb[3];
+    fit(a, b, dim, NULL, R, ca, cb);
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++)
         for (int r = 0; r < dim; r++) {
             double v = ca[r];
             for (int c = 0; c < dim; c++) v += R[dim * c + r] * (b[dim * i + c] - cb[c]);
             out[dim * i + r] = v;
         }
+}
+
+void mim_sample_rigid_fit(const double *a, const double *b, const uint8_t *use, double R[9], double t[3])
+{
+    double Rc[9], ca[3], cb[3];
+    fit(a, b, 3, use, Rc, ca, cb);
+    for (int r = 0; r < 3; r++) {
+        t[r] = ca[r];
+        for (int c = 0; c < 3; c++) R[3 * r + c] = Rc[3 * c + r], t[r] -= Rc[3 * c + r] * cb[c];
+    }
 }
 
 int mim_pair_prepare(const double *joints, mim_pair_prep_t *out, mim_error_t *err)

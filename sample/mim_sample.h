@@ -103,6 +103,10 @@ double mim_ic_distance(const double *a, const mim_ic_t *ta, const double *b, con
 /* The least-squares rigid motion (rotation, no reflection, and translation)
  * that brings b onto a over the 34 joints (dim 2 or 3), applied: b_aligned. */
 void mim_sample_align(const double *a, const double *b, int dim, double *b_aligned);
+/* The same fit in 3D over the joints with use[i] (NULL: all 34; at least
+ * 3 not on one line for a unique answer) as a rotation R (row-major) and
+ * a translation t: a_i ~ R b_i + t. */
+void mim_sample_rigid_fit(const double *a, const double *b, const uint8_t *use, double R[9], double t[3]);
 
 typedef enum mim_sample_metric { MIM_METRIC_IC = 0, MIM_METRIC_CARTESIAN = 1, MIM_METRIC_SHAPE = 2 } mim_sample_metric_t;
 
@@ -320,6 +324,43 @@ double mim_pairs2d_normalise(const double *in, double *out);
  * after it; mim_pairs2d_rotate applies it. */
 double mim_pairs2d_align(const double *a, const double *b, double *c, double *s);
 void mim_pairs2d_rotate(const double *b, double c, double s, double *out);
+
+/* ---- retrieval: a 3D pose-pair for a 2D annotation (retrieve.c; Fig. 2) ---- */
+typedef struct mim_pairs_match {
+    uint32_t sample; /* the sample's index; UINT32_MAX: none */
+    double residual; /* eq. 9's 2D distance (mim_pairs2d_align): mean squared distance per joint of the
+                      * two point sets at unit RMS radius after the in-plane rotation; 0 a perfect match */
+    double dir[3];   /* the view: the unit direction the camera looks along, the samples' frame (y up) */
+} mim_pairs_match_t;
+/* The sample of samples (n x 34 x 3, metres, y up) whose orthographic
+ * projection best matches the annotation uv (34 [u, v] pixels) over views
+ * (the search and where it can miss: retrieve.c). Ties go to the lowest
+ * index. 0; MIM_EINVAL for no samples or an annotation whose points are
+ * all at one place or NaN; MIM_ENOTFOUND when no sample projects. */
+int mim_pairs_retrieve(const double *samples, uint32_t n, const double *uv, mim_pairs_match_t *out);
+/* mim_pairs_retrieve for every annotation of ann into out[ann->n] (an
+ * annotation that fails keeps sample UINT32_MAX), on threads (0: 1), with
+ * progress "retrieve" over the annotations (NULL: quiet). */
+void mim_pairs_retrieve_many(const double *samples, uint32_t n, const mim_pairs_annotations_t *ann, uint32_t threads,
+                             mim_progress_t *progress, mim_pairs_match_t *out);
+
+/* ---- pose-pair completion (pair_complete.c; Fig. 12) ---- */
+#define MIM_PAIRS_COMPLETE_DEFAULT_K 3
+#define MIM_PAIRS_COMPLETE_MAX_K 64
+typedef struct mim_pairs_complete_options {
+    uint32_t k;      /* samples whose answers are blended (0: the default; at most MAX_K) */
+    int person_only; /* 1: match on the missing joints' own person only (single-person completion) */
+} mim_pairs_complete_options_t;
+/* pair (34 x 3, metres) with the joints where missing[j] is 1 filled in
+ * from the samples (n x 34 x 3) into out (the seen joints copied): the k
+ * samples that fit the seen joints best after a rigid fit, each placing a
+ * missing joint by its offsets from the seen joints around it (method:
+ * pair_complete.c). o may be NULL. 0; MIM_EINVAL (no samples, NULL, k over
+ * the most); MIM_EEMPTY (fewer than 3 joints to match on);
+ * MIM_ENONFINITE (a seen joint that is not finite); MIM_ENOTFOUND (no
+ * sample fits). Nothing missing: out is pair. */
+int mim_pairs_complete(const double *samples, uint32_t n, const double *pair, const uint8_t *missing,
+                       const mim_pairs_complete_options_t *o, double *out);
 
 /* ---- coverage (coverage.c; eq. 13) ---- */
 typedef struct mim_sample_coverage_options {

@@ -28,6 +28,7 @@ SCHEMAS = {s["$id"]: s for s in map(load, ["info.schema.json", "list.schema.json
                                             "store-check.schema.json", "pair-annotations.schema.json", "pair-cameras.schema.json",
                                             "pairs-coverage.schema.json", "complete.schema.json", "register.schema.json",
                                             "pairs-templates.schema.json", "pairs-sample.schema.json",
+                                            "pairs-retrieve.schema.json", "pairs-complete.schema.json",
                                             "store-copy.schema.json", "serve-session.schema.json",
                                             "serve-session-request.schema.json", "serve-sessions.schema.json",
                                             "landmarks-show.schema.json"])}
@@ -391,9 +392,18 @@ def pairs_cases(d):
     run("pairs", "annotate", "--pair", a + "," + b, "--every", "1", "--views", "2", "--video", "-o", video)
     sampled = json.loads(run("pairs", "sample", "--prior", a + "," + b, "--annotations", video, "--samples", "20",
                              "--chains", "2", "--json", "-o", os.path.join(d, "sampled.jsonl")))
+    retrieved = json.loads(run("pairs", "retrieve", "--annotations", ann, "--samples", frames, "--truth", a + "," + b,
+                               "--cameras", cams, "--json", "-o", os.path.join(d, "lifted.jsonl")))
+    plain = json.loads(run("pairs", "retrieve", "--annotations", ann, "--samples", frames, "--json",
+                           "-o", os.path.join(d, "lifted.jsonl")))
+    completed = json.loads(run("pairs", "complete", "--pairs", frames, "--missing", "B.l_elbow,B.l_wrist", "--samples",
+                               frames, "--json", "-o", os.path.join(d, "completed.jsonl")))
     with open(ann) as f1, open(cams) as f2, open(video) as f3:
         cases = [("/mimic/schemas/pair-annotations.schema.json", json.load(f3), "pairs annotate --video"),
-                 ("/mimic/schemas/pairs-sample.schema.json", sampled, "pairs sample --json")]
+                 ("/mimic/schemas/pairs-sample.schema.json", sampled, "pairs sample --json"),
+                 ("/mimic/schemas/pairs-retrieve.schema.json", retrieved, "pairs retrieve --truth --cameras --json"),
+                 ("/mimic/schemas/pairs-retrieve.schema.json", plain, "pairs retrieve --json"),
+                 ("/mimic/schemas/pairs-complete.schema.json", completed, "pairs complete --json")]
         return [("/mimic/schemas/pair-annotations.schema.json", json.load(f1), "pairs annotate"),
                 ("/mimic/schemas/pair-cameras.schema.json", json.load(f2), "pairs annotate --cameras"),
                 ("/mimic/schemas/pairs-coverage.schema.json", cov, "pairs coverage --json")] + cases

@@ -26,6 +26,8 @@ typedef struct mim_vest_motion {
     mim_quat *q;                            /* n_frames x 17 tared orientations, avatar frame; malloc'd */
     char joint[MIM_VEST_SEGMENTS][64];      /* the motion joint behind each segment */
     double rest_arm_deg; /* upper arms from vertical in the rest pose (T ~90, A ~45), -1 unknown */
+    int up, left;        /* the file's axes taken as the avatar's +y and +x (mim_axis_*) */
+    double rest_arm[3];  /* the left upper arm's rest direction, the file's axes (0 0 0 unknown) */
 } mim_vest_motion_t;
 
 /* BVH (HIERARCHY/MOTION), or ASF skeleton + AMC motion (taken as 120 Hz, as
@@ -45,6 +47,12 @@ typedef struct mim_vest_motion {
  * MIM_ENOMEM. err names the file and line. */
 int mim_vest_motion_read_bvh(mim_vest_motion_t *m, const char *path, mim_error_t *err);
 int mim_vest_motion_read_amc(mim_vest_motion_t *m, const char *asf_path, const char *amc_path, mim_error_t *err);
+/* The motion turned as if its file's up axis were `up` (mim_axis_*; the
+ * readers take the rest pose's head-above-pelvis axis), its left kept:
+ * for a file whose rest pose does not stand. 0; MIM_EFORMAT when up lies
+ * along the motion's left-right axis; MIM_EINVAL for no motion or no
+ * axis. */
+int mim_vest_motion_set_up(mim_vest_motion_t *m, int up, mim_error_t *err);
 /* Parses BVH text (len bytes, need not be NUL-terminated; read during the
  * call only); origin names it in messages (NULL = "bvh"). Returns as above,
  * and MIM_EINVAL if m is NULL or text is NULL with len > 0. */
@@ -58,7 +66,7 @@ void mim_vest_motion_free(mim_vest_motion_t *m);
  * files of a two-person take that share one world frame give positions in
  * that one frame. End Sites are not joints and are left out.
  *
- * A loaded joint motion is plain data in three malloc'd arrays: read-only
+ * A loaded joint motion is plain data in four malloc'd arrays: read-only
  * use from many threads is safe. */
 typedef struct mim_vest_joint_motion {
     uint32_t n_joints, n_frames;
@@ -67,6 +75,8 @@ typedef struct mim_vest_joint_motion {
     int32_t *parent;    /* n_joints; -1 for the root; parents come first */
     float *positions;   /* n_frames * n_joints * 3: world positions, the file's units and axes;
                          * joint j of frame f at positions[3 * (f * n_joints + j)] */
+    float *rest;        /* n_joints * 3: the rest pose (every channel zero, the root at its offset),
+                         * the file's units and axes: how its author stood the skeleton */
 } mim_vest_joint_motion_t;
 
 /* Reads every joint's world position in every frame of a BVH: the root at
@@ -95,6 +105,15 @@ int mim_vest_joint_motion_parse_bvh(mim_vest_joint_motion_t *m, const char *text
  * (which the orientation reader does not use). */
 int mim_vest_joint_motion_read_amc(mim_vest_joint_motion_t *m, const char *asf_path, const char *amc_path,
                                    mim_error_t *err);
+/* The up axis of a joint motion (mim_axis_*): the signed axis along which
+ * the head stands above the feet (head, foot_l, foot_r: joint indices). From
+ * the rest pose when it stands clearly (head minus the feet's midpoint
+ * within ~37 degrees of an axis; *from_rest 1), else from the frames (the
+ * mean of that direction over every frame, normalised; *from_rest 0), so a
+ * take lying down all along (push-ups) still takes its rest pose's up.
+ * 0 when neither tells, or an index is out of range. */
+int mim_vest_joint_motion_up(const mim_vest_joint_motion_t *m, int32_t head, int32_t foot_l, int32_t foot_r,
+                             int *from_rest);
 /* Frees the arrays and zeroes *m. Accepts NULL and a zeroed joint motion. */
 void mim_vest_joint_motion_free(mim_vest_joint_motion_t *m);
 

@@ -60,20 +60,12 @@ static int find_joint(const mim__motion_src_t *src, uint32_t s)
     return -1;
 }
 
-/* The signed unit axis nearest to v. */
-static int snap(mim_vec3 v, mim_vec3 *out)
+/* The unit vector of a signed axis (mim_axis_*). */
+static mim_vec3 axis_vec(int a)
 {
-    double a[3] = {v.x, v.y, v.z};
-    int k = 0;
-    for (int i = 1; i < 3; i++)
-        if (fabs(a[i]) > fabs(a[k])) k = i;
-    if (!(fabs(a[k]) > 0)) {
-        *out = mim_v3(0, 0, 0); /* written on every path: no caller reads an unset axis */
-        return -1;
-    }
-    double s = a[k] > 0 ? 1 : -1;
-    *out = mim_v3(k == 0 ? s : 0, k == 1 ? s : 0, k == 2 ? s : 0);
-    return k;
+    double s = a < 0 ? -1 : 1;
+    int k = abs(a);
+    return mim_v3(k == 1 ? s : 0, k == 2 ? s : 0, k == 3 ? s : 0);
 }
 
 /* Quaternion of the rotation whose matrix has rows r0, r1, r2. */
@@ -81,6 +73,33 @@ static mim_quat from_rows(mim_vec3 r0, mim_vec3 r1, mim_vec3 r2)
 {
     const double m[9] = {r0.x, r1.x, r2.x, r0.y, r1.y, r2.y, r0.z, r1.z, r2.z}; /* column-major */
     return mim_quat_from_matrix(m);
+}
+
+/* The rotation from a motion's axes to the avatar's: rows are the motion's
+ * left, up and front axes (avatar = B motion). */
+static mim_quat avatar_of(int up, int left)
+{
+    const mim_vec3 u = axis_vec(up), l = axis_vec(left);
+    return from_rows(l, u, mim_v3_cross(l, u));
+}
+
+/* m's orientations, now in the frame that `was` turned the file's into (the
+ * file's own: identity), turned into the avatar frame of the axes up and
+ * left (q -> B q B^-1), and the rest arm's angle from the new vertical. */
+static void turn_to_axes(mim_vest_motion_t *m, int up, int left, mim_quat was)
+{
+    const mim_quat B = avatar_of(up, left), wi = {-was.x, -was.y, -was.z, was.w};
+    const mim_quat C = mim_quat_mul(B, wi), Ci = {-C.x, -C.y, -C.z, C.w};
+    for (size_t i = 0; i < (size_t)m->n_frames * MIM_VEST_SEGMENTS; i++) {
+        mim_quat q = mim_quat_normalize(mim_quat_mul(mim_quat_mul(C, m->q[i]), Ci));
+        if (q.w < 0) q.x = -q.x, q.y = -q.y, q.z = -q.z, q.w = -q.w; /* one sign per rotation */
+        m->q[i] = q;
+    }
+    m->up = up, m->left = left;
+    m->rest_arm_deg = -1;
+    mim_vec3 d = mim_quat_rotate(B, mim_v3(m->rest_arm[0], m->rest_arm[1], m->rest_arm[2]));
+    double n = mim_v3_norm(d);
+    if (n > 0) m->rest_arm_deg = acos(fmax(-1, fmin(1, -d.y / n))) * 180 / M_PI;
 }
 
 int mim__motion_build(mim_vest_motion_t *m, const mim__motion_src_t *src, const char *origin, mim_error_t *err)
@@ -106,22 +125,15 @@ int mim__motion_build(mim_vest_motion_t *m, const mim__motion_src_t *src, const 
     if (l < 0 || r < 0) l = jo[MIM_VEST_L_UPPERARM], r = jo[MIM_VEST_R_UPPERARM];
     if (l < 0 || r < 0)
         return mim_error_set(err, MIM_EFORMAT, "%s: no left/right hip or arm joints to find the body's left", origin);
-    mim_vec3 up, left;
-    int ku = snap(mim_v3_sub(src->joint[jo[MIM_VEST_HEAD]].rest, src->joint[jo[MIM_VEST_PELVIS]].rest), &up);
-    int kl = snap(mim_v3_sub(src->joint[l].rest, src->joint[r].rest), &left);
-    if (ku < 0 || kl < 0 || ku == kl)
+    const int up = mim_axis_snap(mim_v3_sub(src->joint[jo[MIM_VEST_HEAD]].rest, src->joint[jo[MIM_VEST_PELVIS]].rest), 0);
+    const int left = mim_axis_snap(mim_v3_sub(src->joint[l].rest, src->joint[r].rest), 0);
+    if (!up || !left || abs(up) == abs(left))
         return mim_error_set(err, MIM_EFORMAT, "%s: cannot tell up from left in the rest pose", origin);
-    /* avatar = B motion: rows are the motion's left, up and front axes */
-    mim_quat B = from_rows(left, up, mim_v3_cross(left, up));
-    mim_quat Bi = {-B.x, -B.y, -B.z, B.w};
-
     /* how the rest pose holds the arms: the pose the wearer tared in */
-    m->rest_arm_deg = -1;
     int sh = jo[MIM_VEST_L_UPPERARM], el = jo[MIM_VEST_L_FOREARM];
     if (sh >= 0 && el >= 0) {
-        mim_vec3 d = mim_quat_rotate(B, mim_v3_sub(src->joint[el].rest, src->joint[sh].rest));
-        double n = mim_v3_norm(d);
-        if (n > 0) m->rest_arm_deg = acos(fmax(-1, fmin(1, -d.y / n))) * 180 / M_PI;
+        mim_vec3 d = mim_v3_sub(src->joint[el].rest, src->joint[sh].rest);
+        m->rest_arm[0] = d.x, m->rest_arm[1] = d.y, m->rest_arm[2] = d.z;
     }
     m->n_frames = src->n_frames;
     m->frame_time = src->frame_time > 0 ? src->frame_time : 1.0 / 30;
@@ -137,14 +149,22 @@ int mim__motion_build(mim_vest_motion_t *m, const mim__motion_src_t *src, const 
             int p = src->joint[j].parent;
             W[j] = p < 0 ? L[j] : mim_quat_mul(W[p], L[j]);
         }
-        for (uint32_t s = 0; s < MIM_VEST_SEGMENTS; s++) {
-            mim_quat q = jo[s] >= 0 ? mim_quat_mul(mim_quat_mul(B, W[jo[s]]), Bi) : mim_quat_identity();
-            q = mim_quat_normalize(q);
-            if (q.w < 0) q.x = -q.x, q.y = -q.y, q.z = -q.z, q.w = -q.w; /* one sign per rotation */
-            m->q[(size_t)f * MIM_VEST_SEGMENTS + s] = q;
-        }
+        for (uint32_t s = 0; s < MIM_VEST_SEGMENTS; s++) /* the file's axes here; turned below */
+            m->q[(size_t)f * MIM_VEST_SEGMENTS + s] = jo[s] >= 0 ? W[jo[s]] : mim_quat_identity();
     }
     free(W);
+    turn_to_axes(m, up, left, mim_quat_identity());
+    return 0;
+}
+
+int mim_vest_motion_set_up(mim_vest_motion_t *m, int up, mim_error_t *err)
+{
+    if (!m || !m->q || !m->left || up < -3 || up > 3 || !up)
+        return mim_error_set(err, MIM_EINVAL, "no motion, or no up axis");
+    if (abs(up) == abs(m->left))
+        return mim_error_set(err, MIM_EFORMAT, "up %s is the motion's left-right axis (its hips or shoulders lie along it)",
+                             mim_axis_name(up));
+    turn_to_axes(m, up, m->left, avatar_of(m->up, m->left));
     return 0;
 }
 
@@ -161,9 +181,10 @@ int mim__joint_motion_build(mim_vest_joint_motion_t *m, const mim__motion_src_t 
     m->name = malloc(sizeof *m->name * n);
     m->parent = malloc(sizeof *m->parent * n);
     m->positions = malloc(sizeof *m->positions * 3 * n * (size_t)src->n_frames);
+    m->rest = malloc(sizeof *m->rest * 3 * n);
     mim_quat *W = malloc(sizeof *W * n);
     mim_vec3 *P = malloc(sizeof *P * n);
-    if (!m->name || !m->parent || !m->positions || !W || !P) {
+    if (!m->name || !m->parent || !m->positions || !m->rest || !W || !P) {
         free(W), free(P), mim_vest_joint_motion_free(m);
         return mim_error_set(err, MIM_ENOMEM, "%s: out of memory for %u frames", origin, src->n_frames);
     }
@@ -172,6 +193,8 @@ int mim__joint_motion_build(mim_vest_joint_motion_t *m, const mim__motion_src_t 
     for (uint32_t j = 0; j < n; j++) {
         snprintf(m->name[j], sizeof m->name[j], "%s", src->joint[j].name);
         m->parent[j] = src->joint[j].parent;
+        const mim_vec3 r = src->joint[j].rest;
+        m->rest[3 * j] = (float)r.x, m->rest[3 * j + 1] = (float)r.y, m->rest[3 * j + 2] = (float)r.z;
     }
     for (uint32_t f = 0; f < src->n_frames; f++) {
         const mim_quat *L = src->local + (size_t)f * n;
@@ -202,7 +225,7 @@ void mim__motion_src_free(mim__motion_src_t *src)
 void mim_vest_joint_motion_free(mim_vest_joint_motion_t *m)
 {
     if (!m) return;
-    free(m->name), free(m->parent), free(m->positions);
+    free(m->name), free(m->parent), free(m->positions), free(m->rest);
     memset(m, 0, sizeof *m);
 }
 
