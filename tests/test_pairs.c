@@ -5,6 +5,7 @@
  * translation: the test knows every position. */
 #include "mim_sample.h"
 
+#include "cmu_skeleton.h"
 #include "test_support.h"
 
 #include <jansson.h>
@@ -17,16 +18,6 @@
 #define FRAMES 10
 #define UNIT (0.0254 / 0.45) /* CMU's: a person ~30 units tall is taken for it */
 
-/* A CMU-named chain: joint, parent, offset (units). Person height ~30 units. */
-static const struct { const char *name; int parent; double off[3]; } skel[] = {
-    {"Hips", -1, {0, 0, 0}},          {"LeftUpLeg", 0, {1.5, -1, 0}},   {"LeftLeg", 1, {0, -7.5, 0}},
-    {"LeftFoot", 2, {0, -7.5, 0}},    {"RightUpLeg", 0, {-1.5, -1, 0}}, {"RightLeg", 4, {0, -7.5, 0}},
-    {"RightFoot", 5, {0, -7.5, 0}},   {"Spine", 0, {0, 2, 0}},          {"Spine1", 7, {0, 3, 0}},
-    {"Neck", 8, {0, 3, 0}},           {"Head", 9, {0, 1.5, 0}},         {"LeftArm", 8, {3, 2.5, 0}},
-    {"LeftForeArm", 11, {5, 0, 0}},   {"LeftHand", 12, {4.5, 0, 0}},    {"RightArm", 8, {-3, 2.5, 0}},
-    {"RightForeArm", 14, {-5, 0, 0}}, {"RightHand", 15, {-4.5, 0, 0}},
-};
-#define NJ ((int)(sizeof skel / sizeof *skel))
 /* skel index of each of mimic's 17 joints */
 static const int ours[MIM_PAIR_PERSON_JOINTS] = {10, 8, 0, 11, 14, 12, 15, 13, 16, 1, 4, 2, 5, 3, 6, 7, 9};
 
@@ -35,8 +26,8 @@ static char *dir;
 static void rest(int j, double p[3])
 {
     p[0] = p[1] = p[2] = 0;
-    for (int k = j; k >= 0; k = skel[k].parent)
-        for (int c = 0; c < 3; c++) p[c] += skel[k].off[c];
+    for (int k = j; k >= 0; k = cmu_skel[k].parent)
+        for (int c = 0; c < 3; c++) p[c] += cmu_skel[k].off[c];
 }
 
 static double root_x(int person, int f) { return person ? 12.0 - 0.2 * f : 0.3 * f; }
@@ -47,14 +38,14 @@ static double g_scale = 1.0, g_shift = 0.0;
 static void block(FILE *fp, int j, int depth)
 {
     for (int i = 0; i < depth; i++) fputc('\t', fp);
-    fprintf(fp, "%s %s\n", j ? "JOINT" : "ROOT", skel[j].name);
+    fprintf(fp, "%s %s\n", j ? "JOINT" : "ROOT", cmu_skel[j].name);
     for (int i = 0; i < depth; i++) fputc('\t', fp);
-    fprintf(fp, "{\nOFFSET %g %g %g\n", g_scale * skel[j].off[0], g_scale * skel[j].off[1], g_scale * skel[j].off[2]);
+    fprintf(fp, "{\nOFFSET %g %g %g\n", g_scale * cmu_skel[j].off[0], g_scale * cmu_skel[j].off[1], g_scale * cmu_skel[j].off[2]);
     fprintf(fp, j ? "CHANNELS 3 Zrotation Yrotation Xrotation\n"
                   : "CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation\n");
     int kids = 0;
-    for (int k = 0; k < NJ; k++)
-        if (skel[k].parent == j) block(fp, k, depth + 1), kids++;
+    for (int k = 0; k < CMU_SKEL_JOINTS; k++)
+        if (cmu_skel[k].parent == j) block(fp, k, depth + 1), kids++;
     if (!kids) fprintf(fp, "End Site\n{\nOFFSET 0 0 1\n}\n");
     fprintf(fp, "}\n");
 }
@@ -70,7 +61,7 @@ static char *write_bvh(const char *name, int person, int frames, double ft)
     fprintf(fp, "MOTION\nFrames: %d\nFrame Time: %g\n", frames, ft);
     for (int f = 0; f < frames; f++) {
         fprintf(fp, "%g %g %g", root_x(person, f) + (person ? g_shift : 0.0), 16.0, person ? 3.0 : 0.0);
-        for (int k = 0; k < 3 + 3 * (NJ - 1); k++) fprintf(fp, " 0");
+        for (int k = 0; k < 3 + 3 * (CMU_SKEL_JOINTS - 1); k++) fprintf(fp, " 0");
         fprintf(fp, "\n");
     }
     fclose(fp);

@@ -118,16 +118,6 @@ static char *write_set(const char *name, mim_rng_t *r, int n)
     return path;
 }
 
-static char *run(int want, char **err, const char *const *args)
-{
-    char *o = NULL, *e = NULL;
-    int rc = ts_run_mimic(&o, &e, args);
-    if (rc != want) fail_msg("mimic %s %s: exit %d, not %d: %s", args[0], args[1], rc, want, e);
-    if (err) *err = e;
-    else free(e);
-    return o;
-}
-
 static void test_cli(void **s)
 {
     (void)s;
@@ -138,7 +128,7 @@ static void test_cli(void **s)
     for (int m = 0; m < 2; m++) {
         const char *a[] = {"pairs", "complete", "--pairs", in, "--missing", "B.l_elbow,B.l_wrist", "--samples", smp,
                            "--match", m ? "person" : "pair", "--json", "-o", out, NULL};
-        char *o = run(0, NULL, a);
+        char *o = ts_mimic_expect(0, NULL, a);
         json_t *j = json_loads(o, 0, NULL);
         assert_non_null(j);
         assert_int_equal(json_integer_value(json_object_get(j, "pairs")), 20);
@@ -158,15 +148,15 @@ static void test_cli(void **s)
     free(text);
     char *e = NULL;
     const char *b1[] = {"pairs", "complete", "--pairs", in, "--missing", "B.l_hand", "--samples", smp, "-o", out, NULL};
-    free(run(2, &e, b1));
+    free(ts_mimic_expect(2, &e, b1));
     assert_non_null(strstr(e, "'B.l_hand' is no joint"));
     free(e);
     const char *b2[] = {"pairs", "complete", "--pairs", in, "--missing", "A.head", "--samples", smp, "--match", "both",
                         "-o", out, NULL};
-    free(run(2, NULL, b2));
+    free(ts_mimic_expect(2, NULL, b2));
     const char *b3[] = {"pairs", "complete", "--pairs", smp, "--missing", "A.head", "--samples", "/nonexistent.jsonl",
                         "-o", out, NULL};
-    free(run(1, &e, b3));
+    free(ts_mimic_expect(1, &e, b3));
     assert_non_null(strstr(e, "/nonexistent.jsonl"));
     free(e);
     free(smp), free(in), free(out);

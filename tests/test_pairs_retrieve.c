@@ -76,16 +76,6 @@ static void test_finds_the_sample(void **s)
     free(p);
 }
 
-static char *run(int want, char **err, const char *const *args)
-{
-    char *o = NULL, *e = NULL;
-    int rc = ts_run_mimic(&o, &e, args);
-    if (rc != want) fail_msg("mimic %s %s: exit %d, not %d: %s", args[0], args[1], rc, want, e);
-    if (err) *err = e;
-    else free(e);
-    return o;
-}
-
 /* A take of 30 random pose-pairs (as BVH, person by person), annotated by
  * pairs annotate and exported as the samples: every annotation gets its
  * own frame back, 3D error ~0 and the view within a few degrees; with the
@@ -112,15 +102,15 @@ static void test_cli(void **s)
          *odd = ts_path(dir, "odd.jsonl"), *out = ts_path(dir, "lifted.jsonl");
     const char *an[] = {"pairs", "annotate", "--pair", spec, "--every", "2", "--views", "2", "--unit", "1",
                         "-o", ann, "--cameras", cams, NULL};
-    free(run(0, NULL, an));
+    free(ts_mimic_expect(0, NULL, an));
     const char *ex[] = {"pairs", "export", "--pair", spec, "--unit", "1", "-o", all, NULL};
-    free(run(0, NULL, ex));
+    free(ts_mimic_expect(0, NULL, ex));
     const char *ex2[] = {"pairs", "export", "--pair", spec, "--unit", "1", "--every", "2", "--offset", "1", "-o", odd, NULL};
-    free(run(0, NULL, ex2));
+    free(ts_mimic_expect(0, NULL, ex2));
 
     const char *re[] = {"pairs", "retrieve", "--annotations", ann, "--samples", all, "--truth", spec, "--unit", "1",
                         "--cameras", cams, "--json", "-o", out, NULL};
-    char *o = run(0, NULL, re);
+    char *o = ts_mimic_expect(0, NULL, re);
     json_t *j = json_loads(o, 0, NULL);
     assert_non_null(j);
     assert_int_equal(json_integer_value(json_object_get(j, "annotations")), 2 * FRAMES / 2);
@@ -150,7 +140,7 @@ static void test_cli(void **s)
     /* from the other frames: a real error, reported */
     const char *re2[] = {"pairs", "retrieve", "--annotations", ann, "--samples", odd, "--truth", spec, "--unit", "1",
                          "--json", "-o", out, NULL};
-    o = run(0, NULL, re2);
+    o = ts_mimic_expect(0, NULL, re2);
     j = json_loads(o, 0, NULL);
     assert_true(json_real_value(json_object_get(json_object_get(j, "error_m"), "median")) > 0.01);
     assert_true(json_is_null(json_object_get(j, "view_error_deg")));
@@ -160,21 +150,21 @@ static void test_cli(void **s)
     /* refused, each in one line */
     char *e = NULL;
     const char *b1[] = {"pairs", "retrieve", "--annotations", ann, "--samples", all, "--cameras", cams, "-o", out, NULL};
-    free(run(2, &e, b1));
+    free(ts_mimic_expect(2, &e, b1));
     assert_non_null(strstr(e, "--cameras needs the annotated takes"));
     free(e);
     const char *b2[] = {"pairs", "retrieve", "--annotations", ann, "--samples", all, "--truth", spec, "--unit", "1",
                         "--cameras", ann, "-o", out, NULL};
-    free(run(1, &e, b2));
+    free(ts_mimic_expect(1, &e, b2));
     assert_non_null(strstr(e, "not a cameras file"));
     free(e);
     const char *b3[] = {"pairs", "retrieve", "--annotations", ann, "--samples", all, "--samples", ann, "-o", out, NULL};
-    free(run(1, &e, b3));
+    free(ts_mimic_expect(1, &e, b3));
     assert_non_null(strstr(e, "ann.json"));
     assert_null(strchr(strchr(e, '\n') + 1, '\n'));
     free(e);
     const char *b4[] = {"pairs", "retrieve", "--annotations", ann, "--samples", all, "-o", NULL};
-    free(run(2, NULL, b4));
+    free(ts_mimic_expect(2, NULL, b4));
     free(path[0]), free(path[1]), free(ann), free(cams), free(all), free(odd), free(out);
 }
 

@@ -10,6 +10,7 @@
 #include "mim_sample.h"
 #include "mim_vest_motion.h"
 
+#include "cmu_skeleton.h"
 #include "test_support.h"
 
 #include <jansson.h>
@@ -21,16 +22,6 @@
 
 #define FRAMES 24
 
-/* CMU names, a person ~30 units tall (so the unit is guessed as CMU's) */
-static const struct { const char *name; int parent; double off[3]; } skel[] = {
-    {"Hips", -1, {0, 0, 0}},          {"LeftUpLeg", 0, {1.5, -1, 0}},   {"LeftLeg", 1, {0, -7.5, 0}},
-    {"LeftFoot", 2, {0, -7.5, 0}},    {"RightUpLeg", 0, {-1.5, -1, 0}}, {"RightLeg", 4, {0, -7.5, 0}},
-    {"RightFoot", 5, {0, -7.5, 0}},   {"Spine", 0, {0, 2, 0}},          {"Spine1", 7, {0, 3, 0}},
-    {"Neck", 8, {0, 3, 0}},           {"Head", 9, {0, 1.5, 0}},         {"LeftArm", 8, {3, 2.5, 0}},
-    {"LeftForeArm", 11, {5, 0, 0}},   {"LeftHand", 12, {4.5, 0, 0}},    {"RightArm", 8, {-3, 2.5, 0}},
-    {"RightForeArm", 14, {-5, 0, 0}}, {"RightHand", 15, {-4.5, 0, 0}},
-};
-#define NJ ((int)(sizeof skel / sizeof *skel))
 
 static char *dir;
 
@@ -52,13 +43,13 @@ __attribute__((format(printf, 2, 3))) static void put(text_t *t, const char *fmt
 
 static void block(text_t *b, int j, int depth)
 {
-    PUT("%*s%s %s\n%*s{\n", depth, "", j ? "JOINT" : "ROOT", skel[j].name, depth, "");
-    PUT("OFFSET %g %g %g\n", skel[j].off[0], skel[j].off[1], skel[j].off[2]);
+    PUT("%*s%s %s\n%*s{\n", depth, "", j ? "JOINT" : "ROOT", cmu_skel[j].name, depth, "");
+    PUT("OFFSET %g %g %g\n", cmu_skel[j].off[0], cmu_skel[j].off[1], cmu_skel[j].off[2]);
     PUT(j ? "CHANNELS 3 Zrotation Xrotation Yrotation\n"
           : "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n");
     int kids = 0;
-    for (int k = 0; k < NJ; k++)
-        if (skel[k].parent == j) block(b, k, depth + 1), kids++;
+    for (int k = 0; k < CMU_SKEL_JOINTS; k++)
+        if (cmu_skel[k].parent == j) block(b, k, depth + 1), kids++;
     if (!kids) PUT("End Site\n{\nOFFSET 0 1 0\n}\n");
     PUT("}\n");
 }
@@ -73,7 +64,7 @@ static char *take_text(int person)
     PUT("MOTION\nFrames: %d\nFrame Time: 0.0333333\n", FRAMES);
     for (int f = 0; f < FRAMES; f++) {
         double t = f / (double)FRAMES, s = sin(2 * M_PI * t + person), c = cos(2 * M_PI * t + person);
-        double v[6 + 3 * (NJ - 1)] = {0};
+        double v[6 + 3 * (CMU_SKEL_JOINTS - 1)] = {0};
         v[0] = person ? 3 - 4 * t : 5 * t, v[1] = 16 + 0.5 * s, v[2] = person ? 40 : 0;
         v[3] = 4 * s, v[4] = 6 * c, v[5] = (person ? 180 : 0) + 25 * s; /* root: Z X Y */
         double *j = v + 6 - 3;                                           /* joint k's at j + 3k */
@@ -106,16 +97,6 @@ static char *write_take(const char *name, int up_a, int up_b)
 }
 
 /* Runs mimic; exit status rc expected; stderr to *err (malloc'd) when asked. */
-static char *run(int rc, char **err, const char *const *args)
-{
-    char *o = NULL, *e = NULL;
-    int got = ts_run_mimic(&o, &e, args);
-    if (got != rc) fail_msg("mimic %s %s: exit %d, not %d: %s", args[0], args[1], got, rc, e);
-    if (err) *err = e;
-    else free(e);
-    return o;
-}
-
 /* Every number in a and b (objects, arrays) within tol; strings ignored
  * (they name the files). Returns how many numbers were compared. */
 static size_t same_numbers(json_t *a, json_t *b, double tol)
@@ -173,7 +154,7 @@ static void test_three_axes(void **s)
         snprintf(file, sizeof file, "frames%d.jsonl", u);
         char *fr = ts_path(dir, file);
         const char *ex[] = {"pairs", "export", "--pair", spec, "-o", fr, NULL};
-        free(run(0, &e, ex));
+        free(ts_mimic_expect(0, &e, ex));
         char said[64]; /* a take turned upright is said; y up, mimic's own, is not */
         snprintf(said, sizeof said, "%s is up (found from the rest pose; --up to change)", names[u]);
         if (!strstr(e, said) != (u == 0)) fail_msg("export said: %s", e);
@@ -186,7 +167,7 @@ static void test_three_axes(void **s)
         char *cm = ts_path(dir, file);
         const char *aa[] = {"pairs", "annotate", "--pair", spec, "--every", "4", "--views", "2", "--seed", "9", "-o", an,
                             "--cameras", cm, NULL};
-        free(run(0, NULL, aa));
+        free(ts_mimic_expect(0, NULL, aa));
         ann[u] = load(an);
         cams[u] = load(cm);
         free(cm);
@@ -195,11 +176,11 @@ static void test_three_axes(void **s)
         char *sa = ts_path(dir, file);
         const char *sm[] = {"pairs", "sample", "--prior", spec, "--annotations", an, "--samples", "200", "--chains", "1",
                             "--restart-every", "50", "--seed", "3", "-o", sa, NULL};
-        free(run(0, NULL, sm));
+        free(ts_mimic_expect(0, NULL, sm));
         samples[u] = load(sa);
 
         const char *cv[] = {"pairs", "coverage", "--truth", spec, "--samples", sa, "--json", NULL};
-        char *o = run(0, NULL, cv);
+        char *o = ts_mimic_expect(0, NULL, cv);
         json_error_t je;
         cover[u] = json_loads(o, 0, &je);
         assert_non_null(cover[u]);
@@ -243,11 +224,11 @@ static void test_override_and_refusals(void **s)
     (void)s;
     char *spec = write_take("z", 3, 3), *fr = ts_path(dir, "given.jsonl"), *e = NULL;
     const char *given[] = {"pairs", "export", "--pair", spec, "--up", "z", "-o", fr, NULL};
-    free(run(0, &e, given));
+    free(ts_mimic_expect(0, &e, given));
     assert_null(strstr(e, "is up"));
     free(e);
     const char *wrong[] = {"pairs", "export", "--pair", spec, "--up", "y", "-o", fr, NULL};
-    free(run(0, NULL, wrong));
+    free(ts_mimic_expect(0, NULL, wrong));
     json_t *j = load(fr);
     json_t *J = json_object_get(json_array_get(j, 1), "joints");
     double head_z = json_number_value(json_array_get(json_array_get(J, 0), 2));
@@ -256,20 +237,20 @@ static void test_override_and_refusals(void **s)
     json_decref(j);
 
     const char *bad[] = {"pairs", "export", "--pair", spec, "--up", "w", "-o", fr, NULL};
-    free(run(2, &e, bad));
+    free(ts_mimic_expect(2, &e, bad));
     assert_non_null(strstr(e, "mimic pairs export: --up 'w': give x, y, z, -x, -y or -z"));
     assert_null(strchr(strchr(e, '\n') + 1, '\n')); /* one line */
     free(e);
 
     char *mixed = write_take("mixed", 3, 2);
     const char *mx[] = {"pairs", "export", "--pair", mixed, "-o", fr, NULL};
-    free(run(1, &e, mx));
+    free(ts_mimic_expect(1, &e, mx));
     assert_non_null(strstr(e, "mixed_a.bvh is +z up and "));
     assert_non_null(strstr(e, "mixed_b.bvh +y up: give --up"));
     free(e);
     /* --up settles it (the second file then lies down, as told) */
     const char *mx2[] = {"pairs", "export", "--pair", mixed, "--up", "z", "-o", fr, NULL};
-    free(run(0, NULL, mx2));
+    free(ts_mimic_expect(0, NULL, mx2));
     free(spec), free(mixed), free(fr);
 }
 

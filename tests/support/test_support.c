@@ -67,6 +67,16 @@ int ts_truncate(const char *path, size_t keep) { return truncate(path, (off_t)ke
 
 int ts_run_mimic(char **out, char **err, const char *const *args) { return ts_run_mimic_peak(out, err, args, NULL); }
 
+char *ts_mimic_expect(int want, char **err, const char *const *args)
+{
+    char *o = NULL, *e = NULL;
+    int rc = ts_run_mimic(&o, &e, args);
+    if (rc != want) fail_msg("mimic %s %s: exit %d, not %d: %s", args[0], args[1] ? args[1] : "", rc, want, e ? e : "");
+    if (err) *err = e;
+    else free(e);
+    return o;
+}
+
 int ts_run_mimic_peak(char **out, char **err, const char *const *args, long *peak_kib)
 {
     char *dir = ts_tempdir("run");

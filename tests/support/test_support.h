@@ -20,6 +20,9 @@ char *ts_path(const char *dir, const char *name);
 /* Runs `$MIMIC_BIN args...` (args is a shell-free argv, NULL-terminated).
  * Captures stdout and stderr (malloc'd, NUL-terminated; may be NULL args). */
 int ts_run_mimic(char **out, char **err, const char *const *args);
+/* Runs mimic, fails the test unless it exits `want`; returns its stdout
+ * (malloc'd) and, when err is not NULL, its stderr (malloc'd, else freed). */
+char *ts_mimic_expect(int want, char **err, const char *const *args);
 /* The same, and the peak resident size of the mimic process in KiB (its
  * ru_maxrss; the fork's copy of this process counts too, so compare two
  * runs from the same state). */
