@@ -130,8 +130,6 @@ int mim_cmd_pairs_complete(int argc, char **argv)
     o.k = (uint32_t)k;
     mim_pairs_samples_t in = {0}, smp = {0};
     double *out = NULL;
-    char *text = NULL;
-    size_t len = 0, cap = 0;
     int status = 1;
     if (read_set(in_path, &in) || read_set(samples_path, &smp)) goto done;
     out = malloc((size_t)in.n * 3 * N * sizeof *out);
@@ -159,26 +157,7 @@ int mim_cmd_pairs_complete(int argc, char **argv)
                 moved += sqrt(d2), filled++;
             }
     }
-    /* the completed pairs, atomically */
-    char *head = mim_pairs_jsonl_header();
-    for (int64_t p = -1; head && p < (int64_t)in.n; p++) {
-        char *line = p < 0 ? strdup(head) : mim_pairs_jsonl_line(out + (size_t)p * 3 * N, in.log_density[p]);
-        size_t l = line ? strlen(line) : 0;
-        if (line && len + l + 2 > cap) {
-            char *g = realloc(text, cap = 2 * (len + l + 2));
-            if (!g) free(line), line = NULL;
-            else text = g;
-        }
-        if (!line) {
-            fprintf(stderr, "mimic " CMD ": out of memory for the completed pose-pairs\n");
-            free(head);
-            goto done;
-        }
-        memcpy(text + len, line, l), len += l, text[len++] = '\n';
-        free(line);
-    }
-    free(head);
-    if (!text || mim_cli_pairs_write(CMD, out_path, text, len)) goto done;
+    if (mim_cli_pairs_write_samples(CMD, out_path, out, in.log_density, in.n)) goto done;
     const double mean = filled ? moved / filled : 0;
     if (as_json) {
         json_t *j = json_pack("{s:I, s:I, s:I, s:s, s:I, s:f}", "pairs", (json_int_t)in.n, "joints",
@@ -195,7 +174,7 @@ int mim_cmd_pairs_complete(int argc, char **argv)
     }
     status = 0;
 done:
-    free(out), free(text);
+    free(out);
     mim_pairs_samples_free(&in);
     mim_pairs_samples_free(&smp);
     return status;
