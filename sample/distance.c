@@ -43,23 +43,29 @@ static double det3(const double m[9])
 }
 
 /* Kabsch: the rotation R (column-major dim x dim) and the centroids ca, cb
- * of the least-squares fit a ~ ca + R (b - cb) over the joints with use[i]
- * (NULL: all). */
+ * of the least-squares fit a ~ ca + R (b - cb) over the joints, each
+ * weighted by use[i] (NULL: all alike; 0: left out). */
 static void fit(const double *a, const double *b, int dim, const uint8_t *use, double R[9], double ca[3], double cb[3])
 {
     const int n = MIM_PAIR_JOINTS;
     int used = 0;
-    for (int i = 0; i < n; i++) used += !use || use[i];
+    for (int i = 0; i < n; i++) used += use ? use[i] : 1;
     ca[0] = ca[1] = ca[2] = cb[0] = cb[1] = cb[2] = 0;
-    for (int i = 0; i < n; i++)
-        if (!use || use[i])
+    if (!use) /* the plain fit: every joint once, in this order (coverage's figures depend on it) */
+        for (int i = 0; i < n; i++)
             for (int c = 0; c < dim; c++) ca[c] += a[dim * i + c] / used, cb[c] += b[dim * i + c] / used;
-    /* H = sum (b - cb)(a - ca)^T, column-major dim x dim; R = V U^T of H = U S V^T */
+    else
+        for (int i = 0; i < n; i++)
+            for (int c = 0; c < dim && use[i]; c++)
+                ca[c] += use[i] * a[dim * i + c] / used, cb[c] += use[i] * b[dim * i + c] / used;
+    /* H = sum w (b - cb)(a - ca)^T, column-major dim x dim; R = V U^T of H = U S V^T */
     double H[9] = {0}, U[9], Vt[9], s[3], superb[2];
-    for (int i = 0; i < n; i++)
-        if (!use || use[i])
+    for (int i = 0; i < n; i++) {
+        const double w = use ? use[i] : 1;
+        if (w > 0)
             for (int r = 0; r < dim; r++)
-                for (int c = 0; c < dim; c++) H[dim * c + r] += (b[dim * i + r] - cb[r]) * (a[dim * i + c] - ca[c]);
+                for (int c = 0; c < dim; c++) H[dim * c + r] += w * (b[dim * i + r] - cb[r]) * (a[dim * i + c] - ca[c]);
+    }
     memset(R, 0, 9 * sizeof *R);
     if (LAPACKE_dgesvd(LAPACK_COL_MAJOR, 'A', 'A', dim, dim, H, dim, s, U, dim, Vt, dim, superb) == 0) {
         /* d keeps R a rotation (no reflection) */

@@ -103,9 +103,9 @@ double mim_ic_distance(const double *a, const mim_ic_t *ta, const double *b, con
 /* The least-squares rigid motion (rotation, no reflection, and translation)
  * that brings b onto a over the 34 joints (dim 2 or 3), applied: b_aligned. */
 void mim_sample_align(const double *a, const double *b, int dim, double *b_aligned);
-/* The same fit in 3D over the joints with use[i] (NULL: all 34; at least
- * 3 not on one line for a unique answer) as a rotation R (row-major) and
- * a translation t: a_i ~ R b_i + t. */
+/* The same fit in 3D, each joint weighted by use[i] (NULL: all 34 alike;
+ * 0: left out; at least 3 weighted joints not on one line for a unique
+ * answer), as a rotation R (row-major) and a translation t: a_i ~ R b_i + t. */
 void mim_sample_rigid_fit(const double *a, const double *b, const uint8_t *use, double R[9], double t[3]);
 
 typedef enum mim_sample_metric { MIM_METRIC_IC = 0, MIM_METRIC_CARTESIAN = 1, MIM_METRIC_SHAPE = 2 } mim_sample_metric_t;

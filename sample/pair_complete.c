@@ -3,8 +3,10 @@
  * samples of the interaction.
  *
  * Matching: each sample is fitted rigidly onto the seen joints (Kabsch over
- * them); its residual (RMS over the seen joints) ranks it, and the k best
- * are kept. With match PERSON only the joints seen on the missing joint's
+ * them, the other person's joints at a quarter of the weight of the
+ * missing joint's own person's: the other person places the arm, but its
+ * own body says most about how the person stands); its residual (weighted
+ * RMS over the seen joints) ranks it, and the k best are kept. With match PERSON only the joints seen on the missing joint's
  * own person count (single-person completion, the baseline): the other
  * person then says nothing about where the arm goes.
  *
@@ -24,6 +26,8 @@
 #define N MIM_PAIR_JOINTS
 #define EPS_M 0.01 /* metres: a residual this small counts as this, so one exact match does not stand alone */
 #define NEAR_M 0.05 /* metres added to an offset's length before its weight: a joint on top of j is not infinitely sure */
+#define OWN_WEIGHT 4 /* in the fit, a joint of the missing joint's own person */
+#define OTHER_WEIGHT 1 /* ... and one of the other person (bench/pairs_complete.sh: 1, 2, 4 tried) */
 
 typedef struct kept {
     double res;
@@ -54,13 +58,13 @@ int mim_pairs_complete(const double *samples, uint32_t n, const double *pair, co
     for (int p = 0; p < 2; p++) {
         if (!persons_missing[p]) continue;
         uint8_t use[N];
-        int used = 0;
+        int used = 0, wsum_fit = 0;
         for (int i = 0; i < N; i++) {
             const int own = (i >= MIM_PAIR_PERSON_JOINTS) == p;
-            use[i] = !missing[i] && (!(o && o->person_only) || own);
+            use[i] = !missing[i] && (!(o && o->person_only) || own) ? (own ? OWN_WEIGHT : OTHER_WEIGHT) : 0;
             for (int c = 0; c < 3 && use[i]; c++)
                 if (!isfinite(pair[3 * i + c])) return MIM_ENONFINITE;
-            used += use[i];
+            used += use[i] > 0, wsum_fit += use[i];
         }
         if (used < 3) return MIM_EEMPTY;
         kept_t list[MIM_PAIRS_COMPLETE_MAX_K];
@@ -74,9 +78,9 @@ int mim_pairs_complete(const double *samples, uint32_t n, const double *pair, co
                     for (int r = 0; r < 3; r++) {
                         double v = x.t[r] - pair[3 * i + r];
                         for (int c = 0; c < 3; c++) v += x.R[3 * r + c] * b[3 * i + c];
-                        x.res += v * v;
+                        x.res += use[i] * v * v;
                     }
-            x.res = sqrt(x.res / used);
+            x.res = sqrt(x.res / wsum_fit);
             if (isfinite(x.res)) keep(list, &len, k, &x);
         }
         if (!len) return MIM_ENOTFOUND;
