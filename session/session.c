@@ -1072,11 +1072,11 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
         xo.max_iterations = 1, xo.start = NULL;
     else if (r->relative && !xo.max_iterations) /* later solves' frames are worse than the turned rest frames */
         xo.max_iterations = MIM_SESSION_RELATIVE_ITERATIONS;
-    double tw = 0; /* the blend's shares */
+    double tw = 0; /* the blend's shares; a weight that is not positive counts 0, and with none the first's */
     for (uint32_t j = 0; j < r->n_templates; j++)
-        tw += r->n_templates > 1 && isfinite(weights[j]) && weights[j] > 0 ? weights[j] : 0;
+        tw += isfinite(weights[j]) && weights[j] > 0 ? weights[j] : 0;
     for (uint32_t j = 0; j < r->n_templates; j++)
-        r->weights[j] = tw > 0 ? (isfinite(weights[j]) && weights[j] > 0 ? weights[j] / tw : 0) : j == 0; /* none: the first's */
+        r->weights[j] = tw > 0 ? (isfinite(weights[j]) && weights[j] > 0 ? weights[j] / tw : 0) : j == 0;
     r->warm_started = xo.start != NULL;
     if (!rc && offsets)
         rc = mim_xfer_transfer_offsets(s->solver, W, n, offsets, u, nl, &xo, out, &r->xfer, err);
