@@ -28,11 +28,24 @@
  * bounds with A's own frames and encoding in the pose. The references and
  * their scales are per avatar and subject, computed outside the timing.
  *
- * usage: bench_blend_accuracy [--vertices N] [--mh DIR | --no-mh] [--iterations N] [--settle S]
- *                             [--new-only] [--other-pose] [--no-rest-ref]
+ * Gated relative rows (issue 29, --gated-only runs these alone): the
+ * session's path (relative over the hits whose references stand within
+ * MIM_SESSION_RELATIVE_GATE_DEG of A's rest, else plain), its default with
+ * the session's constants, and the candidates measured for it: weights
+ * 1/d^p and by build (mim_xfer_build_distance), k, the gate, the segment
+ * correction on relative frames and its change version, the encoding's
+ * scale per segment or vertex, a one-ring map on A's W, a cap on the
+ * solves; bounds that say whether frames or encoding carry the error; and
+ * each gated row's mean by query pose.
+ *
+ * usage: bench_blend_accuracy [--vertices N] [--mh DIR | --no-mh] [--no-imitation] [--iterations N]
+ *                             [--settle S] [--damping D] [--new-only] [--gated-only] [--other-pose]
+ *                             [--no-rest-ref]
  *   --iterations N: N solves, no early stop (default: mimic's iteration)
  *   --settle S: mim_xfer_options_t.settle (< 0: none, as before issue 31)
+ *   --damping D: mim_xfer_options_t.damping (0: mimic's)
  *   --new-only: of the plain rows only the nearest and 2 nearest by 1/distance
+ *   --gated-only: only the gated relative rows (the session's path since issue 29) and their candidates
  *   --other-pose: templates from poses other than the query's (all-angle 1-NN)
  *   --no-rest-ref: references from poses other than A's rest */
 #include "bench_data.h"
@@ -57,6 +70,7 @@ static const char *const extra_names[N_EXTRA] = {
     "avatar's rest frames turned by the landmark skeleton's segment rotations",
     "those, blended with the nearest template's (equal weights)"};
 #define MAX_RUNS 4096
+#define MAX_POSES 64
 /* Deformation transfer of the frames (mim_xfer_frames_relative): each
  * template's turn from its subject's reference template (the index's hit
  * of that subject for A's rest landmarks) to the pose, on A's rest frames. */
@@ -75,14 +89,38 @@ enum { FR_TEMPLATE, FR_RELATIVE, FR_RELATIVE_Q, FR_GATED, FR_GATED_ALL, FR_TRUTH
  * out of the blend), the plain path over all hits when none does: a
  * reference that stands otherwise is another body's way of moving. */
 #define GATE_ALL_DEG MIM_SESSION_RELATIVE_GATE_DEG
-enum { EN_REST, EN_DELTA, EN_DELTA_SCALED, EN_DELTA_ROT, EN_TRUTH }; /* A's encoding */
+/* A's encoding; EN_DELTA_SEG: each change scaled per segment of A's skin
+ * (rms of A's W over the rms of the reference's there, blended by the
+ * skin's weights); EN_DELTA_LOCAL: per vertex, the global scale times
+ * sqrt((|W_A|^2 + c) / (s^2 |W_ref|^2 + c)), c the mean |W_A|^2 */
+/* EN_AFFINE: each template's one-ring deformation from its reference to
+ * the pose, fitted per vertex in the local frames (G = B A^T (A A^T)^-1,
+ * A and B the ring's edges), applied to A's own W: G W_A (W is linear in
+ * the ring's edges: the uniform Laplacian) */
+enum { EN_REST, EN_DELTA, EN_DELTA_SCALED, EN_DELTA_ROT, EN_TRUTH, EN_DELTA_SEG, EN_DELTA_LOCAL, EN_AFFINE };
 enum { ORD_INDEX, ORD_SHAPE }; /* the hits in the index's order, or by rest build nearest A's */
+/* corrections of the gated relative rows (issue 29): none; the session's
+ * segment correction (each template's landmark skeleton onto the targets,
+ * on its relative frames); the change version (the avatar's turn from its
+ * rest landmarks to the targets against the template's from its
+ * reference's landmarks, R_A R_T^-1, which leaves body shape out) */
+enum { CO_NONE, CO_SEGMENT, CO_CHANGE };
 typedef struct {
     uint32_t k;
     int weighting, frames, enc;
     const char *name;
     int order;
+    double power;   /* FR_GATED_ALL: weights 1/d^power (0: 1) */
+    double gate;    /* FR_GATED_ALL: the gate in degrees (0: GATE_ALL_DEG) */
+    int correct;    /* CO_* */
+    int gated_set;  /* run with --gated-only */
+    double mu;      /* EN_AFFINE's pull towards the identity */
+    double build_power; /* FR_GATED_ALL: weights also 1/build distance^build_power (0: not) */
+    uint32_t max_iter;  /* on the relative path: at most this many solves unless --iterations (0: mimic's) */
 } rel_method_t;
+/* rows give the fields they set; the rest are 0 (the table predates them) */
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmissing-field-initializers"
 static const rel_method_t rel_methods[] = {
     {1, W_EQUAL, FR_RELATIVE, EN_REST, "relative frames, nearest template", ORD_INDEX},
     {2, W_INVERSE, FR_RELATIVE, EN_REST, "relative frames, 2 nearest, 1/distance", ORD_INDEX},
@@ -111,9 +149,54 @@ static const rel_method_t rel_methods[] = {
     {2, W_INVERSE, FR_RELATIVE_Q, EN_DELTA_SCALED, "encoding change scaled + relative frames via the reference's skeleton, 2 nearest", ORD_INDEX},
     {1, W_EQUAL, FR_GATED, EN_DELTA_SCALED, "encoding change scaled + relative frames if the reference is within 8 deg rms of A's rest, nearest", ORD_INDEX},
     {1, W_EQUAL, FR_GATED_ALL, EN_DELTA_SCALED, "relative over the hits whose references are within the gate, else plain; nearest", ORD_INDEX},
-    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "relative over the hits whose references are within the gate, else plain; 3 nearest, 1/distance", ORD_INDEX},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "relative over the hits whose references are within the gate, else plain; 3 nearest, 1/distance (the default before)", ORD_INDEX, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the same, relative weights 1/distance^2 x 1/build distance^2, at most 2 solves (the session's default)", ORD_INDEX, .power = MIM_SESSION_RELATIVE_DISTANCE_POWER, .build_power = MIM_SESSION_RELATIVE_BUILD_POWER, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the same, relative weights 1/distance^2 x 1/build distance^2, mimic's iteration", ORD_INDEX, .power = MIM_SESSION_RELATIVE_DISTANCE_POWER, .build_power = MIM_SESSION_RELATIVE_BUILD_POWER, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the same, 1/distance, at most 2 solves", ORD_INDEX, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .gated_set = 1},
+    {1, W_EQUAL, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, nearest, at most 2 solves", ORD_INDEX, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .gated_set = 1},
+    /* issue 29, "figures to reach": candidates on the gated relative path, and where its error comes from */
+    {1, W_EQUAL, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, nearest (the old default on one-rig sets)", ORD_INDEX, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_TRUTH, "bound: gated relative frames (3 nearest), A's own encoding in the pose", ORD_INDEX, .gated_set = 1},
+    {3, W_INVERSE, FR_TRUTH, EN_DELTA_SCALED, "bound: A's own frames, gated relative encoding (3 nearest)", ORD_INDEX, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest + segment correction", ORD_INDEX, .correct = CO_SEGMENT, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest + change correction", ORD_INDEX, .correct = CO_CHANGE, .gated_set = 1},
+    {1, W_EQUAL, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, nearest + change correction", ORD_INDEX, .correct = CO_CHANGE, .gated_set = 1},
+    {2, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 2 nearest, 1/distance", ORD_INDEX, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance^2", ORD_INDEX, .power = 2, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance^4", ORD_INDEX, .power = 4, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance, gate 3 deg", ORD_INDEX, .gate = 3, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance, gate 4 deg", ORD_INDEX, .gate = 4, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA, "gated relative, 3 nearest, encoding change unscaled", ORD_INDEX, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_ROT, "gated relative, 3 nearest, encoding change in A's frames", ORD_INDEX, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SEG, "gated relative, 3 nearest, encoding change scaled per segment", ORD_INDEX, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_LOCAL, "gated relative, 3 nearest, encoding change scaled per vertex", ORD_INDEX, .gated_set = 1},
+    {1, W_EQUAL, FR_GATED_ALL, EN_DELTA_SEG, "gated relative, nearest, encoding change scaled per segment", ORD_INDEX, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_AFFINE, "gated relative, 3 nearest, ring map on A's W (mu 0.01)", ORD_INDEX, .mu = 0.01, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_AFFINE, "gated relative, 3 nearest, ring map on A's W (mu 0.1)", ORD_INDEX, .mu = 0.1, .gated_set = 1},
+    {1, W_EQUAL, FR_GATED_ALL, EN_AFFINE, "gated relative, nearest, ring map on A's W (mu 0.01)", ORD_INDEX, .mu = 0.01, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance^3", ORD_INDEX, .power = 3, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance^8", ORD_INDEX, .power = 8, .gated_set = 1},
+    {5, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 5 nearest, 1/distance^4", ORD_INDEX, .power = 4, .gated_set = 1},
+    {K_ASK, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, all hits, 1/distance^4", ORD_INDEX, .power = 4, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance^4, gate 6 deg", ORD_INDEX, .power = 4, .gate = 6, .gated_set = 1},
+    {3, W_EQUAL, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest builds, 1/build distance^4", ORD_SHAPE, .build_power = 4, .gated_set = 1},
+    {K_ASK, W_EQUAL, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, all hits, 1/build distance^4", ORD_SHAPE, .build_power = 4, .gated_set = 1},
+    {1, W_EQUAL, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, nearest build", ORD_SHAPE, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance^2 x 1/build distance^2", ORD_INDEX, .power = 2, .build_power = 2, .gated_set = 1},
+    {K_ASK, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, all hits, 1/distance^4 x 1/build distance^4", ORD_INDEX, .power = 4, .build_power = 4, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance^1 x 1/build distance^1", ORD_INDEX, .power = 1, .build_power = 1, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance^2 x 1/build distance^1", ORD_INDEX, .power = 2, .build_power = 1, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance^1 x 1/build distance^2", ORD_INDEX, .power = 1, .build_power = 2, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance^3 x 1/build distance^1", ORD_INDEX, .power = 3, .build_power = 1, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance^3 x 1/build distance^3", ORD_INDEX, .power = 3, .build_power = 3, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance^4 x 1/build distance^2", ORD_INDEX, .power = 4, .build_power = 2, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 3 nearest, 1/distance^2 x 1/build distance^4", ORD_INDEX, .power = 2, .build_power = 4, .gated_set = 1},
+    {K_ASK, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, all hits, 1/distance^2 x 1/build distance^2", ORD_INDEX, .power = 2, .build_power = 2, .gated_set = 1},
+    {2, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 2 nearest, 1/distance^2 x 1/build distance^2", ORD_INDEX, .power = 2, .build_power = 2, .gated_set = 1},
+    {5, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, 5 nearest, 1/distance^2 x 1/build distance^2", ORD_INDEX, .power = 2, .build_power = 2, .gated_set = 1},
 };
-static int new_only;
+#pragma GCC diagnostic pop
+static int new_only, gated_only;
 /* Robustness (both off by default):
  * other_pose: the templates are the other subjects' nearest over all
  * angles whose pose is NOT the query's (a store without the exact pose);
@@ -152,27 +235,6 @@ static uint32_t nearest_by_angles(const float *ang, uint32_t na, const float *qa
     return got;
 }
 
-/* How unlike two bodies' builds are: their rest landmarks' pairwise
- * distances, each set divided by its mean, compared (scale-free). */
-static double build_distance(const float *a, const float *b, uint32_t L)
-{
-    double sa = 0, sb = 0, d = 0;
-    for (int pass = 0; pass < 2; pass++)
-        for (uint32_t i = 0; i < L; i++)
-            for (uint32_t j = i + 1; j < L; j++) {
-                double da = 0, db = 0;
-                for (int c = 0; c < 3; c++)
-                    da += (a[3 * i + c] - a[3 * j + c]) * (a[3 * i + c] - a[3 * j + c]),
-                        db += (b[3 * i + c] - b[3 * j + c]) * (b[3 * i + c] - b[3 * j + c]);
-                da = sqrt(da), db = sqrt(db);
-                if (!pass)
-                    sa += da, sb += db;
-                else
-                    d += (da / sa - db / sb) * (da / sa - db / sb);
-            }
-    return sqrt(d);
-}
-
 /* delta W of template j in A's frames: C^T (W_pose - W_ref), C = R^T A, times s. */
 static void add_rotated(uint32_t n, const double *Wp, const double *Wr, const double *R, const double *A, double c,
                         double *out)
@@ -187,6 +249,76 @@ static void add_rotated(uint32_t n, const double *Wp, const double *Wr, const do
             out[3 * i + k] += c * (av[3 * k] * g[0] + av[3 * k + 1] * g[1] + av[3 * k + 2] * g[2]);
     }
 }
+/* out += c * s_i (Wp - Wr), s_i per vertex as EN_DELTA_SEG or EN_DELTA_LOCAL say (sg: the global scale) */
+static void add_local(uint32_t n, int enc, const double *Wp, const double *Wr, const double *WA,
+                      const mim_xfer_skin_t *skin, double sg, double c, double *out)
+{
+    double sA[MIM_XFER_SKIN_MAX_BONES] = {0}, sR[MIM_XFER_SKIN_MAX_BONES] = {0}, mA = 0;
+    for (size_t i = 0; i < n; i++) {
+        double a2 = WA[3 * i] * WA[3 * i] + WA[3 * i + 1] * WA[3 * i + 1] + WA[3 * i + 2] * WA[3 * i + 2];
+        double r2 = Wr[3 * i] * Wr[3 * i] + Wr[3 * i + 1] * Wr[3 * i + 1] + Wr[3 * i + 2] * Wr[3 * i + 2];
+        sA[skin[i].bone[0]] += a2, sR[skin[i].bone[0]] += r2, mA += a2 / n;
+    }
+    if (!isfinite(sg)) sg = 1;
+    for (size_t i = 0; i < n; i++) {
+        double si = 0;
+        if (enc == EN_DELTA_SEG) {
+            for (int k = 0; k < MIM_XFER_SKIN_INFLUENCES; k++)
+                si += skin[i].weight[k] * (sR[skin[i].bone[k]] > 0 ? sqrt(sA[skin[i].bone[k]] / sR[skin[i].bone[k]]) : sg);
+        } else {
+            double a2 = WA[3 * i] * WA[3 * i] + WA[3 * i + 1] * WA[3 * i + 1] + WA[3 * i + 2] * WA[3 * i + 2];
+            double r2 = Wr[3 * i] * Wr[3 * i] + Wr[3 * i + 1] * Wr[3 * i + 1] + Wr[3 * i + 2] * Wr[3 * i + 2];
+            si = sg * sqrt((a2 + mA) / (sg * sg * r2 + mA));
+        }
+        for (int k = 0; k < 3; k++)
+            out[3 * i + k] += c * si * (Wp[3 * i + k] - Wr[3 * i + k]);
+    }
+}
+/* out += c (G_i W_A,i - W_A,i), G_i the ring's map from the reference (positions xr, frames Fr) to the
+ * pose (xp, Fp), pulled towards the identity by mu times the ring's mean squared edge */
+static void add_affine(const mim_xfer_topology_t *topo, uint32_t n, const float *xr, const double *Fr,
+                       const float *xp, const double *Fp, const double *WA, double mu, double c, double *out)
+{
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t deg;
+        const uint32_t *nb = mim_xfer_neighbors(topo, i, &deg);
+        double AA[9] = {0}, BA[9] = {0}, e2 = 0; /* row-major 3x3 */
+        const double *fr = Fr + 9 * (size_t)i, *fp = Fp + 9 * (size_t)i;
+        for (uint32_t k = 0; k < deg; k++) {
+            const uint32_t j = nb[k];
+            double er[3], ep[3], a[3], b[3];
+            for (int c3 = 0; c3 < 3; c3++)
+                er[c3] = (double)xr[3 * j + c3] - xr[3 * i + c3], ep[c3] = (double)xp[3 * j + c3] - xp[3 * i + c3];
+            for (int r = 0; r < 3; r++) /* F^T e: column r of F dotted with e */
+                a[r] = fr[3 * r] * er[0] + fr[3 * r + 1] * er[1] + fr[3 * r + 2] * er[2],
+                b[r] = fp[3 * r] * ep[0] + fp[3 * r + 1] * ep[1] + fp[3 * r + 2] * ep[2];
+            for (int r = 0; r < 3; r++)
+                for (int q = 0; q < 3; q++)
+                    AA[3 * r + q] += a[r] * a[q], BA[3 * r + q] += b[r] * a[q];
+            e2 += a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
+        }
+        const double lam = deg ? mu * e2 / deg : 1;
+        for (int r = 0; r < 3; r++)
+            AA[4 * r] += lam, BA[4 * r] += lam;
+        /* G = BA AA^-1 */
+        double inv[9], det = AA[0] * (AA[4] * AA[8] - AA[5] * AA[7]) - AA[1] * (AA[3] * AA[8] - AA[5] * AA[6]) +
+                             AA[2] * (AA[3] * AA[7] - AA[4] * AA[6]);
+        inv[0] = (AA[4] * AA[8] - AA[5] * AA[7]) / det, inv[1] = (AA[2] * AA[7] - AA[1] * AA[8]) / det,
+        inv[2] = (AA[1] * AA[5] - AA[2] * AA[4]) / det, inv[3] = (AA[5] * AA[6] - AA[3] * AA[8]) / det,
+        inv[4] = (AA[0] * AA[8] - AA[2] * AA[6]) / det, inv[5] = (AA[2] * AA[3] - AA[0] * AA[5]) / det,
+        inv[6] = (AA[3] * AA[7] - AA[4] * AA[6]) / det, inv[7] = (AA[1] * AA[6] - AA[0] * AA[7]) / det,
+        inv[8] = (AA[0] * AA[4] - AA[1] * AA[3]) / det;
+        const double *w = WA + 3 * (size_t)i;
+        for (int r = 0; r < 3; r++) {
+            double g = 0;
+            for (int q = 0; q < 3; q++) {
+                double G = BA[3 * r] * inv[q] + BA[3 * r + 1] * inv[3 + q] + BA[3 * r + 2] * inv[6 + q];
+                g += G * w[q];
+            }
+            out[3 * (size_t)i + r] += c * (g - w[r]);
+        }
+    }
+}
 #define N_REL (sizeof rel_methods / sizeof rel_methods[0])
 #define N_ROWS (N_METHOD + N_EXTRA + N_REL)
 
@@ -197,6 +329,8 @@ typedef struct row {
     double *t_prep, *t_key;
     uint32_t runs;
     uint64_t solves;
+    double psum[MAX_POSES]; /* by the query's pose */
+    uint64_t pcnt[MAX_POSES];
 } row_t;
 
 static int method_index(uint32_t ki, int weighting, int corrected)
@@ -223,8 +357,8 @@ static int cmp_double(const void *a, const void *b)
 }
 
 /* One key frame's errors and times (t0 .. t1 the frames, .. t2 the solve). */
-static void record(row_t *r, const float *out, const float *truth, const uint8_t *region, uint32_t n, double t0,
-                   double t1, double t2, const mim_xfer_report_t *rep)
+static void record(row_t *r, const float *out, const float *truth, const uint8_t *region, uint32_t n, uint32_t pose,
+                   double t0, double t1, double t2, const mim_xfer_report_t *rep)
 {
     r->solves += rep->iterations;
     if (r->runs < MAX_RUNS)
@@ -235,6 +369,8 @@ static void record(row_t *r, const float *out, const float *truth, const uint8_t
         double mm = 1000 * sqrt(dx * dx + dy * dy + dz * dz);
         bench_err_add_mm(&r->e, mm);
         r->rsum[region[i]] += mm, r->rcnt[region[i]]++;
+        if (pose < MAX_POSES)
+            r->psum[pose] += mm, r->pcnt[pose]++;
     }
 }
 
@@ -289,6 +425,7 @@ static int run_set(const bench_dataset_t *d, void *user)
     double *W = malloc(3 * sizeof(double) * n), *Wx = malloc(3 * sizeof(double) * n), *Fa = malloc(9 * sizeof(double) * n);
     int near_of[64];     /* per subject: its reference's pose is near A's rest (FR_GATED) */
     int near_all_of[64]; /* the same within GATE_ALL_DEG (FR_GATED_ALL) */
+    double ref_rms_of[64]; /* per subject: its reference's rms angle from A's rest (radians) */
     double scale_of[64]; /* per subject, as a session caches it with the reference */
     uint32_t ref_of[64], ref_misses = 0, rest_right = 0;
     double *Fc[K_ASK], *Fb = malloc(9 * sizeof(double) * n);
@@ -372,10 +509,11 @@ static int run_set(const bench_dataset_t *d, void *user)
             for (uint32_t s = 0; s < S && s < 64; s++)
                 scale_of[s] = s == a ? 1.0 : mim_xfer_encoding_scale(n, WT[a * P], WT[ref_of[s]]);
             for (uint32_t s = 0; s < S && s < 64; s++) {
-                near_of[s] = near_all_of[s] = 0;
+                near_of[s] = near_all_of[s] = 0, ref_rms_of[s] = INFINITY;
                 if (s == a) continue;
                 const double rms = angle_distance(ang + (size_t)na * ref_of[s], ang + (size_t)na * (a * P), na) /
                                    sqrt((double)na);
+                ref_rms_of[s] = rms;
                 near_of[s] = rms < GATE_DEG * M_PI / 180;
                 near_all_of[s] = rms < GATE_ALL_DEG * M_PI / 180;
             }
@@ -401,7 +539,7 @@ static int run_set(const bench_dataset_t *d, void *user)
                     for (int corrected = 0; corrected < 2; corrected++) {
                         if (ks[ki] == 1 && wt != W_EQUAL)
                             continue;
-                        if (new_only && (corrected || !(ks[ki] == 1 || (ks[ki] == 2 && wt == W_INVERSE))))
+                        if (gated_only || (new_only && (corrected || !(ks[ki] == 1 || (ks[ki] == 2 && wt == W_INVERSE)))))
                             continue;
                         row_t *r = &rows[method_index(ki, wt, corrected)];
                         uint32_t k = ks[ki] < ans.n_hits ? ks[ki] : ans.n_hits;
@@ -432,11 +570,11 @@ static int run_set(const bench_dataset_t *d, void *user)
                             mim_index_close(&ix);
                             goto fail;
                         }
-                        record(r, out, truth, region, n, t0, t1, mim_now(), &rep);
+                        record(r, out, truth, region, n, p, t0, t1, mim_now(), &rep);
                     }
             /* the avatar's own frames, turned as its landmark skeleton
              * onto the targets (no template); then blended with the nearest */
-            for (int x = 0; x < N_EXTRA && !new_only; x++) {
+            for (int x = 0; x < N_EXTRA && !new_only && !gated_only; x++) {
                 double t0 = mim_now();
                 mim_quat R[MIM_SEGMENTS];
                 if (mim_xfer_segment_correction(&d->map, lm + 3 * L * (a * P), u, R, &err)) {
@@ -455,13 +593,13 @@ static int run_set(const bench_dataset_t *d, void *user)
                     mim_index_close(&ix);
                     goto fail;
                 }
-                record(&rows[N_METHOD + x], out, truth, region, n, t0, t1, mim_now(), &rep);
+                record(&rows[N_METHOD + x], out, truth, region, n, p, t0, t1, mim_now(), &rep);
             }
             /* the hits by build, nearest A's first (the reference's rest landmarks) */
             mim_index_hit_t by_build[K_ASK];
             double bd[K_ASK];
             for (uint32_t h = 0; h < ans.n_hits; h++) {
-                double dh = build_distance(lm + 3 * L * (a * P), lm + 3 * L * ref_of[(hits[h].id - 1) / P], L);
+                double dh = mim_xfer_build_distance(lm + 3 * L * (a * P), lm + 3 * L * ref_of[(hits[h].id - 1) / P], L);
                 uint32_t at = h;
                 while (at > 0 && bd[at - 1] > dh)
                     bd[at] = bd[at - 1], by_build[at] = by_build[at - 1], at--;
@@ -480,15 +618,29 @@ static int run_set(const bench_dataset_t *d, void *user)
                 double t0 = mim_now();
                 /* FR_GATED_ALL as the session: the hits whose references are near, blended relative; with
                  * none, the plain path over them all */
+                if (gated_only && !rm->gated_set)
+                    continue;
+                const int gated = rm->frames == FR_GATED_ALL || rm->gated_set;
+                const double gate = (rm->gate > 0 ? rm->gate : GATE_ALL_DEG) * M_PI / 180;
                 mim_index_hit_t sel[K_ASK];
                 uint32_t n_sel = 0;
                 for (uint32_t j = 0; j < k; j++)
-                    if (near_all_of[((uint32_t)hh[j].id - 1) / P]) sel[n_sel++] = hh[j];
-                const int plain = rm->frames == FR_GATED_ALL && !n_sel;
-                if (rm->frames == FR_GATED_ALL && n_sel) hh = sel, k = n_sel;
+                    if (ref_rms_of[((uint32_t)hh[j].id - 1) / P] < gate) sel[n_sel++] = hh[j];
+                const int plain = gated && !n_sel;
+                if (gated && n_sel) hh = sel, k = n_sel;
+                mim_quat RA[MIM_SEGMENTS]; /* A's turn from its rest landmarks to the targets (CO_CHANGE) */
+                if (rm->correct == CO_CHANGE && !plain &&
+                    mim_xfer_segment_correction(&d->map, lm + 3 * L * (a * P), u, RA, &err)) {
+                    mim_index_close(&ix);
+                    goto fail;
+                }
                 for (uint32_t j = 0; j < k; j++) {
                     const uint32_t t = (uint32_t)hh[j].id - 1, r = ref_of[t / P];
                     w[j] = rm->weighting == W_EQUAL ? 1.0 : 1.0 / (hh[j].distance + 1e-3);
+                    if (rm->power > 0 && !plain) w[j] = pow(w[j], rm->power); /* the plain path keeps 1/d */
+                    if (rm->build_power > 0 && !plain) /* and by how like A's build the subject's is */
+                        w[j] *= pow(1.0 / (mim_xfer_build_distance(lm + 3 * L * (a * P), lm + 3 * L * r, L) +
+                                           MIM_SESSION_BUILD_DISTANCE_FLOOR), rm->build_power);
                     src[j] = F[t];
                     if (rm->frames == FR_RELATIVE || (rm->frames == FR_GATED && near_of[t / P]) ||
                         (rm->frames == FR_GATED_ALL && !plain)) {
@@ -505,6 +657,21 @@ static int run_set(const bench_dataset_t *d, void *user)
                         src[j] = Fc[j];
                     }
                     wp[j] = WT[t], wr[j] = WT[r], sc[j] = scale_of[t / P];
+                    if (rm->correct != CO_NONE && !plain) {
+                        mim_quat R[MIM_SEGMENTS];
+                        const float *from = rm->correct == CO_SEGMENT ? lm + 3 * L * t : lm + 3 * L * r,
+                                    *to = rm->correct == CO_SEGMENT ? u : lm + 3 * L * t;
+                        if (mim_xfer_segment_correction(&d->map, from, to, R, &err)) {
+                            mim_index_close(&ix);
+                            goto fail;
+                        }
+                        if (rm->correct == CO_CHANGE) /* R_A R_T^-1 */
+                            for (int g = 0; g < MIM_SEGMENTS; g++)
+                                R[g] = mim_quat_normalize(mim_quat_mul(
+                                    RA[g], (mim_quat){-R[g].x, -R[g].y, -R[g].z, R[g].w}));
+                        mim_xfer_skin_frames(n, skin, src[j], R, Fc[j]);
+                        src[j] = Fc[j];
+                    }
                 }
                 const double *frames = rm->frames == FR_TRUTH ? F[q] : src[0];
                 if (k > 1 && rm->frames != FR_TRUTH) {
@@ -515,21 +682,32 @@ static int run_set(const bench_dataset_t *d, void *user)
                 if ((rm->enc == EN_DELTA || rm->enc == EN_DELTA_SCALED) && !plain) {
                     mim_xfer_encoding_relative(n, k, wp, wr, w, rm->enc == EN_DELTA_SCALED ? sc : NULL, W, Wx);
                     Wq = Wx;
-                } else if (rm->enc == EN_DELTA_ROT) {
+                } else if ((rm->enc == EN_DELTA_SEG || rm->enc == EN_DELTA_LOCAL || rm->enc == EN_AFFINE ||
+                            rm->enc == EN_DELTA_ROT) && !plain) { /* each template's change, weighted, onto A's W */
                     double tw = 0;
                     for (uint32_t j = 0; j < k; j++)
                         tw += w[j];
                     memcpy(Wx, W, 3 * sizeof(double) * n);
-                    for (uint32_t j = 0; j < k; j++)
-                        add_rotated(n, wp[j], wr[j], F[ref_of[(hh[j].id - 1) / P]], Fa, w[j] / tw * sc[j], Wx);
+                    for (uint32_t j = 0; j < k; j++) {
+                        const uint32_t t = (uint32_t)hh[j].id - 1, r = ref_of[t / P];
+                        if (rm->enc == EN_AFFINE)
+                            add_affine(topo, n, d->pos[r], F[r], d->pos[t], F[t], W, rm->mu, w[j] / tw, Wx);
+                        else if (rm->enc == EN_DELTA_ROT)
+                            add_rotated(n, wp[j], wr[j], F[r], Fa, w[j] / tw * sc[j], Wx);
+                        else
+                            add_local(n, rm->enc, wp[j], wr[j], W, skin, sc[j], w[j] / tw, Wx);
+                    }
                     Wq = Wx;
                 }
                 double t1 = mim_now();
-                if (mim_xfer_transfer(ls, Wq, n, frames, u, L, xo, out, &rep, &err)) {
+                mim_xfer_options_t xr = *xo;
+                if (rm->max_iter && !plain && !xr.max_iterations)
+                    xr.max_iterations = rm->max_iter;
+                if (mim_xfer_transfer(ls, Wq, n, frames, u, L, &xr, out, &rep, &err)) {
                     mim_index_close(&ix);
                     goto fail;
                 }
-                record(&rows[N_METHOD + N_EXTRA + m], out, truth, region, n, t0, t1, mim_now(), &rep);
+                record(&rows[N_METHOD + N_EXTRA + m], out, truth, region, n, p, t0, t1, mim_now(), &rep);
             }
         }
         mim_index_close(&ix);
@@ -556,10 +734,28 @@ static int run_set(const bench_dataset_t *d, void *user)
                 method_name(ki, wt, corrected, name, sizeof name);
                 print_row(r, name);
             }
-    for (int x = 0; x < N_EXTRA && !new_only; x++)
+    for (int x = 0; x < N_EXTRA && !new_only && !gated_only; x++)
         print_row(&rows[N_METHOD + x], extra_names[x]);
     for (uint32_t m = 0; m < N_REL; m++)
-        print_row(&rows[N_METHOD + N_EXTRA + m], rel_methods[m].name);
+        if (rows[N_METHOD + N_EXTRA + m].runs)
+            print_row(&rows[N_METHOD + N_EXTRA + m], rel_methods[m].name);
+    /* where the error is, by pose (issue 29: before tuning) */
+    printf("\nMean mm by query pose (p1 .. p%u):\n\n| method |", P - 1);
+    for (uint32_t p = 1; p < P && p < MAX_POSES; p++)
+        printf(" p%u |", p);
+    printf("\n|---|");
+    for (uint32_t p = 1; p < P && p < MAX_POSES; p++)
+        printf("---:|");
+    printf("\n");
+    for (uint32_t m = 0; m < N_REL; m++) {
+        const row_t *r = &rows[N_METHOD + N_EXTRA + m];
+        if (!r->runs || !rel_methods[m].gated_set)
+            continue;
+        printf("| %s |", rel_methods[m].name);
+        for (uint32_t p = 1; p < P && p < MAX_POSES; p++)
+            printf(" %.2f |", r->pcnt[p] ? r->psum[p] / (double)r->pcnt[p] : 0.0);
+        printf("\n");
+    }
     if (other_pose)
         printf("\n(--other-pose: the templates are the nearest over all angles in poses other than the query's.)\n");
     if (no_rest_ref)
@@ -599,6 +795,8 @@ int main(int argc, char **argv)
             continue;
         if (!strcmp(argv[i], "--new-only")) {
             new_only = 1;
+        } else if (!strcmp(argv[i], "--gated-only")) {
+            gated_only = 1;
         } else if (!strcmp(argv[i], "--other-pose")) {
             other_pose = 1;
         } else if (!strcmp(argv[i], "--no-rest-ref")) {
@@ -606,10 +804,12 @@ int main(int argc, char **argv)
         } else if (!strcmp(argv[i], "--iterations") && i + 1 < argc) {
             xo.max_iterations = (uint32_t)strtoul(argv[++i], NULL, 10);
             xo.tol = -1, xo.no_early_stop = 1;
+        } else if (!strcmp(argv[i], "--damping") && i + 1 < argc) {
+            xo.damping = strtod(argv[++i], NULL);
         } else if (!strcmp(argv[i], "--settle") && i + 1 < argc) {
             xo.settle = strtod(argv[++i], NULL);
         } else {
-            fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--iterations N] [--settle S] [--new-only] [--other-pose] [--no-rest-ref]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--iterations N] [--settle S] [--damping D] [--new-only] [--gated-only] [--other-pose] [--no-rest-ref]\n", argv[0]);
             return 2;
         }
     }

@@ -50,7 +50,7 @@ static void help(FILE *out)
             "                       avatar's own frames, where that reference stands as the avatar does\n"
             "                       (within %g degrees: one rig's bodies; real people's do not) (default\n"
             "                       on; off: the template's frames, rest W)\n"
-            "  --iterations N       at most N solves (default %u)\n"
+            "  --iterations N       at most N solves (default %u; %u on the relative path)\n"
             "  --tol T              stop when no vertex moves more than T metres (default: %g of the\n"
             "                       landmarks' extent, at least %g)\n"
             "  --formulation F      least-squares (default: the landmark rows stay in the objective)\n"
@@ -59,6 +59,7 @@ static void help(FILE *out)
             "  --json               a JSON report on stdout (schemas/transfer.schema.json)\n"
             "  -h, --help           this help\n",
             MIM_XFER_BLEND_MAX, MIM_SESSION_DEFAULT_BLEND, MIM_SESSION_RELATIVE_GATE_DEG, MIM_XFER_DEFAULT_MAX_ITERATIONS,
+            MIM_SESSION_RELATIVE_ITERATIONS,
             MIM_XFER_DEFAULT_SETTLE, MIM_XFER_DEFAULT_TOL);
 }
 

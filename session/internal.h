@@ -38,6 +38,7 @@ typedef struct subject_ref {
     uint64_t id;
     int near;                   /* its pose within MIM_SESSION_RELATIVE_GATE_DEG rms of the avatar's rest */
     double scale;               /* mim_xfer_encoding_scale (NaN: the blend takes 1) */
+    double build;               /* mim_xfer_build_distance from the avatar's rest landmarks (NaN: unknown) */
     double *W;                  /* its encoding, 3 * n */
     double *F;                  /* its frames, 9 * n; only when near (nothing else reads them) */
     mim_error_t damage;         /* why it has none although the subject has templates: its record is damaged */

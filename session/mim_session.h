@@ -175,8 +175,10 @@ extern const char *const mim_session_drive_names[3];
  * sliding vertices; bench/RESULTS.md "Defaults chosen on the imitation
  * set"), where a real store's held-out scans gained 7 % from blending 3:
  * the 3 nearest, 55.6 mm against 58.5 for the nearest alone. The
- * correction gains 2.4 % more there but was not measured with relative
- * transfer, and cost 1 % on mh-bodies: off. */
+ * correction gains 2.4 % more there on the plain path, but on relative
+ * transfer's it turns the avatar's own turn by another body's landmark
+ * skeleton, far worse on the one-rig sets (bench/RESULTS.md "Relative
+ * transfer on one-rig sets"): off. */
 #define MIM_SESSION_DEFAULT_BLEND 3
 #define MIM_SESSION_BLEND_DISTANCE_FLOOR 1e-3 /* radians: two equal descriptors do not weigh infinitely */
 
@@ -202,6 +204,27 @@ extern const char *const mim_session_drive_names[3];
  * template does. */
 #define MIM_SESSION_DEFAULT_RELATIVE 1
 #define MIM_SESSION_RELATIVE_GATE_DEG 5.0
+/* Relative transfer's blend (templates from the index): each template's
+ * weight is (1 / (query distance + MIM_SESSION_BLEND_DISTANCE_FLOOR)) to
+ * the power MIM_SESSION_RELATIVE_DISTANCE_POWER, times (1 / (build
+ * distance + MIM_SESSION_BUILD_DISTANCE_FLOOR)) to the power
+ * MIM_SESSION_RELATIVE_BUILD_POWER, the build distance being
+ * mim_xfer_build_distance of the avatar's rest landmarks and the
+ * template's reference's. What relative transfer carries over is a body's
+ * change of encoding (its folds), which follows the body's build as well
+ * as the pose; the frames are nearly the avatar's own already, so the
+ * error is in that change (bench/blend_accuracy.c's bounds). Templates
+ * given by id keep equal weights. And the solve stops after
+ * MIM_SESSION_RELATIVE_ITERATIONS solves unless the request sets
+ * xfer.max_iterations: each later solve takes its frames from the last
+ * result, which are worse than the turned rest frames it started from.
+ * Chosen where relative transfer runs, the one-rig sets (synth and
+ * mh-bodies better, the imitation set, which takes the plain path, the
+ * same: bench/RESULTS.md "Relative transfer on one-rig sets"). */
+#define MIM_SESSION_RELATIVE_DISTANCE_POWER 2
+#define MIM_SESSION_RELATIVE_BUILD_POWER 2
+#define MIM_SESSION_BUILD_DISTANCE_FLOOR 1e-3 /* about the least build distance between two people */
+#define MIM_SESSION_RELATIVE_ITERATIONS 2
 typedef struct mim_session_request {
     uint64_t template_id;    /* the pose's template; 0: the nearest one to landmarks, through the index */
     /* Templates to blend, given (n_templates, 1..MIM_XFER_BLEND_MAX; equal
@@ -235,6 +258,7 @@ typedef struct mim_session_report {
     uint64_t template_id;             /* the template whose frames gave the pose (the first blended) */
     uint32_t n_templates;             /* the templates blended (1 for the orientation drive) */
     uint64_t templates[MIM_XFER_BLEND_MAX];
+    double weights[MIM_XFER_BLEND_MAX]; /* each template's share of the blend (n_templates; they sum to 1) */
     int corrected;                    /* 1: their frames were turned by the segment correction */
     char label[MIM_SESSION_LABEL_MAX]; /* its "subject/pose" */
     int queried;                      /* 1: the template came from the index */

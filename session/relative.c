@@ -35,14 +35,12 @@ static int make_reference(mim_session_t *s, const char *subject, const float *ta
         s->refs = r, s->cap_refs = cap;
     }
     subject_ref_t *ref = &s->refs[s->n_refs];
-    *ref = (subject_ref_t){.subject = strdup(subject), .scale = NAN};
-    float *ang = malloc(na * sizeof *ang);
-    if (!s->rest_angles && (s->rest_angles = malloc(na * sizeof *s->rest_angles))) {
-        float lm[3 * MIM_LANDMARKS_MAX];
-        for (uint32_t l = 0; l < L; l++)
-            memcpy(lm + 3 * l, s->mesh.positions + 3 * (size_t)s->map.vertex[l], 3 * sizeof *lm);
+    *ref = (subject_ref_t){.subject = strdup(subject), .scale = NAN, .build = NAN};
+    float *ang = malloc(na * sizeof *ang), lm[3 * MIM_LANDMARKS_MAX]; /* the avatar's rest landmarks */
+    for (uint32_t l = 0; l < L; l++)
+        memcpy(lm + 3 * l, s->mesh.positions + 3 * (size_t)s->map.vertex[l], 3 * sizeof *lm);
+    if (!s->rest_angles && (s->rest_angles = malloc(na * sizeof *s->rest_angles)))
         mim_index_angles(lm, NULL, L, s->rest_angles);
-    }
     if (!ref->subject || !ang || !s->rest_angles) {
         free(ref->subject), free(ang);
         return mim_error_set(err, MIM_ENOMEM, "out of memory for a reference");
@@ -54,7 +52,7 @@ static int make_reference(mim_session_t *s, const char *subject, const float *ta
         mim_index_angles(table + 3 * (size_t)L * i, NULL, L, ang);
         double d = angles_rms(ang, s->rest_angles, na);
         if (d < best)
-            best = d, ref->id = ids[i];
+            best = d, ref->id = ids[i], ref->build = mim_xfer_build_distance(lm, table + 3 * (size_t)L * i, L);
     }
     free(ang);
     int rc = 0;

@@ -873,10 +873,15 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
         if (!found || !found->near) continue;
         at[kept] = (size_t)(found - s->refs); /* an index: a later template's new reference may move s->refs */
         keep_id[kept] = r->templates[j], keep_w[kept] = weights ? weights[j] : 1.0;
+        if (weights && r->queried) { /* sharper, and by build (MIM_SESSION_RELATIVE_BUILD_POWER says why) */
+            const double b = isfinite(found->build) ? found->build : 1.0; /* unknown: unlike */
+            keep_w[kept] = pow(keep_w[kept], MIM_SESSION_RELATIVE_DISTANCE_POWER) *
+                           pow(1.0 / (b + MIM_SESSION_BUILD_DISTANCE_FLOOR), MIM_SESSION_RELATIVE_BUILD_POWER);
+        }
         kept++;
     }
     relative = relative && kept > 0;
-    if (relative && kept < r->n_templates) { /* the blend of those alone */
+    if (relative) { /* the blend of those alone, with their weights */
         for (uint32_t j = 0; j < kept; j++) r->templates[j] = keep_id[j];
         r->n_templates = kept;
         if (weights) memcpy(weights, keep_w, kept * sizeof *keep_w);
@@ -1065,6 +1070,13 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
         xo.start = NULL; /* a warm start from another template's pose would mislead the first solve */
     if (r->drive == MIM_DRIVE_ORIENTATION) /* the frames are the pose's own: one solve, nothing to iterate */
         xo.max_iterations = 1, xo.start = NULL;
+    else if (r->relative && !xo.max_iterations) /* later solves' frames are worse than the turned rest frames */
+        xo.max_iterations = MIM_SESSION_RELATIVE_ITERATIONS;
+    double tw = 0; /* the blend's shares; a weight that is not positive counts 0, and with none the first's */
+    for (uint32_t j = 0; j < r->n_templates; j++)
+        tw += isfinite(weights[j]) && weights[j] > 0 ? weights[j] : 0;
+    for (uint32_t j = 0; j < r->n_templates; j++)
+        r->weights[j] = tw > 0 ? (isfinite(weights[j]) && weights[j] > 0 ? weights[j] / tw : 0) : j == 0;
     r->warm_started = xo.start != NULL;
     if (!rc && offsets)
         rc = mim_xfer_transfer_offsets(s->solver, W, n, offsets, u, nl, &xo, out, &r->xfer, err);

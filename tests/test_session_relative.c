@@ -352,6 +352,79 @@ static void test_no_rest_reference(void **state)
     free(on), free(off), free(truth);
 }
 
+/* The index's blend, relative: each template weighs (1 / (d + floor))^2
+ * times (1 / (build distance of its reference from the avatar's rest +
+ * floor))^2; the plain path's weights are 1 / (d + floor), so the shares
+ * of one query's templates relate as the square of the plain ones' times
+ * the builds' factor. And the shares sum to 1. */
+static void test_relative_weights(void **state)
+{
+    (void)state;
+    float u[3 * MIM_LANDMARKS_MAX], u2[3 * MIM_LANDMARKS_MAX], rest[3 * MIM_LANDMARKS_MAX], *x = alloc_pose();
+    free(truth_of(base, ID(1, 4), u));
+    free(truth_of(base, ID(2, 4), u2));
+    free(truth_of(base, ID(0, 0), rest)); /* the avatar */
+    for (uint32_t k = 0; k < 3 * L; k++) /* between two subjects: no template is the query */
+        u[k] = 0.5f * (u[k] + u2[k]);
+    mim_session_report_t on, off;
+    mim_session_request_t req = {.landmarks = u, .blend = 3};
+    transfer(base, &req, x, &on);
+    req.relative = -1;
+    transfer(base, &req, x, &off);
+    assert_int_equal(on.relative, 1);
+    assert_int_equal(on.n_templates, 3);
+    assert_int_equal(off.n_templates, 3);
+    double sum = 0, build[3];
+    for (uint32_t j = 0; j < 3; j++) {
+        assert_int_equal(on.templates[j], off.templates[j]);
+        float lm[3 * MIM_LANDMARKS_MAX];
+        free(truth_of(base, on.references[j], lm));
+        build[j] = mim_xfer_build_distance(rest, lm, L);
+        sum += on.weights[j];
+    }
+    assert_true(fabs(sum - 1) < 1e-12);
+    assert_true(build[0] > 0 || build[1] > 0 || build[2] > 0); /* other builds than the avatar's among them */
+    for (uint32_t j = 1; j < 3; j++) {
+        const double plain = off.weights[j] / off.weights[0];
+        const double bf = (build[0] + MIM_SESSION_BUILD_DISTANCE_FLOOR) / (build[j] + MIM_SESSION_BUILD_DISTANCE_FLOOR);
+        const double want = pow(plain, MIM_SESSION_RELATIVE_DISTANCE_POWER) * pow(bf, MIM_SESSION_RELATIVE_BUILD_POWER);
+        print_message("template %llu: share %.4f (plain %.4f), build %.5f\n", (unsigned long long)on.templates[j],
+                      on.weights[j], off.weights[j], build[j]);
+        assert_true(fabs(on.weights[j] / on.weights[0] - want) < 1e-9 * want);
+    }
+    /* templates given by id: equal shares, relative or not */
+    uint64_t ids[2] = {ID(1, 4), ID(2, 4)};
+    req = (mim_session_request_t){.template_ids = ids, .n_templates = 2, .landmarks = u};
+    transfer(base, &req, x, &on);
+    assert_int_equal(on.relative, 1);
+    assert_true(fabs(on.weights[0] - 0.5) < 1e-12 && fabs(on.weights[1] - 0.5) < 1e-12);
+    free(x);
+}
+
+/* Relative transfer solves at most MIM_SESSION_RELATIVE_ITERATIONS times
+ * unless the request caps the solves itself; the plain path keeps
+ * iterating (here: told never to converge nor stop early). */
+static void test_relative_iterations(void **state)
+{
+    (void)state;
+    float u[3 * MIM_LANDMARKS_MAX], *x = alloc_pose();
+    free(truth_of(base, ID(0, 2), u));
+    mim_session_report_t r;
+    mim_session_request_t req = {.template_id = ID(1, 2), .landmarks = u, .xfer = {.tol = -1, .no_early_stop = 1}};
+    transfer(base, &req, x, &r);
+    assert_int_equal(r.relative, 1);
+    assert_int_equal(r.xfer.iterations, MIM_SESSION_RELATIVE_ITERATIONS);
+    req.relative = -1;
+    transfer(base, &req, x, &r);
+    assert_int_equal(r.relative, 0);
+    assert_true(r.xfer.iterations > MIM_SESSION_RELATIVE_ITERATIONS);
+    req.relative = 0, req.xfer.max_iterations = MIM_SESSION_RELATIVE_ITERATIONS + 3; /* the request's own cap */
+    transfer(base, &req, x, &r);
+    assert_int_equal(r.relative, 1);
+    assert_int_equal(r.xfer.iterations, MIM_SESSION_RELATIVE_ITERATIONS + 3);
+    free(x);
+}
+
 static void test_bad_values(void **state)
 {
     (void)state;
@@ -427,6 +500,7 @@ int main(void)
         cmocka_unit_test(test_off_is_plain),       cmocka_unit_test(test_blend),
         cmocka_unit_test(test_queried),            cmocka_unit_test(test_fork_own_references),
         cmocka_unit_test(test_no_rest_reference),  cmocka_unit_test(test_bad_values),
+        cmocka_unit_test(test_relative_weights),   cmocka_unit_test(test_relative_iterations),
         cmocka_unit_test(test_cli),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

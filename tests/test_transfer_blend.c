@@ -255,6 +255,35 @@ static void test_segment_correction(void **state)
     assert_non_null(strstr(mim_error_text(&err2), "spine"));
 }
 
+/* The build distance: none between one body at any size, place and turn
+ * (pair distances over their sum); some when one limb grows, more when it
+ * grows more; symmetric; NaN for a landmark that is not finite. */
+static void test_build_distance(void **state)
+{
+    (void)state;
+    enum { L = 16 };
+    float a[3 * L], b[3 * L], c[3 * L], d[3 * L];
+    for (int l = 0; l < L; l++) /* a spread of points, none on another */
+        for (int k = 0; k < 3; k++)
+            a[3 * l + k] = (float)(0.1 * l * (k + 1) + 0.3 * sin(1.7 * l + k));
+    mim_quat q = mim_quat_axis_angle(mim_v3(1, 2, 3), 0.9);
+    for (int l = 0; l < L; l++) {
+        mim_vec3 v = mim_quat_rotate(q, mim_v3(a[3 * l], a[3 * l + 1], a[3 * l + 2]));
+        b[3 * l] = (float)(1.7 * v.x + 0.5), b[3 * l + 1] = (float)(1.7 * v.y - 2), b[3 * l + 2] = (float)(1.7 * v.z);
+    }
+    memcpy(c, a, sizeof a), memcpy(d, a, sizeof a);
+    for (int k = 0; k < 3; k++) /* the last landmark further out: once, then twice as far */
+        c[3 * (L - 1) + k] += 0.05f * (float)(k + 1), d[3 * (L - 1) + k] += 0.10f * (float)(k + 1);
+    assert_true(mim_xfer_build_distance(a, a, L) == 0);
+    assert_true(mim_xfer_build_distance(a, b, L) < 1e-6);
+    double ac = mim_xfer_build_distance(a, c, L), ad = mim_xfer_build_distance(a, d, L);
+    assert_true(ac > 1e-4);
+    assert_true(ad > 1.5 * ac);
+    assert_true(fabs(mim_xfer_build_distance(c, a, L) - ac) < 1e-12);
+    c[4] = NAN;
+    assert_true(isnan(mim_xfer_build_distance(a, c, L)));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -264,6 +293,7 @@ int main(void)
         cmocka_unit_test(test_frames_relative),
         cmocka_unit_test(test_relative_on_meshes),
         cmocka_unit_test(test_encoding_relative),
+        cmocka_unit_test(test_build_distance),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -240,3 +240,23 @@ double mim_xfer_encoding_scale(uint32_t n_vertices, const double *W_avatar, cons
         return NAN;
     return sqrt(a / r);
 }
+
+double mim_xfer_build_distance(const float *a, const float *b, uint32_t count)
+{
+    double sa = 0, sb = 0, d = 0;
+    for (int pass = 0; pass < 2; pass++) /* the mean pair distances, then the normalised differences */
+        for (uint32_t i = 0; i < count; i++)
+            for (uint32_t j = i + 1; j < count; j++) {
+                double da = 0, db = 0;
+                for (int c = 0; c < 3; c++) {
+                    const double xa = (double)a[3 * i + c] - a[3 * j + c], xb = (double)b[3 * i + c] - b[3 * j + c];
+                    da += xa * xa, db += xb * xb;
+                }
+                da = sqrt(da), db = sqrt(db);
+                if (!pass)
+                    sa += da, sb += db;
+                else
+                    d += (da / sa - db / sb) * (da / sa - db / sb);
+            }
+    return sa > 0 && sb > 0 ? sqrt(d) : NAN;
+}

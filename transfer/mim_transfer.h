@@ -340,6 +340,16 @@ void mim_xfer_frames_relative(uint32_t n_vertices, const double *pose, const dou
 void mim_xfer_encoding_relative(uint32_t n_vertices, uint32_t k, const double *const *W_pose,
                                 const double *const *W_ref, const double *weights, const double *scale,
                                 const double *W_avatar, double *out);
+/* How unlike two bodies' builds are, scale-free: over every pair of
+ * landmarks (count of them, 3 * count floats each, taken in one pose,
+ * e.g. the avatar's rest and a reference's), the pair's distance divided
+ * by the sum of all its set's pair distances, compared between the sets;
+ * the root of the summed squared differences. 0 for one body at any size
+ * (16 landmarks: about 0.001-0.005 between two people).
+ * Relative transfer weighs a template's change by it: a subject built like
+ * the avatar folds as the avatar would (bench/blend_accuracy.c). NaN when
+ * a landmark is not finite or a set has all its landmarks at one point. */
+double mim_xfer_build_distance(const float *a, const float *b, uint32_t count);
 /* The scale for mim_xfer_encoding_relative: rms(W_avatar) / rms(W_ref)
  * over n vertices (3 * n each). W is a Laplacian in local frames, so it
  * grows with the body's size; a smaller body folds less in millimetres.
