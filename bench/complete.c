@@ -454,9 +454,12 @@ static int run(const char *name, const char *folder, const char *tmp, const moti
         {"retrieval: median of k 3, Gaussian blend (before issue 29)", {.k = 3, .gaussian = -1}},
         {"median of k 8, Gaussian blend", {.k = 8, .gaussian = -1}},
         {"median of k 16, Gaussian blend", {.k = 16, .gaussian = -1}},
+        {"pose classes' conditional mean alone, ends not turned", {.gaussian = 1, .no_turn = 1}},
+        {"retrieval 0.3 + classes 0.7, ends not turned (default before)", {.no_turn = 1}},
         {"pose classes' conditional mean alone", {.gaussian = 1}},
         {"retrieval 0.7 + classes 0.3", {.gaussian = 0.3}},
         {"retrieval 0.5 + classes 0.5", {.gaussian = 0.5}},
+        {"retrieval 0.2 + classes 0.8", {.gaussian = 0.8}},
         {"retrieval 0.3 + classes 0.7 (default)", {0}},
     };
     const int R = (int)(sizeof rows / sizeof *rows);

@@ -329,6 +329,7 @@ typedef struct mim_session_complete_options {
      * discriminants) retrieval alone */
     double gaussian;
     const mim_index_t *index;    /* whose Gaussians; NULL: the store's (a bench's leave-one-out index) */
+    int no_turn; /* 1: a lost wrist or ankle does not turn with its seen parent bone (complete.c; a baseline) */
 } mim_session_complete_options_t;
 /* Fills the landmarks that present marks 0 (positions: 3 * map count
  * floats, NaN or anything where lost): the store's templates nearest to the
