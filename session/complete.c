@@ -30,7 +30,17 @@
  * what the seen parent bone turned beyond that, the rotation taking the
  * predicted bone onto the seen one, turns the predicted end's bone too:
  * 0.93x the error on the imitation set, the same on mh-bodies
- * (bench/RESULTS.md). */
+ * (bench/RESULTS.md).
+ *
+ * Where the store holds a template that matches the seen landmarks closely
+ * (the nearest one's RMS over them well under MIM_COMPLETE_LOCAL_GATE_M),
+ * its neighbourhood is a model of this body: the MIM_COMPLETE_LOCAL_K
+ * nearest, aligned, as a Gaussian (their mean and scatter, ridge
+ * MIM_COMPLETE_LOCAL_RIDGE of the mean variance) give the conditional mean
+ * of the lost coordinates (local_answer), weighted in by
+ * exp(-d^2 / 2 gate^2). A person who takes the pose their own way is far
+ * from every template and keeps the answer above (bench/RESULTS.md: the
+ * imitation set unchanged, mh-bodies 0.86x, synth 0.58x). */
 #include "internal.h"
 #include "mim_register.h"
 
@@ -100,6 +110,59 @@ static void turn_ends(const mim_index_t *ix, const mim_landmark_map_t *map, cons
     }
 }
 
+/* The lost coordinates' conditional mean under the Gaussian of the nk
+ * aligned neighbours (nk * 3L floats): mu_m + C_ms (C_ss + rho I)^-1 (x_s -
+ * mu_s), C their scatter / (nk - 1) = c D D^T, rho the ridge times C's mean
+ * variance; through the push-through identity only an nk x nk system is
+ * solved: C_ms (C_ss + rho I)^-1 r = c D_m (c D_s^T D_s + rho I)^-1 D_s^T r.
+ * out gets the lost landmarks; -1 when the system is singular. */
+static int local_answer(const float *aligned, uint32_t nk, uint32_t L, const float *positions, const uint8_t *present,
+                        double *out)
+{
+    enum { KMAX = MIM_COMPLETE_LOCAL_K };
+    const uint32_t n = 3 * L;
+    double mu[3 * MIM_LANDMARKS_MAX] = {0}, G[KMAX][KMAX + 1] = {{0}}, ss = 0;
+    const double c = 1.0 / (nk - 1);
+    for (uint32_t b = 0; b < nk; b++)
+        for (uint32_t i = 0; i < n; i++) mu[i] += aligned[(size_t)b * n + i] / nk;
+#define DEV(b, i) (aligned[(size_t)(b) * n + (i)] - mu[i])
+    for (uint32_t b = 0; b < nk; b++)
+        for (uint32_t i = 0; i < n; i++) ss += DEV(b, i) * DEV(b, i);
+    const double rho = MIM_COMPLETE_LOCAL_RIDGE * c * ss / n;
+    if (!(rho > 0)) return -1; /* the neighbours all one shape */
+    for (uint32_t a = 0; a < nk; a++) { /* [c D_s^T D_s + rho I | D_s^T r] */
+        for (uint32_t b = 0; b < nk; b++) {
+            double v = 0;
+            for (uint32_t i = 0; i < n; i++) v += present[i / 3] ? DEV(a, i) * DEV(b, i) : 0;
+            G[a][b] = c * v + (a == b ? rho : 0);
+        }
+        double h = 0;
+        for (uint32_t i = 0; i < n; i++) h += present[i / 3] ? DEV(a, i) * (positions[i] - mu[i]) : 0;
+        G[a][nk] = h;
+    }
+    for (uint32_t a = 0; a < nk; a++) { /* symmetric positive definite: no pivoting */
+        if (!(G[a][a] > 0)) return -1;
+        for (uint32_t r = a + 1; r < nk; r++) {
+            const double f = G[r][a] / G[a][a];
+            for (uint32_t q = a; q <= nk; q++) G[r][q] -= f * G[a][q];
+        }
+    }
+    double y[KMAX];
+    for (uint32_t a = nk; a-- > 0;) {
+        double v = G[a][nk];
+        for (uint32_t q = a + 1; q < nk; q++) v -= G[a][q] * y[q];
+        y[a] = v / G[a][a];
+    }
+    for (uint32_t i = 0; i < n; i++) {
+        if (present[i / 3]) continue;
+        double v = mu[i];
+        for (uint32_t b = 0; b < nk; b++) v += c * DEV(b, i) * y[b];
+        out[i] = v;
+    }
+#undef DEV
+    return 0;
+}
+
 int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t *present,
                          const mim_session_complete_options_t *opt, float *out, uint8_t *completed, mim_error_t *err)
 {
@@ -144,6 +207,7 @@ int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t
     for (uint32_t l = 0; l < L; l++)
         if (present[l]) idx[m] = l, memcpy(obs + 3 * m, positions + 3 * l, 3 * sizeof *obs), m++;
     /* the k nearest templates after their best similarity onto the seen landmarks */
+    const uint32_t KS = K > MIM_COMPLETE_LOCAL_K ? K : MIM_COMPLETE_LOCAL_K; /* the median's and the local Gaussian's */
     uint32_t best[MIM_COMPLETE_MAX_K];
     double best_d[MIM_COMPLETE_MAX_K];
     uint32_t nb = 0;
@@ -156,8 +220,8 @@ int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t
         mim_reg_similarity_apply(&sim, tl, m, moved);
         double d = 0;
         for (uint32_t k = 0; k < 3 * m; k++) d += (moved[k] - obs[k]) * (moved[k] - obs[k]);
-        if (nb < K || d < best_d[nb - 1]) {
-            uint32_t at = nb < K ? nb++ : nb - 1;
+        if (nb < KS || d < best_d[nb - 1]) {
+            uint32_t at = nb < KS ? nb++ : nb - 1;
             while (at > 0 && best_d[at - 1] > d) best[at] = best[at - 1], best_d[at] = best_d[at - 1], at--;
             best[at] = t, best_d[at] = d;
         }
@@ -174,10 +238,18 @@ int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t
         mim_reg_similarity_fit(tl, obs, m, &sim, NULL);
         mim_reg_similarity_apply(&sim, T, L, aligned + (size_t)b * L * 3);
     }
+    const uint32_t nm = nb < K ? nb : K;
     for (uint32_t k = 0; k < 3 * L; k++) {
-        for (uint32_t b = 0; b < nb; b++) col[b] = aligned[(size_t)b * L * 3 + k];
-        qsort(col, nb, sizeof *col, cmp_f);
-        med[k] = nb % 2 ? col[nb / 2] : 0.5f * (col[nb / 2 - 1] + col[nb / 2]);
+        for (uint32_t b = 0; b < nm; b++) col[b] = aligned[(size_t)b * L * 3 + k];
+        qsort(col, nm, sizeof *col, cmp_f);
+        med[k] = nm % 2 ? col[nm / 2] : 0.5f * (col[nm / 2 - 1] + col[nm / 2]);
+    }
+    /* the local Gaussian, weighted by how near the nearest template is */
+    double loc[3 * MIM_LANDMARKS_MAX], wl = 0;
+    if (!o.no_local && nb >= MIM_COMPLETE_LOCAL_K &&
+        !local_answer(aligned, MIM_COMPLETE_LOCAL_K, L, positions, present, loc)) {
+        const double d = sqrt(best_d[0] / m) / MIM_COMPLETE_LOCAL_GATE_M;
+        wl = exp(-0.5 * d * d);
     }
     free(aligned);
     /* the lost ones: the median plus the nearby seen landmarks' residuals */
@@ -193,7 +265,8 @@ int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t
         }
         for (int c = 0; c < 3; c++) {
             double v = med[3 * l + c] + (wsum > 0 && !o.no_blend ? r[c] / wsum : 0.0);
-            out[3 * l + c] = (float)(have_cond ? (1 - g) * v + g * cond[3 * l + c] : v);
+            v = have_cond ? (1 - g) * v + g * cond[3 * l + c] : v;
+            out[3 * l + c] = (float)((1 - wl) * v + wl * loc[3 * l + c]);
         }
         completed[l] = 1;
     }
