@@ -191,16 +191,17 @@ int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t
         have_cond = info.n_landmarks == L && !mim_index_complete(ix, positions, present, cond, NULL, NULL);
         if (have_cond && !o.no_turn) turn_ends(ix, map, positions, present, cond);
     }
-    if (have_cond && g >= 1) {
+    const int alone = have_cond && g >= 1; /* the classes alone: the templates serve the local Gaussian only */
+    if (alone) {
         for (uint32_t l = 0; l < L; l++)
             if (!present[l]) memcpy(out + 3 * l, cond + 3 * l, 3 * sizeof *out), completed[l] = 1;
-        return 0;
+        if (o.no_local) return 0;
     }
     const float *table;
     char *const *subjects;
     uint32_t n;
-    int rc = mim__session_landmark_table(s, &table, &subjects, NULL, &n, err);
-    if (rc) return rc;
+    int rc = mim__session_landmark_table(s, &table, &subjects, NULL, &n, alone ? NULL : err);
+    if (rc) return alone ? 0 : rc;
     /* the seen landmarks, packed */
     float obs[3 * MIM_LANDMARKS_MAX], tl[3 * MIM_LANDMARKS_MAX], moved[3 * MIM_LANDMARKS_MAX];
     uint32_t idx[MIM_LANDMARKS_MAX], m = 0;
@@ -226,6 +227,7 @@ int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t
             best[at] = t, best_d[at] = d;
         }
     }
+    if (!nb && alone) return 0;
     if (!nb) return mim_error_set(err, MIM_ENOTFOUND, "completion: no template to complete from%s%s",
                                   exclude_subject ? " outside subject " : "", exclude_subject ? exclude_subject : "");
     /* each neighbour whole, aligned by its seen landmarks; the per-coordinate median */
@@ -245,7 +247,7 @@ int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t
         med[k] = nm % 2 ? col[nm / 2] : 0.5f * (col[nm / 2 - 1] + col[nm / 2]);
     }
     /* the local Gaussian, weighted by how near the nearest template is */
-    double loc[3 * MIM_LANDMARKS_MAX], wl = 0;
+    double loc[3 * MIM_LANDMARKS_MAX] = {0}, wl = 0;
     if (!o.no_local && nb >= MIM_COMPLETE_LOCAL_K &&
         !local_answer(aligned, MIM_COMPLETE_LOCAL_K, L, positions, present, loc)) {
         const double d = sqrt(best_d[0] / m) / MIM_COMPLETE_LOCAL_GATE_M;
@@ -265,8 +267,8 @@ int mim_session_complete(mim_session_t *s, const float *positions, const uint8_t
         }
         for (int c = 0; c < 3; c++) {
             double v = med[3 * l + c] + (wsum > 0 && !o.no_blend ? r[c] / wsum : 0.0);
-            v = have_cond ? (1 - g) * v + g * cond[3 * l + c] : v;
-            out[3 * l + c] = (float)((1 - wl) * v + wl * loc[3 * l + c]);
+            v = alone ? cond[3 * l + c] : have_cond ? (1 - g) * v + g * cond[3 * l + c] : v;
+            out[3 * l + c] = (float)(wl > 0 ? (1 - wl) * v + wl * loc[3 * l + c] : v);
         }
         completed[l] = 1;
     }

@@ -328,9 +328,11 @@ typedef struct mim_session_complete_options {
     const char *exclude_subject; /* leave that subject's templates out; NULL: none */
     /* the share of the pose classes' Gaussians' answer (mim_index_complete)
      * in each lost landmark, the rest retrieval's: 0 means
-     * MIM_COMPLETE_DEFAULT_GAUSSIAN, < 0 none, 1 the Gaussians alone (no
-     * scan of the templates); without an index (or one without shape
-     * discriminants) retrieval alone */
+     * MIM_COMPLETE_DEFAULT_GAUSSIAN, < 0 none, 1 the Gaussians alone (the
+     * templates then only for the local Gaussian, no_local: no scan of
+     * them); without an index (or one without shape discriminants)
+     * retrieval alone. The local Gaussian of the nearest templates, where
+     * it is gated in, overlays whichever answer (complete.c). */
     double gaussian;
     const mim_index_t *index;    /* whose Gaussians; NULL: the store's (a bench's leave-one-out index) */
     int no_turn;  /* 1: a lost wrist or ankle does not turn with its seen parent bone (complete.c; a baseline) */
