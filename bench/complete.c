@@ -449,15 +449,20 @@ static int run(const char *name, const char *folder, const char *tmp, const moti
     loso_t lo;
     if (loso_build(&lo, truth, subject, pose, n, L, map->mirror)) return 1;
     struct { const char *name; mim_session_complete_options_t o; } rows[] = {
-        {"nearest template alone (k 1, no blend)", {.k = 1, .no_blend = 1, .gaussian = -1}},
-        {"median of k 3, no blend", {.k = 3, .no_blend = 1, .gaussian = -1}},
-        {"retrieval: median of k 3, Gaussian blend (before issue 29)", {.k = 3, .gaussian = -1}},
-        {"median of k 8, Gaussian blend", {.k = 8, .gaussian = -1}},
-        {"median of k 16, Gaussian blend", {.k = 16, .gaussian = -1}},
-        {"pose classes' conditional mean alone", {.gaussian = 1}},
-        {"retrieval 0.7 + classes 0.3", {.gaussian = 0.3}},
-        {"retrieval 0.5 + classes 0.5", {.gaussian = 0.5}},
-        {"retrieval 0.3 + classes 0.7 (default)", {0}},
+        {"nearest template alone (k 1, no blend)", {.k = 1, .no_blend = 1, .gaussian = -1, .no_local = 1}},
+        {"median of k 3, no blend", {.k = 3, .no_blend = 1, .gaussian = -1, .no_local = 1}},
+        {"retrieval: median of k 3, Gaussian blend (before issue 29)", {.k = 3, .gaussian = -1, .no_local = 1}},
+        {"median of k 8, Gaussian blend", {.k = 8, .gaussian = -1, .no_local = 1}},
+        {"median of k 16, Gaussian blend", {.k = 16, .gaussian = -1, .no_local = 1}},
+        {"pose classes' conditional mean alone, ends not turned, no local Gaussian", {.gaussian = 1, .no_turn = 1, .no_local = 1}},
+        {"retrieval 0.3 + classes 0.7, ends not turned, no local Gaussian (default before)", {.no_turn = 1, .no_local = 1}},
+        {"pose classes' conditional mean alone (ends turned), no local Gaussian", {.gaussian = 1, .no_local = 1}},
+        {"retrieval 0.3 + classes 0.7, ends turned, no local Gaussian", {.no_local = 1}},
+        {"retrieval 0.2 + classes 0.8, ends turned, no local Gaussian", {.gaussian = 0.8, .no_local = 1}},
+        {"retrieval k 3 + blend, local Gaussian gated in", {.k = 3, .gaussian = -1}},
+        {"retrieval 0.5 + classes 0.5, ends turned, local Gaussian gated in", {.gaussian = 0.5}},
+        {"retrieval 0.3 + classes 0.7, ends not turned, local Gaussian gated in", {.no_turn = 1}},
+        {"retrieval 0.3 + classes 0.7, ends turned, local Gaussian gated in (default)", {0}},
     };
     const int R = (int)(sizeof rows / sizeof *rows);
     size_t total = (size_t)n * TRIPLES * 3;

@@ -15,17 +15,21 @@ static void help(FILE *out)
 {
     fprintf(out,
             "usage: mimic complete --store DIR --landmarks FRAMES.json [--classes W] [--exclude-subject S]\n"
-            "                      [--json]\n\n"
+            "                      [--no-local] [--json]\n\n"
             "Fills the null landmarks of each frame (schemas/landmark-frames.schema.json; up to all but %d\n"
             "may be null) from the store's templates: the templates nearest to the landmarks still seen\n"
             "(after each one's best similarity onto them), their median, blended onto the seen landmarks\n"
             "with Gaussian weights (seed 002, Section 6); mixed with the index's pose classes' answer\n"
-            "(each class a Gaussian over the landmarks: its conditional mean given the seen ones).\n\n"
+            "(each class a Gaussian over the landmarks: its conditional mean given the seen ones). Where a\n"
+            "template matches the seen landmarks within about 1.5 cm, the nearest templates' own Gaussian\n"
+            "is weighted in over either answer.\n\n"
             "  --store DIR           the template store\n"
             "  --landmarks FILE      one frame or a batch, null where a landmark is lost\n"
             "  --classes W           the pose classes' share in 0..1 (default %.1f; 0: the templates\n"
-            "                        alone; 1: the classes alone, no scan of the templates); a store\n"
-            "                        without an index uses the templates alone\n"
+            "                        alone; 1: the classes alone); a store without an index uses the\n"
+            "                        templates alone\n"
+            "  --no-local            no Gaussian of the nearest templates (with --classes 1: no scan\n"
+            "                        of the templates)\n"
             "  --exclude-subject S   leave that subject's templates out (the classes stay as the index\n"
             "                        was built: for a strict leave-one-out add --classes 0)\n"
             "  --json                {\"frames\": [{\"landmarks\": [...], \"completed\": [i, ...]}, ...]}\n"
@@ -41,14 +45,15 @@ int mim_cmd_complete(int argc, char **argv)
     static const struct option longopts[] = {
         {"store", required_argument, 0, 's'}, {"landmarks", required_argument, 0, 'l'},
         {"exclude-subject", required_argument, 0, 'x'}, {"json", no_argument, 0, 'j'},
-        {"classes", required_argument, 0, 'c'}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0},
+        {"classes", required_argument, 0, 'c'}, {"no-local", no_argument, 0, 'n'},
+        {"help", no_argument, 0, 'h'},           {0, 0, 0, 0},
     };
     const char *store = NULL, *lm_path = NULL, *exclude = NULL;
-    int as_json = 0, c;
+    int as_json = 0, no_local = 0, c;
     double classes = MIM_COMPLETE_DEFAULT_GAUSSIAN;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "s:l:x:c:jh", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "s:l:x:c:njh", longopts, NULL)) != -1) {
         switch (c) {
         case 's': store = optarg; break;
         case 'l': lm_path = optarg; break;
@@ -56,6 +61,7 @@ int mim_cmd_complete(int argc, char **argv)
         case 'c':
             if (mim_cli_real("complete", "classes", optarg, 0.0, 1.0, 0, "is not a share in 0..1", &classes)) return 2;
             break;
+        case 'n': no_local = 1; break;
         case 'j': as_json = 1; break;
         case 'h': help(stdout); return 0;
         default:
@@ -89,7 +95,8 @@ int mim_cmd_complete(int argc, char **argv)
         goto end;
     }
     for (uint32_t f = 0; f < fr.n_frames; f++) {
-        mim_session_complete_options_t co = {.exclude_subject = exclude, .gaussian = classes > 0 ? classes : -1};
+        mim_session_complete_options_t co = {.exclude_subject = exclude, .gaussian = classes > 0 ? classes : -1,
+                                             .no_local = no_local};
         if (mim_session_complete(s, fr.positions + (size_t)f * L * 3, fr.present + (size_t)f * L, &co, out, done,
                                  &err)) {
             fprintf(stderr, "mimic complete: %s: frame %u: %s\n", lm_path, f, mim_error_text(&err));

@@ -341,6 +341,10 @@ int mim_session_morph_oriented(mim_session_t *s, const mim_session_oriented_key_
 #define MIM_COMPLETE_MAX_K 256
 #define MIM_COMPLETE_DEFAULT_SIGMA_M 0.3
 #define MIM_COMPLETE_DEFAULT_GAUSSIAN 0.7 /* lowest mean error on the imitation set (bench/RESULTS.md) */
+/* The local Gaussian of the nearest templates (complete.c; bench/RESULTS.md) */
+#define MIM_COMPLETE_LOCAL_K 5          /* templates */
+#define MIM_COMPLETE_LOCAL_RIDGE 0.05   /* of their mean variance */
+#define MIM_COMPLETE_LOCAL_GATE_M 0.015 /* metres: the nearest template's RMS over the seen landmarks */
 typedef struct mim_session_complete_options {
     uint32_t k;                  /* templates retrieved; 0: MIM_COMPLETE_DEFAULT_K (at most MIM_COMPLETE_MAX_K) */
     double sigma;                /* metres, the blend's Gaussian; 0: MIM_COMPLETE_DEFAULT_SIGMA_M */
@@ -348,11 +352,15 @@ typedef struct mim_session_complete_options {
     const char *exclude_subject; /* leave that subject's templates out; NULL: none */
     /* the share of the pose classes' Gaussians' answer (mim_index_complete)
      * in each lost landmark, the rest retrieval's: 0 means
-     * MIM_COMPLETE_DEFAULT_GAUSSIAN, < 0 none, 1 the Gaussians alone (no
-     * scan of the templates); without an index (or one without shape
-     * discriminants) retrieval alone */
+     * MIM_COMPLETE_DEFAULT_GAUSSIAN, < 0 none, 1 the Gaussians alone (the
+     * templates then only for the local Gaussian, no_local: no scan of
+     * them); without an index (or one without shape discriminants)
+     * retrieval alone. The local Gaussian of the nearest templates, where
+     * it is gated in, overlays whichever answer (complete.c). */
     double gaussian;
     const mim_index_t *index;    /* whose Gaussians; NULL: the store's (a bench's leave-one-out index) */
+    int no_turn;  /* 1: a lost wrist or ankle does not turn with its seen parent bone (complete.c; a baseline) */
+    int no_local; /* 1: no local Gaussian of the nearest templates (complete.c; a baseline) */
 } mim_session_complete_options_t;
 /* Fills the landmarks that present marks 0 (positions: 3 * map count
  * floats, NaN or anything where lost): the store's templates nearest to the

@@ -795,14 +795,16 @@ static void test_blend(void **s)
 }
 
 /* mimic complete with the index's pose classes (issue 29; the store's
- * index is built by test_blend, the test before): --classes 1 answers from
+ * index is built by test_blend, the test before): with --no-local (the
+ * frame is a store body, so the nearest templates' own Gaussian would
+ * answer for both), --classes 1 answers from
  * the classes alone, 0 from the templates alone, the default is their
  * documented mix (0.3 templates, 0.7 classes) landmark by landmark; the
  * seen landmarks come back as given either way; a share outside 0..1 is
  * refused in one line. */
 static double *complete_lost(const char *lost, const char *classes, const float *x, const uint32_t *which)
 {
-    const char *args[] = {"complete", "--store", store, "--landmarks", lost, "--json",
+    const char *args[] = {"complete", "--store", store, "--landmarks", lost, "--json", "--no-local",
                           classes ? "--classes" : NULL, classes, NULL};
     char *o = NULL, *e = NULL;
     if (ts_run_mimic(&o, &e, args)) fail_msg("%s", e);
