@@ -175,10 +175,7 @@ extern const char *const mim_session_drive_names[3];
  * sliding vertices; bench/RESULTS.md "Defaults chosen on the imitation
  * set"), where a real store's held-out scans gained 7 % from blending 3:
  * the 3 nearest, 55.6 mm against 58.5 for the nearest alone. The
- * correction gains 2.4 % more there on the plain path, but on relative
- * transfer's it turns the avatar's own turn by another body's landmark
- * skeleton, far worse on the one-rig sets (bench/RESULTS.md "Relative
- * transfer on one-rig sets"): off. */
+ * segment correction: below. */
 #define MIM_SESSION_DEFAULT_BLEND 3
 /* The segment correction by default on the plain path only (relative
  * transfer's frames are the avatar's own already turned, and correcting
