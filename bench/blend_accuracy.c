@@ -104,7 +104,7 @@ enum { ORD_INDEX, ORD_SHAPE }; /* the hits in the index's order, or by rest buil
  * on its relative frames); the change version (the avatar's turn from its
  * rest landmarks to the targets against the template's from its
  * reference's landmarks, R_A R_T^-1, which leaves body shape out) */
-enum { CO_NONE, CO_SEGMENT, CO_CHANGE };
+enum { CO_NONE, CO_SEGMENT, CO_CHANGE, CO_PLAIN_SEGMENT }; /* the last: the segment correction on the plain fallback only */
 typedef struct {
     uint32_t k;
     int weighting, frames, enc;
@@ -152,6 +152,7 @@ static const rel_method_t rel_methods[] = {
     {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "relative over the hits whose references are within the gate, else plain; 3 nearest, 1/distance (the default before)", ORD_INDEX, .gated_set = 1},
     {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the same, relative weights 1/distance^2 x 1/build distance^2, at most 2 solves (the session's default)", ORD_INDEX, .power = MIM_SESSION_RELATIVE_DISTANCE_POWER, .build_power = MIM_SESSION_RELATIVE_BUILD_POWER, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .gated_set = 1},
     {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the same, relative weights 1/distance^2 x 1/build distance^2, mimic's iteration", ORD_INDEX, .power = MIM_SESSION_RELATIVE_DISTANCE_POWER, .build_power = MIM_SESSION_RELATIVE_BUILD_POWER, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the session's default, + segment correction on the plain path only", ORD_INDEX, .power = MIM_SESSION_RELATIVE_DISTANCE_POWER, .build_power = MIM_SESSION_RELATIVE_BUILD_POWER, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .correct = CO_PLAIN_SEGMENT, .gated_set = 1},
     {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the same, 1/distance, at most 2 solves", ORD_INDEX, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .gated_set = 1},
     {1, W_EQUAL, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, nearest, at most 2 solves", ORD_INDEX, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .gated_set = 1},
     /* issue 29, "figures to reach": candidates on the gated relative path, and where its error comes from */
@@ -657,10 +658,11 @@ static int run_set(const bench_dataset_t *d, void *user)
                         src[j] = Fc[j];
                     }
                     wp[j] = WT[t], wr[j] = WT[r], sc[j] = scale_of[t / P];
-                    if (rm->correct != CO_NONE && !plain) {
+                    if ((rm->correct != CO_NONE && rm->correct != CO_PLAIN_SEGMENT && !plain) ||
+                        (rm->correct == CO_PLAIN_SEGMENT && plain)) {
                         mim_quat R[MIM_SEGMENTS];
-                        const float *from = rm->correct == CO_SEGMENT ? lm + 3 * L * t : lm + 3 * L * r,
-                                    *to = rm->correct == CO_SEGMENT ? u : lm + 3 * L * t;
+                        const int seg = rm->correct == CO_SEGMENT || rm->correct == CO_PLAIN_SEGMENT;
+                        const float *from = seg ? lm + 3 * L * t : lm + 3 * L * r, *to = seg ? u : lm + 3 * L * t;
                         if (mim_xfer_segment_correction(&d->map, from, to, R, &err)) {
                             mim_index_close(&ix);
                             goto fail;

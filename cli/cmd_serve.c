@@ -68,7 +68,7 @@ static void help(FILE *out)
             "  --blend K            the template drive blends the frames of the K nearest templates\n"
             "                       (default %d; mimic transfer --help)\n"
             "  --segment-correction on|off  each template's frames turned onto the landmarks first\n"
-            "                       (default off)\n"
+            "                       (default: where the transfer is not relative)\n"
             "  --relative on|off    the template drive by relative transfer (default on; mimic\n"
             "                       transfer --help)\n"
             "  -h, --help           this help\n\n"
@@ -247,6 +247,7 @@ static int run(int argc, char **argv, spec_list_t *specs)
         }
         else if (c == 'C') {
             if (mim_cli_on_off("serve", "segment-correction", optarg, &o.segment_correction)) return 2;
+            o.segment_correction = o.segment_correction ? 1 : -1;
         }
         else if (c == 'R') {
             int on;

@@ -44,7 +44,8 @@ static void help(FILE *out)
             "  --blend K            with --landmarks alone: blend the frames of the K nearest templates,\n"
             "                       weighted by query distance (default %d; 1: the nearest alone)\n"
             "  --segment-correction on|off  turn each template's frames so that its landmark skeleton\n"
-            "                       lies along the landmarks' before the solve (default off)\n"
+            "                       lies along the landmarks' before the solve (default: on where\n"
+            "                       the transfer is not relative, off where it is)\n"
             "  --relative on|off    the template drive: the avatar's W plus the template's change from its\n"
             "                       subject's template nearest the avatar's rest, and its turn on the\n"
             "                       avatar's own frames, where that reference stands as the avatar does\n"
@@ -100,6 +101,7 @@ int mim_cmd_transfer(int argc, char **argv)
             if (mim_cli_number("transfer", "blend", optarg, 1, MIM_XFER_BLEND_MAX, &blend)) return 2;
         } else if (c == 'C') {
             if (mim_cli_on_off("transfer", "segment-correction", optarg, &correction)) return 2;
+            correction = correction ? 1 : -1;
         } else if (c == 'R') {
             if (mim_cli_on_off("transfer", "relative", optarg, &relative)) return 2;
         } else if (c == 'i') {

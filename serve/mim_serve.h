@@ -90,7 +90,8 @@ typedef struct mim_serve_options {
      * orientations is then a vest error). Other values: MIM_EINVAL. */
     int drive;
     /* The template drive's templates (mim_session_request_t's blend, 0:
-     * MIM_SESSION_DEFAULT_BLEND) and segment correction (1: on). */
+     * MIM_SESSION_DEFAULT_BLEND) and segment correction (mim_session_request_t's:
+     * 1 on, -1 off, 0 the default). */
     uint32_t blend;
     int segment_correction;
     /* The template drive's relative transfer (mim_session_request_t's

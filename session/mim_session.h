@@ -175,11 +175,15 @@ extern const char *const mim_session_drive_names[3];
  * sliding vertices; bench/RESULTS.md "Defaults chosen on the imitation
  * set"), where a real store's held-out scans gained 7 % from blending 3:
  * the 3 nearest, 55.6 mm against 58.5 for the nearest alone. The
- * correction gains 2.4 % more there on the plain path, but on relative
- * transfer's it turns the avatar's own turn by another body's landmark
- * skeleton, far worse on the one-rig sets (bench/RESULTS.md "Relative
- * transfer on one-rig sets"): off. */
+ * segment correction: below. */
 #define MIM_SESSION_DEFAULT_BLEND 3
+/* The segment correction by default on the plain path only (relative
+ * transfer's frames are the avatar's own already turned, and correcting
+ * them by another body's landmark skeleton is far worse there): on the
+ * imitation set, which takes the plain path, it gains 2.4 % (54.31 against
+ * 55.64 mm); on the one-rig sets, which take the relative path, nothing
+ * changes (bench/RESULTS.md "The segment correction on the plain path"). */
+#define MIM_SESSION_DEFAULT_PLAIN_CORRECTION 1
 #define MIM_SESSION_BLEND_DISTANCE_FLOOR 1e-3 /* radians: two equal descriptors do not weigh infinitely */
 
 /* Relative transfer (issue 15; mim_xfer_encoding_relative): the template
@@ -232,7 +236,8 @@ typedef struct mim_session_request {
     const uint64_t *template_ids;
     uint32_t n_templates;
     uint32_t blend;          /* templates the index gives to blend (1..MIM_XFER_BLEND_MAX); 0: MIM_SESSION_DEFAULT_BLEND */
-    int segment_correction;  /* 1: each template's frames turned onto the landmarks first (default off: bench/RESULTS.md) */
+    int segment_correction;  /* each template's frames turned onto the landmarks first: 1 on, -1 off, 0 the
+                              * default (MIM_SESSION_DEFAULT_PLAIN_CORRECTION: on the plain path only) */
     const float *landmarks;  /* 3 * map count floats, in map order; NULL: mode (a), the template's own
                                 landmarks retargeted onto the avatar's proportions */
     mim_xfer_options_t xfer; /* iterations, tolerance, damping, warm start (start: 3 * n floats) */

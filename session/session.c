@@ -853,7 +853,6 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
     double scale[MIM_XFER_BLEND_MAX];
     subject_ref_t *ref[MIM_XFER_BLEND_MAX];
     size_t at[MIM_XFER_BLEND_MAX];
-    int correct = s->skin && u && req->segment_correction;
     int relative = (req->relative ? req->relative : MIM_SESSION_DEFAULT_RELATIVE) > 0;
     /* Only references that stand as the avatar does (MIM_SESSION_RELATIVE_GATE_DEG; else another body's
      * way of moving): the templates whose references do are blended relative, the others left out;
@@ -888,6 +887,9 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
     }
     for (uint32_t j = 0; relative && j < r->n_templates; j++)
         ref[j] = &s->refs[at[j]];
+    int correct = s->skin && u &&
+                  (req->segment_correction > 0 ||
+                   (req->segment_correction == 0 && !relative && MIM_SESSION_DEFAULT_PLAIN_CORRECTION));
     *W = s->W;
     *frames = *offsets = NULL;
     template_slot_t *slots[MIM_XFER_BLEND_MAX];

@@ -188,17 +188,49 @@ static void test_off_is_plain(void **state)
     assert_int_equal(mim_xfer_solver_open(&solver, mim_session_topology(base), mim_session_map(base)->vertex, L, &so, &err), 0);
     mim_xfer_options_t xo = {0};
     assert_int_equal(mim_xfer_transfer(solver, mim_session_encoding(base), n, F, u, L, &xo, want, NULL, &err), 0);
-    mim_session_request_t req = {.template_id = ID(1, 4), .landmarks = u, .relative = -1};
+    mim_session_request_t req = {.template_id = ID(1, 4), .landmarks = u, .relative = -1, .segment_correction = -1};
     transfer(base, &req, got, NULL);
     assert_memory_equal(got, want, 3 * (size_t)n * sizeof *got);
     /* relative on differs, and a held pose (the slot's cached change) repeats itself */
-    req.relative = 1;
+    req.relative = 1, req.segment_correction = 0;
     transfer(base, &req, got, NULL);
     assert_true(mean_mm(got, want) > 0.1);
     transfer(base, &req, want, NULL);
     assert_memory_equal(got, want, 3 * (size_t)n * sizeof *got);
     mim_xfer_solver_close(&solver);
     free(got), free(want), free(truth), free(F);
+}
+
+/* The segment correction's default: on where the transfer is plain (the
+ * imitation set's gain), off where it is relative (another body's landmark
+ * skeleton would turn the avatar's own frames); on and off as asked. */
+static void test_correction_default(void **state)
+{
+    (void)state;
+    float u[3 * MIM_LANDMARKS_MAX], *dflt = alloc_pose(), *on = alloc_pose(), *off = alloc_pose();
+    float *truth = truth_of(base, ID(2, 4), u);
+    mim_session_report_t r;
+    mim_session_request_t req = {.template_id = ID(1, 4), .landmarks = u, .relative = -1};
+    transfer(base, &req, dflt, &r);
+    assert_int_equal(r.relative, 0);
+    assert_int_equal(r.corrected, 1);
+    req.segment_correction = 1;
+    transfer(base, &req, on, &r);
+    assert_int_equal(r.corrected, 1);
+    assert_memory_equal(dflt, on, 3 * (size_t)n * sizeof *on);
+    req.segment_correction = -1;
+    transfer(base, &req, off, &r);
+    assert_int_equal(r.corrected, 0);
+    assert_true(mean_mm(dflt, off) > 0.01);
+    /* relative: the default leaves the frames as they are */
+    req = (mim_session_request_t){.template_id = ID(1, 4), .landmarks = u};
+    transfer(base, &req, dflt, &r);
+    assert_int_equal(r.relative, 1);
+    assert_int_equal(r.corrected, 0);
+    req.segment_correction = -1;
+    transfer(base, &req, off, &r);
+    assert_memory_equal(dflt, off, 3 * (size_t)n * sizeof *off);
+    free(dflt), free(on), free(off), free(truth);
 }
 
 /* Two templates blended: each with its own subject's reference. */
@@ -497,7 +529,8 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_closer_than_plain),  cmocka_unit_test(test_own_subject_is_exact),
-        cmocka_unit_test(test_off_is_plain),       cmocka_unit_test(test_blend),
+        cmocka_unit_test(test_off_is_plain),       cmocka_unit_test(test_correction_default),
+        cmocka_unit_test(test_blend),
         cmocka_unit_test(test_queried),            cmocka_unit_test(test_fork_own_references),
         cmocka_unit_test(test_no_rest_reference),  cmocka_unit_test(test_bad_values),
         cmocka_unit_test(test_relative_weights),   cmocka_unit_test(test_relative_iterations),
