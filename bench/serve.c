@@ -67,6 +67,7 @@
 #include <getopt.h>
 #include <jansson.h>
 #include <limits.h>
+#include <math.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <poll.h>
@@ -355,7 +356,8 @@ typedef struct result {
     double serve_cpu, vest_cpu, self_cpu;
     double top_task_cpu, loop_share;
     int n_tasks;
-    double key_ms, morph_ms, iter_per_key, key_interval, warm;
+    double key_ms, morph_ms, iter_per_key, key_interval, warm, key_cpu_ms;
+    double cores, slots, capacity; /* /api/status compute (NaN: a serve without it) */
     double load_before, load_after;
     uint32_t n_vertices, n_landmarks;
 } result_t;
@@ -474,6 +476,11 @@ static int run_phase(int n, double seconds, int threads, result_t *R, int n_sess
         R->iter_per_key = json_number_value(json_object_get(v, "iterations_per_key"));
         R->key_interval = json_number_value(json_object_get(v, "key_interval"));
         R->warm = json_number_value(json_object_get(v, "warm_starts"));
+        R->key_cpu_ms = json_number_value(json_object_get(v, "key_cpu_ms"));
+        json_t *cm = json_object_get(j, "compute");
+        R->cores = cm ? json_number_value(json_object_get(cm, "cores")) : NAN;
+        R->slots = cm ? json_number_value(json_object_get(cm, "slots")) : NAN;
+        R->capacity = cm ? json_number_value(json_object_get(cm, "capacity")) : NAN;
         if (!j)
             fprintf(stderr, "bench_serve: GET /api/status failed\n");
         json_t *list = json_object_get(j, "sessions");
@@ -660,8 +667,11 @@ static void print_result(const char *title, const result_t *R, double rate)
            "%.1f)  bench clients %.1f  vest simulator %.1f\n",
            R->serve_cpu, R->n_tasks, R->top_task_cpu, R->self_cpu, R->vest_cpu);
     printf("server /api/status vest:                            key_ms %.3f  morph_ms %.3f  iterations_per_key "
-           "%.2f  key_interval %.0f  warm_starts %.0f\n",
-           R->key_ms, R->morph_ms, R->iter_per_key, R->key_interval, R->warm);
+           "%.2f  key_interval %.0f  warm_starts %.0f  key_cpu_ms %.3f\n",
+           R->key_ms, R->morph_ms, R->iter_per_key, R->key_interval, R->warm, R->key_cpu_ms);
+    if (isfinite(R->capacity))
+        printf("server /api/status compute:                         cores %.0f  slots %.0f  capacity %.2f cores\n",
+               R->cores, R->slots, R->capacity);
     if (R->bad || R->errors || R->closed)
         printf("client problems:                                    %llu malformed or out-of-order frames, %llu "
                "errors, %llu closed early\n",
