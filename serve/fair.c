@@ -38,17 +38,22 @@
  *    plus the cores' idle time (/proc/stat); (2) what the compute slots
  *    yield when kept busy: slots x the share of a core a slot holder runs
  *    (its CPU over its wall time in the slot; other work on the machine
- *    preempts it). (1) tells that idle cores are there to take; (2) that
- *    the compute gets a core when it asks, whoever else runs, which (1)
- *    misses when other processes soak up every idle moment. It is at most
- *    the cores less what the rest of the process uses (its CPU,
- *    CLOCK_PROCESS_CPUTIME_ID, less the compute's: the fan-out, the vests'
- *    decoding), --compute-cores (default: the cores) and the slots. So
- *    the interval rises above 1 only when the CPU is spent: no idle time
- *    left, and a slot holder preempted. A cheaper choice is taken only
- *    when the current one's demand exceeds the capacity by TOL_UP (a
- *    compute that meets its demand on a busy machine gets that demand, no
- *    more), a dearer one only when it fits in HYSTERESIS of it.
+ *    preempts it) x the fraction of the vest frames the loops made (a loop
+ *    thread starved of a core skips frames before it asks for a slot).
+ *    (1) tells that idle cores are there to take; (2) that the compute
+ *    gets a core when it asks, whoever else runs, which (1) misses when
+ *    other processes soak up every idle moment. Neither is what the
+ *    compute got at the current interval alone, so neither falls because
+ *    the interval rose. It is at most the cores less what the rest of the
+ *    process uses (its CPU, CLOCK_PROCESS_CPUTIME_ID, less the compute's:
+ *    the fan-out, the vests' decoding), --compute-cores (default: the
+ *    cores) and the slots. So the interval rises above 1 only when the CPU
+ *    is spent: no idle time left, and the compute preempted or the loops
+ *    starved. A cheaper choice is taken only when the current one's demand
+ *    exceeds the capacity by TOL_UP while the loops make their vest frames
+ *    (a compute that meets its demand on a busy machine gets that demand,
+ *    no more), or at all while they skip them; a dearer one only when it
+ *    fits in HYSTERESIS of it.
  *    Before (through the runs of "Fair key rates" and "On an idle
  *    machine"): the capacity was (2) x 0.8, and dropped to 0.9 x the
  *    compute's CPU per second while loops waited over a vest period for a
@@ -98,7 +103,8 @@
 #define WALL_MIN 0.002  /* seconds of compute a window needs to tell a share */
 #define CAP_MIN 0.01    /* cores: the capacity never goes below this (unless given lower) */
 #define HYSTERESIS 0.9  /* a dearer choice than the current one must fit in this much of the capacity */
-#define TOL_UP 1.05     /* a cheaper one is taken when the current one needs over this much of it */
+#define TOL_UP 1.05     /* a cheaper one is taken when the current one needs over this much of it, */
+#define MADE_OK 0.98    /* ... or any more than it while the loops make fewer of the vest frames than this */
 
 static int known(double c)
 {
@@ -186,7 +192,7 @@ void mim__fair_init(mim__fair_t *f, unsigned cores, unsigned slots, double given
     f->capacity = f->capacity_max;
     f->sample = sample, f->sample_user = sample_user;
     f->s0 = (mim__fair_sample_t){NAN, NAN, NAN};
-    f->rest = f->got = f->share = -1.0;
+    f->rest = f->got = f->share = f->made = -1.0;
     f->slots = slots ? slots : 1;
     f->choice = (mim__fair_choice_t){1, 0, 0};
 }
@@ -208,8 +214,9 @@ static uint32_t cheapness(mim__fair_choice_t c)
 
 /* The active entries packed (under the lock) and the choice for them: a
  * dearer one than now only when it fits with room (HYSTERESIS), a cheaper
- * one only when the current one is short by more than TOL_UP, so that the
- * interval does not flip at each window where demand and capacity meet. */
+ * one only when the current one is short by more than TOL_UP (by any
+ * amount while the loops skip vest frames), so that the interval does not
+ * flip at each window where demand and capacity meet. */
 static void rechoose(mim__fair_t *f)
 {
     size_t m = 0;
@@ -221,9 +228,9 @@ static void rechoose(mim__fair_t *f)
         c = mim__fair_choose(f->packed, m, HYSTERESIS * f->capacity);
         if (cheapness(c) > cheapness(f->choice))
             c = f->choice;
-    } else if (m && cheapness(c) > cheapness(f->choice) &&
+    } else if (m && cheapness(c) > cheapness(f->choice) && f->made >= MADE_OK &&
                cheapness(mim__fair_choose(f->packed, m, TOL_UP * f->capacity)) <= cheapness(f->choice))
-        c = f->choice;
+        c = f->choice; /* its demand is met: the compute gets what it needs */
     f->choice = c;
 }
 
@@ -307,11 +314,13 @@ static void window_end(mim__fair_t *f, double dt)
         smooth(&f->got, compute + fmin(fmax(idle, 0.0), f->cores));
     if (f->w_wall >= WALL_MIN)
         smooth(&f->share, fmin(1.0, f->w_cpu / f->w_wall));
+    if (f->w_vest > 0.0)
+        smooth(&f->made, f->w_made / f->w_vest);
     double can = -1.0; /* the larger of (1) and (2), as measured */
     if (f->got >= 0.0)
         can = f->got;
     if (f->share >= 0.0)
-        can = fmax(can, f->slots * f->share);
+        can = fmax(can, f->slots * f->share * (f->made >= 0.0 ? f->made : 1.0));
     double cap = f->capacity_max;
     if (f->rest >= 0.0)
         cap = fmin(cap, f->cores - f->rest);
@@ -322,19 +331,20 @@ static void window_end(mim__fair_t *f, double dt)
 }
 
 mim__fair_choice_t mim__fair_frame(mim__fair_t *f, int id, const mim__fair_demand_t *d, double cpu, double wall,
-                                   double now)
+                                   uint32_t skipped, double now)
 {
     pthread_mutex_lock(&f->lock);
     if (id >= 0 && (size_t)id < f->n && f->used[id])
         f->d[id] = *d, f->active[id] = 1;
     if (f->window_start == 0.0 || now < f->window_start)
-        f->window_start = now, f->w_cpu = f->w_wall = 0.0;
+        f->window_start = now, f->w_cpu = f->w_wall = f->w_made = f->w_vest = 0.0;
     if (known(cpu) && known(wall))
         f->w_cpu += cpu, f->w_wall += wall;
+    f->w_made += 1.0, f->w_vest += 1.0 + (double)skipped;
     const double dt = now - f->window_start;
     if (dt >= WINDOW_S) {
         window_end(f, dt);
-        f->window_start = now, f->w_cpu = f->w_wall = 0.0;
+        f->window_start = now, f->w_cpu = f->w_wall = f->w_made = f->w_vest = 0.0;
         rechoose(f); /* costs change slowly: once a window is enough */
     }
     mim__fair_choice_t c = f->choice;

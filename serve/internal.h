@@ -286,11 +286,13 @@ typedef struct mim__fair {
     double slots;                  /* the gate's */
     double got;                    /* the compute's CPU per second plus idle cores (smoothed; <0: not measured yet) */
     double share;                  /* of a core a slot holder runs: its CPU over wall time (smoothed; <0: not yet) */
+    double made;                   /* of the vest frames, those the loops made (smoothed; <0: not yet) */
     double rest;                   /* cores the process uses but for the compute (smoothed; <0: not measured yet) */
     mim__fair_sampler_t sample;    /* reads the process's CPU time and its cores' idle time (NULL: none) */
     void *sample_user;
     mim__fair_sample_t s0;         /* at the window's start */
-    double window_start, w_cpu, w_wall; /* the window: its start, the compute's CPU and wall seconds in slots */
+    double window_start, w_cpu, w_wall; /* the window: its start, the compute's CPU and wall seconds in slots, */
+    double w_made, w_vest;              /* frames made, and vest frames (made or skipped) */
     mim__fair_choice_t choice;
 } mim__fair_t;
 /* cores: the process's (cpu.c); slots: the gate's; given: --compute-cores
@@ -305,11 +307,12 @@ void mim__fair_leave(mim__fair_t *f, int id); /* accepts -1 */
 /* Its vest is away, ended or failed: not counted until its next frame
  * (accepts -1). */
 void mim__fair_idle(mim__fair_t *f, int id);
-/* A loop's published frame: its costs now (d) and the CPU and wall
- * seconds its compute (key frame or morph) took in a compute slot, at now
- * (mim_now()); returns the common choice. */
+/* A loop's published frame: its costs now (d), the CPU and wall seconds
+ * its compute (key frame or morph) took in a compute slot, and the vest
+ * frames it skipped since its previous one, at now (mim_now()); returns
+ * the common choice. */
 mim__fair_choice_t mim__fair_frame(mim__fair_t *f, int id, const mim__fair_demand_t *d, double cpu, double wall,
-                                   double now);
+                                   uint32_t skipped, double now);
 void mim__fair_state(mim__fair_t *f, mim__fair_choice_t *choice, double *capacity);
 
 /* ---- cpu.c: the cores the service may run on, the CPU it used, their idle time ---- */

@@ -211,7 +211,7 @@ static void read_machine(void *user, mim__fair_sample_t *s)
 }
 
 /* n loops' frames at 60 Hz each for seconds, one in every `every` vest
- * periods (the others skipped), each frame's compute taking cpu CPU
+ * periods made (the others skipped), each frame's compute taking cpu CPU
  * seconds in wall seconds of a compute slot, while the rest of the process
  * takes rest cores and idle cores lie idle (NaN: idle time unknown); *t
  * advances. */
@@ -230,9 +230,10 @@ static mim__fair_choice_t run(mim__fair_t *f, machine_t *m, const int *id, const
         m->idle += L.idle * P;
         m->process += L.rest * P;
         for (int i = 0; i < L.n; i++) {
-            const int made = step % L.every == 0;
-            m->process += made ? L.cpu : 0.0;
-            c = mim__fair_frame(f, id[i], d, made ? L.cpu : 0.0, made ? L.wall : 0.0, *t);
+            if (step % L.every) /* skipped: the next frame made tells */
+                continue;
+            m->process += L.cpu;
+            c = mim__fair_frame(f, id[i], d, L.cpu, L.wall, step ? (uint32_t)L.every - 1 : 0, *t);
         }
     }
     return c;
@@ -288,13 +289,31 @@ static void test_registry_capacity(void **state)
     assert_int_equal(c.k, 1);
     assert_false(c.warm);
     /* the CPU spent: no idle time, the loops make one vest frame in 2
-     * (0.65 cores), a slot holder runs 0.4 of the time (0.8 cores): the
-     * demand fits 0.8 cores */
+     * (the compute got 0.65 cores), a slot holder runs 0.4 of the time
+     * (2 x 0.4 x 0.5 = 0.4): the demand fits 0.65 cores */
     c = run(&f, &m, id, &d, (load_t){24, 2, 0.9e-3, 2.25e-3, 0.2, 0.0}, 10.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 0.65) < 0.01);
+    assert_true(c.warm);
+    assert_true(c.k > 1);
+    assert_true(cores(&d, 1, c) * 24 <= cap);
+    /* the loop threads starved (one vest frame in 2 made) though a slot
+     * holder runs 0.8 of the time: 2 x 0.8 x 0.5 = 0.8 cores; and while
+     * they stay starved at the cheaper interval it stays (the share and
+     * the frames made do not fall because the interval rose) */
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 0.9e-3, 0.2, 0.5}, 10.0, &t);
+    assert_int_equal(c.k, 1);
+    assert_false(c.warm);
+    c = run(&f, &m, id, &d, (load_t){24, 2, 0.9e-3, 1.125e-3, 0.2, 0.0}, 10.0, &t);
     mim__fair_state(&f, &c, &cap);
     assert_true(fabs(cap - 0.8) < 0.01);
     assert_true(c.warm);
     assert_true(cores(&d, 1, c) * 24 <= cap);
+    mim__fair_choice_t starved = c;
+    c = run(&f, &m, id, &d, (load_t){24, 2, 0.5e-3, 0.625e-3, 0.2, 0.0}, 20.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 0.8) < 0.01);
+    assert_int_equal(c.k, starved.k);
     /* cores idle again: back to cold key frames at every vest frame */
     c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 0.9e-3, 0.2, 0.5}, 10.0, &t);
     mim__fair_state(&f, &c, &cap);
@@ -334,7 +353,7 @@ static void test_registry_capacity(void **state)
     assert_int_equal(c.k, 1);
     assert_false(c.warm);
     /* a frame from an entry that left (a loop closing) is harmless */
-    c = mim__fair_frame(&f, id[5], &d, 0.9e-3, 0.9e-3, t);
+    c = mim__fair_frame(&f, id[5], &d, 0.9e-3, 0.9e-3, 0, t);
     mim__fair_destroy(&f);
 }
 
