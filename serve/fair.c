@@ -60,8 +60,8 @@
  *    slot. Both estimated down what the compute could get: the share falls
  *    whenever 24 loop threads, the fan-out and the bench's processes share
  *    2 cores though idle time is left, and the drop took what the compute
- *    got (at a higher k, less) as all it could get. At 24 vests with one client each the
- *    interval stayed 2 while serve used 85 % of one core of the two
+ *    got (at a higher k, less) as all it could get. At 24 vests with one
+ *    client each the interval stayed 2 while serve used 85 % of one core
  *    (bench/RESULTS.md, "24 vests on two cores"). Also tried here, not
  *    kept (one run each at 24 vests, one client each, other users'
  *    benchmarks on the machine): the cores less the rest of the process
@@ -69,7 +69,12 @@
  *    of the vest frames skipped, p99 60 ms (load average 3.4-6.5); (1)
  *    alone went down to 0.48 cores and k = 3 (load average 5.5-5.9) where
  *    the old rule held k = 2 with no frame skipped: others soaked up the
- *    idle time, and what the compute got at k = 3 was all it saw.
+ *    idle time, and what the compute got at k = 3 was all it saw; (2)
+ *    without the frames made, with the tolerance whether or not frames
+ *    were skipped: at 32 vests (load average 10-20) slots x share read
+ *    1.2 cores while the starved loops made 700-1000 of 1920 vest frames
+ *    a second (54 % skipped), and at 24 vests k stayed 1 with 28 % skipped
+ *    where the old rule held k = 2 with 12 (load average 6.7-8.0).
  *    Tried before that, not kept: (a) the share alone, without the drop:
  *    at 24 vests (10 clients each) it kept k = 1
  *    (cold key frames, 24 x 60/s at 0.7-0.9 ms: 1.0-1.3 cores, fit the
