@@ -67,6 +67,7 @@
 #include <getopt.h>
 #include <jansson.h>
 #include <limits.h>
+#include <math.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <poll.h>
@@ -355,7 +356,8 @@ typedef struct result {
     double serve_cpu, vest_cpu, self_cpu;
     double top_task_cpu, loop_share;
     int n_tasks;
-    double key_ms, morph_ms, iter_per_key, key_interval, warm;
+    double key_ms, morph_ms, iter_per_key, key_interval, warm, key_cpu_ms;
+    double cores, slots, capacity; /* /api/status compute (NaN: a serve without it) */
     double load_before, load_after;
     uint32_t n_vertices, n_landmarks;
 } result_t;
@@ -474,6 +476,11 @@ static int run_phase(int n, double seconds, int threads, result_t *R, int n_sess
         R->iter_per_key = json_number_value(json_object_get(v, "iterations_per_key"));
         R->key_interval = json_number_value(json_object_get(v, "key_interval"));
         R->warm = json_number_value(json_object_get(v, "warm_starts"));
+        R->key_cpu_ms = json_number_value(json_object_get(v, "key_cpu_ms"));
+        json_t *cm = json_object_get(j, "compute");
+        R->cores = cm ? json_number_value(json_object_get(cm, "cores")) : NAN;
+        R->slots = cm ? json_number_value(json_object_get(cm, "slots")) : NAN;
+        R->capacity = cm ? json_number_value(json_object_get(cm, "capacity")) : NAN;
         if (!j)
             fprintf(stderr, "bench_serve: GET /api/status failed\n");
         json_t *list = json_object_get(j, "sessions");
@@ -660,8 +667,11 @@ static void print_result(const char *title, const result_t *R, double rate)
            "%.1f)  bench clients %.1f  vest simulator %.1f\n",
            R->serve_cpu, R->n_tasks, R->top_task_cpu, R->self_cpu, R->vest_cpu);
     printf("server /api/status vest:                            key_ms %.3f  morph_ms %.3f  iterations_per_key "
-           "%.2f  key_interval %.0f  warm_starts %.0f\n",
-           R->key_ms, R->morph_ms, R->iter_per_key, R->key_interval, R->warm);
+           "%.2f  key_interval %.0f  warm_starts %.0f  key_cpu_ms %.3f\n",
+           R->key_ms, R->morph_ms, R->iter_per_key, R->key_interval, R->warm, R->key_cpu_ms);
+    if (isfinite(R->capacity))
+        printf("server /api/status compute:                         cores %.0f  slots %.0f  capacity %.2f cores\n",
+               R->cores, R->slots, R->capacity);
     if (R->bad || R->errors || R->closed)
         printf("client problems:                                    %llu malformed or out-of-order frames, %llu "
                "errors, %llu closed early\n",
@@ -677,6 +687,7 @@ typedef struct row {
     int vests, clients, ran;
     double load, window, key_min, skipped_pct, kr_min, kr_max, ki_max, fps_min;
     double lat_med, lat_p99, ref_p99, drops, server_drops, serve_cpu, serve_top, vest_cpu, self_cpu, key_ms_med;
+    char capacity_s[16]; /* /api/status compute.capacity at the end ("-": a serve without it) */
     int all_keyed, all_live;
 } row_t;
 
@@ -733,6 +744,10 @@ static void print_sessions(const sess_result_t *S, int ns, const result_t *R, in
         row->lat_med = R->lat_med, row->lat_p99 = R->lat_p99, row->drops = R->drops_total;
         row->server_drops = R->server_drops, row->serve_cpu = R->serve_cpu, row->serve_top = R->top_task_cpu;
         row->vest_cpu = R->vest_cpu, row->self_cpu = R->self_cpu, row->key_ms_med = key_ms_med;
+        if (isfinite(R->capacity))
+            snprintf(row->capacity_s, sizeof row->capacity_s, "%.2f", R->capacity);
+        else
+            snprintf(row->capacity_s, sizeof row->capacity_s, "-");
         row->all_keyed = all_keyed, row->all_live = all_live;
     }
 }
@@ -1082,9 +1097,11 @@ int main(int argc, char **argv)
                g.rate_s, g_format);
         printf("| vests | clients | load avg (end) | key / (vest + skipped) min | skipped %% | key rate min / max "
                "(Hz) | min / max | key interval max | key_ms median | frames/s published min | p50 ms | p99 ms | "
-               "1-client ref p99 ms | drops (bench) | server drops | serve CPU %% (busiest thread) | vest sims CPU %% "
+               "1-client ref p99 ms | drops (bench) | server drops | serve CPU %% (busiest thread) | serve CPU %% a vest | "
+               "compute capacity (cores) | vest sims CPU %% "
                "| clients CPU %% | every frame keyed | all live |\n");
-        printf("|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---|---|\n");
+        printf("|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---|---|"
+               "\n");
         for (int i = 0; i < n_vests; i++) {
             const row_t *r = &rows[i];
             if (!r->ran) {
@@ -1092,10 +1109,11 @@ int main(int argc, char **argv)
                 continue;
             }
             printf("| %d | %d | %.2f | %.3f | %.2f | %.2f / %.2f | %.3f | %.0f | %.2f | %.2f | %.3f | %.3f | %.3f | "
-                   "%.0f | %.0f | %.1f (%.1f) | %.1f | %.1f | %s | %s |\n",
+                   "%.0f | %.0f | %.1f (%.1f) | %.2f | %s | %.1f | %.1f | %s | %s |\n",
                    r->vests, r->clients, r->load, r->key_min, r->skipped_pct, r->kr_min, r->kr_max,
                    r->kr_max > 0 ? r->kr_min / r->kr_max : 0.0, r->ki_max, r->key_ms_med, r->fps_min, r->lat_med,
-                   r->lat_p99, r->ref_p99, r->drops, r->server_drops, r->serve_cpu, r->serve_top, r->vest_cpu,
+                   r->lat_p99, r->ref_p99, r->drops, r->server_drops, r->serve_cpu, r->serve_top,
+                   r->serve_cpu / r->vests, r->capacity_s, r->vest_cpu,
                    r->self_cpu, r->all_keyed ? "yes" : "no", r->all_live ? "yes" : "no");
         }
         int best = 0;

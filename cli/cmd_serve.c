@@ -23,7 +23,8 @@ static void help(FILE *out)
             "                   [--session NAME:vest=SPEC,avatar=MESH|ID[,key-rate=HZ] ...]\n"
             "                   [--sessions FILE.json]\n"
             "                   [--key-rate auto|HZ] [--listen HOST:PORT] [--max-body BYTES]\n"
-            "                   [--max-clients N] [--compute-cores C] [--warm-start auto|on|off]\n"
+            "                   [--max-clients N] [--compute-cores C] [--compute-slots N]\n"
+            "                   [--warm-start auto|on|off]\n"
             "                   [--drive auto|template|orientation]\n"
             "                   [--blend K] [--segment-correction on|off] [--relative on|off]\n\n"
             "Serves pose transfer until Ctrl-C or SIGTERM: the web viewer at /, the avatar\n"
@@ -56,9 +57,12 @@ static void help(FILE *out)
             "  --max-clients N      WebSocket clients of one session at once (default %u); a\n"
             "                       client that stopped reading yields its place after %g s and\n"
             "                       is closed after %g s\n"
-            "  --compute-cores C    cores the key frames of every session may take together\n"
-            "                       (default 0.8 x the cores online; a share of a busy machine):\n"
-            "                       past it, every auto session's key rate drops alike\n"
+            "  --compute-cores C    cores the key frames of every session may take together, at\n"
+            "                       most (default: the cores the process may run on; less when\n"
+            "                       measured busy): past it, every auto session's key rate drops\n"
+            "                       alike\n"
+            "  --compute-slots N    key frames and morphs computed at once, over all sessions\n"
+            "                       (default: the cores the process may run on)\n"
             "  --warm-start W       start each key frame's transfer from the previous one (same\n"
             "                       template): faster, less accurate (bench/RESULTS.md); auto\n"
             "                       (default) only when cold key frames do not fit the vest period\n"
@@ -196,6 +200,7 @@ static int run(int argc, char **argv, spec_list_t *specs)
                                               {"key-rate", required_argument, 0, 'k'},
                                               {"max-clients", required_argument, 0, 'c'},
                                               {"compute-cores", required_argument, 0, 'P'},
+                                              {"compute-slots", required_argument, 0, 'N'},
                                               {"warm-start", required_argument, 0, 'w'},
                                               {"drive", required_argument, 0, 'd'},
                                               {"blend", required_argument, 0, 'B'},
@@ -211,7 +216,7 @@ static int run(int argc, char **argv, spec_list_t *specs)
     int c, rc = 0;
     optind = 0;
     opterr = 0;
-    while (!rc && (c = getopt_long(argc, argv, "s:a:l:b:v:p:k:c:P:w:d:B:C:R:S:F:h", longopts, NULL)) != -1) {
+    while (!rc && (c = getopt_long(argc, argv, "s:a:l:b:v:p:k:c:P:N:w:d:B:C:R:S:F:h", longopts, NULL)) != -1) {
         uint64_t v;
         if (c == 'S') rc = add_spec_text(specs, optarg);
         else if (c == 'F') rc = add_spec_file(specs, optarg);
@@ -256,6 +261,10 @@ static int run(int argc, char **argv, spec_list_t *specs)
         }
         else if (c == 'P') {
             if (mim_cli_real("serve", "compute-cores", optarg, 0.0, 1024.0, 1, NULL, &o.compute_cores)) return 2;
+        }
+        else if (c == 'N') {
+            if (mim_cli_number("serve", "compute-slots", optarg, 1, 1024, &v)) return 2;
+            o.compute_slots = (unsigned)v;
         }
         else if (c == 'c') {
             if (mim_cli_number("serve", "max-clients", optarg, 1, 1000, &v)) return 2;

@@ -65,14 +65,20 @@ int mim__api_status(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *rp)
     }
     /* the first session's avatar: the one /ws and /api/avatar give without ?session= */
     const mim_mesh_t *m = n ? all[0]->out_mesh : NULL;
-    json_t *j = json_pack("{s:s, s:o, s:I, s:i, s:i, s:i, s:o, s:f, s:I, s:I, s:I, s:I, s:o, s:o, s:o}", "store",
+    mim__fair_choice_t choice;
+    double capacity;
+    mim__fair_state(&sv->fair, &choice, &capacity);
+    json_t *compute = json_pack("{s:i, s:i, s:f, s:i, s:b, s:b}", "cores", (int)sv->cpu.cores, "slots",
+                                (int)sv->gate.slots, "capacity", capacity, "shared_key_interval", (int)choice.k,
+                                "warm", choice.warm, "linear", choice.linear);
+    json_t *j = json_pack("{s:s, s:o, s:I, s:i, s:i, s:i, s:o, s:f, s:I, s:I, s:I, s:I, s:o, s:o, s:o, s:o}", "store",
                           sv->store, "avatar", n ? json_string(mim_session_avatar(all[0]->s)) : json_null(),
                           "templates", (json_int_t)qs->templates, "vertices", m ? (int)m->n_vertices : 0, "faces",
                           m ? (int)m->n_faces : 0, "landmarks", (int)sv->map->count, "index", index, "uptime_s",
                           mim_now() - sv->t_start, "vest_frames", (json_int_t)count[MIM__C_VEST_FRAMES], "frames",
                           (json_int_t)count[MIM__C_FRAMES], "key_frames", (json_int_t)count[MIM__C_KEY_FRAMES],
                           "frames_dropped", (json_int_t)count[MIM__C_DROPS], "stream", mim__ws_status(sv->ws, NULL),
-                          "vest", vest, "sessions", sessions);
+                          "vest", vest, "sessions", sessions, "compute", compute);
     mim__sessions_release_all(all, n);
     return mim__reply_json(rp, 200, j);
 }

@@ -228,14 +228,18 @@ json_t *mim__loop_status(mim__loop_t *l); /* null without a vest */
 
 /* ---- gate.c: the compute slots the sessions' loops share ---- */
 /* At most `slots` key frames or morphs compute at once, and a loop that
- * waits gets the next free slot in the order it came (a ticket queue), so
- * no loop overtakes another forever. How often each loop computes a key
+ * waits gets the next free slot in the order it came (a queue), so no
+ * loop overtakes another forever. How often each loop computes a key
  * frame is fair.c's. */
+typedef struct mim__gate_waiter {
+    struct mim__gate_waiter *next;
+    pthread_cond_t turn; /* signalled when granted */
+    int granted;         /* the slot is its own */
+} mim__gate_waiter_t;
 typedef struct mim__gate {
     pthread_mutex_t lock;
-    pthread_cond_t turn;
     unsigned slots, busy;
-    uint64_t next_ticket, serving;
+    mim__gate_waiter_t *head, *tail; /* the loops waiting, first come first (on their stacks) */
 } mim__gate_t;
 void mim__gate_init(mim__gate_t *g, unsigned slots);
 void mim__gate_destroy(mim__gate_t *g);
@@ -244,7 +248,7 @@ void mim__gate_leave(mim__gate_t *g);
 
 /* ---- fair.c: the common key interval of the sessions (fair.c says why) ---- */
 #define MIM__FAIR_K_MAX 30u    /* as loop.c: never fewer key frames than one every 30 vest frames */
-#define MIM__FAIR_BUDGET 0.8   /* as loop.c: the fraction of a core (or of a vest period) compute may take */
+#define MIM__FAIR_BUDGET 0.8   /* as loop.c: the fraction of a vest period one session's compute may take */
 /* A session's costs, CPU seconds (0 or NaN: not measured yet). */
 typedef struct mim__fair_demand {
     double key_cold, key_warm; /* a key frame, cold and warm-started */
@@ -264,21 +268,38 @@ typedef struct mim__fair_choice {
  * frames morphs, then linear morphs; {1, 0, 0} when nothing is measured
  * or no session is auto; {K_MAX, 1, 1} when nothing fits. */
 mim__fair_choice_t mim__fair_choose(const mim__fair_demand_t *d, size_t n, double capacity);
+/* What the process and its cores did so far (cpu.c reads it), at wall. */
+typedef struct mim__fair_sample {
+    double wall;    /* mim_now(), seconds */
+    double process; /* the process's CPU time, seconds (NaN: unknown) */
+    double idle;    /* idle seconds of the cores it may run on, summed (NaN: unknown) */
+} mim__fair_sample_t;
+typedef void (*mim__fair_sampler_t)(void *user, mim__fair_sample_t *s);
 typedef struct mim__fair {
     pthread_mutex_t lock;
     mim__fair_demand_t *d, *packed; /* per entry (an id), and the used ones packed */
     unsigned char *used;
     unsigned char *active;         /* per entry: sending frames (counted), from its first until idle */
     size_t n;
-    double capacity_max, capacity; /* cores for compute: slots x budget (or given), and the estimate now */
-    double share;                  /* of a core a compute slot yields (smoothed; 0: not measured yet) */
-    double window_start, w_cpu, w_wall, w_wait; /* the window: its start, the compute's CPU, wall and wait seconds */
-    uint64_t w_frames;
-    int busy_before;               /* the previous window's loops waited long for a slot */
+    double cores;                  /* the cores the process may run on */
+    double capacity_max, capacity; /* cores for compute: at most (given, else the cores; no more than the slots), now */
+    double slots;                  /* the gate's */
+    double got;                    /* the compute's CPU per second plus idle cores (smoothed; <0: not measured yet) */
+    double share;                  /* of a core a slot holder runs: its CPU over wall time (smoothed; <0: not yet) */
+    double made;                   /* of the vest frames, those the loops made (smoothed; <0: not yet) */
+    double rest;                   /* cores the process uses but for the compute (smoothed; <0: not measured yet) */
+    mim__fair_sampler_t sample;    /* reads the process's CPU time and its cores' idle time (NULL: none) */
+    void *sample_user;
+    mim__fair_sample_t s0;         /* at the window's start */
+    double window_start, w_cpu, w_wall; /* the window: its start, the compute's CPU and wall seconds in slots, */
+    double w_made, w_vest;              /* frames made, and vest frames (made or skipped) */
     mim__fair_choice_t choice;
 } mim__fair_t;
-/* cores: the capacity at most (0: slots x MIM__FAIR_BUDGET). */
-void mim__fair_init(mim__fair_t *f, unsigned slots, double cores);
+/* cores: the process's (cpu.c); slots: the gate's; given: --compute-cores
+ * (0: none, the capacity is at most the cores). sample is called once a
+ * window (may be NULL: the capacity stays at its most). */
+void mim__fair_init(mim__fair_t *f, unsigned cores, unsigned slots, double given, mim__fair_sampler_t sample,
+                    void *sample_user);
 void mim__fair_destroy(mim__fair_t *f);
 /* A loop's entry (-1 when out of memory: the loop keeps its own k). */
 int mim__fair_join(mim__fair_t *f);
@@ -286,16 +307,26 @@ void mim__fair_leave(mim__fair_t *f, int id); /* accepts -1 */
 /* Its vest is away, ended or failed: not counted until its next frame
  * (accepts -1). */
 void mim__fair_idle(mim__fair_t *f, int id);
-/* A frame's compute, seconds: CPU time and wall time holding a compute
- * slot, and wall time waiting for one. */
-typedef struct mim__fair_times {
-    double cpu, wall, wait;
-} mim__fair_times_t;
-/* A loop's published frame: its costs now (d) and the frame's times, at
- * now (mim_now()); returns the common choice. */
-mim__fair_choice_t mim__fair_frame(mim__fair_t *f, int id, const mim__fair_demand_t *d, const mim__fair_times_t *t,
-                                   double now);
+/* A loop's published frame: its costs now (d), the CPU and wall seconds
+ * its compute (key frame or morph) took in a compute slot, and the vest
+ * frames it skipped since its previous one, at now (mim_now()); returns
+ * the common choice. */
+mim__fair_choice_t mim__fair_frame(mim__fair_t *f, int id, const mim__fair_demand_t *d, double cpu, double wall,
+                                   uint32_t skipped, double now);
 void mim__fair_state(mim__fair_t *f, mim__fair_choice_t *choice, double *capacity);
+
+/* ---- cpu.c: the cores the service may run on, the CPU it used, their idle time ---- */
+#define MIM__CPU_MAX 1024
+typedef struct mim__cpu {
+    unsigned cores;                   /* in the process's affinity mask (else online) */
+    double tick;                      /* seconds a /proc/stat tick */
+    unsigned char mine[MIM__CPU_MAX]; /* which CPUs those are */
+} mim__cpu_t;
+void mim__cpu_init(mim__cpu_t *c);
+/* Idle and iowait ticks of the CPUs marked in mine, summed over the
+ * "cpuN ..." lines of /proc/stat text (NaN: no such line). */
+double mim__cpu_idle_ticks(const char *stat, const unsigned char *mine);
+void mim__cpu_sample(void *user, mim__fair_sample_t *s); /* a mim__fair_sampler_t; user: a mim__cpu_t */
 
 /* ---- sessions.c: the vests a service drives, one avatar each (issue 16) ---- */
 struct mim__vs {
@@ -361,6 +392,7 @@ struct mim_serve {
     mim__workers_t *workers;
     pthread_mutex_t sessions_lock;
     mim__vs_t *sessions;        /* live and removed ones still referenced, in the order added */
+    mim__cpu_t cpu;             /* the cores it may run on */
     mim__gate_t gate;
     mim__fair_t fair;           /* the sessions' common key interval */
     /* The index readied on a thread of its own at start (server.c): a

@@ -104,7 +104,8 @@ struct mim__loop {
     uint32_t skipped;   /* vest frames skipped since the latest one made */
     int fair_id;        /* its entry in the service's fair.c (-1: none) */
     mim__fair_choice_t common; /* the interval all sessions share, as of the latest frame */
-    mim__fair_times_t times; /* the frame being made: its compute's CPU, in a slot and waiting for one */
+    double frame_cpu, frame_wall; /* the frame being made: its compute's CPU and wall seconds in a slot, */
+    uint32_t frame_skipped;       /* and the vest frames skipped before it */
     double w_key, w_morph; /* wall seconds of a key frame and a morph (moving averages, for status) */
     float last_u[3 * MIM_LANDMARKS_MAX];
     uint8_t have_u[MIM_LANDMARKS_MAX];
@@ -195,18 +196,15 @@ typedef struct slot {
 
 static slot_t slot_enter(mim__loop_t *l)
 {
-    double t0 = mim_now();
     mim__gate_enter(&l->vs->sv->gate); /* the wait costs no CPU: it is not in the cost */
-    slot_t s = {mim_now(), cpu_now()};
-    l->times.wait += s.wall - t0;
-    return s;
+    return (slot_t){mim_now(), cpu_now()};
 }
 
 static double slot_leave(mim__loop_t *l, slot_t s)
 {
     double cpu = cpu_now() - s.cpu, wall = mim_now() - s.wall;
     mim__gate_leave(&l->vs->sv->gate);
-    l->times.cpu += cpu, l->times.wall += wall;
+    l->frame_cpu += cpu, l->frame_wall += wall;
     return cpu;
 }
 
@@ -372,7 +370,8 @@ static void share_costs(mim__loop_t *l, double now)
     mim__fair_demand_t d = {.key_cold = l->c_cold, .key_warm = l->c_warm, .morph = l->c_morph,
                             .linear = l->c_linear, .period = l->period,
                             .fixed_k = l->opt.key_rate > 0.0 ? l->k : 0, .warm_ok = !l->opt.warm_start};
-    mim__fair_choice_t c = mim__fair_frame(&l->vs->sv->fair, l->fair_id, &d, &l->times, now);
+    mim__fair_choice_t c =
+        mim__fair_frame(&l->vs->sv->fair, l->fair_id, &d, l->frame_cpu, l->frame_wall, l->frame_skipped, now);
     pthread_mutex_lock(&l->lock);
     l->common = c;
     pthread_mutex_unlock(&l->lock);
@@ -463,7 +462,7 @@ static void landmarks_frame(mim__loop_t *l, const float *xyz, const uint8_t *pre
      * behind keys as often as the others (fair.c) */
     l->since_key = skipped > UINT32_MAX - l->since_key ? UINT32_MAX : l->since_key + skipped;
     l->skipped = 0;
-    l->times = (mim__fair_times_t){0, 0, 0};
+    l->frame_cpu = l->frame_wall = 0.0, l->frame_skipped = skipped;
     if (!l->keys[l->cur].valid || l->since_key >= l->k) {
         rc = make_key(l, u, R, have, &err);
         if (!rc)

@@ -100,12 +100,13 @@ typedef struct mim_serve_options {
     int relative;
     unsigned max_clients; /* WebSocket clients of one session at once; 0: MIM_SERVE_DEFAULT_MAX_CLIENTS */
     /* Key frames and morphs computed at once, over all sessions (gate.c);
-     * 0: the cores online. */
+     * 0: the cores the process may run on (its CPU affinity mask). */
     unsigned compute_slots;
     /* Cores of CPU the key frames and morphs of every session may take
-     * together, the budget from which the sessions' common key interval is
-     * chosen (serve/fair.c); 0: compute_slots x 0.8. Less: every session's
-     * key rate drops sooner, alike. */
+     * together, at most: the sessions' common key interval is chosen to
+     * fit what the compute can take as measured (serve/fair.c), and never
+     * more than this; 0: the cores the process may run on. Less: every
+     * session's key rate drops sooner, alike. */
     double compute_cores;
     /* Called on the loop thread for every published frame of every
      * session (frame->session says whose; may be NULL), e.g. to record the

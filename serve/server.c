@@ -216,10 +216,10 @@ int mim_serve_open(mim_serve_t **out, mim_session_t *s, const mim_serve_options_
         return mim_error_set(err, MIM_ENOMEM, "out of memory");
     mim__metrics_init(&sv->m);
     pthread_mutex_init(&sv->sessions_lock, NULL);
-    long cores = sysconf(_SC_NPROCESSORS_ONLN);
-    const unsigned slots = o.compute_slots ? o.compute_slots : cores > 0 ? (unsigned)cores : 1u;
+    mim__cpu_init(&sv->cpu);
+    const unsigned slots = o.compute_slots ? o.compute_slots : sv->cpu.cores;
     mim__gate_init(&sv->gate, slots);
-    mim__fair_init(&sv->fair, slots, o.compute_cores);
+    mim__fair_init(&sv->fair, sv->cpu.cores, slots, o.compute_cores, mim__cpu_sample, &sv->cpu);
     sv->t_start = mim_now();
     sv->max_body = o.max_body ? o.max_body : MIM_SERVE_DEFAULT_MAX_BODY;
     sv->opt = o;

@@ -1,7 +1,8 @@
 /* The sessions' common key interval (serve/fair.c, issue 16 item 1): the
  * rule alone, on given CPU costs, and the registry the loops share, driven
- * by hand with given times. No thread, no socket, no clock: these assert
- * the rule, not anyone's speed. */
+ * by hand with given times and a given machine (its process's CPU, its
+ * cores' idle time). No thread, no socket, no clock: these assert the
+ * rule, not anyone's speed. */
 #include "internal.h"
 
 #include <math.h>
@@ -197,129 +198,268 @@ static void test_one_interval_for_all(void **state)
     assert_true(cores(d, 24, c) <= 0.8);
 }
 
-/* 24 loops' frames at 60 Hz each for seconds, each frame's compute
- * taking cpu CPU seconds in wall seconds of a compute slot after waiting
- * wait seconds for it; *t advances. */
-static mim__fair_choice_t feed(mim__fair_t *f, const int *id, const mim__fair_demand_t *d, double cpu, double wall,
-                               double wait, double seconds, double *t)
+/* The machine a registry reads (its sampler): the process's CPU and the
+ * idle time of its cores so far, as the test sets them. */
+typedef struct machine {
+    double wall, process, idle;
+} machine_t;
+
+static void read_machine(void *user, mim__fair_sample_t *s)
+{
+    const machine_t *m = user;
+    s->wall = m->wall, s->process = m->process, s->idle = m->idle;
+}
+
+/* n loops' frames at 60 Hz each for seconds, one in every `every` vest
+ * periods made (the others skipped), each frame's compute taking cpu CPU
+ * seconds in wall seconds of a compute slot, while the rest of the process
+ * takes rest cores and idle cores lie idle (NaN: idle time unknown); *t
+ * advances. */
+typedef struct load {
+    int n, every;
+    double cpu, wall, rest, idle;
+} load_t;
+
+static mim__fair_choice_t run(mim__fair_t *f, machine_t *m, const int *id, const mim__fair_demand_t *d, load_t L,
+                              double seconds, double *t)
 {
     mim__fair_choice_t c = {0, 0, 0};
-    mim__fair_times_t tm = {cpu, wall, wait};
-    for (double end = *t + seconds; *t < end; *t += P)
-        for (int i = 0; i < 24; i++)
-            c = mim__fair_frame(f, id[i], d, &tm, *t);
+    long step = 0;
+    for (double end = *t + seconds; *t < end; *t += P, step++) {
+        m->wall = *t;
+        m->idle += L.idle * P;
+        m->process += L.rest * P;
+        for (int i = 0; i < L.n; i++) {
+            if (step % L.every) /* skipped: the next frame made tells */
+                continue;
+            m->process += L.cpu;
+            c = mim__fair_frame(f, id[i], d, L.cpu, L.wall, step ? (uint32_t)L.every - 1 : 0, *t);
+        }
+    }
     return c;
 }
 
 /* The registry: entries join and leave, and count from their first frame
- * until they idle; the capacity is at most the
- * cores' budget times the share of a core a compute slot yields (CPU over
- * wall time while it is held), falls to what the compute got when loops
- * wait long for a slot two windows running (not one: a passing stall),
- * and climbs back while they do not; the choice follows it. Times and CPU
- * are given, not read. */
+ * until they idle. The capacity is what the compute can get on the cores:
+ * the larger of what it got plus the cores' idle time and slots x the
+ * share of a core a slot holder runs, at most the cores less the rest of
+ * the process (and --compute-cores, and the slots). Times, CPU and idle
+ * time are given, not read. */
 static void test_registry_capacity(void **state)
 {
     (void)state;
+    machine_t m = {100.0, 0.0, 0.0};
     mim__fair_t f;
-    mim__fair_init(&f, 2, 0.0);
+    mim__fair_init(&f, 2, 2, 0.0, read_machine, &m);
     double cap, t = 100.0;
     mim__fair_choice_t c;
     mim__fair_state(&f, &c, &cap);
-    assert_true(fabs(cap - 1.6) < 1e-9);
+    assert_true(fabs(cap - 2.0) < 1e-9); /* the cores, until measured */
     assert_int_equal(c.k, 1);
     int id[24];
     for (int i = 0; i < 24; i++)
         assert_true((id[i] = mim__fair_join(&f)) >= 0);
-    mim__fair_demand_t d = sess(0.9, 0.5);
-    /* a slot yields a whole core: 24 x 0.9 ms x 60 = 1.30 cores fits 1.6 */
-    c = feed(&f, id, &d, 0.9e-3, 0.9e-3, 0.0, 2.0, &t);
+    mim__fair_demand_t d = sess(0.9, 0.5); /* 24 x 0.9 ms x 60 = 1.30 cores at every frame */
+    /* idle cores, a slot a whole core: the cores less the rest, 1.8 */
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 0.9e-3, 0.2, 0.5}, 10.0, &t);
     mim__fair_state(&f, &c, &cap);
-    assert_true(fabs(cap - 1.6) < 1e-6);
+    assert_true(fabs(cap - 1.8) < 0.01);
     assert_int_equal(c.k, 1);
     assert_false(c.warm);
-    /* a slot yields 0.4 of a core (its holder preempted): 0.64 cores, in
-     * which warm key frames at every vest frame (0.78) do not fit, nor
-     * frames morphs (0.72 at best): linear ones, every second frame a key */
-    c = feed(&f, id, &d, 0.9e-3, 2.25e-3, 0.0, 10.0, &t);
+    /* a slot holder preempted (0.6 of a core: the other loops, the
+     * fan-out) with idle time left: the compute could take it; the old
+     * rule's slots x 0.8 x 0.6 = 0.96 cores would have halved the key rate */
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 1.5e-3, 0.2, 0.3}, 10.0, &t);
     mim__fair_state(&f, &c, &cap);
-    assert_true(fabs(cap - 0.64) < 0.01);
-    assert_int_equal(c.k, 2);
+    assert_true(fabs(cap - 1.6) < 0.01); /* 1.3 + 0.3 */
+    assert_int_equal(c.k, 1);
+    assert_false(c.warm);
+    /* another process soaks up every idle moment, yet a slot holder runs
+     * 0.8 of the time: slots x 0.8 = 1.6 cores to take */
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 1.125e-3, 0.2, 0.0}, 10.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 1.6) < 0.01);
+    assert_int_equal(c.k, 1);
+    assert_false(c.warm);
+    /* the demand met on a busy machine: what it got is its demand; a slot
+     * holder runs half the time (1.0 core): the interval stays 1 */
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 1.8e-3, 0.2, 0.0}, 10.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 1.3) < 0.01);
+    assert_int_equal(c.k, 1);
+    assert_false(c.warm);
+    /* the CPU spent: no idle time, the loops make one vest frame in 2
+     * (the compute got 0.65 cores), a slot holder runs 0.4 of the time
+     * (2 x 0.4 x 0.5 = 0.4): the demand fits 0.65 cores */
+    c = run(&f, &m, id, &d, (load_t){24, 2, 0.9e-3, 2.25e-3, 0.2, 0.0}, 10.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 0.65) < 0.01);
     assert_true(c.warm);
+    assert_true(c.k > 1);
+    assert_true(cores(&d, 1, c) * 24 <= cap);
+    /* the loop threads starved (one vest frame in 2 made) though a slot
+     * holder runs 0.8 of the time: 2 x 0.8 x 0.5 = 0.8 cores; and while
+     * they stay starved at the cheaper interval it stays (the share and
+     * the frames made do not fall because the interval rose) */
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 0.9e-3, 0.2, 0.5}, 10.0, &t);
+    assert_int_equal(c.k, 1);
+    assert_false(c.warm);
+    c = run(&f, &m, id, &d, (load_t){24, 2, 0.9e-3, 1.125e-3, 0.2, 0.0}, 10.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 0.8) < 0.01);
+    assert_true(c.warm);
+    assert_true(cores(&d, 1, c) * 24 <= cap);
+    mim__fair_choice_t starved = c;
+    c = run(&f, &m, id, &d, (load_t){24, 2, 0.5e-3, 0.625e-3, 0.2, 0.0}, 20.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 0.8) < 0.01);
+    assert_int_equal(c.k, starved.k);
+    /* cores idle again: back to cold key frames at every vest frame */
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 0.9e-3, 0.2, 0.5}, 10.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 1.8) < 0.01);
+    assert_int_equal(c.k, 1);
+    assert_false(c.warm);
+    /* the rest of the process takes 1.2 cores: 0.8 left, whatever lies idle */
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 0.9e-3, 1.2, 0.5}, 10.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 0.8) < 0.01);
+    assert_true(c.warm || c.k > 1);
+    assert_true(cores(&d, 1, c) * 24 <= cap);
+    /* a share near 0, nothing idle, the process's CPU unknown: the
+     * capacity's floor (0.01 cores), which nothing fits: linear morphs and
+     * a key frame in 30 */
+    c = run(&f, &m, id, &d, (load_t){24, 1, 1e-6, 1e-3, 0.2, 0.0}, 1.0, &t);
+    m.process = NAN;
+    c = run(&f, &m, id, &d, (load_t){24, 1, 1e-6, 1e-3, 0.2, 0.0}, 20.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 0.01) < 1e-9);
+    assert_int_equal(c.k, MIM__FAIR_K_MAX);
     assert_true(c.linear);
     /* windows with too little compute to tell keep the share */
-    c = feed(&f, id, &d, 0.0, 0.0, 0.0, 2.0, &t);
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.0, 0.0, 0.2, 0.0}, 2.0, &t);
     mim__fair_state(&f, &c, &cap);
-    assert_true(fabs(cap - 0.64) < 0.01);
-    /* a whole core again (nonsense times count for nothing; a share is
-     * never over 1), no wait: climbs back */
-    c = feed(&f, id, &d, NAN, 1e-3, 0.0, 1.0, &t);
-    c = feed(&f, id, &d, 2e-3, 1e-3, 0.0, 60.0, &t);
-    mim__fair_state(&f, &c, &cap);
-    assert_true(cap <= 1.6 + 1e-9 && cap > 1.5);
-    assert_int_equal(c.k, 1);
-    assert_false(c.warm);
-    /* loops wait 25 ms a frame for a slot (the compute gets 0.72 cores)
-     * one window: held (a stall); wait under 0.1 period resets it */
-    while (f.w_frames >= 24)
-        feed(&f, id, &d, 0.9e-3, 0.9e-3, 0.0, P / 2, &t);
-    feed(&f, id, &d, 0.5e-3, 0.5e-3, 25e-3, 0.3, &t);
-    feed(&f, id, &d, 0.9e-3, 0.9e-3, 0.0, 1.0, &t);
-    mim__fair_state(&f, &c, &cap);
-    assert_true(cap > 1.5);
-    /* waits between the marks (0.1 and 1 vest period): held */
-    feed(&f, id, &d, 0.5e-3, 0.5e-3, 12e-3, 3.0, &t);
-    mim__fair_state(&f, &c, &cap);
-    assert_true(cap > 1.5);
-    /* for long: down to 0.9 x 0.72 = 0.65 cores, one key frame in 2 */
-    c = feed(&f, id, &d, 0.5e-3, 0.5e-3, 25e-3, 1.5, &t);
-    mim__fair_state(&f, &c, &cap);
-    assert_true(fabs(cap - 0.648) < 0.01);
-    assert_int_equal(c.k, 2);
-    assert_true(c.linear);
-    /* a share near 0 counts as 0.05 of a core: 0.08 cores, linear morphs
-     * and one key frame in 15 */
-    c = feed(&f, id, &d, 1e-6, 1.0e-3, 0.0, 20.0, &t);
-    mim__fair_state(&f, &c, &cap);
-    assert_true(fabs(cap - 0.08) < 0.001);
-    assert_int_equal(c.k, 15);
-    assert_true(c.linear);
-    assert_true(cores(&d, 1, c) * 24 <= cap);
-    /* 20 leave: the 4 left fit again; a slot is reused */
+    assert_true(fabs(cap - 0.01) < 1e-9);
+    /* 20 leave; an entry is reused */
     for (int i = 4; i < 24; i++)
         mim__fair_leave(&f, id[i]);
     mim__fair_leave(&f, -1);
     int again = mim__fair_join(&f);
     assert_true(again >= 4 && again < 24);
     mim__fair_leave(&f, again);
-    mim__fair_state(&f, &c, &cap);
-    assert_true(c.k < MIM__FAIR_K_MAX);
+    /* and a whole core again: every vest frame keyed */
+    m.process = 0.0;
+    c = run(&f, &m, id, &d, (load_t){4, 1, 0.9e-3, 0.9e-3, 0.1, 1.5}, 10.0, &t);
+    assert_int_equal(c.k, 1);
+    assert_false(c.warm);
     /* a frame from an entry that left (a loop closing) is harmless */
-    mim__fair_times_t tm = {0.9e-3, 0.9e-3, 0.0};
-    c = mim__fair_frame(&f, id[5], &d, &tm, t);
+    c = mim__fair_frame(&f, id[5], &d, 0.9e-3, 0.9e-3, 0, t);
+    mim__fair_destroy(&f);
+}
+
+/* Without idle time (no /proc/stat): slots x share, at most the cores
+ * less the rest. One slot: one core at most, however many cores. */
+static void test_registry_without_idle_time(void **state)
+{
+    (void)state;
+    machine_t m = {100.0, 0.0, NAN};
+    mim__fair_t f;
+    double cap, t = 100.0;
+    mim__fair_choice_t c;
+    int id[24];
+    mim__fair_demand_t d = sess(0.9, 0.5);
+    mim__fair_init(&f, 2, 2, 0.0, read_machine, &m);
+    for (int i = 0; i < 24; i++)
+        id[i] = mim__fair_join(&f);
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 0.9e-3, 0.3, NAN}, 10.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 1.7) < 0.01);
+    assert_int_equal(c.k, 1);
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 1.5e-3, 0.3, NAN}, 10.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 1.2) < 0.01); /* 2 x 0.6 */
+    assert_true(c.warm || c.k > 1);
     mim__fair_destroy(&f);
 
-    /* --compute-cores: the budget as given */
-    mim__fair_init(&f, 2, 0.5);
+    mim__fair_init(&f, 4, 1, 0.0, read_machine, &m);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 1.0) < 1e-9);
+    mim__fair_destroy(&f);
+
+    /* no sampler at all: the capacity stays at its most */
+    mim__fair_init(&f, 2, 2, 0.0, NULL, NULL);
+    for (int i = 0; i < 24; i++)
+        id[i] = mim__fair_join(&f);
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 0.9e-3, 0.3, NAN}, 2.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 2.0) < 0.01);
+    mim__fair_destroy(&f);
+}
+
+/* --compute-cores: a cap whatever lies idle; sessions whose vest went
+ * away do not count. */
+static void test_registry_given_cores(void **state)
+{
+    (void)state;
+    machine_t m = {100.0, 0.0, 0.0};
+    mim__fair_t f;
+    double cap, t = 100.0;
+    mim__fair_choice_t c;
+    int id[24];
+    mim__fair_demand_t d = sess(0.9, 0.5);
+    mim__fair_init(&f, 2, 2, 0.5, read_machine, &m);
     mim__fair_state(&f, &c, &cap);
     assert_true(fabs(cap - 0.5) < 1e-9);
     for (int i = 0; i < 24; i++)
         id[i] = mim__fair_join(&f);
-    c = feed(&f, id, &d, 0.9e-3, 0.9e-3, 0.0, 1.0, &t);
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 0.9e-3, 0.1, 1.5}, 2.0, &t);
+    mim__fair_state(&f, &c, &cap);
+    assert_true(fabs(cap - 0.5) < 1e-9);
     assert_true(c.k > 1);
     /* 20 of them idle (their vests away) without leaving: not counted,
      * and the 4 left fit at every frame; a frame makes one count again */
     for (int i = 4; i < 24; i++)
         mim__fair_idle(&f, id[i]);
     mim__fair_idle(&f, -1);
-    mim__fair_times_t tm4 = {0.9e-3, 0.9e-3, 0.0};
-    for (double end = t + 1.0; t < end; t += P)
-        for (int i = 0; i < 4; i++)
-            c = mim__fair_frame(&f, id[i], &d, &tm4, t);
+    c = run(&f, &m, id, &d, (load_t){4, 1, 0.9e-3, 0.9e-3, 0.1, 1.5}, 1.0, &t);
     assert_int_equal(c.k, 1);
-    c = feed(&f, id, &d, 0.9e-3, 0.9e-3, 0.0, 1.0, &t);
+    c = run(&f, &m, id, &d, (load_t){24, 1, 0.9e-3, 0.9e-3, 0.1, 1.5}, 1.0, &t);
     assert_true(c.k > 1);
     mim__fair_destroy(&f);
+}
+
+/* /proc/stat's idle and iowait ticks of the process's CPUs only; the real
+ * machine's figures are sane. */
+static void test_cpu_idle(void **state)
+{
+    (void)state;
+    const char *stat = "cpu  100 0 50 9000 30 0 0 0 0 0\n"
+                       "cpu0 50 0 25 4000 10 0 0 0 0 0\n"
+                       "cpu1 40 0 20 3000 15 0 0 0 0 0\n"
+                       "cpu2 10 0 5 2000 5 0 0 0 0 0\n"
+                       "intr 1 2 3\n";
+    unsigned char mine[MIM__CPU_MAX] = {0};
+    mine[0] = mine[2] = 1;
+    assert_true(fabs(mim__cpu_idle_ticks(stat, mine) - (4010.0 + 2005.0)) < 1e-9);
+    mine[0] = mine[2] = 0;
+    assert_true(isnan(mim__cpu_idle_ticks(stat, mine)));
+    assert_true(isnan(mim__cpu_idle_ticks("intr 1 2 3\n", mine)));
+    assert_true(isnan(mim__cpu_idle_ticks("", mine)));
+
+    mim__cpu_t cpu;
+    mim__cpu_init(&cpu);
+    assert_true(cpu.cores >= 1);
+    unsigned marked = 0;
+    for (int i = 0; i < MIM__CPU_MAX; i++)
+        marked += cpu.mine[i];
+    assert_true(marked >= cpu.cores);
+    mim__fair_sample_t a, b;
+    mim__cpu_sample(&cpu, &a);
+    mim__cpu_sample(&cpu, &b);
+    assert_true(b.wall >= a.wall);
+    assert_true(a.process >= 0.0 && b.process >= a.process);
+    if (isfinite(a.idle)) /* Linux: /proc/stat */
+        assert_true(a.idle >= 0.0 && b.idle >= a.idle);
 }
 
 int main(void)
@@ -333,6 +473,9 @@ int main(void)
         cmocka_unit_test(test_warm_only_where_auto),
         cmocka_unit_test(test_one_interval_for_all),
         cmocka_unit_test(test_registry_capacity),
+        cmocka_unit_test(test_registry_without_idle_time),
+        cmocka_unit_test(test_registry_given_cores),
+        cmocka_unit_test(test_cpu_idle),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
