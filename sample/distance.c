@@ -42,9 +42,8 @@ static double det3(const double m[9])
     return m[0] * (m[4] * m[8] - m[5] * m[7]) - m[3] * (m[1] * m[8] - m[2] * m[7]) + m[6] * (m[1] * m[5] - m[2] * m[4]);
 }
 
-void mim_sample_align(const double *a, const double *b, int dim, double *out)
+void mim__align_points(const double *a, const double *b, int n, int dim, double *out)
 {
-    const int n = MIM_PAIR_JOINTS;
     double ca[3] = {0}, cb[3] = {0};
     for (int i = 0; i < n; i++)
         for (int c = 0; c < dim; c++) ca[c] += a[dim * i + c] / n, cb[c] += b[dim * i + c] / n;
@@ -74,6 +73,38 @@ void mim_sample_align(const double *a, const double *b, int dim, double *out)
             for (int c = 0; c < dim; c++) v += R[dim * c + r] * (b[dim * i + c] - cb[c]);
             out[dim * i + r] = v;
         }
+}
+
+void mim_sample_align(const double *a, const double *b, int dim, double *out)
+{
+    mim__align_points(a, b, MIM_PAIR_JOINTS, dim, out);
+}
+
+void mim__limb_joints(const double *p, int swap, double *out)
+{
+    for (int person = 0; person < 2; person++)
+        memcpy(out + 3 * MIM_LIMB_COUNT * person,
+               p + 3 * (MIM_PAIR_PERSON_JOINTS * (person ^ swap) + MIM_LIMB_FIRST), 3 * MIM_LIMB_COUNT * sizeof *out);
+}
+
+/* LIMBS: each order of b's people fitted over the 24 limb joints */
+static double limbs_distance(const double *a, const double *b)
+{
+    enum { L = 2 * MIM_LIMB_COUNT };
+    double la[3 * L], lb[3 * L], fit[3 * L], best = INFINITY;
+    mim__limb_joints(a, 0, la);
+    for (int swap = 0; swap < 2; swap++) {
+        mim__limb_joints(b, swap, lb);
+        mim__align_points(la, lb, L, 3, fit);
+        double s = 0;
+        for (int i = 0; i < L; i++) {
+            double d2 = 0;
+            for (int k = 0; k < 3; k++) d2 += (la[3 * i + k] - fit[3 * i + k]) * (la[3 * i + k] - fit[3 * i + k]);
+            s += sqrt(d2);
+        }
+        best = fmin(best, s / L);
+    }
+    return best;
 }
 
 int mim_pair_prepare(const double *joints, mim_pair_prep_t *out, mim_error_t *err)
@@ -123,6 +154,7 @@ int mim_pair_prepare_many(const double *joints, uint32_t n, uint32_t threads, mi
 
 double mim_sample_distance(const mim_pair_prep_t *a, const mim_pair_prep_t *b, mim_sample_metric_t metric)
 {
+    if (metric == MIM_METRIC_LIMBS) return limbs_distance(a->joints, b->joints);
     double bb[3 * MIM_PAIR_JOINTS];
     mim_sample_align(a->joints, b->joints, 3, bb);
     if (metric == MIM_METRIC_CARTESIAN) {
