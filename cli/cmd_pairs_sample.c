@@ -67,7 +67,8 @@ static void help(FILE *out)
             "  --bvh DIR        also DIR/chainK_A.bvh and chainK_B.bvh, a frame per sample (y up)\n"
             "  --up AXIS        the --prior files' up axis, x, y, z, -x, -y or -z (default: found per\n"
             "                   take and said; mimic pairs --help)\n"
-            "  --json           a report: samples, seconds, samples_per_second, acceptance per chain,\n"
+            "  --json           a report: samples, seconds, samples_per_second, acceptance and the log\n"
+            "                   density's rise from a seed over its run per chain,\n"
             "                   parameters\n"
             "  -o FILE          the samples (schemas/pair-samples.md), chain after chain\n\n"
             "Exit status: 0 done, 1 an input failed (motions, annotations, no seed of finite density),\n"
@@ -85,6 +86,7 @@ typedef struct chain_job {
     uint32_t index, n, restart_every, restarts;
     double jitter_rot, jitter_trans; /* --seed-jitter: radians, metres (0: the seeds as they are) */
     double *joints, *log_density;
+    double rise; /* summed over the runs: log f at a run's last step minus at its seed */
     mim_mh_stats_t stats;
     _Atomic uint64_t done;
     _Atomic int finished;
@@ -133,6 +135,7 @@ static void *chain_thread(void *arg)
             if (j->rc != MIM_EINVAL || (j->start && !jitter)) break;
         }
         if (!at) j->stats.seed_log_density = st.seed_log_density;
+        if (!j->rc) j->rise += j->log_density[at + len - 1] - st.seed_log_density;
         j->stats.steps += st.steps, j->stats.accepted += st.accepted, j->stats.zero += st.zero;
         at += len;
     }
@@ -224,12 +227,13 @@ static int write_bvh(const char *dir, const chain_job_t *jobs, uint32_t chains)
 static json_t *report(const mim_pairs_target_t *t, const chain_job_t *jobs, uint32_t chains, uint64_t total,
                       double seconds, uint32_t n_prior, uint32_t n_ann, uint32_t dropped, uint64_t seed)
 {
-    json_t *acc = json_array(), *f0 = json_array(), *rs = json_array();
+    json_t *acc = json_array(), *f0 = json_array(), *rs = json_array(), *rise = json_array();
     for (uint32_t c = 0; c < chains; c++) {
         const mim_mh_stats_t *s = &jobs[c].stats;
         json_array_append_new(rs, json_integer(jobs[c].restarts > 0 ? jobs[c].restarts - 1 : 0));
         json_array_append_new(acc, json_real(s->steps ? (double)s->accepted / (double)s->steps : 0.0));
         json_array_append_new(f0, json_real(s->seed_log_density));
+        json_array_append_new(rise, json_real(jobs[c].restarts ? jobs[c].rise / jobs[c].restarts : 0.0));
     }
     const mim_pairs_sampler_options_t *o = &t->opt;
     json_t *params = json_pack("{s:s, s:I, s:f, s:f, s:f, s:f, s:I, s:f, s:f, s:f, s:f, s:f, s:f}", "density",
@@ -243,11 +247,11 @@ static json_t *report(const mim_pairs_target_t *t, const chain_job_t *jobs, uint
     json_object_set_new(params, "seeds", json_string(jobs[0].start ? "start" : jobs[0].lift ? "lifted" : "prior"));
     json_object_set_new(params, "seed_jitter_deg", json_real(jobs[0].jitter_rot * 180 / M_PI));
     json_object_set_new(params, "seed_jitter_m", json_real(jobs[0].jitter_trans));
-    return json_pack("{s:I, s:I, s:f, s:f, s:f, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:o}", "samples", (json_int_t)total,
+    return json_pack("{s:I, s:I, s:f, s:f, s:f, s:o, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:o}", "samples", (json_int_t)total,
                      "chains", (json_int_t)chains, "seconds", seconds, "samples_per_second",
                      seconds > 0 ? total / seconds : 0.0, "samples_per_second_per_chain",
                      seconds > 0 ? total / seconds / chains : 0.0, "acceptance", acc, "seed_log_density", f0, "restarts", rs,
-                     "prior_frames", (json_int_t)n_prior, "annotations", (json_int_t)n_ann, "annotations_dropped",
+                     "log_density_rise", rise, "prior_frames", (json_int_t)n_prior, "annotations", (json_int_t)n_ann, "annotations_dropped",
                      (json_int_t)dropped, "seed", (json_int_t)seed, "parameters", params);
 }
 
