@@ -20,8 +20,8 @@ static void help(FILE *out)
 {
     fprintf(out,
             "usage: mimic pairs coverage --truth A.bvh,B.bvh [--truth ...] [--every N] [--offset K]\n"
-            "                            --samples SAMPLES.jsonl [--threads N] [--joint-map FILE.json] [--unit M]\n"
-            "                            [--up AXIS] [--json]\n"
+            "                            --samples SAMPLES.jsonl [--measures LIST] [--threads N]\n"
+            "                            [--joint-map FILE.json] [--unit M] [--up AXIS] [--json]\n"
             "       mimic pairs export --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K]\n"
             "                          [--joint-map FILE.json] [--unit M] [--up AXIS] -o FRAMES.jsonl\n"
             "       mimic pairs annotate --pair A.bvh,B.bvh [--pair ...] [--every N] [--offset K] [--views V]\n"
@@ -43,8 +43,11 @@ static void help(FILE *out)
             "             offset + every, ... of each --truth take) of the distance to the nearest\n"
             "             sample of S (schemas/pair-samples.md), in D_I (interaction coordinates, eq. 8,\n"
             "             3D), D_C (joint RMS) and D_S (3D shape contexts), each after a rigid alignment\n"
-            "             (metres for D_I and D_C). Exact: a distance is skipped only where a lower\n"
-            "             bound proves that sample cannot be the nearest.\n\n"
+            "             (metres for D_I and D_C), and limbs: the mean distance of each person's 12\n"
+            "             limb joints (shoulders, elbows, wrists, hips, knees, ankles) after a rigid\n"
+            "             fit over those joints, the better of the two orders of the people (metres).\n"
+            "             Exact: a distance is skipped only where a lower bound proves that sample\n"
+            "             cannot be the nearest.\n\n"
             "  export     the pose-pairs of takes (frames offset, offset + every, ...) in the samples\n"
             "             format, log density null: motion capture to compare samples with, or to\n"
             "             measure what the capture itself covers.\n\n"
@@ -70,9 +73,29 @@ static void help(FILE *out)
             "                     head above the feet in the rest pose, else over the frames, and said);\n"
             "                     pose-pairs are turned to mimic's y up as they are read\n"
             "  --threads N        coverage: threads (default: one per core)\n"
-            "  --json             {\"truth\": m, \"samples\": n, \"D_I\": ..., \"D_C\": ..., \"D_S\": ...}\n"
+            "  --measures LIST    coverage: some of D_I,D_C,D_S,limbs, comma-separated (default: all four)\n"
+            "  --json             {\"truth\": m, \"samples\": n, \"D_I\": ..., \"D_C\": ..., \"D_S\": ...,\n"
+            "                     \"limbs\": ...}: the measures asked for\n"
             "  -h, --help         this help\n\n"
             "Exit status: 0 done, 1 an input failed (a motion file, joints, samples), 2 bad usage.\n");
+}
+
+/* --measures D_I,limbs,...: which of label[] to compute */
+static int measures(const char *list, const char *const label[4], int want[4])
+{
+    memset(want, 0, 4 * sizeof *want);
+    for (const char *p = list;;) {
+        size_t n = strcspn(p, ",");
+        int k = 0;
+        while (k < 4 && !(strlen(label[k]) == n && !strncmp(p, label[k], n))) k++;
+        if (k == 4) {
+            fprintf(stderr, "mimic pairs coverage: --measures '%s': '%.*s' is not D_I, D_C, D_S or limbs\n", list, (int)n, p);
+            return -1;
+        }
+        want[k] = 1;
+        if (!p[n]) return 0;
+        p += n + 1;
+    }
 }
 
 static int coverage(int argc, char **argv)
@@ -82,8 +105,11 @@ static int coverage(int argc, char **argv)
         {"offset", required_argument, 0, 'k'},    {"samples", required_argument, 0, 's'},
         {"joint-map", required_argument, 0, 'm'}, {"unit", required_argument, 0, 'u'}, {"up", required_argument, 0, MIM_CLI_OPT_UP},
         {"json", no_argument, 0, 'j'},            {"threads", required_argument, 0, 't'},
-        {"help", no_argument, 0, 'h'},            {0, 0, 0, 0},
+        {"measures", required_argument, 0, 'M'},  {"help", no_argument, 0, 'h'},
+        {0, 0, 0, 0},
     };
+    static const char *const label[4] = {"D_I", "D_C", "D_S", "limbs"};
+    int want[4] = {1, 1, 1, 1};
     const char *samples_path = NULL;
     long cores = sysconf(_SC_NPROCESSORS_ONLN);
     uint64_t threads = cores > 0 ? (uint64_t)cores : 1;
@@ -91,7 +117,7 @@ static int coverage(int argc, char **argv)
     int as_json = 0, c, taken;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "p:e:k:s:m:u:jt:h", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "p:e:k:s:m:u:jt:M:h", longopts, NULL)) != -1) {
         if ((taken = mim_cli_takes_option(&tk, c, optarg))) {
             if (taken < 0) return 2;
             continue;
@@ -99,6 +125,9 @@ static int coverage(int argc, char **argv)
         switch (c) {
         case 's': samples_path = optarg; break;
         case 'j': as_json = 1; break;
+        case 'M':
+            if (measures(optarg, label, want)) return 2;
+            break;
         case 't':
             if (mim_cli_number("pairs coverage", "threads", optarg, 1, 256, &threads)) return 2;
             break;
@@ -162,9 +191,9 @@ static int coverage(int argc, char **argv)
         fprintf(stderr, "mimic pairs coverage: %s: sample %u: %s\n", samples_path, bad + 1, mim_error_text(&err));
         goto done;
     }
-    double cov[3];
-    static const char *const label[3] = {"D_I", "D_C", "D_S"};
-    for (int k = 0; k < 3; k++) {
+    double cov[4];
+    for (int k = 0; k < 4; k++) {
+        if (!want[k]) continue;
         mim_progress_t pr = {.fn = mim_cli_progress};
         const mim_sample_coverage_options_t o = {.threads = (uint32_t)threads, .progress = &pr};
         mim_sample_coverage_t res = {0};
@@ -175,8 +204,9 @@ static int coverage(int argc, char **argv)
         cov[k] = res.coverage;
     }
     if (as_json) {
-        json_t *j = json_pack("{s:I, s:I, s:f, s:f, s:f}", "truth", (json_int_t)m, "samples", (json_int_t)smp.n,
-                              label[0], cov[0], label[1], cov[1], label[2], cov[2]);
+        json_t *j = json_pack("{s:I, s:I}", "truth", (json_int_t)m, "samples", (json_int_t)smp.n);
+        for (int k = 0; k < 4 && j; k++)
+            if (want[k]) json_object_set_new(j, label[k], json_real(cov[k]));
         char *out = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
         if (!out) {
             fprintf(stderr, "mimic pairs coverage: cannot make the JSON report\n");
@@ -187,8 +217,10 @@ static int coverage(int argc, char **argv)
         free(out);
         json_decref(j);
     } else {
-        printf("coverage of %u true pose-pairs by %u samples: D_I %.4f m, D_C %.4f m, D_S %.4f\n", m, smp.n, cov[0],
-               cov[1], cov[2]);
+        printf("coverage of %u true pose-pairs by %u samples:", m, smp.n);
+        for (int k = 0; k < 4; k++)
+            if (want[k]) printf(" %s %.4f%s", label[k], cov[k], k == 2 ? "" : " m");
+        printf("\n");
     }
     status = 0;
 done:

@@ -40,18 +40,23 @@ static void help(FILE *out)
             "the physical prior (joint limits learned from the --prior motions' frames, offset,\n"
             "offset + every, ...; bone penetration through ODE) times the likelihood of the 2D\n"
             "annotations (pairs annotate's format) seen along M views drawn from their view density.\n"
-            "Each chain starts from a prior frame drawn at random (or from --start's sample) and walks\n"
-            "with the velocity-biased proposal, the density truncated around the seed's; every\n"
-            "--restart-every steps it starts again from a new seed (the paper's restart).\n\n"
+            "Each chain starts from an annotation drawn at random and lifted to 3D (without annotations:\n"
+            "a prior frame drawn at random; or from --start's sample) and walks with the velocity-biased\n"
+            "proposal, the density truncated around the seed's; every --restart-every steps it starts\n"
+            "again from a new seed (the paper's restart).\n\n"
             "  --density D      ic (eqs. 8-9, default), cartesian (aligned 2D distance), shape (2D shape\n"
             "                   contexts), or prior (no annotations, unbiased proposal)\n"
             "  --samples N      samples in all (1..10000000), split over the chains\n"
             "  --chains C       chains, one thread each (default 2)\n"
             "  --views M        views per likelihood (eq. 6; default 8, at most 64)\n"
             "  --sigma-l S      eq. 9's bandwidth (default 0.1, in units of the 2D pair's RMS radius)\n"
-            "  --restart-every N  steps of a chain between restarts (default 100; 0: never)\n"
+            "  --restart-every N  steps of a chain between restarts (default 20; 0: never)\n"
             "  --velocity-scale V eq. 12: the annotations' motion is scaled by V in the proposal (default 0.05)\n"
             "  --seed S         the generator's seed (default 1)\n"
+            "  --seeds lifted|prior  where a chain (re)starts: an annotation drawn at random and lifted to\n"
+            "                   3D (each bone's depth from its 2D length and the prior's bone lengths,\n"
+            "                   its sign chosen by the prior; default with --annotations), or a prior\n"
+            "                   frame drawn at random (default without)\n"
             "  --start F[:L[,L...]] the chains (and their restarts) start from those lines of samples\n"
             "                   file F, chain k from the k-th line mod their count (the paper's K\n"
             "                   seeds; default: line 1)\n"
@@ -62,7 +67,8 @@ static void help(FILE *out)
             "  --bvh DIR        also DIR/chainK_A.bvh and chainK_B.bvh, a frame per sample (y up)\n"
             "  --up AXIS        the --prior files' up axis, x, y, z, -x, -y or -z (default: found per\n"
             "                   take and said; mimic pairs --help)\n"
-            "  --json           a report: samples, seconds, samples_per_second, acceptance per chain,\n"
+            "  --json           a report: samples, seconds, samples_per_second, acceptance and the log\n"
+            "                   density's rise from a seed over its run per chain,\n"
             "                   parameters\n"
             "  -o FILE          the samples (schemas/pair-samples.md), chain after chain\n\n"
             "Exit status: 0 done, 1 an input failed (motions, annotations, no seed of finite density),\n"
@@ -73,11 +79,14 @@ typedef struct chain_job {
     const mim_pairs_target_t *target;
     const double *prior;
     uint32_t n_prior;
-    const double *start; /* NULL: a prior frame */
+    const double *start; /* NULL: a prior frame, or a lifted annotation */
+    const mim_pairs_annotations_t *lift; /* non-NULL: seeds lifted from these annotations (--seeds lifted) */
+    const double *lengths;               /* the prior's bone lengths, for lifting */
     uint64_t seed;
     uint32_t index, n, restart_every, restarts;
     double jitter_rot, jitter_trans; /* --seed-jitter: radians, metres (0: the seeds as they are) */
     double *joints, *log_density;
+    double rise; /* summed over the runs: log f at a run's last step minus at its seed */
     mim_mh_stats_t stats;
     _Atomic uint64_t done;
     _Atomic int finished;
@@ -107,8 +116,15 @@ static void *chain_thread(void *arg)
         /* a prior frame of finite density (the paper's seed is one good pose-pair) */
         int jitter = j->jitter_rot > 0 || j->jitter_trans > 0;
         for (int attempt = 0; attempt < SEED_TRIES; attempt++) {
+            double edited[3 * MIM_PAIR_JOINTS], lifted[3 * MIM_PAIR_JOINTS];
             const double *seed = j->start ? j->start : j->prior + 3 * MIM_PAIR_JOINTS * mim_rng_below(&seeds, j->n_prior);
-            double edited[3 * MIM_PAIR_JOINTS];
+            if (!j->start && j->lift) {
+                /* an annotation at random, lifted to 3D (a seed's choice: no proposal density to keep) */
+                const mim_pairs_annotations_t *a = j->lift;
+                const double *uv = a->points + (size_t)2 * MIM_PAIR_JOINTS * mim_rng_below(&seeds, a->n);
+                if (mim_pairs_lift(j->target, uv, a->width, a->height, j->lengths, &seeds, lifted)) continue;
+                seed = lifted;
+            }
             if (jitter) {
                 /* drawn from the seeds' stream too: every density gets the same edits */
                 mim_pairs_seed_jitter(seed, j->jitter_rot, j->jitter_trans, &seeds, edited);
@@ -119,6 +135,7 @@ static void *chain_thread(void *arg)
             if (j->rc != MIM_EINVAL || (j->start && !jitter)) break;
         }
         if (!at) j->stats.seed_log_density = st.seed_log_density;
+        if (!j->rc) j->rise += j->log_density[at + len - 1] - st.seed_log_density;
         j->stats.steps += st.steps, j->stats.accepted += st.accepted, j->stats.zero += st.zero;
         at += len;
     }
@@ -180,6 +197,12 @@ static int read_start(const char *spec, double **starts, uint32_t *n_starts)
     return rc;
 }
 
+static int read_annotations(const char *path, char **text, mim_pairs_annotations_t *ann, mim_error_t *err)
+{
+    size_t len;
+    return mim_file_read(path, 0, text, &len, err) || mim_pairs_annotations_parse(*text, len, path, ann, err) ? -1 : 0;
+}
+
 static int write_bvh(const char *dir, const chain_job_t *jobs, uint32_t chains)
 {
     if (mkdir(dir, 0777) && errno != EEXIST) {
@@ -204,12 +227,13 @@ static int write_bvh(const char *dir, const chain_job_t *jobs, uint32_t chains)
 static json_t *report(const mim_pairs_target_t *t, const chain_job_t *jobs, uint32_t chains, uint64_t total,
                       double seconds, uint32_t n_prior, uint32_t n_ann, uint32_t dropped, uint64_t seed)
 {
-    json_t *acc = json_array(), *f0 = json_array(), *rs = json_array();
+    json_t *acc = json_array(), *f0 = json_array(), *rs = json_array(), *rise = json_array();
     for (uint32_t c = 0; c < chains; c++) {
         const mim_mh_stats_t *s = &jobs[c].stats;
         json_array_append_new(rs, json_integer(jobs[c].restarts > 0 ? jobs[c].restarts - 1 : 0));
         json_array_append_new(acc, json_real(s->steps ? (double)s->accepted / (double)s->steps : 0.0));
         json_array_append_new(f0, json_real(s->seed_log_density));
+        json_array_append_new(rise, json_real(jobs[c].restarts ? jobs[c].rise / jobs[c].restarts : 0.0));
     }
     const mim_pairs_sampler_options_t *o = &t->opt;
     json_t *params = json_pack("{s:s, s:I, s:f, s:f, s:f, s:f, s:I, s:f, s:f, s:f, s:f, s:f, s:f}", "density",
@@ -220,13 +244,14 @@ static json_t *report(const mim_pairs_target_t *t, const chain_job_t *jobs, uint
                                MIM_IC_DEFAULT_BETA, "joint_tolerance", MIM_PAIRS_VALID_TOL);
     json_object_set_new(params, "restart_every", json_integer(jobs[0].restart_every));
     json_object_set_new(params, "cone", json_real(o->cone));
+    json_object_set_new(params, "seeds", json_string(jobs[0].start ? "start" : jobs[0].lift ? "lifted" : "prior"));
     json_object_set_new(params, "seed_jitter_deg", json_real(jobs[0].jitter_rot * 180 / M_PI));
     json_object_set_new(params, "seed_jitter_m", json_real(jobs[0].jitter_trans));
-    return json_pack("{s:I, s:I, s:f, s:f, s:f, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:o}", "samples", (json_int_t)total,
+    return json_pack("{s:I, s:I, s:f, s:f, s:f, s:o, s:o, s:o, s:o, s:I, s:I, s:I, s:I, s:o}", "samples", (json_int_t)total,
                      "chains", (json_int_t)chains, "seconds", seconds, "samples_per_second",
                      seconds > 0 ? total / seconds : 0.0, "samples_per_second_per_chain",
                      seconds > 0 ? total / seconds / chains : 0.0, "acceptance", acc, "seed_log_density", f0, "restarts", rs,
-                     "prior_frames", (json_int_t)n_prior, "annotations", (json_int_t)n_ann, "annotations_dropped",
+                     "log_density_rise", rise, "prior_frames", (json_int_t)n_prior, "annotations", (json_int_t)n_ann, "annotations_dropped",
                      (json_int_t)dropped, "seed", (json_int_t)seed, "parameters", params);
 }
 
@@ -242,7 +267,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
         {"start", required_argument, 0, 's'},     {"bvh", required_argument, 0, 'B'},
         {"output", required_argument, 0, 'o'},    {"json", no_argument, 0, 'j'},
         {"restart-every", required_argument, 0, 'R'}, {"velocity-scale", required_argument, 0, 'V'},
-        {"seed-jitter", required_argument, 0, 'J'},
+        {"seed-jitter", required_argument, 0, 'J'}, {"seeds", required_argument, 0, 'L'},
         {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
     };
@@ -250,12 +275,12 @@ int mim_cmd_pairs_sample(int argc, char **argv)
     mim_pairs_target_t target = {0};
     mim_pairs_sampler_defaults(&target.opt);
     const char *ann_path = NULL, *start_spec = NULL, *bvh_dir = NULL, *outp = NULL;
-    uint64_t samples = 0, chains = 2, views = target.opt.views, seed = 1, restart_every = 100;
+    uint64_t samples = 0, chains = 2, views = target.opt.views, seed = 1, restart_every = 20; /* measured: more lifted seeds cover more (bench/RESULTS.md) */
     double jitter_deg = 0, jitter_m = 0;
-    int as_json = 0, c, taken;
+    int as_json = 0, c, taken, seeds_lifted = -1;
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "p:e:k:m:u:a:n:C:d:v:l:S:s:B:o:R:V:J:jh", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "p:e:k:m:u:a:n:C:d:v:l:S:s:B:o:R:V:J:L:jh", longopts, NULL)) != -1) {
         if ((taken = mim_cli_takes_option(&tk, c, optarg))) {
             if (taken < 0) return 2;
             continue;
@@ -313,6 +338,13 @@ int mim_cmd_pairs_sample(int argc, char **argv)
                 return 2;
             break;
         }
+        case 'L':
+            if (strcmp(optarg, "lifted") && strcmp(optarg, "prior")) {
+                fprintf(stderr, "mimic pairs sample: --seeds '%s' is not lifted or prior\n", optarg);
+                return 2;
+            }
+            seeds_lifted = !strcmp(optarg, "lifted");
+            break;
         case 'B': bvh_dir = optarg; break;
         case 'o': outp = optarg; break;
         case 'j': as_json = 1; break;
@@ -334,6 +366,11 @@ int mim_cmd_pairs_sample(int argc, char **argv)
                 mim_pairs_density_names[target.opt.density]);
         return 2;
     }
+    if (seeds_lifted < 0) seeds_lifted = ann_path != NULL;
+    if (seeds_lifted && !ann_path) {
+        fprintf(stderr, "mimic pairs sample: --seeds lifted needs --annotations\n");
+        return 2;
+    }
     if (chains > samples) chains = samples;
     if (mim_cli_takes_begin(&tk)) return 1;
 
@@ -347,7 +384,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
     mim_pairs_evidence_t *evidence = NULL;
     chain_job_t *jobs = NULL;
     pthread_t *threads = NULL;
-    double *joints = NULL, *logd = NULL, *allowed = NULL;
+    double *joints = NULL, *logd = NULL, *allowed = NULL, lengths[MIM_PAIR_PERSON_JOINTS];
     mim_error_t err = {0};
     int ode = 0;
     if (mim_cli_takes_read_all(&tk, &prior, &n_prior)) goto done;
@@ -368,12 +405,17 @@ int mim_cmd_pairs_sample(int argc, char **argv)
         goto done;
     }
     target.validity = validity;
+    if (seeds_lifted) {
+        if (read_annotations(ann_path, &text, &ann, &err)) {
+            fprintf(stderr, "mimic pairs sample: %s\n", mim_error_text(&err));
+            goto done;
+        }
+        mim_pairs_bone_lengths(prior, n_prior, lengths);
+    }
     if (target.opt.density != MIM_DENSITY_PRIOR) {
         mim_pairs_torso_t torso;
-        size_t len;
         mim_progress_t pr = {.fn = mim_cli_progress};
-        if (mim_pairs_torso_learn(prior, n_prior, &torso, &err) || mim_file_read(ann_path, 0, &text, &len, &err) ||
-            mim_pairs_annotations_parse(text, len, ann_path, &ann, &err) ||
+        if (mim_pairs_torso_learn(prior, n_prior, &torso, &err) || (!ann.n && read_annotations(ann_path, &text, &ann, &err)) ||
             mim_pairs_evidence_build(&ann, &torso, target.opt.density, &evidence, &dropped, &pr, &err)) {
             fprintf(stderr, "mimic pairs sample: %s\n", mim_error_text(&err));
             goto done;
@@ -412,6 +454,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
         j->target = &target, j->prior = prior, j->n_prior = n_prior, j->start = starts ? starts + (size_t)(k % n_starts) * 3 * MIM_PAIR_JOINTS : NULL;
         j->seed = seed, j->index = k, j->restart_every = (uint32_t)restart_every;
         j->jitter_rot = jitter_deg * M_PI / 180, j->jitter_trans = jitter_m;
+        j->lift = seeds_lifted ? &ann : NULL, j->lengths = lengths;
         j->n = (uint32_t)(samples / chains + (k < samples % chains));
         j->joints = joints + at * 3 * MIM_PAIR_JOINTS, j->log_density = logd + at;
         at += j->n;

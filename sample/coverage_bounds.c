@@ -8,6 +8,10 @@
  *   inequality |a_i - bb_i| >= | |a_i - ca| - rb_i |:
  *   D_C >= sqrt(mean_i (ra_i - rb_i)^2), ra and rb the joints' distances
  *   from their own centroid.
+ * - LIMBS. The same over the 24 limb joints, whose centroid the fit over
+ *   them matches: each |a_i - bb_i| >= | |a_i - ca| - rb_i |, so the mean
+ *   distance is at least the mean of | ra_i - rb_i |; for the people
+ *   swapped, rb's halves swapped; the smaller of the two bounds both.
  * - D_I (eq. 8). Each edge term |u_e(a) - u_e(bb)| >= | |u_e(a)| - |u_e(b)| |,
  *   as a rigid motion keeps lengths; so each half of eq. 8 is at least its
  *   weighted mean of length differences: D_I >= sum over the 561 joint pairs
@@ -45,6 +49,8 @@
 #define PAD(x) (((x) + 7) / 8 * 8)
 #define C_DIM PAD(N)
 #define I_HALF PAD(PAIRS)
+#define L_N (2 * MIM_LIMB_COUNT)
+#define L_DIM PAD(L_N)
 #define S_DIM PAD(N * MIM__SC_R)
 #define S_REL (N * MIM__SC_R * MIM__SC_EL)
 
@@ -58,7 +64,7 @@
 
 uint32_t mim__bound_dim(mim_sample_metric_t metric)
 {
-    return metric == MIM_METRIC_CARTESIAN ? C_DIM : metric == MIM_METRIC_SHAPE ? S_DIM : 2 * I_HALF;
+    return metric == MIM_METRIC_CARTESIAN ? C_DIM : metric == MIM_METRIC_LIMBS ? L_DIM : metric == MIM_METRIC_SHAPE ? S_DIM : 2 * I_HALF;
 }
 
 uint32_t mim__bound_stride(mim_sample_metric_t metric)
@@ -66,16 +72,26 @@ uint32_t mim__bound_stride(mim_sample_metric_t metric)
     return mim__bound_dim(metric) + (metric == MIM_METRIC_SHAPE ? PAD(MIM__JOINT_PAIRS) : 0);
 }
 
-static void centroid_distances(const double *p, float *f)
+static void centroid_distances_n(const double *p, int n, float *f)
 {
     double c[3] = {0, 0, 0};
-    for (int i = 0; i < N; i++)
-        for (int k = 0; k < 3; k++) c[k] += p[3 * i + k] / N;
-    for (int i = 0; i < N; i++) {
+    for (int i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) c[k] += p[3 * i + k] / n;
+    for (int i = 0; i < n; i++) {
         double d2 = 0;
         for (int k = 0; k < 3; k++) d2 += (p[3 * i + k] - c[k]) * (p[3 * i + k] - c[k]);
         f[i] = (float)sqrt(d2);
     }
+}
+
+static void centroid_distances(const double *p, float *f) { centroid_distances_n(p, N, f); }
+
+/* LIMBS: the 24 limb joints' distances from their own centroid */
+static void limb_distances(const double *p, float *f)
+{
+    double l[3 * L_N];
+    mim__limb_joints(p, 0, l);
+    centroid_distances_n(l, L_N, f);
 }
 
 /* Lengths of the 561 joint pairs, then each pair's share of eq. 8's
@@ -98,6 +114,8 @@ void mim__bound_features(mim_sample_metric_t metric, const mim_pair_prep_t *p, i
     memset(f, 0, sizeof(float) * (truth ? mim__bound_dim(metric) : mim__bound_stride(metric)));
     if (metric == MIM_METRIC_CARTESIAN) {
         centroid_distances(p->joints, f);
+    } else if (metric == MIM_METRIC_LIMBS) {
+        limb_distances(p->joints, f);
     } else if (metric == MIM_METRIC_SHAPE) {
         double rad[N * MIM__SC_R];
         if (truth) {
@@ -118,8 +136,9 @@ double mim__bound_slack(mim_sample_metric_t metric, const mim_pair_prep_t *p)
     double far = 0, size = 0, mean = 0, len[PAIRS];
     float r[C_DIM];
     for (int i = 0; i < 3 * N; i++) far = fmax(far, fabs(p->joints[i]));
-    centroid_distances(p->joints, r);
-    for (int i = 0; i < N; i++) size = fmax(size, r[i]);
+    if (metric == MIM_METRIC_LIMBS) limb_distances(p->joints, r);
+    else centroid_distances(p->joints, r);
+    for (int i = 0; i < (metric == MIM_METRIC_LIMBS ? L_N : N); i++) size = fmax(size, r[i]);
     if (metric != MIM_METRIC_SHAPE) return LEN_SLACK * 2 * size + FAR_SLACK * far;
     mim__pair_distances(p->joints, len);
     for (int k = 0; k < PAIRS; k++) mean += len[k] / PAIRS;
@@ -147,6 +166,16 @@ void mim__bound_lower(mim_sample_metric_t metric, const float *fa, const float *
             for (uint32_t i = 0; i < C_DIM; i += LANES)
                 for (int l = 0; l < LANES; l++) acc[l] += (fa[i + l] - b[i + l]) * (fa[i + l] - b[i + l]);
             s = sqrtf(lanes_sum(acc) / N);
+        } else if (metric == MIM_METRIC_LIMBS) {
+            /* the people as they are, then swapped (b's halves exchanged) */
+            float swapped[LANES] = {0};
+            for (uint32_t i = 0; i < L_DIM; i += LANES)
+                for (int l = 0; l < LANES; l++) {
+                    const uint32_t x = i + (uint32_t)l, y = (x + MIM_LIMB_COUNT) % L_N;
+                    acc[l] += fabsf(fa[x] - b[x]);
+                    swapped[l] += fabsf(fa[x] - b[y]);
+                }
+            s = fminf(lanes_sum(acc), lanes_sum(swapped)) / L_N;
         } else if (metric == MIM_METRIC_SHAPE) {
             for (uint32_t i = 0; i < S_DIM; i += LANES)
                 for (int l = 0; l < LANES; l++) {

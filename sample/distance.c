@@ -43,15 +43,15 @@ static double det3(const double m[9])
 }
 
 /* Kabsch: the rotation R (column-major dim x dim) and the centroids ca, cb
- * of the least-squares fit a ~ ca + R (b - cb) over the joints, each
+ * of the least-squares fit a ~ ca + R (b - cb) over n points, each
  * weighted by use[i] (NULL: all alike; 0: left out). */
-static void fit(const double *a, const double *b, int dim, const uint8_t *use, double R[9], double ca[3], double cb[3])
+static void fit(const double *a, const double *b, int n, int dim, const uint8_t *use, double R[9], double ca[3],
+                double cb[3])
 {
-    const int n = MIM_PAIR_JOINTS;
     int used = 0;
     for (int i = 0; i < n; i++) used += use ? use[i] : 1;
     ca[0] = ca[1] = ca[2] = cb[0] = cb[1] = cb[2] = 0;
-    if (!use) /* the plain fit: every joint once, in this order (coverage's figures depend on it) */
+    if (!use) /* the plain fit: every point once, in this order (coverage's figures depend on it) */
         for (int i = 0; i < n; i++)
             for (int c = 0; c < dim; c++) ca[c] += a[dim * i + c] / used, cb[c] += b[dim * i + c] / used;
     else
@@ -83,11 +83,11 @@ static void fit(const double *a, const double *b, int dim, const uint8_t *use, d
     }
 }
 
-void mim_sample_align(const double *a, const double *b, int dim, double *out)
+void mim__align_points(const double *a, const double *b, int n, int dim, double *out)
 {
     double R[9], ca[3], cb[3];
-    fit(a, b, dim, NULL, R, ca, cb);
-    for (int i = 0; i < MIM_PAIR_JOINTS; i++)
+    fit(a, b, n, dim, NULL, R, ca, cb);
+    for (int i = 0; i < n; i++)
         for (int r = 0; r < dim; r++) {
             double v = ca[r];
             for (int c = 0; c < dim; c++) v += R[dim * c + r] * (b[dim * i + c] - cb[c]);
@@ -95,14 +95,46 @@ void mim_sample_align(const double *a, const double *b, int dim, double *out)
         }
 }
 
+void mim_sample_align(const double *a, const double *b, int dim, double *out)
+{
+    mim__align_points(a, b, MIM_PAIR_JOINTS, dim, out);
+}
+
 void mim_sample_rigid_fit(const double *a, const double *b, const uint8_t *use, double R[9], double t[3])
 {
     double Rc[9], ca[3], cb[3];
-    fit(a, b, 3, use, Rc, ca, cb);
+    fit(a, b, MIM_PAIR_JOINTS, 3, use, Rc, ca, cb);
     for (int r = 0; r < 3; r++) {
         t[r] = ca[r];
         for (int c = 0; c < 3; c++) R[3 * r + c] = Rc[3 * c + r], t[r] -= Rc[3 * c + r] * cb[c];
     }
+}
+
+void mim__limb_joints(const double *p, int swap, double *out)
+{
+    for (int person = 0; person < 2; person++)
+        memcpy(out + 3 * MIM_LIMB_COUNT * person,
+               p + 3 * (MIM_PAIR_PERSON_JOINTS * (person ^ swap) + MIM_LIMB_FIRST), 3 * MIM_LIMB_COUNT * sizeof *out);
+}
+
+/* LIMBS: each order of b's people fitted over the 24 limb joints */
+static double limbs_distance(const double *a, const double *b)
+{
+    enum { L = 2 * MIM_LIMB_COUNT };
+    double la[3 * L], lb[3 * L], fitted[3 * L], best = INFINITY;
+    mim__limb_joints(a, 0, la);
+    for (int swap = 0; swap < 2; swap++) {
+        mim__limb_joints(b, swap, lb);
+        mim__align_points(la, lb, L, 3, fitted);
+        double s = 0;
+        for (int i = 0; i < L; i++) {
+            double d2 = 0;
+            for (int k = 0; k < 3; k++) d2 += (la[3 * i + k] - fitted[3 * i + k]) * (la[3 * i + k] - fitted[3 * i + k]);
+            s += sqrt(d2);
+        }
+        best = fmin(best, s / L);
+    }
+    return best;
 }
 
 int mim_pair_prepare(const double *joints, mim_pair_prep_t *out, mim_error_t *err)
@@ -152,6 +184,7 @@ int mim_pair_prepare_many(const double *joints, uint32_t n, uint32_t threads, mi
 
 double mim_sample_distance(const mim_pair_prep_t *a, const mim_pair_prep_t *b, mim_sample_metric_t metric)
 {
+    if (metric == MIM_METRIC_LIMBS) return limbs_distance(a->joints, b->joints);
     double bb[3 * MIM_PAIR_JOINTS];
     mim_sample_align(a->joints, b->joints, 3, bb);
     if (metric == MIM_METRIC_CARTESIAN) {

@@ -58,7 +58,14 @@ void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], d
  * cannot be started only leaves its share to the others. */
 void mim__parallel(uint32_t threads, void (*fn)(void *ctx, uint32_t worker), void *ctx);
 
-/* ---- lower bounds of D_I, D_C and D_S (coverage_bounds.c) ---- */
+/* ---- alignment over any points (distance.c) ---- */
+/* mim_sample_align over n points. */
+void mim__align_points(const double *a, const double *b, int n, int dim, double *out);
+/* The 24 limb joints (x y z) of pose-pair p, A's then B's, or B's then A's
+ * (swap 1). */
+void mim__limb_joints(const double *p, int swap, double *out);
+
+/* ---- lower bounds of D_I, D_C, D_S and LIMBS (coverage_bounds.c) ---- */
 /* Floats per sample of a metric's first bound's features (a multiple of
  * 8), and of all its features (D_S's second bound's after them). */
 uint32_t mim__bound_dim(mim_sample_metric_t metric);

@@ -221,6 +221,19 @@ void mim_pairs_seed_jitter(const double *pair, double rot_sd, double trans_sd, m
 double mim_pairs_log_density(const mim_pairs_target_t *t, mim_penetration_t *pen, const double *joints,
                              const double *views, uint32_t m, uint32_t *nearest);
 
+/* ---- seeds lifted from annotations (lift.c) ---- */
+/* Each bone's length (the joint's distance from its parent; 0 for the
+ * pelvis): the mean over n pose-pairs (34 x 3 each) and both people. */
+void mim_pairs_bone_lengths(const double *pairs, uint32_t n, double len[MIM_PAIR_PERSON_JOINTS]);
+/* A pose-pair (34 x 3 into out, y up, metres) that one annotation uv (34
+ * [u, v] pixels in an image of width x height) shows, each person lifted
+ * scaled-orthographically with bones of lengths len, each bone's depth
+ * sign chosen by t's joint limits (eq. 2) from random starts drawn from
+ * rng (choices: lift.c). MIM_EINVAL when a person has no bone in 2D or
+ * no signs found keep the invalid checks within those allowed. */
+int mim_pairs_lift(const mim_pairs_target_t *t, const double *uv, uint32_t width, uint32_t height,
+                   const double len[MIM_PAIR_PERSON_JOINTS], mim_rng_t *rng, double *out);
+
 #ifdef __cplusplus
 }
 #endif

@@ -1,5 +1,5 @@
 /* Coverage (seed 002, eq. 13) without computing every distance: the lower
- * bounds of D_C, D_I and D_S (sample/coverage_bounds.c) never exceed the
+ * bounds of D_C, D_I, D_S and LIMBS (sample/coverage_bounds.c) never exceed the
  * distance, and the pruned, threaded search gives the exhaustive scan's
  * answers to the bit (each truth's nearest distance and sample, and C) on
  * random sets with repeats, ties and degenerate pairs. */
@@ -122,7 +122,7 @@ static void test_bounds_below_distances(void **state)
     enum { M = 40, K = 300 };
     mim_pair_prep_t *g, *s;
     make_sets(1, M, K, &g, &s);
-    for (int metric = 0; metric < 3; metric++) {
+    for (int metric = 0; metric < 4; metric++) {
         const mim_sample_metric_t mt = (mim_sample_metric_t)metric;
         const uint32_t stride = mim__bound_stride(mt);
         float *fb = malloc((size_t)K * stride * sizeof *fb), *fa = malloc(stride * sizeof *fa), lb[K];
@@ -203,6 +203,7 @@ static void test_pruned_equals_scan(void **state)
         make_sets(seed, 200, 2000, &g, &s);
         compare(g, 200, s, 2000, MIM_METRIC_CARTESIAN, 1);
         compare(g, 200, s, 2000, MIM_METRIC_IC, 1);
+        compare(g, 200, s, 2000, MIM_METRIC_LIMBS, 1);
         /* D_S costs 20 times more a distance: fewer of both */
         compare(g, 60, s, 600, MIM_METRIC_SHAPE, 1);
         free(g), free(s);
@@ -219,7 +220,7 @@ static void test_ties_and_one_sample(void **state)
     mim_pair_prep_t *same = malloc(50 * sizeof *same);
     assert_non_null(same);
     for (int j = 0; j < 50; j++) same[j] = g[0];
-    for (int metric = 0; metric < 3; metric++) {
+    for (int metric = 0; metric < 4; metric++) {
         double near[30];
         uint32_t which[30];
         mim_sample_coverage_t res = {.nearest = near, .which = which};
@@ -233,6 +234,115 @@ static void test_ties_and_one_sample(void **state)
     free(same), free(g), free(s);
 }
 
+/* The LIMBS distance computed another way: Horn's quaternion fit (the
+ * largest eigenvector of his 4 x 4 matrix, by Jacobi rotations) over the
+ * 24 limb joints, both orders of b's people. */
+static void jacobi4(double a[4][4], double v[4][4])
+{
+    for (int i = 0; i < 4; i++)
+        for (int j = 0; j < 4; j++) v[i][j] = i == j;
+    for (int sweep = 0; sweep < 50; sweep++)
+        for (int p = 0; p < 3; p++)
+            for (int q = p + 1; q < 4; q++) {
+                if (fabs(a[p][q]) < 1e-300) continue;
+                double th = (a[q][q] - a[p][p]) / (2 * a[p][q]);
+                double t = (th >= 0 ? 1.0 : -1.0) / (fabs(th) + sqrt(th * th + 1)), c = 1 / sqrt(t * t + 1), s = t * c;
+                for (int k = 0; k < 4; k++) {
+                    double x = a[k][p], y = a[k][q];
+                    a[k][p] = c * x - s * y, a[k][q] = s * x + c * y;
+                }
+                for (int k = 0; k < 4; k++) {
+                    double x = a[p][k], y = a[q][k];
+                    a[p][k] = c * x - s * y, a[q][k] = s * x + c * y;
+                }
+                for (int k = 0; k < 4; k++) {
+                    double x = v[k][p], y = v[k][q];
+                    v[k][p] = c * x - s * y, v[k][q] = s * x + c * y;
+                }
+            }
+}
+
+static double horn_limbs(const double *a, const double *b)
+{
+    enum { L = 2 * MIM_LIMB_COUNT };
+    double best = INFINITY;
+    for (int swap = 0; swap < 2; swap++) {
+        double pa[L][3], pb[L][3], ca[3] = {0}, cb[3] = {0};
+        for (int i = 0; i < L; i++) {
+            const int person = i / MIM_LIMB_COUNT, k = MIM_LIMB_FIRST + i % MIM_LIMB_COUNT;
+            for (int c = 0; c < 3; c++) {
+                pa[i][c] = a[3 * (MIM_PAIR_PERSON_JOINTS * person + k) + c];
+                pb[i][c] = b[3 * (MIM_PAIR_PERSON_JOINTS * (person ^ swap) + k) + c];
+                ca[c] += pa[i][c] / L, cb[c] += pb[i][c] / L;
+            }
+        }
+        double S[3][3] = {{0}};
+        for (int i = 0; i < L; i++)
+            for (int r = 0; r < 3; r++)
+                for (int c = 0; c < 3; c++) S[r][c] += (pb[i][r] - cb[r]) * (pa[i][c] - ca[c]);
+        double Nm[4][4] = {
+            {S[0][0] + S[1][1] + S[2][2], S[1][2] - S[2][1], S[2][0] - S[0][2], S[0][1] - S[1][0]},
+            {S[1][2] - S[2][1], S[0][0] - S[1][1] - S[2][2], S[0][1] + S[1][0], S[2][0] + S[0][2]},
+            {S[2][0] - S[0][2], S[0][1] + S[1][0], -S[0][0] + S[1][1] - S[2][2], S[1][2] + S[2][1]},
+            {S[0][1] - S[1][0], S[2][0] + S[0][2], S[1][2] + S[2][1], -S[0][0] - S[1][1] + S[2][2]}};
+        double V[4][4];
+        jacobi4(Nm, V);
+        int top = 0;
+        for (int k = 1; k < 4; k++)
+            if (Nm[k][k] > Nm[top][top]) top = k;
+        mim_quat q = mim_quat_normalize((mim_quat){V[1][top], V[2][top], V[3][top], V[0][top]}); /* Horn: (w, x, y, z) */
+        double sum = 0;
+        for (int i = 0; i < L; i++) {
+            mim_vec3 r = mim_quat_rotate(q, mim_v3(pb[i][0] - cb[0], pb[i][1] - cb[1], pb[i][2] - cb[2]));
+            sum += sqrt(pow(ca[0] + r.x - pa[i][0], 2) + pow(ca[1] + r.y - pa[i][1], 2) + pow(ca[2] + r.z - pa[i][2], 2));
+        }
+        best = fmin(best, sum / L);
+    }
+    return best;
+}
+
+/* LIMBS against the brute force: every distance as Horn's fit gives it,
+ * and coverage as the minimum over every sample; a truth with its people
+ * swapped, moved rigidly and its head, spine and neck moved covers it at
+ * 0, where D_C does not. */
+static void test_limbs_brute_force(void **state)
+{
+    (void)state;
+    enum { M = 40, K = 400 };
+    mim_pair_prep_t *g, *s;
+    make_sets(5, M, K, &g, &s);
+    double cov = 0;
+    for (uint32_t i = 0; i < M; i++) {
+        double near = INFINITY;
+        for (uint32_t j = 0; j < K; j++) {
+            const double d = mim_sample_distance(&g[i], &s[j], MIM_METRIC_LIMBS), h = horn_limbs(g[i].joints, s[j].joints);
+            if (!(fabs(d - h) <= 1e-9 * (1 + h))) fail_msg("truth %u, sample %u: limbs %.17g, Horn's %.17g", i, j, d, h);
+            near = fmin(near, d);
+        }
+        cov += near / M;
+    }
+    mim_sample_coverage_t res = {0};
+    const mim_sample_coverage_options_t o = {.threads = 2};
+    mim_error_t err = {0};
+    assert_int_equal(mim_sample_coverage(g, M, s, K, MIM_METRIC_LIMBS, &o, &res, &err), 0);
+    assert_true(fabs(res.coverage - cov) <= 1e-12 * (1 + cov));
+    assert_true(res.distances < (uint64_t)M * K);
+    /* swapped, moved, the unfitted joints changed */
+    double p[3 * J];
+    for (int person = 0; person < 2; person++)
+        memcpy(p + 3 * MIM_PAIR_PERSON_JOINTS * person, g[0].joints + 3 * MIM_PAIR_PERSON_JOINTS * (1 - person),
+               3 * MIM_PAIR_PERSON_JOINTS * sizeof *p);
+    const double t[3] = {1.0, -2.0, 0.5};
+    move(p, 0.3, 1, -0.2, 2.2, 1.0, t);
+    for (int person = 0; person < 2; person++)
+        for (int k = 0; k < 3; k++) p[3 * (MIM_PAIR_PERSON_JOINTS * person + 0) + k] += 0.3; /* the heads */
+    mim_pair_prep_t q;
+    assert_int_equal(mim_pair_prepare(p, &q, &err), 0);
+    assert_true(mim_sample_distance(&g[0], &q, MIM_METRIC_LIMBS) < 1e-9);
+    assert_true(mim_sample_distance(&g[0], &q, MIM_METRIC_CARTESIAN) > 0.02);
+    free(g), free(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -240,6 +350,7 @@ int main(void)
         cmocka_unit_test(test_bounds_below_distances),
         cmocka_unit_test(test_pruned_equals_scan),
         cmocka_unit_test(test_ties_and_one_sample),
+        cmocka_unit_test(test_limbs_brute_force),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

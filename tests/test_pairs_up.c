@@ -211,7 +211,7 @@ static void test_three_axes(void **s)
         assert_true(same_numbers(frames[0], frames[u], 1e-5) >= FRAMES * 34 * 3);
         assert_true(same_numbers(ann[0], ann[u], 1e-4) > 100);
         assert_true(same_numbers(samples[0], samples[u], 1e-4) > 200 * 34 * 3);
-        assert_int_equal(same_numbers(cover[0], cover[u], 1e-6), 5); /* truth, samples, D_I, D_C, D_S */
+        assert_int_equal(same_numbers(cover[0], cover[u], 1e-6), 6); /* truth, samples, D_I, D_C, D_S, limbs */
     }
     for (int u = 0; u < 3; u++)
         json_decref(frames[u]), json_decref(ann[u]), json_decref(cams[u]), json_decref(samples[u]), json_decref(cover[u]);

@@ -489,6 +489,78 @@ static void test_chains(void **s)
     dCloseODE();
 }
 
+/* Seeds lifted from annotations (lift.c): pose-pairs of another motion
+ * than the prior frames', seen by a camera of the focal length and centre
+ * the lifting assumes, lift to pairs with the prior's bone lengths whose
+ * joints lie on their pixels' rays (the annotation seen again: every
+ * joint but those of a bone laid at its length where its ray passes too
+ * far), within the joint limits (a finite prior density); 2 px of noise
+ * still gives a valid lifting; the same generator gives the same bytes. */
+static void test_lift(void **s)
+{
+    (void)s;
+    world_t w;
+    world_build(&w, MIM_DENSITY_PRIOR);
+    double len[MIM_PAIR_PERSON_JOINTS];
+    mim_pairs_bone_lengths(w.prior, w.n_prior, len);
+    double rest[3 * MIM_PAIR_JOINTS], shown[3 * MIM_PAIR_JOINTS], uv[2 * MIM_PAIR_JOINTS], out[3 * MIM_PAIR_JOINTS],
+        again[3 * MIM_PAIR_JOINTS];
+    mim_rng_t r, cams;
+    mim_rng_seed(&r, 9, 0);
+    sp_random_pair(&r, 0.0, rest); /* the world's rest pair: its bone lengths */
+    for (int k = 0; k < MIM_PAIR_PERSON_JOINTS; k++) {
+        int parent = mim_pairs_parent[k];
+        assert_true(fabs(len[k] - (parent < 0 ? 0.0 : dist3(rest + 3 * k, rest + 3 * parent))) < 1e-9);
+    }
+    mim_rng_seed(&cams, 4, 0);
+    int on_ray = 0, joints = 0, valid = 0, noisy = 0;
+    for (uint32_t f = 0; f < 40; f++) {
+        /* another motion: other axes, larger turns, B nearer */
+        mim_pairs_pose_t pose;
+        mim_pairs_pose_rest(rest, &pose);
+        for (int p = 0; p < 2; p++)
+            for (int g = 1; g < MIM_PAIRS_ROT; g++) {
+                double ph = 0.91 * g + 0.4 * p + 0.5 * f;
+                pose.rot[p][g] = mim_quat_axis_angle(mim_v3_normalize(mim_v3(1, 0.6 * cos(ph), 0.4 * sin(ph))), 0.5 * sin(ph));
+            }
+        pose.root[1][2] += 0.3;
+        mim_pairs_pose_joints(&pose, shown);
+        mim_pairs_camera_t cam;
+        assert_int_equal(mim_pairs_camera_random(&cams, shown, &cam), 0);
+        cam.focal_px = 0.75 * cam.width; /* what the lifting assumes (cx, cy: the image's centre) */
+        if (!mim_pairs_project(&cam, shown, uv)) continue;
+        mim_rng_t lr;
+        mim_rng_seed(&lr, 3, f);
+        if (mim_pairs_lift(&w.target, uv, cam.width, cam.height, len, &lr, out)) continue;
+        valid++;
+        mim_rng_seed(&lr, 3, f);
+        assert_int_equal(mim_pairs_lift(&w.target, uv, cam.width, cam.height, len, &lr, again), 0);
+        assert_memory_equal(out, again, sizeof out);
+        uint32_t invalid;
+        mim_pairs_validity_excess(w.validity, out, &invalid);
+        assert_true(invalid <= w.target.opt.max_invalid);
+        for (int k = 0; k < MIM_PAIR_JOINTS; k++) {
+            int parent = mim_pairs_parent[k % MIM_PAIR_PERSON_JOINTS];
+            if (parent >= 0) {
+                int pk = parent + (k >= MIM_PAIR_PERSON_JOINTS ? MIM_PAIR_PERSON_JOINTS : 0);
+                assert_true(fabs(dist3(out + 3 * k, out + 3 * pk) - len[k % MIM_PAIR_PERSON_JOINTS]) < 1e-9);
+            }
+            /* mimic's frame back to the camera's: a half turn about x */
+            const double *j = out + 3 * k;
+            double u = cam.focal_px * j[0] / -j[2] + cam.cx, v = cam.focal_px * -j[1] / -j[2] + cam.cy;
+            on_ray += hypot(u - uv[2 * k], v - uv[2 * k + 1]) < 1e-6;
+            joints++;
+        }
+        for (int k = 0; k < 2 * MIM_PAIR_JOINTS; k++) uv[k] += 2.0 * mim_rng_gauss(&cams);
+        mim_rng_seed(&lr, 3, f);
+        noisy += !mim_pairs_lift(&w.target, uv, cam.width, cam.height, len, &lr, again);
+    }
+    print_message("%d of 40 lifted, %d of %d joints on their rays, %d with 2 px noise\n", valid, on_ray, joints, noisy);
+    assert_true(valid >= 30 && noisy >= valid - 5);
+    assert_true(on_ray >= 0.9 * joints);
+    world_free(&w);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -496,7 +568,7 @@ int main(void)
         cmocka_unit_test(test_pose_model),             cmocka_unit_test(test_seed_jitter),
         cmocka_unit_test(test_validity),
         cmocka_unit_test(test_penetration_allowance),  cmocka_unit_test(test_likelihood),
-        cmocka_unit_test(test_chains),
+        cmocka_unit_test(test_chains),                 cmocka_unit_test(test_lift),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
