@@ -7,6 +7,8 @@
 #include "commands.h"
 #include "mim_sample.h"
 #include "mim_session.h"
+#include "mim_index.h"
+#include "mim_query.h"
 #include "mim_session_pairs.h"
 #include "output.h"
 
@@ -59,11 +61,70 @@ static void help(FILE *out)
             "                        on stdout (schemas/pairs-templates.schema.json)\n"
             "  -h, --help            this help\n\n"
             "A result equal to a stored template is not stored twice (counted as a duplicate).\n"
+            "Afterwards each new template is looked for again with its sample's own joints: a warning\n"
+            "(and --json's not_found_again) names those mimic query answers with another template,\n"
+            "as --proportions avatar can make among many like samples.\n"
             "Nothing is stored unless every selected person is transferred.\n"
             "Exit status: 0 done, 1 an input failed (the samples file, a sample's landmarks, an\n"
             "unknown avatar id, a transfer), 2 bad usage or the command could not run (the store,\n"
             "its index).\n",
             MIM_SESSION_PAIRS_PREFIX_MAX);
+}
+
+/* Whether each stored person is found again by its own joints: the
+ * rebuilt index's nearest template to the sample's joints (as they are,
+ * the sample's proportions) should be the one stored from them. With
+ * --proportions avatar a person's template holds the avatar's bone
+ * lengths, which move the descriptor's angles between landmarks no bone
+ * joins (about 1 rad for motion capture joints against a synth avatar),
+ * so among many like samples the nearest can be another's. Counts the
+ * people found into *found and lists the others in miss (JSON objects);
+ * -1 when the store cannot be read back (not an error of the command). */
+static int check_found(const char *store, const mim_pairs_samples_t *smp, const mim_session_pairs_t *p,
+                       const uint64_t *ids, uint32_t n, uint32_t *found, json_t *miss)
+{
+    mim_error_t err = {0};
+    mim_session_t *s = NULL;
+    mim_session_options_t so;
+    mim_cli_session_options(&so, NULL);
+    const mim_query_t *q = mim_session_open(&s, store, &so, &err) ? NULL : mim_session_query(s);
+    const mim_landmark_map_t *map = s ? mim_session_map(s) : NULL;
+    int rc = q && map ? 0 : -1;
+    *found = 0;
+    for (uint32_t i = 0; i < n && !rc; i++) {
+        mim_session_pairs_person_t pp;
+        if (mim_session_pairs_person(p, i, &pp)) {
+            rc = -1;
+            break;
+        }
+        /* the person's joints by the map's names, as the sample holds them */
+        const double *joints = smp->joints + (size_t)pp.sample * 3 * MIM_PAIR_JOINTS +
+                               (pp.person == 'b' ? 3 * MIM_PAIR_PERSON_JOINTS : 0);
+        float lm[3 * MIM_LANDMARKS_MAX];
+        for (uint32_t l = 0; l < map->count && !rc; l++) {
+            int j = 0;
+            while (j < MIM_PAIR_PERSON_JOINTS && strcmp(mim_sample_joint_names[j], map->names[l])) j++;
+            if (j == MIM_PAIR_PERSON_JOINTS) rc = -1;
+            for (int c = 0; c < 3 && !rc; c++) lm[3 * l + c] = (float)joints[3 * j + c];
+        }
+        mim_index_query_options_t qo = {.k = 1};
+        mim_index_answer_t ans;
+        mim_index_hit_t hit;
+        if (rc || mim_index_query(mim_query_index(q), lm, NULL, &qo, &ans, &hit, &err) || !ans.n_hits) {
+            rc = -1;
+            break;
+        }
+        if (hit.id == ids[i]) {
+            (*found)++;
+        } else {
+            char who[2] = {pp.person, 0};
+            json_array_append_new(miss, json_pack("{s:I, s:I, s:s, s:I, s:f}", "id", (json_int_t)ids[i], "line",
+                                                  (json_int_t)pp.line, "person", who, "nearest", (json_int_t)hit.id,
+                                                  "distance", (double)hit.distance));
+        }
+    }
+    mim_session_close(&s);
+    return rc;
 }
 
 /* The store, read-only, with its index, and landmarks that pose-pair
@@ -209,12 +270,28 @@ int mim_cmd_pairs_templates(int argc, char **argv)
     status = 0;
     const double seconds = mim_now() - t0;
     const uint32_t added = rep.added, dup = rep.duplicates;
+    /* each stored person found again by its own joints? (not when some were duplicates: ids then skip people) */
+    json_t *miss = json_array();
+    uint32_t found = 0;
+    const int checked = miss && !dup && check_found(store, &smp, p, rep.ids, added, &found, miss) == 0;
+    if (checked && found < added)
+        fprintf(stderr,
+                "mimic " CMD ": warning: %u of %u sampled people are not found again by their own joints (mimic "
+                "query answers another template)%s\n",
+                added - found, added,
+                retarget ? ": their templates hold the avatar's proportions, not the sample's; --proportions sample "
+                           "keeps the sample's"
+                         : "");
     if (as_json) {
         json_t *arr = json_array();
         for (uint32_t i = 0; arr && i < added; i++) json_array_append_new(arr, json_integer((json_int_t)rep.ids[i]));
         json_t *j = arr ? json_pack("{s:I, s:o, s:I, s:f}", "templates", (json_int_t)added, "ids", arr, "duplicates",
                                     (json_int_t)dup, "seconds", seconds)
                         : NULL;
+        if (j && checked) {
+            json_object_set_new(j, "found_again", json_integer((json_int_t)found));
+            json_object_set(j, "not_found_again", miss);
+        }
         char *txt = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
         if (txt) printf("%s\n", txt);
         else fprintf(stderr, "mimic " CMD ": cannot make the JSON report (out of memory)\n"), status = 1;
@@ -229,6 +306,7 @@ int mim_cmd_pairs_templates(int argc, char **argv)
         if (dup) printf(", %u already stored", dup);
         printf(" in %.2f s; index rebuilt: %u classes, %u angles\n", seconds, rep.index.n_classes, rep.index.d);
     }
+    json_decref(miss);
 done:
     mim_session_close(&s);
     mim_session_pairs_free(&p);
