@@ -46,13 +46,10 @@ static int parse_missing(const char *list, uint8_t *missing)
     snprintf(buf, sizeof buf, "%s", list);
     int any = 0;
     for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
-        int found = -1;
-        for (int j = 0; j < N && found < 0; j++) {
-            char name[64];
-            snprintf(name, sizeof name, "%c.%s", j < MIM_PAIR_PERSON_JOINTS ? 'A' : 'B',
-                     mim_sample_joint_names[j % MIM_PAIR_PERSON_JOINTS]);
-            if (!strcmp(name, tok)) found = j;
-        }
+        /* "A.head" ... "B.neck" */
+        const int person = tok[0] == 'A' ? 0 : tok[0] == 'B' ? 1 : -1;
+        const int j = person >= 0 && tok[1] == '.' ? mim_sample_joint_index(tok + 2) : -1;
+        const int found = person >= 0 && j >= 0 ? person * MIM_PAIR_PERSON_JOINTS + j : -1;
         if (found < 0) {
             fprintf(stderr, "mimic " CMD ": --missing: '%s' is no joint (A.head ... B.neck: mimic pairs complete "
                             "--help)\n", tok);

@@ -268,20 +268,24 @@ int mim_cmd_pairs_retrieve(int argc, char **argv)
         if (m[i].sample == UINT32_MAX) continue;
         res[found++] = m[i].residual;
         if (!tk.n) continue;
-        const double *g = truth[ann.take[i]] + (size_t)ann.frame[i] * 3 * N, *s = smp.joints + (size_t)m[i].sample * 3 * N;
-        double al[3 * N], d = 0, R[9], t[3];
-        mim_sample_align(g, s, 3, al);
-        for (int k = 0; k < N; k++)
-            d += sqrt((g[3 * k] - al[3 * k]) * (g[3 * k] - al[3 * k]) + (g[3 * k + 1] - al[3 * k + 1]) * (g[3 * k + 1] - al[3 * k + 1]) +
-                      (g[3 * k + 2] - al[3 * k + 2]) * (g[3 * k + 2] - al[3 * k + 2])) / N;
+        /* one rigid fit of the sample onto the true frame: the joints' mean distance, and the view turned by it */
+        const double *g = truth[ann.take[i]] + (size_t)ann.frame[i] * 3 * N;
+        const double *s = smp.joints + (size_t)m[i].sample * 3 * N;
+        double R[9], t[3], d = 0;
+        mim_sample_rigid_fit(g, s, NULL, R, t);
+        for (int k = 0; k < N; k++) {
+            double e2 = 0;
+            for (int r = 0; r < 3; r++) {
+                const double x = R[3 * r] * s[3 * k] + R[3 * r + 1] * s[3 * k + 1] + R[3 * r + 2] * s[3 * k + 2] + t[r];
+                e2 += (g[3 * k + r] - x) * (g[3 * k + r] - x);
+            }
+            d += sqrt(e2) / N;
+        }
         err3d[i] = d;
-        if (cams_path) {
-            /* the view found, turned by the fit into the truth's frame, against the camera's forward axis */
-            mim_sample_rigid_fit(g, s, NULL, R, t);
-            double w[3] = {0, 0, 0}, dot = 0;
+        if (cams_path) { /* the view found against the camera's forward axis */
+            double dot = 0;
             for (int r = 0; r < 3; r++)
-                for (int k = 0; k < 3; k++) w[r] += R[3 * r + k] * m[i].dir[k];
-            for (int r = 0; r < 3; r++) dot += w[r] * fwd[3 * i + r];
+                dot += (R[3 * r] * m[i].dir[0] + R[3 * r + 1] * m[i].dir[1] + R[3 * r + 2] * m[i].dir[2]) * fwd[3 * i + r];
             view_err[i] = acos(fmax(-1.0, fmin(1.0, dot))) * 180 / M_PI;
         }
     }

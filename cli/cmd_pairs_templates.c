@@ -102,9 +102,8 @@ static int check_found(const char *store, const mim_pairs_samples_t *smp, const 
                                (pp.person == 'b' ? 3 * MIM_PAIR_PERSON_JOINTS : 0);
         float lm[3 * MIM_LANDMARKS_MAX];
         for (uint32_t l = 0; l < map->count && !rc; l++) {
-            int j = 0;
-            while (j < MIM_PAIR_PERSON_JOINTS && strcmp(mim_sample_joint_names[j], map->names[l])) j++;
-            if (j == MIM_PAIR_PERSON_JOINTS) rc = -1;
+            const int j = mim_sample_joint_index(map->names[l]);
+            if (j < 0) rc = -1;
             for (int c = 0; c < 3 && !rc; c++) lm[3 * l + c] = (float)joints[3 * j + c];
         }
         mim_index_query_options_t qo = {.k = 1};

@@ -14,6 +14,13 @@ const char *const mim_sample_joint_names[MIM_PAIR_PERSON_JOINTS] = {
     "head",    "chest", "pelvis", "l_shoulder", "r_shoulder", "l_elbow", "r_elbow", "l_wrist", "r_wrist",
     "l_hip",   "r_hip", "l_knee", "r_knee",     "l_ankle",    "r_ankle", "spine",   "neck"};
 
+int mim_sample_joint_index(const char *name)
+{
+    for (int j = 0; name && j < MIM_PAIR_PERSON_JOINTS; j++)
+        if (!strcmp(mim_sample_joint_names[j], name)) return j;
+    return -1;
+}
+
 /* Joints closer than this (metres, or the 2D units) count as one point. */
 #define SAME_POINT 1e-9
 

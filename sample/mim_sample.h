@@ -58,6 +58,8 @@ extern "C" {
 /* head, chest, pelvis, l_shoulder, r_shoulder, l_elbow, r_elbow, l_wrist,
  * r_wrist, l_hip, r_hip, l_knee, r_knee, l_ankle, r_ankle, spine, neck */
 extern const char *const mim_sample_joint_names[MIM_PAIR_PERSON_JOINTS];
+/* The index of a joint by its name in mim_sample_joint_names; -1 when none. */
+int mim_sample_joint_index(const char *name);
 
 /* ---- a person's joints in a motion file (joints.c) ---- */
 /* out[k]: the index among the motion's n joint names of joint k

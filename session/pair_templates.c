@@ -75,13 +75,6 @@ static long class_of(classes_t *c, const char *name)
     return (long)c->n++;
 }
 
-static int joint_index(const char *name)
-{
-    for (int j = 0; j < MIM_PAIR_PERSON_JOINTS; j++)
-        if (!strcmp(mim_sample_joint_names[j], name)) return j;
-    return -1;
-}
-
 /* The body's own left, horizontal (x, z with +Y up), from its hips and
  * shoulders; 0 when they lie along the vertical (no facing to take). */
 static int left_of(const double *lh, const double *rh, const double *ls, const double *rs, double *x, double *z)
@@ -109,7 +102,7 @@ static int prep_init(prep_t *pp, const mim_session_t *s, int retarget, mim_error
 {
     *pp = (prep_t){.map = mim_session_map(s), .nl = mim_session_map(s)->count, .retarget = retarget};
     const uint32_t n = mim_session_mesh(s)->n_vertices;
-    for (uint32_t l = 0; l < pp->nl; l++) pp->idx[l] = joint_index(pp->map->names[l]);
+    for (uint32_t l = 0; l < pp->nl; l++) pp->idx[l] = mim_sample_joint_index(pp->map->names[l]);
     pp->rest = mim_session_mesh(s)->positions;
     pp->scratch = retarget ? calloc(3 * (size_t)n, sizeof *pp->scratch) : NULL;
     if (retarget && !pp->scratch) return mim_error_set(err, MIM_ENOMEM, "out of memory for %u vertices", n);
@@ -145,8 +138,9 @@ static int person_landmarks(const prep_t *pp, const double *joints, const char *
     for (uint32_t l = 0; l < nl; l++)
         for (int k = 0; k < 3; k++) centre[k] += raw[3 * l + k] / (double)nl;
     const double *j = joints;
-    if (pp->turn && left_of(j + 3 * joint_index("l_hip"), j + 3 * joint_index("r_hip"),
-                            j + 3 * joint_index("l_shoulder"), j + 3 * joint_index("r_shoulder"), &sx, &sz)) {
+    if (pp->turn && left_of(j + 3 * mim_sample_joint_index("l_hip"), j + 3 * mim_sample_joint_index("r_hip"),
+                            j + 3 * mim_sample_joint_index("l_shoulder"),
+                            j + 3 * mim_sample_joint_index("r_shoulder"), &sx, &sz)) {
         double phi = atan2(pp->avatar_left[1], pp->avatar_left[0]) - atan2(sz, sx);
         c = cos(phi), s = sin(phi);
     }
@@ -186,7 +180,7 @@ int mim_session_pairs_check(const mim_session_t *s, mim_error_t *err)
     if (!mim_session_query(s)) return mim_error_set(err, MIM_ENOINDEX, "%s: store has no index (run mimic index)", store);
     const mim_landmark_map_t *map = mim_session_map(s);
     for (uint32_t l = 0; l < map->count; l++)
-        if (joint_index(map->names[l]) < 0)
+        if (mim_sample_joint_index(map->names[l]) < 0)
             return mim_error_set(err, MIM_EUNSUPPORTED, "%s: the store's landmark '%s' is not a joint of pose-pair "
                                                         "samples (head, chest, pelvis, ..., spine, neck)",
                                  store, map->names[l]);

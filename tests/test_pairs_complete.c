@@ -22,10 +22,9 @@ static char *dir;
 
 static int joint(const char *name)
 {
-    for (int j = 0; j < P; j++)
-        if (!strcmp(mim_sample_joint_names[j], name)) return j;
-    fail_msg("no joint %s", name);
-    return -1;
+    const int j = mim_sample_joint_index(name);
+    if (j < 0) fail_msg("no joint %s", name);
+    return j;
 }
 
 /* A random pair whose B puts its left hand on A's head, elbow half way

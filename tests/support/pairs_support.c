@@ -11,10 +11,9 @@
 
 int tp_joint(const char *name)
 {
-    for (int j = 0; j < TP_J; j++)
-        if (!strcmp(mim_sample_joint_names[j], name)) return j;
-    fail_msg("no joint %s", name);
-    return -1;
+    const int j = mim_sample_joint_index(name);
+    if (j < 0) fail_msg("no joint %s", name);
+    return j;
 }
 
 void tp_turn(double p[TP_J][3], const char *about, char axis, double a, const char *const *names)
