@@ -152,11 +152,22 @@ static void test_cli(void **s)
     free(e);
     const char *b2[] = {"pairs", "complete", "--pairs", in, "--missing", "A.head", "--samples", smp, "--match", "both",
                         "-o", out, NULL};
-    free(ts_mimic_expect(2, NULL, b2));
+    free(ts_mimic_expect(2, &e, b2));
+    assert_non_null(strstr(e, "mimic pairs complete: --match 'both': give pair or person"));
+    free(e);
     const char *b3[] = {"pairs", "complete", "--pairs", smp, "--missing", "A.head", "--samples", "/nonexistent.jsonl",
                         "-o", out, NULL};
     free(ts_mimic_expect(1, &e, b3));
     assert_non_null(strstr(e, "/nonexistent.jsonl"));
+    free(e);
+    /* B's joints all hidden but two, matched on B alone: too few to fit */
+    char most[1024] = "";
+    for (int j = 2; j < P; j++)
+        snprintf(most + strlen(most), sizeof most - strlen(most), "%sB.%s", j > 2 ? "," : "", mim_sample_joint_names[j]);
+    const char *b5[] = {"pairs", "complete", "--pairs", in, "--missing", most, "--samples", smp, "--match", "person",
+                        "-o", out, NULL};
+    free(ts_mimic_expect(1, &e, b5));
+    assert_non_null(strstr(e, "in.jsonl:2: fewer than 3 seen joints to match on"));
     free(e);
     free(smp), free(in), free(out);
 }

@@ -165,6 +165,41 @@ static void test_cli(void **s)
     free(e);
     const char *b4[] = {"pairs", "retrieve", "--annotations", ann, "--samples", all, "-o", NULL};
     free(ts_mimic_expect(2, NULL, b4));
+    /* cameras of other annotations (one fewer), and a camera whose rotation is no rotation */
+    size_t clen;
+    char *ctext = ts_read_file(cams, &clen);
+    json_t *cj = json_loads(ctext, 0, NULL), *list = json_object_get(cj, "cameras");
+    free(ctext);
+    char *bad_cams = ts_path(dir, "bad_cams.json");
+    json_array_remove(list, json_array_size(list) - 1);
+    assert_int_equal(json_dump_file(cj, bad_cams, 0), 0);
+    const char *b5[] = {"pairs", "retrieve", "--annotations", ann, "--samples", all, "--truth", spec, "--unit", "1",
+                        "--cameras", bad_cams, "-o", out, NULL};
+    free(ts_mimic_expect(1, &e, b5));
+    assert_non_null(strstr(e, "bad_cams.json: 29 cameras for 30 annotations"));
+    free(e);
+    json_array_append_new(list, json_pack("{s:i, s:i, s:i, s:[f,f,f], s:[f,f,f]}", "take", 0, "frame", 28, "view", 1,
+                                          "position", 0.0, 0.0, 5.0, "rotation", 1.0, 0.0, 0.0));
+    assert_int_equal(json_dump_file(cj, bad_cams, 0), 0);
+    free(ts_mimic_expect(1, &e, b5));
+    assert_non_null(strstr(e, "bad_cams.json: camera 30: \"rotation\" is not 9 numbers of a rotation"));
+    free(e);
+    json_decref(cj);
+    free(bad_cams);
+    /* annotations of frames the --truth take does not have (a take of 10 frames, annotated to 28) */
+    char *short_a = ts_path(dir, "short_a.bvh"), *short_b = ts_path(dir, "short_b.bvh"), short_spec[8192];
+    for (int who = 0; who < 2; who++) {
+        char *text = mim_pairs_bvh_text(&pairs[0][0], 10, who, 1.0 / 30);
+        assert_int_equal(ts_write_file(who ? short_b : short_a, text, strlen(text)), 0);
+        free(text);
+    }
+    snprintf(short_spec, sizeof short_spec, "%s,%s", short_a, short_b);
+    const char *b7[] = {"pairs", "retrieve", "--annotations", ann, "--samples", all, "--truth", short_spec, "--unit", "1",
+                        "-o", out, NULL};
+    free(ts_mimic_expect(1, &e, b7));
+    assert_non_null(strstr(e, "annotation 11 is of take 0 frame 10, which the 1 --truth take do not have"));
+    free(e);
+    free(short_a), free(short_b);
     free(path[0]), free(path[1]), free(ann), free(cams), free(all), free(odd), free(out);
 }
 

@@ -251,6 +251,44 @@ static void test_override_and_refusals(void **s)
     /* --up settles it (the second file then lies down, as told) */
     const char *mx2[] = {"pairs", "export", "--pair", mixed, "--up", "z", "-o", fr, NULL};
     free(ts_mimic_expect(0, NULL, mx2));
+
+    /* a take whose skeleton stands along no axis, in its rest pose or its frames: every offset zero */
+    char *flat[2];
+    for (int who = 0; who < 2; who++) {
+        char *text = take_text(who), *p = text;
+        while ((p = strstr(p, "OFFSET "))) { /* "OFFSET a b c" -> zeros, the line's length kept */
+            char *e = strchr(p, '\n');
+            for (char *q = p + 7; q < e; q++)
+                if (*q != ' ') *q = '0';
+            p = e;
+        }
+        flat[who] = ts_path(dir, who ? "flat_b.bvh" : "flat_a.bvh");
+        assert_int_equal(ts_write_file(flat[who], text, strlen(text)), 0);
+        free(text);
+    }
+    char flat_spec[8192];
+    snprintf(flat_spec, sizeof flat_spec, "%s,%s", flat[0], flat[1]);
+    const char *fl[] = {"pairs", "export", "--pair", flat_spec, "--unit", "1", "-o", fr, NULL};
+    free(ts_mimic_expect(1, &e, fl));
+    assert_non_null(strstr(e, "flat_a.bvh: cannot tell which way is up"));
+    assert_non_null(strstr(e, "give --up x|y|z|-x|-y|-z"));
+    free(e);
+
+    /* vest simulate: a bad --up, and an up along the motion's left-right axis */
+    char *zfile = ts_path(dir, "z_a.bvh"), *rec = ts_path(dir, "z.rec");
+    const char *v1[] = {"vest", "simulate", "--motion", zfile, "--up", "q", "--out", rec, NULL};
+    free(ts_mimic_expect(2, &e, v1));
+    assert_non_null(strstr(e, "mimic vest simulate: --up: give x, y, z, -x, -y or -z"));
+    free(e);
+    const char *v2[] = {"vest", "simulate", "--motion", zfile, "--up", "x", "--out", rec, NULL};
+    free(ts_mimic_expect(1, &e, v2));
+    assert_non_null(strstr(e, "mimic vest simulate: up +x is the motion's left-right axis"));
+    free(e);
+    const char *v3[] = {"vest", "simulate", "--motion", zfile, "--out", rec, NULL};
+    free(ts_mimic_expect(0, &e, v3));
+    assert_non_null(strstr(e, "z_a.bvh: +z is up (the rest pose's; --up to change)"));
+    free(e);
+    free(flat[0]), free(flat[1]), free(zfile), free(rec);
     free(spec), free(mixed), free(fr);
 }
 
