@@ -102,7 +102,8 @@ int bench_load_imitation(bench_dataset_t *d, uint32_t subjects, uint32_t poses, 
     mim_error_t err = {0};
     mim_synth_t *s = NULL;
     const char *tissue = getenv("BENCH_TISSUE_MM"), *slide = getenv("BENCH_SLIDE_MM"); /* calibration only */
-    mim_synth_options_t o = {.subjects = subjects, .poses = poses, .vertices = vertices, .seed = 1,
+    const char *seed = getenv("BENCH_SEED"); /* calibration only */
+    mim_synth_options_t o = {.subjects = subjects, .poses = poses, .vertices = vertices, .seed = seed ? strtoull(seed, NULL, 10) : 1,
                              .imitation_deg = sigma_deg,
                              .tissue_mm = sigma_deg > 0 ? (tissue ? atof(tissue) : BENCH_TISSUE_MM) : 0,
                              .slide_mm = sigma_deg > 0 ? (slide ? atof(slide) : BENCH_SLIDE_MM) : 0};

@@ -58,6 +58,9 @@ int bench_pose_spread(const bench_dataset_t *d, double *rms, double *p10, double
 /* The imitation spread per joint axis that gives the same pose across
  * subjects about 11 degrees rms per bone (bench_pose_spread on it). */
 #define BENCH_IMITATION_DEG 3.5
+/* (The environment's BENCH_SEED draws the imitation set with another seed,
+ * BENCH_TISSUE_MM and BENCH_SLIDE_MM change its tissue and slide: for
+ * calibration and for checking a default on other draws only.) */
 /* and their pose-dependent soft tissue (mim_synth_options_t's tissue_mm) */
 #define BENCH_TISSUE_MM 4.0
 /* and the registration error of a store of scans (slide_mm: 22 mm slides its vertices 18 mm on

@@ -65,9 +65,10 @@ enum { W_EQUAL, W_INVERSE, N_WEIGHTING };
 static const uint32_t ks[] = {1, 2, 3, 5, K_ASK};
 #define N_K (sizeof ks / sizeof ks[0])
 #define N_METHOD (N_K * N_WEIGHTING * 2)
-enum { X_LANDMARKS, X_LANDMARKS_NEAREST, N_EXTRA }; /* the rows after the blends */
+enum { X_LANDMARKS, X_LANDMARKS_ONE, X_LANDMARKS_NEAREST, N_EXTRA }; /* the rows after the blends */
 static const char *const extra_names[N_EXTRA] = {
     "avatar's rest frames turned by the landmark skeleton's segment rotations",
+    "the same, one solve",
     "those, blended with the nearest template's (equal weights)"};
 #define MAX_RUNS 4096
 #define MAX_POSES 64
@@ -104,7 +105,10 @@ enum { ORD_INDEX, ORD_SHAPE }; /* the hits in the index's order, or by rest buil
  * on its relative frames); the change version (the avatar's turn from its
  * rest landmarks to the targets against the template's from its
  * reference's landmarks, R_A R_T^-1, which leaves body shape out) */
-enum { CO_NONE, CO_SEGMENT, CO_CHANGE, CO_PLAIN_SEGMENT }; /* the last: the segment correction on the plain fallback only */
+/* CO_PLAIN_SEGMENT: the segment correction on the plain fallback only; CO_PLAIN_SKELETON: the skeleton
+ * drive there (A's rest frames turned by its landmark skeleton onto the targets, one solve: the session's
+ * auto drive) */
+enum { CO_NONE, CO_SEGMENT, CO_CHANGE, CO_PLAIN_SEGMENT, CO_PLAIN_SKELETON };
 typedef struct {
     uint32_t k;
     int weighting, frames, enc;
@@ -117,6 +121,7 @@ typedef struct {
     double mu;      /* EN_AFFINE's pull towards the identity */
     double build_power; /* FR_GATED_ALL: weights also 1/build distance^build_power (0: not) */
     uint32_t max_iter;  /* on the relative path: at most this many solves unless --iterations (0: mimic's) */
+    int spread;         /* FR_GATED_ALL: the plain path too where the store's pose spread passes its gate */
 } rel_method_t;
 /* rows give the fields they set; the rest are 0 (the table predates them) */
 #pragma GCC diagnostic push
@@ -152,7 +157,10 @@ static const rel_method_t rel_methods[] = {
     {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "relative over the hits whose references are within the gate, else plain; 3 nearest, 1/distance (the default before)", ORD_INDEX, .gated_set = 1},
     {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the same, relative weights 1/distance^2 x 1/build distance^2, at most 2 solves (the session's default)", ORD_INDEX, .power = MIM_SESSION_RELATIVE_DISTANCE_POWER, .build_power = MIM_SESSION_RELATIVE_BUILD_POWER, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .gated_set = 1},
     {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the same, relative weights 1/distance^2 x 1/build distance^2, mimic's iteration", ORD_INDEX, .power = MIM_SESSION_RELATIVE_DISTANCE_POWER, .build_power = MIM_SESSION_RELATIVE_BUILD_POWER, .gated_set = 1},
-    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the session's default, + segment correction on the plain path only", ORD_INDEX, .power = MIM_SESSION_RELATIVE_DISTANCE_POWER, .build_power = MIM_SESSION_RELATIVE_BUILD_POWER, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .correct = CO_PLAIN_SEGMENT, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the template drive's default before the store's gate, + segment correction on the plain path only", ORD_INDEX, .power = MIM_SESSION_RELATIVE_DISTANCE_POWER, .build_power = MIM_SESSION_RELATIVE_BUILD_POWER, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .correct = CO_PLAIN_SEGMENT, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the template drive's default (the store's gate too)", ORD_INDEX, .power = MIM_SESSION_RELATIVE_DISTANCE_POWER, .build_power = MIM_SESSION_RELATIVE_BUILD_POWER, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .correct = CO_PLAIN_SEGMENT, .gated_set = 1, .spread = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the skeleton drive on the plain path, without the store's gate", ORD_INDEX, .power = MIM_SESSION_RELATIVE_DISTANCE_POWER, .build_power = MIM_SESSION_RELATIVE_BUILD_POWER, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .correct = CO_PLAIN_SKELETON, .gated_set = 1},
+    {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the session's default (auto drive): the relative path where both gates pass, else the skeleton drive", ORD_INDEX, .power = MIM_SESSION_RELATIVE_DISTANCE_POWER, .build_power = MIM_SESSION_RELATIVE_BUILD_POWER, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .correct = CO_PLAIN_SKELETON, .gated_set = 1, .spread = 1},
     {3, W_INVERSE, FR_GATED_ALL, EN_DELTA_SCALED, "the same, 1/distance, at most 2 solves", ORD_INDEX, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .gated_set = 1},
     {1, W_EQUAL, FR_GATED_ALL, EN_DELTA_SCALED, "gated relative, nearest, at most 2 solves", ORD_INDEX, .max_iter = MIM_SESSION_RELATIVE_ITERATIONS, .gated_set = 1},
     /* issue 29, "figures to reach": candidates on the gated relative path, and where its error comes from */
@@ -414,8 +422,9 @@ static int run_set(const bench_dataset_t *d, void *user)
     float *ang = malloc(sizeof(float) * na * T);
     for (uint32_t t = 0; t < T; t++)
         mim_index_angles(lm + 3 * L * t, NULL, L, ang + (size_t)na * t);
-    uint32_t wrong_refs = 0, n_refd = 0;
-    double refd[64 * 64];
+    uint32_t wrong_refs = 0, n_refd = 0, n_hitd = 0, n_agree = 0, n_spread = 0;
+    double spreads[64];
+    double refd[64 * 64], hitd[MAX_RUNS], agree[MAX_RUNS];
     row_t rows[N_ROWS];
     memset(rows, 0, sizeof rows);
     for (uint32_t m = 0; m < N_ROWS; m++) {
@@ -473,6 +482,9 @@ static int run_set(const bench_dataset_t *d, void *user)
         mim_index_input_t in = {ntrain, L, tlm, tid, tsp, tpp, d->map.mirror};
         mim_index_t *ix = NULL;
         int brc = mim_index_build(&ix, &in, NULL, NULL, &err);
+        /* how alike the other subjects take a pose: the session's store gate (MIM_SESSION_RELATIVE_SPREAD_DEG) */
+        const double spread = mim_session_pose_spread(ntrain, L, tlm, tsp, tpp);
+        if (n_spread < 64) spreads[n_spread++] = spread;
         free(tlm), free(tsp), free(tpp), free(tid);
         if (brc)
             goto fail;
@@ -590,7 +602,9 @@ static int run_set(const bench_dataset_t *d, void *user)
                     frames = Fb;
                 }
                 double t1 = mim_now();
-                if (mim_xfer_transfer(ls, W, n, frames, u, L, xo, out, &rep, &err)) {
+                mim_xfer_options_t x1 = *xo;
+                if (x == X_LANDMARKS_ONE) x1.max_iterations = 1;
+                if (mim_xfer_transfer(ls, W, n, frames, u, L, &x1, out, &rep, &err)) {
                     mim_index_close(&ix);
                     goto fail;
                 }
@@ -606,6 +620,12 @@ static int run_set(const bench_dataset_t *d, void *user)
                     bd[at] = bd[at - 1], by_build[at] = by_build[at - 1], at--;
                 bd[at] = dh, by_build[at] = hits[h];
             }
+            if (n_hitd < MAX_RUNS) /* how far the first hit's pose is from the query's (all angles) */
+                hitd[n_hitd++] = angle_distance(ang + (size_t)na * (hits[0].id - 1), ang + (size_t)na * (a * P + p), na) /
+                                 sqrt((double)na) * 180.0 / M_PI;
+            if (n_agree < MAX_RUNS && ans.n_hits > 1) /* how far the first two hits stand apart (all angles) */
+                agree[n_agree++] = angle_distance(ang + (size_t)na * (hits[0].id - 1), ang + (size_t)na * (hits[1].id - 1), na) /
+                                   sqrt((double)na) * 180.0 / M_PI;
             if (p == 1) /* how far each reference's pose is from A's rest (all angles) */
                 for (uint32_t s2 = 0; s2 < S && s2 < 64; s2++)
                     if (s2 != a && n_refd < 64 * 64)
@@ -627,8 +647,8 @@ static int run_set(const bench_dataset_t *d, void *user)
                 uint32_t n_sel = 0;
                 for (uint32_t j = 0; j < k; j++)
                     if (ref_rms_of[((uint32_t)hh[j].id - 1) / P] < gate) sel[n_sel++] = hh[j];
-                const int plain = gated && !n_sel;
-                if (gated && n_sel) hh = sel, k = n_sel;
+                const int plain = gated && (!n_sel || (rm->spread && spread > MIM_SESSION_RELATIVE_SPREAD_DEG));
+                if (gated && !plain) hh = sel, k = n_sel;
                 mim_quat RA[MIM_SEGMENTS]; /* A's turn from its rest landmarks to the targets (CO_CHANGE) */
                 if (rm->correct == CO_CHANGE && !plain &&
                     mim_xfer_segment_correction(&d->map, lm + 3 * L * (a * P), u, RA, &err)) {
@@ -658,7 +678,8 @@ static int run_set(const bench_dataset_t *d, void *user)
                         src[j] = Fc[j];
                     }
                     wp[j] = WT[t], wr[j] = WT[r], sc[j] = scale_of[t / P];
-                    if ((rm->correct != CO_NONE && rm->correct != CO_PLAIN_SEGMENT && !plain) ||
+                    if ((rm->correct != CO_NONE && rm->correct != CO_PLAIN_SEGMENT && rm->correct != CO_PLAIN_SKELETON &&
+                         !plain) ||
                         (rm->correct == CO_PLAIN_SEGMENT && plain)) {
                         mim_quat R[MIM_SEGMENTS];
                         const int seg = rm->correct == CO_SEGMENT || rm->correct == CO_PLAIN_SEGMENT;
@@ -676,7 +697,16 @@ static int run_set(const bench_dataset_t *d, void *user)
                     }
                 }
                 const double *frames = rm->frames == FR_TRUTH ? F[q] : src[0];
-                if (k > 1 && rm->frames != FR_TRUTH) {
+                const int skeleton = rm->correct == CO_PLAIN_SKELETON && plain;
+                if (skeleton) {
+                    mim_quat R[MIM_SEGMENTS];
+                    if (mim_xfer_segment_correction(&d->map, lm + 3 * L * (a * P), u, R, &err)) {
+                        mim_index_close(&ix);
+                        goto fail;
+                    }
+                    mim_xfer_skin_frames(n, skin, Fa, R, Fb);
+                    frames = Fb;
+                } else if (k > 1 && rm->frames != FR_TRUTH) {
                     mim_xfer_frames_blend(n, k, src, w, Fb);
                     frames = Fb;
                 }
@@ -705,6 +735,8 @@ static int run_set(const bench_dataset_t *d, void *user)
                 mim_xfer_options_t xr = *xo;
                 if (rm->max_iter && !plain && !xr.max_iterations)
                     xr.max_iterations = rm->max_iter;
+                if (skeleton && !xr.max_iterations)
+                    xr.max_iterations = 1;
                 if (mim_xfer_transfer(ls, Wq, n, frames, u, L, &xr, out, &rep, &err)) {
                     mim_index_close(&ix);
                     goto fail;
@@ -764,8 +796,25 @@ static int run_set(const bench_dataset_t *d, void *user)
         printf("\n(--no-rest-ref: %u references taken among poses other than A's rest.)\n", wrong_refs);
     if (n_refd) {
         double med = bench_median(refd, (int)n_refd);
-        printf("\nReference to A's rest, all-angle distance (rad): min %.3f median %.3f max %.3f\n", refd[0], med,
-               refd[n_refd - 1]);
+        printf("\nReference to A's rest, all-angle distance (rad): min %.3f median %.3f max %.3f (rms deg: %.2f %.2f %.2f)\n",
+               refd[0], med, refd[n_refd - 1], refd[0] / sqrt((double)na) * 180.0 / M_PI,
+               med / sqrt((double)na) * 180.0 / M_PI, refd[n_refd - 1] / sqrt((double)na) * 180.0 / M_PI);
+    }
+    if (n_hitd) {
+        double med = bench_median(hitd, (int)n_hitd);
+        printf("\nQuery to its first hit, all-angle rms (deg): min %.3f median %.3f max %.3f\n", hitd[0], med,
+               hitd[n_hitd - 1]);
+    }
+    if (n_spread) {
+        printf("\nThe other subjects' pose spread (mim_session_pose_spread, deg), per held-out subject:");
+        for (uint32_t i = 0; i < n_spread; i++)
+            printf(" %.2f", spreads[i]);
+        printf("\n");
+    }
+    if (n_agree) {
+        double med = bench_median(agree, (int)n_agree);
+        printf("\nThe first two hits apart, all-angle rms (deg): min %.3f median %.3f max %.3f\n", agree[0], med,
+               agree[n_agree - 1]);
     }
     printf("\nReferences: %u of A's rest queries' hits had pose 0; %u subjects missing from them took their pose 0.\n",
            rest_right, ref_misses);

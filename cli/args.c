@@ -122,7 +122,7 @@ int mim_cli_drive(const char *cmd, const char *text, int *drive)
 {
     if ((*drive = mim_session_drive_parse(text)) >= 0)
         return 0;
-    fprintf(stderr, "mimic %s: --drive '%s' is not auto, template or orientation\n", cmd, text);
+    fprintf(stderr, "mimic %s: --drive '%s' is not auto, template, orientation or skeleton\n", cmd, text);
     return -1;
 }
 

@@ -17,7 +17,7 @@ static void help(FILE *out)
 {
     fprintf(out,
             "usage: mimic morph --store DIR --avatar (MESH|ID) --keys K1,K2,... --frames-between N\n"
-            "                   [--method linear|frames] [--landmarks FILE.json] [--drive auto|template|orientation]\n"
+            "                   [--method linear|frames] [--landmarks FILE.json] [--drive auto|template|orientation|skeleton]\n"
             "                   [--relative on|off] [--fps F] [--json] -o OUT.glb\n\n"
             "Transfers the avatar into the pose of each key template, fills N poses between\n"
             "consecutive keys, and writes the sequence as a GLB animation (morph targets).\n\n"
@@ -37,7 +37,8 @@ static void help(FILE *out)
             "  --drive D            auto (default: where the landmark frames carry \"orientations\",\n"
             "                       keys are the avatar's own frames turned per segment, one solve,\n"
             "                       and in-betweens slerp the rotations and solve again), template,\n"
-            "                       or orientation (every frame needs orientations)\n"
+            "                       orientation (every frame needs orientations) or skeleton (keys\n"
+            "                       are the avatar's own frames turned by its landmark skeleton)\n"
             "  --relative on|off    template-driven keys by relative transfer (the template's change from\n"
             "                       its subject's template nearest the avatar's rest, where it stands as\n"
             "                       the avatar does; default on)\n"

@@ -17,7 +17,7 @@ static void help(FILE *out)
 {
     fprintf(out,
             "usage: mimic transfer --store DIR --avatar (MESH|ID) (--template ID[,ID...] | --landmarks FILE.json | both)\n"
-            "                      [--drive auto|template|orientation] [--blend K] [--segment-correction on|off]\n"
+            "                      [--drive auto|template|orientation|skeleton] [--blend K] [--segment-correction on|off]\n"
             "                      [--relative on|off]\n"
             "                      [--iterations N] [--tol T]\n"
             "                      [--formulation least-squares|square] [--json]\n"
@@ -38,9 +38,12 @@ static void help(FILE *out)
             "                       alone, the template is the nearest pose from mimic query\n"
             "                       the frame's optional \"orientations\" (the 17 vest segments' rotations\n"
             "                       from the avatar's rest mesh) drive the avatar's own frames\n"
-            "  --drive D            auto (default: orientations when the frame has them, else the\n"
-            "                       template), template (the template's frames, iterated) or\n"
-            "                       orientation (one solve; needs orientations)\n"
+            "  --drive D            auto (default: orientations when the frame has them; else the\n"
+            "                       templates' frames where --relative holds (one rig's bodies); else,\n"
+            "                       with --landmarks from the index, skeleton), template (the templates'\n"
+            "                       frames, iterated), orientation (one solve; needs orientations) or\n"
+            "                       skeleton (the avatar's own frames turned as its landmark skeleton\n"
+            "                       turns onto the landmarks, one solve)\n"
             "  --blend K            with --landmarks alone: blend the frames of the K nearest templates,\n"
             "                       weighted by query distance (default %d; 1: the nearest alone)\n"
             "  --segment-correction on|off  turn each template's frames so that its landmark skeleton\n"
@@ -255,7 +258,7 @@ int mim_cmd_transfer(int argc, char **argv)
                 mim_session_avatar(s), outp, (unsigned long long)rep.template_id, rep.label,
                 more, rel,
                 mim_session_drive_names[rep.drive], rep.xfer.iterations,
-                rep.drive == MIM_DRIVE_ORIENTATION ? "one solve"
+                rep.drive != MIM_DRIVE_TEMPLATE ? "one solve"
                 : rep.xfer.converged     ? "converged"
                 : rep.xfer.early_stopped ? "stopped when the moves stopped shrinking"
                                          : "iteration cap",

@@ -257,11 +257,12 @@ int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *r
         status = mim__reply_error(rp, 503, no_index, sv->store);
         rc = MIM_ENOTFOUND;
     } else if (!rc) {
-        /* the template drive as the service's vests have it (--blend,
+        /* the drive as the service's vests have it without orientations (--drive, --blend,
          * --segment-correction, --relative), unless the request says relative */
         mim_session_request_t req = {.template_id = r->id,
                                      .landmarks = r->has_landmarks ? r->u : NULL,
-                                     .drive = MIM_DRIVE_TEMPLATE,
+                                     .drive = sv->opt.drive == MIM_DRIVE_ORIENTATION ? MIM_DRIVE_AUTO
+                                                                                     : (mim_session_drive_t)sv->opt.drive,
                                      .blend = r->id ? 0 : sv->opt.blend,
                                      .segment_correction = sv->opt.segment_correction,
                                      .relative = r->relative ? r->relative : sv->opt.relative};
@@ -296,8 +297,9 @@ int mim__api_transfer(mim_serve_t *sv, const mim__request_t *rq, mim__reply_t *r
         if (status == 200)
             snprintf(rp->headers, sizeof rp->headers,
                      "X-Mimic-Template: %llu\r\nX-Mimic-Template-Label: %s\r\nX-Mimic-Iterations: %u\r\n"
-                     "X-Mimic-Relative: %d\r\n%s%.300s%s",
+                     "X-Mimic-Relative: %d\r\nX-Mimic-Drive: %s\r\n%s%.300s%s",
                      (unsigned long long)rep.template_id, rep.label, rep.xfer.iterations, rep.relative,
+                     mim_session_drive_names[rep.drive],
                      rep.degraded[0] ? "X-Mimic-Degraded: " : "", rep.degraded, rep.degraded[0] ? "\r\n" : "");
     }
     if (own != out) free(own);

@@ -132,6 +132,7 @@ struct mim__loop {
     int outage;        /* error tells of the vest being away (cleared when it is back) */
     uint64_t last_template, warm_starts, iterations, key_frames;
     uint64_t oriented_keys; /* key frames made by the orientation drive */
+    uint64_t skeleton_keys; /* and by the skeleton drive */
     uint64_t completed; /* lost landmarks filled in by retrieval */
     uint64_t frames_complete;                        /* complete vest frames so far */
     uint64_t recent_no[RECENT_FRAMES];               /* which frame each slot holds (frames_complete then) */
@@ -311,6 +312,7 @@ static int make_key(mim__loop_t *l, const float *u, const mim_quat *R, const uin
     snprintf(l->degraded, sizeof l->degraded, "%s", rep->degraded);
     l->warm_starts += rep->warm_started;
     l->oriented_keys += rep->drive == MIM_DRIVE_ORIENTATION;
+    l->skeleton_keys += rep->drive == MIM_DRIVE_SKELETON;
     l->iterations += rep->xfer.iterations;
     l->key_frames++;
     pthread_mutex_unlock(&l->lock);
@@ -796,7 +798,7 @@ json_t *mim__loop_status(mim__loop_t *l)
         return json_null();
     pthread_mutex_lock(&l->lock);
     json_t *j = json_pack(
-        "{s:s, s:s, s:o, s:o, s:o, s:I, s:s, s:i, s:i, s:s, s:f, s:f, s:f, s:f, s:f, s:s, s:I, s:f, s:I, s:s, s:I}", "spec", l->spec, "state", l->state,
+        "{s:s, s:s, s:o, s:o, s:o, s:I, s:s, s:i, s:i, s:s, s:f, s:f, s:f, s:f, s:f, s:s, s:I, s:f, s:I, s:s, s:I, s:I}", "spec", l->spec, "state", l->state,
         "error", l->error[0] ? json_string(l->error) : json_null(), "last_template",
         l->last_template ? json_integer((json_int_t)l->last_template) : json_null(), "last_label",
         l->last_label[0] ? json_string(l->last_label) : json_null(), "reconnects",
@@ -807,7 +809,7 @@ json_t *mim__loop_status(mim__loop_t *l)
         l->opt.warm_start ? (l->opt.warm_start > 0 ? "on" : "off") : "auto", "warm_starts", (json_int_t)l->warm_starts,
         "iterations_per_key", l->key_frames ? (double)l->iterations / (double)l->key_frames : 0.0,
         "completed_landmarks", (json_int_t)l->completed, "drive", mim_session_drive_names[l->opt.drive],
-        "oriented_keys", (json_int_t)l->oriented_keys);
+        "oriented_keys", (json_int_t)l->oriented_keys, "skeleton_keys", (json_int_t)l->skeleton_keys);
     if (j)
         json_object_set_new(j, "degraded", l->degraded[0] ? json_string(l->degraded) : json_null());
     pthread_mutex_unlock(&l->lock);

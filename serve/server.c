@@ -229,7 +229,7 @@ int mim_serve_open(mim_serve_t **out, mim_session_t *s, const mim_serve_options_
     sv->map = mim_session_map(s);
     sv->q = mim_session_query(s);
     int rc = 0;
-    if (o.drive < MIM_DRIVE_AUTO || o.drive > MIM_DRIVE_ORIENTATION)
+    if (o.drive < MIM_DRIVE_AUTO || o.drive > MIM_DRIVE_SKELETON)
         rc = mim_error_set(err, MIM_EINVAL, "serve: unknown drive %d", o.drive);
     else if (o.blend > MIM_XFER_BLEND_MAX)
         rc = mim_error_set(err, MIM_EINVAL, "serve: --blend %u: at most %d templates", o.blend, MIM_XFER_BLEND_MAX);

@@ -82,7 +82,10 @@ struct mim_session {
     uint32_t table_count, table_cap;
     float *table_lm;
     char **table_subject;
+    char **table_pose;          /* pose labels, qualified by dataset as the subjects are */
     uint64_t *table_id;         /* ascending (the store's id order) */
+    int spread_known;           /* pose_spread computed (mim_session_pose_spread of the table) */
+    double pose_spread;
     double *W;                  /* the avatar's encoding, 3 * n */
     double *restF;              /* the avatar's rest frames, 9 * n (relative transfer turns them) */
     double *restD;              /* its rest offsets F W, 3 * n (the orientation drive turns them) */
@@ -116,6 +119,14 @@ struct mim_session {
  * relative transfer finds references in them). Thread-safe. */
 int mim__session_landmark_table(mim_session_t *s, const float **lm, char *const **subjects, const uint64_t **ids,
                                 uint32_t *count, mim_error_t *err);
+
+/* The rms (radians) of two index angle descriptors over the angles both
+ * have (a degenerate landmark triple is NaN); NaN when none (pose_spread.c). */
+double mim__angles_rms(const float *a, const float *b, uint32_t na);
+
+/* The store's mim_session_pose_spread (degrees; NAN: unknown), computed
+ * from the landmark table on first need and kept. Thread-safe. */
+double mim__session_store_spread(mim_session_t *s);
 
 /* Template id's reference for relative transfer (relative.c; under
  * s->lock), found on first need and kept in s->refs; *out NULL when it has

@@ -1,8 +1,10 @@
-/* Every template's landmarks, subjects and ids, read from the store once
- * per store (a fork uses its base's): completion (complete.c) scans them,
- * relative transfer (relative.c) finds its references in them. */
+/* Every template's landmarks, subjects, poses and ids, read from the store
+ * once per store (a fork uses its base's): completion (complete.c) scans
+ * them, relative transfer (relative.c) finds its references in them and
+ * asks whether the store's subjects take a pose alike. */
 #include "internal.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -25,9 +27,11 @@ static int table_add(const mim_template_view_t *v, void *user)
         if (lm) s->table_lm = lm;
         char **sub = realloc(s->table_subject, cap * sizeof *sub);
         if (sub) s->table_subject = sub;
+        char **pose = realloc(s->table_pose, cap * sizeof *pose);
+        if (pose) s->table_pose = pose;
         uint64_t *id = realloc(s->table_id, cap * sizeof *id);
         if (id) s->table_id = id;
-        if (!lm || !sub || !id) return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
+        if (!lm || !sub || !pose || !id) return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
         s->table_cap = cap;
     }
     for (uint32_t l = 0; l < L; l++)
@@ -40,8 +44,10 @@ static int table_add(const mim_template_view_t *v, void *user)
     }
     if (!(f->datasets[s->table_count] = strdup(v->dataset)))
         return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
-    if (!(s->table_subject[s->table_count] = strdup(v->subject))) {
-        free(f->datasets[s->table_count]);
+    s->table_subject[s->table_count] = strdup(v->subject);
+    s->table_pose[s->table_count] = strdup(v->pose);
+    if (!s->table_subject[s->table_count] || !s->table_pose[s->table_count]) {
+        free(f->datasets[s->table_count]), free(s->table_subject[s->table_count]), free(s->table_pose[s->table_count]);
         return mim_error_set(f->err, MIM_ENOMEM, "completion: out of memory");
     }
     s->table_id[s->table_count] = v->id;
@@ -66,7 +72,8 @@ int mim__session_landmark_table(mim_session_t *s, const float **lm, char *const 
             rc = mim_db_template_each(t, table_add, &f, &s->table_failed);
         mim_db_abort(&t);
         /* subjects as the index names them: a dataset's own where there are several */
-        if (!rc && mim_db_labels_qualify(s->table_count, (const char *const *)f.datasets, s->table_subject, NULL))
+        if (!rc && (mim_db_labels_qualify(s->table_count, (const char *const *)f.datasets, s->table_subject, NULL) ||
+                    mim_db_labels_qualify(s->table_count, (const char *const *)f.datasets, s->table_pose, NULL)))
             rc = mim_error_set(&s->table_failed, MIM_ENOMEM, "completion: out of memory");
         for (uint32_t i = 0; i < s->table_count; i++) free(f.datasets[i]);
         free(f.datasets);
@@ -74,7 +81,7 @@ int mim__session_landmark_table(mim_session_t *s, const float **lm, char *const 
         if (rc) {
             if (!s->table_failed.code) mim_error_set(&s->table_failed, rc, "completion: %s", mim_strerror(rc));
             rc = mim_error_set(err, rc, "%s", s->table_failed.msg);
-            for (uint32_t i = 0; i < s->table_count; i++) free(s->table_subject[i]);
+            for (uint32_t i = 0; i < s->table_count; i++) free(s->table_subject[i]), free(s->table_pose[i]);
             s->table_count = 0;
         }
     }
@@ -82,4 +89,26 @@ int mim__session_landmark_table(mim_session_t *s, const float **lm, char *const 
     if (ids) *ids = s->table_id;
     pthread_mutex_unlock(&s->table_lock);
     return rc;
+}
+
+double mim__session_store_spread(mim_session_t *s)
+{
+    const float *lm;
+    char *const *subjects;
+    uint32_t count;
+    mim_error_t err = {0};
+    if (mim__session_landmark_table(s, &lm, &subjects, NULL, &count, &err))
+        return NAN; /* unread: the references' gate alone decides (and cannot find any) */
+    if (s->base)
+        s = s->base;
+    pthread_mutex_lock(&s->table_lock);
+    if (!s->spread_known) {
+        s->pose_spread = mim_session_pose_spread(s->table_count, s->map.count, s->table_lm,
+                                                 (const char *const *)s->table_subject,
+                                                 (const char *const *)s->table_pose);
+        s->spread_known = 1;
+    }
+    const double spread = s->pose_spread;
+    pthread_mutex_unlock(&s->table_lock);
+    return spread;
 }

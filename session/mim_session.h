@@ -159,13 +159,32 @@ int mim_session_template(mim_session_t *s, uint64_t id, float *positions, double
 /* ---- the pipeline ---- */
 /* What gives a key frame its vertex frames (issue 17). */
 typedef enum mim_session_drive {
-    MIM_DRIVE_AUTO = 0,        /* orientations when the request has them and the avatar is segmented, else template */
-    MIM_DRIVE_TEMPLATE = 1,    /* the template's frames, iterated (seed 000) */
-    MIM_DRIVE_ORIENTATION = 2  /* the avatar's rest frames turned by the segment rotations, one solve */
+    /* orientations when the request has them and the avatar is segmented;
+     * else the templates' frames where relative transfer's evidence holds
+     * (MIM_SESSION_DEFAULT_RELATIVE); else, with landmarks and a segmented
+     * avatar, the skeleton drive (MIM_SESSION_DEFAULT_PLAIN_SKELETON); else
+     * the templates' frames */
+    MIM_DRIVE_AUTO = 0,
+    MIM_DRIVE_TEMPLATE = 1,    /* the templates' frames, iterated (seed 000) */
+    MIM_DRIVE_ORIENTATION = 2, /* the avatar's rest frames turned by the measured segment rotations, one solve */
+    MIM_DRIVE_SKELETON = 3     /* the same turned by its landmark skeleton's rotations onto the landmarks, one solve */
 } mim_session_drive_t;
-/* "auto", "template", "orientation" -> the drive; -1 when unknown. */
+#define MIM_SESSION_DRIVES 4
+/* "auto", "template", "orientation", "skeleton" -> the drive; -1 when unknown. */
 int mim_session_drive_parse(const char *name);
-extern const char *const mim_session_drive_names[3];
+extern const char *const mim_session_drive_names[MIM_SESSION_DRIVES];
+/* The skeleton drive where relative transfer is not taken (the plain
+ * path): the avatar's own rest frames, each segment turned as its landmark
+ * skeleton turns from the avatar's rest landmarks onto the landmarks
+ * (mim_xfer_segment_correction, the orientation drive's skin and one
+ * solve). On the imitation set, whose subjects take each pose their own
+ * way and whose store slides along the surface as registered scans do,
+ * the templates' frames carry another body's way of taking the pose and
+ * its slide: the skeleton drive has 0.72x their error (40.3 against 55.6
+ * mm with the correction's 54.3) at a quarter of the key frame's time;
+ * the one-rig sets take the relative path and do not change
+ * (bench/RESULTS.md "The skeleton drive on the plain path"). */
+#define MIM_SESSION_DEFAULT_PLAIN_SKELETON 1
 
 /* The template drive blends the frames of the k templates nearest to the
  * landmarks, weighted by 1 / (query distance + the floor), each first
@@ -208,6 +227,26 @@ extern const char *const mim_session_drive_names[3];
  * template does. */
 #define MIM_SESSION_DEFAULT_RELATIVE 1
 #define MIM_SESSION_RELATIVE_GATE_DEG 5.0
+/* And only in a store whose subjects take a pose alike
+ * (mim_session_pose_spread at most MIM_SESSION_RELATIVE_SPREAD_DEG, or
+ * unknown): a reference can stand within the gate by chance where people
+ * imitate poses (other draws of the imitation set: from 4.3 degrees), and
+ * relative transfer then costs up to 1.5x the skeleton drive's error. One
+ * rig's stores spread 1.0-3.1 degrees (synth) and 3.8-4.8 (mh-bodies), the
+ * imitation set's 7.0-8.8 (bench/RESULTS.md "The skeleton drive on the
+ * plain path"). */
+#define MIM_SESSION_RELATIVE_SPREAD_DEG 6.0
+/* The median, over the pose labels that several subjects hold, of the
+ * all-angle rms (degrees, mim_index_angles) between one subject's first
+ * template of that pose and the next subject's (labels in sorted order),
+ * over the first MIM_SESSION_SPREAD_TEMPLATES templates and at most
+ * MIM_SESSION_SPREAD_PAIRS pairs; templates with an empty subject or pose
+ * are left out. landmarks: count * n_landmarks * 3 floats. NAN when no
+ * pose is held by two subjects (or out of memory). */
+#define MIM_SESSION_SPREAD_TEMPLATES 65536u
+#define MIM_SESSION_SPREAD_PAIRS 2048u
+double mim_session_pose_spread(uint32_t count, uint32_t n_landmarks, const float *landmarks,
+                               const char *const *subjects, const char *const *poses);
 /* Relative transfer's blend (templates from the index): each template's
  * weight is (1 / (query distance + MIM_SESSION_BLEND_DISTANCE_FLOOR)) to
  * the power MIM_SESSION_RELATIVE_DISTANCE_POWER, times (1 / (build
@@ -237,7 +276,8 @@ typedef struct mim_session_request {
     uint32_t n_templates;
     uint32_t blend;          /* templates the index gives to blend (1..MIM_XFER_BLEND_MAX); 0: MIM_SESSION_DEFAULT_BLEND */
     int segment_correction;  /* each template's frames turned onto the landmarks first: 1 on, -1 off, 0 the
-                              * default (MIM_SESSION_DEFAULT_PLAIN_CORRECTION: on the plain path only) */
+                              * default (MIM_SESSION_DEFAULT_PLAIN_CORRECTION: on the plain path only). 1 asks
+                              * for the templates' frames: the auto drive then keeps them on the plain path */
     const float *landmarks;  /* 3 * map count floats, in map order; NULL: mode (a), the template's own
                                 landmarks retargeted onto the avatar's proportions */
     mim_xfer_options_t xfer; /* iterations, tolerance, damping, warm start (start: 3 * n floats) */
@@ -273,7 +313,7 @@ typedef struct mim_session_report {
     int warm_started;                 /* the solve started from xfer.start */
     mim_xfer_report_t xfer;           /* the solve */
     double seconds_query, seconds_template, seconds_solve;
-    mim_session_drive_t drive;        /* the drive used: MIM_DRIVE_TEMPLATE or MIM_DRIVE_ORIENTATION */
+    mim_session_drive_t drive;        /* the drive used: template, orientation or skeleton (never auto) */
     uint32_t orient_filled;           /* lost segments that took a neighbour's rotation */
     uint32_t orient_from_template;    /* vertices whose frames came from the template (no neighbour) */
     int relative;                     /* 1: relative transfer (the templates' change of W from their references) */

@@ -11,16 +11,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-static double angles_rms(const float *a, const float *b, uint32_t na)
-{
-    double d = 0;
-    uint32_t m = 0;
-    for (uint32_t i = 0; i < na; i++)
-        if (isfinite(a[i]) && isfinite(b[i]))
-            d += ((double)a[i] - b[i]) * ((double)a[i] - b[i]), m++;
-    return m ? sqrt(d / m) : NAN;
-}
-
 /* The reference of subject `subject` (under s->lock): its template of the
  * store's connectivity nearest to the avatar's rest landmarks, its W and
  * scale, and its frames when within the gate. Appended to s->refs. */
@@ -50,7 +40,7 @@ static int make_reference(mim_session_t *s, const char *subject, const float *ta
         if (strcmp(subjects[i], subject))
             continue;
         mim_index_angles(table + 3 * (size_t)L * i, NULL, L, ang);
-        double d = angles_rms(ang, s->rest_angles, na);
+        double d = mim__angles_rms(ang, s->rest_angles, na);
         if (d < best)
             best = d, ref->id = ids[i], ref->build = mim_xfer_build_distance(lm, table + 3 * (size_t)L * i, L);
     }

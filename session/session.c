@@ -648,8 +648,8 @@ void mim_session_close(mim_session_t **ps)
     pthread_mutex_destroy(&s->lock);
     pthread_mutex_destroy(&s->out_lock);
     pthread_mutex_destroy(&s->table_lock);
-    for (uint32_t i = 0; i < s->table_count; i++) free(s->table_subject[i]);
-    free(s->table_subject), free(s->table_lm), free(s->table_id);
+    for (uint32_t i = 0; i < s->table_count; i++) free(s->table_subject[i]), free(s->table_pose[i]);
+    free(s->table_subject), free(s->table_pose), free(s->table_lm), free(s->table_id);
     free(s);
     *ps = NULL;
 }
@@ -705,11 +705,11 @@ const mim_xfer_skin_t *mim_session_skin(const mim_session_t *s, const mim_error_
     return s->skin;
 }
 
-const char *const mim_session_drive_names[3] = {"auto", "template", "orientation"};
+const char *const mim_session_drive_names[MIM_SESSION_DRIVES] = {"auto", "template", "orientation", "skeleton"};
 
 int mim_session_drive_parse(const char *name)
 {
-    for (int d = 0; d < 3; d++)
+    for (int d = 0; d < MIM_SESSION_DRIVES; d++)
         if (name && !strcmp(name, mim_session_drive_names[d]))
             return d;
     return -1;
@@ -798,8 +798,6 @@ static int cache_template(mim_session_t *s, uint64_t id, uint32_t slots, templat
     return 0;
 }
 
-/* The rms difference (radians) of two angle descriptors over the angles
- * both have (a degenerate landmark triple is NaN); NaN when none. */
 /* The orientation drive's offsets into s->oD (under s->lock): the rest
  * offsets turned per segment, lost segments from their neighbours, and the
  * vertices whose heaviest segment has no rotation at all from the
@@ -834,6 +832,21 @@ static int orientation_offsets(mim_session_t *s, const mim_session_request_t *re
     return 0;
 }
 
+/* The skeleton drive's offsets into s->oD (under s->lock): the rest
+ * offsets turned per segment as the avatar's landmark skeleton turns from
+ * its rest landmarks onto the targets u. */
+static int skeleton_offsets(mim_session_t *s, const float *u, mim_error_t *err)
+{
+    float rest[3 * MIM_LANDMARKS_MAX];
+    for (uint32_t l = 0; l < s->map.count; l++)
+        memcpy(rest + 3 * l, s->mesh.positions + 3 * (size_t)s->map.vertex[l], 3 * sizeof *rest);
+    mim_quat R[MIM_SEGMENTS];
+    int rc = mim_xfer_segment_correction(&s->map, rest, u, R, err);
+    if (!rc)
+        mim_xfer_skin_offsets(s->mesh.n_vertices, s->skin, s->restD, R, s->oD);
+    return rc;
+}
+
 /* The template drive's frames and W (under s->lock): each template's
  * frames, or with relative transfer the avatar's rest frames turned by the
  * template's turn from its reference (within the gate); then turned by the
@@ -854,6 +867,8 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
     subject_ref_t *ref[MIM_XFER_BLEND_MAX];
     size_t at[MIM_XFER_BLEND_MAX];
     int relative = (req->relative ? req->relative : MIM_SESSION_DEFAULT_RELATIVE) > 0;
+    /* only in a store whose subjects take a pose alike (MIM_SESSION_RELATIVE_SPREAD_DEG says why) */
+    relative = relative && !(mim__session_store_spread(s) > MIM_SESSION_RELATIVE_SPREAD_DEG);
     /* Only references that stand as the avatar does (MIM_SESSION_RELATIVE_GATE_DEG; else another body's
      * way of moving): the templates whose references do are blended relative, the others left out;
      * with none, the plain path over them all. And all or none of a blend: changes and shapes mixed
@@ -880,6 +895,21 @@ static int template_frames(mim_session_t *s, const mim_session_request_t *req, m
         kept++;
     }
     relative = relative && kept > 0;
+    /* The plain path: the avatar's own frames turned by its landmark skeleton where it may
+     * (MIM_SESSION_DEFAULT_PLAIN_SKELETON says why); a map without the default landmarks keeps the
+     * templates' frames. */
+    if (!relative && MIM_SESSION_DEFAULT_PLAIN_SKELETON && req->drive == MIM_DRIVE_AUTO && r->queried && u &&
+        req->landmarks && s->skin && req->segment_correction <= 0) {
+        mim_error_t serr = {0};
+        int rc = skeleton_offsets(s, u, &serr);
+        if (rc != MIM_EUNSUPPORTED) {
+            if (rc)
+                return mim_error_set(err, rc, "%s", mim_error_text(&serr));
+            r->drive = MIM_DRIVE_SKELETON, r->n_templates = 1, weights[0] = 1.0;
+            *W = s->W, *frames = NULL, *offsets = s->oD;
+            return cache_template(s, r->templates[0], 1, first, err);
+        }
+    }
     if (relative) { /* the blend of those alone, with their weights */
         for (uint32_t j = 0; j < kept; j++) r->templates[j] = keep_id[j];
         r->n_templates = kept;
@@ -978,7 +1008,7 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
         return mim_error_set(err, MIM_EINVAL, "%s: transfer: no avatar loaded", s->store);
     if (!req->template_id && !req->n_templates && !req->landmarks)
         return mim_error_set(err, MIM_EINVAL, "transfer: give a template, landmarks, or both");
-    if (req->drive < MIM_DRIVE_AUTO || req->drive > MIM_DRIVE_ORIENTATION)
+    if (req->drive < MIM_DRIVE_AUTO || req->drive > MIM_DRIVE_SKELETON)
         return mim_error_set(err, MIM_EINVAL, "transfer: unknown drive %d", (int)req->drive);
     if (req->relative < -1 || req->relative > 1)
         return mim_error_set(err, MIM_EINVAL, "transfer: relative %d (0 default, 1 on, -1 off)", req->relative);
@@ -995,10 +1025,13 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
         measured += !req->orient_present || req->orient_present[g];
     if (req->drive == MIM_DRIVE_ORIENTATION && !measured)
         return mim_error_set(err, MIM_EINVAL, "transfer: the orientation drive needs orientations (none measured)");
-    if (req->drive == MIM_DRIVE_ORIENTATION && !s->skin)
+    if ((req->drive == MIM_DRIVE_ORIENTATION || req->drive == MIM_DRIVE_SKELETON) && !s->skin)
         return mim_error_set(err, s->skin_failed.code, "%s", mim_error_text(&s->skin_failed));
-    /* auto: orientations when some are measured and the avatar is segmented */
-    r->drive = measured && s->skin && req->drive != MIM_DRIVE_TEMPLATE ? MIM_DRIVE_ORIENTATION : MIM_DRIVE_TEMPLATE;
+    /* auto: orientations when some are measured and the avatar is segmented; the skeleton drive on the
+     * plain path is decided with the templates (template_frames) */
+    r->drive = req->drive == MIM_DRIVE_SKELETON                                       ? MIM_DRIVE_SKELETON
+               : measured && s->skin && req->drive != MIM_DRIVE_TEMPLATE ? MIM_DRIVE_ORIENTATION
+                                                                                      : MIM_DRIVE_TEMPLATE;
     if (r->drive == MIM_DRIVE_ORIENTATION) {
         if (!req->landmarks)
             return mim_error_set(err, MIM_EINVAL, "transfer: orientations need landmarks (the solve holds them)");
@@ -1020,8 +1053,8 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
             r->templates[j] = req->template_ids[j], weights[j] = 1.0;
     } else if (req->template_id) {
         r->n_templates = 1, r->templates[0] = req->template_id, weights[0] = 1.0;
-    } else { /* outside the lock: queries run concurrently; the orientation drive names the pose by one */
-        uint32_t k = r->drive == MIM_DRIVE_ORIENTATION ? 1 : req->blend ? req->blend : MIM_SESSION_DEFAULT_BLEND;
+    } else { /* outside the lock: queries run concurrently; the orientation and skeleton drives name the pose by one */
+        uint32_t k = r->drive != MIM_DRIVE_TEMPLATE ? 1 : req->blend ? req->blend : MIM_SESSION_DEFAULT_BLEND;
         rc = nearest(s, req->landmarks, k, r, weights, err);
     }
     r->template_id = r->templates[0];
@@ -1034,9 +1067,18 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
     pthread_mutex_lock(&s->lock);
     const double *frames = NULL, *offsets = NULL, *W = s->W;
     template_slot_t *first = NULL;
-    if (r->drive == MIM_DRIVE_ORIENTATION) {
+    if (r->drive != MIM_DRIVE_TEMPLATE) {
         r->n_templates = 1;
-        rc = orientation_offsets(s, req, r, err);
+        if (req->landmarks)
+            memcpy(u, req->landmarks, 3 * (size_t)nl * sizeof *u);
+        else { /* the skeleton drive in mode (a): the template's landmarks on the avatar's proportions */
+            template_slot_t *t0slot = NULL;
+            rc = cache_template(s, r->templates[0], 1, &t0slot, err);
+            if (!rc)
+                rc = mim_xfer_retarget_landmarks(&s->map, s->mesh.positions, t0slot->pos, u, err);
+        }
+        if (!rc)
+            rc = r->drive == MIM_DRIVE_ORIENTATION ? orientation_offsets(s, req, r, err) : skeleton_offsets(s, u, err);
         offsets = s->oD;
         /* the label without reading the template's mesh unless it is cached
          * (kept: a stream holds a pose) */
@@ -1051,8 +1093,6 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
         }
         if (!rc && !r->label[0])
             snprintf(r->label, sizeof r->label, "%s", s->label);
-        if (!rc)
-            memcpy(u, req->landmarks, 3 * (size_t)nl * sizeof *u);
     } else {
         template_slot_t *t0slot = NULL;
         rc = cache_template(s, r->templates[0], r->n_templates, &t0slot, err);
@@ -1070,7 +1110,7 @@ int mim_session_transfer(mim_session_t *s, const mim_session_request_t *req, flo
     mim_xfer_options_t xo = req->xfer;
     if (xo.start && req->start_template && req->start_template != r->template_id)
         xo.start = NULL; /* a warm start from another template's pose would mislead the first solve */
-    if (r->drive == MIM_DRIVE_ORIENTATION) /* the frames are the pose's own: one solve, nothing to iterate */
+    if (r->drive != MIM_DRIVE_TEMPLATE) /* the frames are the pose's own: one solve, nothing to iterate */
         xo.max_iterations = 1, xo.start = NULL;
     else if (r->relative && !xo.max_iterations) /* later solves' frames are worse than the turned rest frames */
         xo.max_iterations = MIM_SESSION_RELATIVE_ITERATIONS;

@@ -289,9 +289,21 @@ static void test_transfer(void **state)
     assert_glb(&r);
     assert_non_null(strstr(r.head, "X-Mimic-Template: 9\r\n"));
     /* serve's default: relative transfer (issue 15) */
-    assert_non_null(strstr(r.head, "X-Mimic-Relative: 1")); /* the last header: head ends before its \r\n */
+    assert_non_null(strstr(r.head, "X-Mimic-Relative: 1\r\n"));
+    assert_non_null(strstr(r.head, "X-Mimic-Drive: template")); /* the last header: head ends before its \r\n */
     hc_reply_free(&r);
+    /* landmarks on the plain path: the skeleton drive, as serve's vests without orientations take it */
     free(body);
+    body = landmarks_body(1, 2, 0);
+    assert_true(body[0] == '{');
+    char *plain = malloc(strlen(body) + 32);
+    sprintf(plain, "{\"relative\": false, %s", body + 1);
+    r = http("POST", "/api/transfer", NULL, plain, strlen(plain));
+    assert_glb(&r);
+    assert_non_null(strstr(r.head, "X-Mimic-Relative: 0\r\n"));
+    assert_non_null(strstr(r.head, "X-Mimic-Drive: skeleton"));
+    hc_reply_free(&r);
+    free(plain), free(body);
     /* "relative": false asks for the plain transfer: another pose, said so */
     const char *rel[] = {"{\"template\": 9, \"relative\": true}", "{\"template\": 9, \"relative\": false}"};
     hc_reply_t on = http("POST", "/api/transfer", NULL, rel[0], strlen(rel[0]));
@@ -310,8 +322,8 @@ static void test_metrics(void **state)
     hc_reply_t r = http("GET", "/metrics", NULL, NULL, 0);
     assert_int_equal(r.status, 200);
     assert_non_null(strstr(r.head, "Content-Type: text/plain; version=0.0.4"));
-    const char *names[] = {"\nmimic_queries_total 3\n", "\nmimic_transfers_total 5\n", "\nmimic_frames_total 0\n",
-                           "# TYPE mimic_query_seconds histogram", "mimic_transfer_seconds_bucket{le=\"+Inf\"} 5",
+    const char *names[] = {"\nmimic_queries_total 3\n", "\nmimic_transfers_total 6\n", "\nmimic_frames_total 0\n",
+                           "# TYPE mimic_query_seconds histogram", "mimic_transfer_seconds_bucket{le=\"+Inf\"} 6",
                            "mimic_http_requests_total{route=\"status\",code=\"200\"} 1", "mimic_vest_errors_total"};
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
         if (!strstr(r.body, names[i]))

@@ -399,7 +399,8 @@ static void test_relative_weights(void **state)
     for (uint32_t k = 0; k < 3 * L; k++) /* between two subjects: no template is the query */
         u[k] = 0.5f * (u[k] + u2[k]);
     mim_session_report_t on, off;
-    mim_session_request_t req = {.landmarks = u, .blend = 3};
+    /* the template drive: off, auto would take the skeleton drive (the plain path) */
+    mim_session_request_t req = {.landmarks = u, .blend = 3, .drive = MIM_DRIVE_TEMPLATE};
     transfer(base, &req, x, &on);
     req.relative = -1;
     transfer(base, &req, x, &off);

@@ -649,7 +649,7 @@ static void test_orientations(void **s)
     const char *bogus[] = {"transfer", "--store", store, "--avatar", avatar, "--template", "2", "--landmarks", plain,
                            "--drive", "imu", "-o", outp, NULL};
     assert_int_equal(ts_run_mimic(&o, &e, bogus), 2);
-    assert_non_null(strstr(e, "--drive 'imu' is not auto, template or orientation"));
+    assert_non_null(strstr(e, "--drive 'imu' is not auto, template, orientation or skeleton"));
     free(o), free(e);
     text = ts_read_file(plain, NULL);
     char *brace = strrchr(text, '}');
