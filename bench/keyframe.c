@@ -18,7 +18,9 @@
  * key frames mostly share a template, as a wearer holding poses does. The
  * orientation drive gets each segment's rotation from the avatar's rest
  * landmark skeleton to the frame's (mim_xfer_segment_correction: what a
- * vest's sensors would give, without the twist).
+ * vest's sensors would give, without the twist). The skeleton drive
+ * (--drive skeleton: the same rotations, found by the session from the
+ * landmarks) is the third stream.
  *
  * --relative off: the template drive without relative transfer (issue 15;
  * the default is on, as mimic's). --settle S: the iteration's
@@ -174,13 +176,15 @@ int main(int argc, char **argv)
         for (uint32_t l = 0; l < L; l++) memcpy(pose_lm + 3 * (L * p + l), body + 3 * (size_t)map->vertex[l], 12);
     }
     for (uint32_t l = 0; l < L; l++) memcpy(rest_lm + 3 * l, mesh->positions + 3 * (size_t)map->vertex[l], 12);
-    phase_t ph[2];
-    for (int d = 0; d < 2; d++) {
+    enum { DRIVES = 3 };
+    static const mim_session_drive_t drive_of[DRIVES] = {MIM_DRIVE_TEMPLATE, MIM_DRIVE_ORIENTATION, MIM_DRIVE_SKELETON};
+    phase_t ph[DRIVES];
+    for (int d = 0; d < DRIVES; d++) {
         ph[d] = (phase_t){malloc(sizeof(double) * keys), malloc(sizeof(double) * keys), malloc(sizeof(double) * keys),
                           malloc(sizeof(double) * keys), 0, 0, 0, {0}};
     }
     float u[3 * MIM_LANDMARKS_MAX];
-    uint64_t last[2] = {0, 0};
+    uint64_t last[DRIVES] = {0, 0, 0};
     for (uint32_t k = 0; k < keys; k++) {
         uint32_t a = (k / STEPS) % P, b = (a + 1) % P;
         float t = (float)(k % STEPS) / STEPS;
@@ -190,10 +194,10 @@ int main(int argc, char **argv)
             fprintf(stderr, "bench_keyframe: %s\n", mim_error_text(&err));
             return 1;
         }
-        for (int d = 0; d < 2; d++) {
+        for (int d = 0; d < DRIVES; d++) {
             mim_session_request_t req = {.landmarks = u,
-                                         .drive = d ? MIM_DRIVE_ORIENTATION : MIM_DRIVE_TEMPLATE,
-                                         .orientations = d ? R : NULL,
+                                         .drive = drive_of[d],
+                                         .orientations = drive_of[d] == MIM_DRIVE_ORIENTATION ? R : NULL,
                                          .relative = relative,
                                          .xfer = {.settle = settle}};
             mim_session_report_t rep;
@@ -242,8 +246,9 @@ int main(int argc, char **argv)
            n, keys, STEPS, settle != 0 ? settle : MIM_XFER_DEFAULT_SETTLE);
     printf("| drive | query ms | frames ms | solve ms | key frame ms | solves a key frame | same template as the last |\n"
            "|---|---:|---:|---:|---:|---:|---:|\n");
-    static const char *const names[2] = {"template (iterated)", "orientation (one solve)"};
-    for (int d = 0; d < 2; d++)
+    static const char *const names[DRIVES] = {"template (iterated)", "orientation (one solve)",
+                                              "skeleton (one solve)"};
+    for (int d = 0; d < DRIVES; d++)
         printf("| %s | %.3f | %.3f | %.3f | %.3f | %.2f | %.0f %% |\n", names[d], med(ph[d].query, ph[d].n),
                med(ph[d].tmpl, ph[d].n), med(ph[d].solve, ph[d].n), med(ph[d].total, ph[d].n),
                ph[d].iterations / ph[d].n, 100.0 * ph[d].cache_hits / ph[d].n);
@@ -260,11 +265,12 @@ int main(int argc, char **argv)
            100.0 * ph[0].by_solves[0] / ph[0].n, 100.0 * ph[0].by_solves[1] / ph[0].n,
            100.0 * ph[0].by_solves[2] / ph[0].n, 100.0 * ph[0].by_solves[3] / ph[0].n,
            100.0 * ph[0].by_solves[4] / ph[0].n);
-    printf("\nKey frame / plain solve: template drive %.2fx, orientation drive %.2fx.\n",
-           med(ph[0].total, ph[0].n) / solve_ms, med(ph[1].total, ph[1].n) / solve_ms);
+    printf("\nKey frame / plain solve: template drive %.2fx, orientation drive %.2fx, skeleton drive %.2fx.\n",
+           med(ph[0].total, ph[0].n) / solve_ms, med(ph[1].total, ph[1].n) / solve_ms,
+           med(ph[2].total, ph[2].n) / solve_ms);
     mim_xfer_solver_close(&solver);
     free(rhs), free(x), free(F), free(pose_lm), free(rest_lm), free(body), free(out);
-    for (int d = 0; d < 2; d++) free(ph[d].query), free(ph[d].tmpl), free(ph[d].solve), free(ph[d].total);
+    for (int d = 0; d < DRIVES; d++) free(ph[d].query), free(ph[d].tmpl), free(ph[d].solve), free(ph[d].total);
     mim_session_close(&s);
     mim_synth_destroy(&sy);
     char cmd[4300];
