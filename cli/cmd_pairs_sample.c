@@ -50,12 +50,13 @@ static void help(FILE *out)
             "  --chains C       chains, one thread each (default 2)\n"
             "  --views M        views per likelihood (eq. 6; default 8, at most 64)\n"
             "  --sigma-l S      eq. 9's bandwidth (default 0.1, in units of the 2D pair's RMS radius)\n"
-            "  --restart-every N  steps of a chain between restarts (default 20; 0: never)\n"
+            "  --restart-every N  steps of a chain between restarts (default 5; 0: never)\n"
             "  --velocity-scale V eq. 12: the annotations' motion is scaled by V in the proposal (default 0.05)\n"
             "  --seed S         the generator's seed (default 1)\n"
             "  --seeds lifted|prior  where a chain (re)starts: an annotation drawn at random and lifted to\n"
-            "                   3D (each bone's depth from its 2D length and the prior's bone lengths,\n"
-            "                   its sign chosen by the prior; default with --annotations), or a prior\n"
+            "                   3D (each bone's depth from its 2D length and its length as the take's\n"
+            "                   annotations show it, in the prior's metres; its sign chosen by the\n"
+            "                   prior; default with --annotations), or a prior\n"
             "                   frame drawn at random (default without)\n"
             "  --start F[:L[,L...]] the chains (and their restarts) start from those lines of samples\n"
             "                   file F, chain k from the k-th line mod their count (the paper's K\n"
@@ -81,7 +82,7 @@ typedef struct chain_job {
     uint32_t n_prior;
     const double *start; /* NULL: a prior frame, or a lifted annotation */
     const mim_pairs_annotations_t *lift; /* non-NULL: seeds lifted from these annotations (--seeds lifted) */
-    const double *lengths;               /* the prior's bone lengths, for lifting */
+    const double *lengths;               /* each annotated take's bone lengths (17 a take), for lifting */
     uint64_t seed;
     uint32_t index, n, restart_every, restarts;
     double jitter_rot, jitter_trans; /* --seed-jitter: radians, metres (0: the seeds as they are) */
@@ -122,7 +123,10 @@ static void *chain_thread(void *arg)
                 /* an annotation at random, lifted to 3D (a seed's choice: no proposal density to keep) */
                 const mim_pairs_annotations_t *a = j->lift;
                 const double *uv = a->points + (size_t)2 * MIM_PAIR_JOINTS * mim_rng_below(&seeds, a->n);
-                if (mim_pairs_lift(j->target, uv, a->width, a->height, j->lengths, &seeds, lifted)) continue;
+                const uint32_t i = (uint32_t)((uv - a->points) / (2 * MIM_PAIR_JOINTS));
+                if (mim_pairs_lift(j->target, uv, a->width, a->height, j->lengths + (size_t)MIM_PAIR_PERSON_JOINTS * a->take[i],
+                                   &seeds, lifted))
+                    continue;
                 seed = lifted;
             }
             if (jitter) {
@@ -275,7 +279,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
     mim_pairs_target_t target = {0};
     mim_pairs_sampler_defaults(&target.opt);
     const char *ann_path = NULL, *start_spec = NULL, *bvh_dir = NULL, *outp = NULL;
-    uint64_t samples = 0, chains = 2, views = target.opt.views, seed = 1, restart_every = 20; /* measured: more lifted seeds cover more (bench/RESULTS.md) */
+    uint64_t samples = 0, chains = 2, views = target.opt.views, seed = 1, restart_every = 5; /* measured: more lifted seeds cover more (bench/RESULTS.md) */
     double jitter_deg = 0, jitter_m = 0;
     int as_json = 0, c, taken, seeds_lifted = -1;
     optind = 0;
@@ -384,7 +388,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
     mim_pairs_evidence_t *evidence = NULL;
     chain_job_t *jobs = NULL;
     pthread_t *threads = NULL;
-    double *joints = NULL, *logd = NULL, *allowed = NULL, lengths[MIM_PAIR_PERSON_JOINTS];
+    double *joints = NULL, *logd = NULL, *allowed = NULL, *lengths = NULL;
     mim_error_t err = {0};
     int ode = 0;
     if (mim_cli_takes_read_all(&tk, &prior, &n_prior)) goto done;
@@ -410,7 +414,17 @@ int mim_cmd_pairs_sample(int argc, char **argv)
             fprintf(stderr, "mimic pairs sample: %s\n", mim_error_text(&err));
             goto done;
         }
-        mim_pairs_bone_lengths(prior, n_prior, lengths);
+        /* each take lifts with its own skeleton's bones, from its annotations; the prior's scale */
+        double len_prior[MIM_PAIR_PERSON_JOINTS];
+        mim_pairs_bone_lengths(prior, n_prior, len_prior);
+        uint32_t takes = 0;
+        for (uint32_t i = 0; i < ann.n; i++) takes = ann.take[i] >= takes ? ann.take[i] + 1 : takes;
+        if (!(lengths = malloc((size_t)takes * MIM_PAIR_PERSON_JOINTS * sizeof *lengths))) {
+            fprintf(stderr, "mimic pairs sample: out of memory for %u takes' bone lengths\n", takes);
+            goto done;
+        }
+        for (uint32_t t = 0; t < takes; t++)
+            mim_pairs_bone_lengths_2d(&ann, t, len_prior, lengths + (size_t)t * MIM_PAIR_PERSON_JOINTS);
     }
     if (target.opt.density != MIM_DENSITY_PRIOR) {
         mim_pairs_torso_t torso;
@@ -513,6 +527,7 @@ int mim_cmd_pairs_sample(int argc, char **argv)
 done:
     if (ode) dCloseODE();
     free(jobs), free(threads), free(joints), free(logd), free(allowed), free(prior), free(starts), free(text), free(tk.map_text);
+    free(lengths);
     mim_pairs_evidence_free(&evidence);
     mim_pairs_validity_free(&validity);
     mim_pairs_annotations_free(&ann);

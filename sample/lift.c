@@ -11,7 +11,10 @@
  *   metre: the largest 2D-to-3D length ratio over the bones of at least
  *   MIN_BONE metres, whose 2D length the annotation's noise does not
  *   decide); the two people's depths, each from its own scale, place them.
- * - The lengths: each bone's mean over the prior's frames and people.
+ * - The lengths: each bone's mean over the prior's frames and people; or,
+ *   for the annotations of a take, those the take's annotations show
+ *   (mim_pairs_bone_lengths_2d), so that a take of another skeleton lifts
+ *   as its own bones go.
  * - The depth signs, one a bone, are what 2D cannot tell: chosen by eq.
  *   2's joint limits (the excess angle; penetration through ODE costs far
  *   more and seldom decides a sign), greedily bone by bone from random
@@ -23,6 +26,7 @@
 #include "mim_sample_mcmc.h"
 
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #define MIN_BONE 0.15 /* metres */
@@ -44,6 +48,77 @@ void mim_pairs_bone_lengths(const double *pairs, uint32_t n, double len[MIM_PAIR
             }
         len[k] = n && parent >= 0 ? s / (2.0 * n) : 0.0;
     }
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    const double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Taylor's scale of one person's 2D joints q (34 x 2 halves: 17 [u, v])
+ * for bones len: the largest 2D length over 3D length among the bones of
+ * at least MIN_BONE; 0 when none shows. */
+static double taylor_scale(const double *q, const double len[PJ])
+{
+    double s = 0;
+    for (int k = 0; k < PJ; k++) {
+        const int parent = mim_pairs_parent[k];
+        if (parent < 0 || !(len[k] >= MIN_BONE)) continue;
+        const double r = hypot(q[2 * k] - q[2 * parent], q[2 * k + 1] - q[2 * parent + 1]) / len[k];
+        if (isfinite(r)) s = fmax(s, r);
+    }
+    return s;
+}
+
+#define LENGTH_ITERATIONS 5
+
+void mim_pairs_bone_lengths_2d(const mim_pairs_annotations_t *a, uint32_t take,
+                               const double len_prior[MIM_PAIR_PERSON_JOINTS], double out[MIM_PAIR_PERSON_JOINTS])
+{
+    memcpy(out, len_prior, PJ * sizeof *out);
+    uint32_t m = 0;
+    for (uint32_t i = 0; i < a->n; i++) m += a->take[i] == take;
+    if (m < MIM_PAIRS_LENGTH_MIN_ANNOTATIONS) return;
+    double *scale = malloc(2 * (size_t)m * sizeof *scale), *ratio = malloc(2 * (size_t)m * sizeof *ratio);
+    if (!scale || !ratio) goto done; /* out of memory: the prior's, as before */
+    static const char *const legs[4] = {"l_knee", "r_knee", "l_ankle", "r_ankle"};
+    for (int it = 0; it < LENGTH_ITERATIONS; it++) {
+        uint32_t at = 0;
+        for (uint32_t i = 0; i < a->n; i++)
+            if (a->take[i] == take)
+                for (int p = 0; p < 2; p++)
+                    scale[at++] = taylor_scale(a->points + (size_t)2 * MIM_PAIR_JOINTS * i + 2 * PJ * p, out);
+        double next[PJ];
+        for (int k = 0; k < PJ; k++) {
+            const int parent = mim_pairs_parent[k];
+            uint32_t n = 0;
+            at = 0;
+            for (uint32_t i = 0; i < a->n; i++) {
+                if (a->take[i] != take) continue;
+                for (int p = 0; p < 2; p++, at++) {
+                    const double *q = a->points + (size_t)2 * MIM_PAIR_JOINTS * i + 2 * PJ * p;
+                    double r = parent < 0 ? 0 : hypot(q[2 * k] - q[2 * parent], q[2 * k + 1] - q[2 * parent + 1]) / scale[at];
+                    if (scale[at] > 0 && isfinite(r)) ratio[n++] = r;
+                }
+            }
+            if (parent < 0 || !n) {
+                next[k] = parent < 0 ? 0 : out[k];
+                continue;
+            }
+            qsort(ratio, n, sizeof *ratio, cmp_double);
+            next[k] = ratio[(uint32_t)(MIM_PAIRS_LENGTH_QUANTILE * (n - 1))];
+        }
+        double have = 0, want = 0; /* the legs keep the prior's length: the metres */
+        for (int l = 0; l < 4; l++) {
+            const int k = mim_sample_joint_index(legs[l]);
+            have += next[k], want += len_prior[k];
+        }
+        if (!(have > 0) || !(want > 0)) break;
+        for (int k = 0; k < PJ; k++) out[k] = next[k] * want / have;
+    }
+done:
+    free(scale), free(ratio);
 }
 
 /* Each joint on its pixel's ray at its bone's length from its parent
@@ -98,13 +173,9 @@ int mim_pairs_lift(const mim_pairs_target_t *t, const double *uv, uint32_t width
     double ray[2][PJ][3], zr[2], has[2][PJ];
     for (int p = 0; p < 2; p++) {
         const double *q = uv + 2 * PJ * p;
-        double s = 0;
-        for (int k = 0; k < PJ; k++) {
-            int parent = mim_pairs_parent[k];
+        for (int k = 0; k < PJ; k++)
             ray[p][k][0] = (q[2 * k] - 0.5 * width) / f, ray[p][k][1] = (q[2 * k + 1] - 0.5 * height) / f, ray[p][k][2] = 1;
-            if (parent < 0 || !(len[k] >= MIN_BONE)) continue;
-            s = fmax(s, hypot(q[2 * k] - q[2 * parent], q[2 * k + 1] - q[2 * parent + 1]) / len[k]);
-        }
+        const double s = taylor_scale(q, len);
         if (!(s > 0) || !isfinite(s)) return MIM_EINVAL;
         zr[p] = f / s; /* the pelvis's depth: Taylor's scale, s = f / depth */
         for (int k = 0; k < PJ; k++) has[p][k] = mim_pairs_parent[k] >= 0 && len[k] > 0;

@@ -225,6 +225,20 @@ double mim_pairs_log_density(const mim_pairs_target_t *t, mim_penetration_t *pen
 /* Each bone's length (the joint's distance from its parent; 0 for the
  * pelvis): the mean over n pose-pairs (34 x 3 each) and both people. */
 void mim_pairs_bone_lengths(const double *pairs, uint32_t n, double len[MIM_PAIR_PERSON_JOINTS]);
+/* Each bone's length as one take's annotations show it (Taylor's relative
+ * lengths, from 2D; lift.c): the prior's lengths (len_prior) describe
+ * another skeleton where the annotated takes come from elsewhere (a
+ * motion capture's chest, neck and shoulders sit differently). Iterated
+ * from len_prior: per annotation and person the scale (the largest 2D
+ * length over 3D length among the bones of at least MIN_BONE metres), each
+ * bone's 2D length over it, the MIM_PAIRS_LENGTH_QUANTILE over the take's
+ * annotations; then scaled so that the legs (knee and ankle bones, which
+ * skeletons place alike) keep len_prior's length. A take with fewer than
+ * MIM_PAIRS_LENGTH_MIN_ANNOTATIONS annotations keeps len_prior. */
+#define MIM_PAIRS_LENGTH_QUANTILE 0.9
+#define MIM_PAIRS_LENGTH_MIN_ANNOTATIONS 10
+void mim_pairs_bone_lengths_2d(const mim_pairs_annotations_t *a, uint32_t take,
+                               const double len_prior[MIM_PAIR_PERSON_JOINTS], double out[MIM_PAIR_PERSON_JOINTS]);
 /* A pose-pair (34 x 3 into out, y up, metres) that one annotation uv (34
  * [u, v] pixels in an image of width x height) shows, each person lifted
  * scaled-orthographically with bones of lengths len, each bone's depth

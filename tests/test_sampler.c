@@ -561,6 +561,65 @@ static void test_lift(void **s)
     world_free(&w);
 }
 
+/* Bone lengths from one take's annotations: a take whose arms are 1.3
+ * times the prior's (another skeleton) shows them so, a take of the
+ * prior's own bones shows those, the legs keep the prior's metres, and a
+ * take with too few annotations keeps the prior's lengths. */
+static void test_lengths_2d(void **s)
+{
+    (void)s;
+    mim_rng_t r, cams;
+    mim_rng_seed(&r, 9, 0);
+    double rest[3 * MIM_PAIR_JOINTS], longer[3 * MIM_PAIR_JOINTS], len[MIM_PAIR_PERSON_JOINTS];
+    sp_random_pair(&r, 0.0, rest);
+    mim_pairs_bone_lengths(rest, 1, len);
+    memcpy(longer, rest, sizeof rest);
+    static const char *const arms[2][3] = {{"l_shoulder", "l_elbow", "l_wrist"}, {"r_shoulder", "r_elbow", "r_wrist"}};
+    for (int p = 0; p < 2; p++)
+        for (int side = 0; side < 2; side++) {
+            double *j[3];
+            for (int k = 0; k < 3; k++) j[k] = longer + 3 * (MIM_PAIR_PERSON_JOINTS * p + mim_sample_joint_index(arms[side][k]));
+            double fore[3];
+            for (int c = 0; c < 3; c++) fore[c] = j[2][c] - j[1][c];
+            for (int c = 0; c < 3; c++) j[1][c] = j[0][c] + 1.3 * (j[1][c] - j[0][c]);
+            for (int c = 0; c < 3; c++) j[2][c] = j[1][c] + 1.3 * fore[c];
+        }
+    enum { FRAMES = 60 };
+    mim_pairs_annotations_t a = {.width = 1920, .height = 1080};
+    a.take = calloc(2 * FRAMES + 3, sizeof *a.take);
+    a.points = malloc((2 * FRAMES + 3) * 2 * MIM_PAIR_JOINTS * sizeof *a.points);
+    mim_rng_seed(&cams, 4, 0);
+    for (uint32_t take = 0; take < 3; take++)
+        for (uint32_t f = 0; f < (take == 2 ? 3u : FRAMES); f++) {
+            mim_pairs_pose_t pose;
+            mim_pairs_pose_rest(take == 0 ? longer : rest, &pose);
+            for (int p = 0; p < 2; p++)
+                for (int g = 1; g < MIM_PAIRS_ROT; g++) {
+                    double ph = 0.91 * g + 0.4 * p + 0.5 * f;
+                    pose.rot[p][g] = mim_quat_axis_angle(mim_v3_normalize(mim_v3(1, 0.6 * cos(ph), 0.4 * sin(ph))), 0.6 * sin(ph));
+                }
+            pose.root[1][2] += 0.3;
+            double shown[3 * MIM_PAIR_JOINTS];
+            mim_pairs_pose_joints(&pose, shown);
+            mim_pairs_camera_t cam;
+            assert_int_equal(mim_pairs_camera_random(&cams, shown, &cam), 0);
+            if (!mim_pairs_project(&cam, shown, a.points + (size_t)a.n * 2 * MIM_PAIR_JOINTS)) continue;
+            a.take[a.n++] = take;
+        }
+    double est[3][MIM_PAIR_PERSON_JOINTS];
+    for (uint32_t take = 0; take < 3; take++) mim_pairs_bone_lengths_2d(&a, take, len, est[take]);
+    for (int k = 0; k < MIM_PAIR_PERSON_JOINTS; k++) {
+        const char *name = mim_sample_joint_names[k];
+        const int arm = strstr(name, "elbow") || strstr(name, "wrist");
+        if (len[k] < 0.15) continue; /* short bones: the 2D noise of a pixel is a large share */
+        print_message("%-10s prior %.3f  take 0 %.3f  take 1 %.3f\n", name, len[k], est[0][k], est[1][k]);
+        assert_true(fabs(est[1][k] / len[k] - 1) < 0.1);
+        assert_true(fabs(est[0][k] / len[k] - (arm ? 1.3 : 1.0)) < 0.1);
+    }
+    assert_memory_equal(est[2], len, sizeof len); /* 3 annotations: too few */
+    free(a.take), free(a.points);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -569,6 +628,7 @@ int main(void)
         cmocka_unit_test(test_validity),
         cmocka_unit_test(test_penetration_allowance),  cmocka_unit_test(test_likelihood),
         cmocka_unit_test(test_chains),                 cmocka_unit_test(test_lift),
+        cmocka_unit_test(test_lengths_2d),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
