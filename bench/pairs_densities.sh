@@ -4,9 +4,11 @@
 # prior frames without annotations: seed take High_five of cmu-interactions,
 # annotations of the nine other takes (every 10th frame, one camera, 2 px),
 # truth their in-between frames; limbs and D_C coverage (metres) at 1000
-# and 10000 samples, seeds 1 and 2; the oracle first. Never passes or fails.
+# and 10000 samples, seeds 1 and 2 (SIZES and SEEDS in the environment
+# change them: SIZES=100000 SEEDS=1 for the paper's scale); the oracle
+# first. Never passes or fails.
 #
-# usage: bench/pairs_densities.sh MIMIC_BINARY [DATA_DIR]
+# usage: [SIZES="1000 10000"] [SEEDS="1 2"] bench/pairs_densities.sh MIMIC_BINARY [DATA_DIR]
 set -eu
 M=${1:?usage: pairs_densities.sh MIMIC_BINARY [DATA_DIR]}
 D=${2:-$(dirname "$0")/../../shared/data}
@@ -25,14 +27,14 @@ cov() { "$M" pairs coverage "${T[@]}" --every 10 --offset 5 --samples "$1" --mea
         python3 -c 'import json,sys; j=json.load(sys.stdin); print("limbs %.4f  D_C %.4f" % (j["limbs"], j["D_C"]))'; }
 echo "oracle: $(cov "$W/oracle.jsonl")"
 echo "load average $(cut -d' ' -f1-3 /proc/loadavg), $(date -u +%H:%M) UTC"
-for n in 1000 10000; do
-  for d in ic cartesian shape prior; do for s in 1 2; do
+for n in ${SIZES:-1000 10000}; do
+  for d in ic cartesian shape prior; do for s in ${SEEDS:-1 2}; do
     "$M" pairs sample --prior "$SEED" --annotations "$W/ann.json" --density $d --samples $n --seed $s --json \
       -o "$W/s.jsonl" 2>/dev/null > "$W/rep.json"
     sps=$(python3 -c 'import json,sys; print("%.0f" % json.load(open(sys.argv[1]))["samples_per_second"])' "$W/rep.json")
     echo "$n $d seed $s: $(cov "$W/s.jsonl")  ($sps samples/s)"
   done; done
-  for s in 1 2; do
+  for s in ${SEEDS:-1 2}; do
     "$M" pairs sample --prior "$SEED" --density prior --samples $n --seed $s -o "$W/s.jsonl" 2>/dev/null >/dev/null
     echo "$n prior, no annotations, seed $s: $(cov "$W/s.jsonl")"
   done
