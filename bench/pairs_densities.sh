@@ -4,11 +4,12 @@
 # prior frames without annotations: seed take High_five of cmu-interactions,
 # annotations of the nine other takes (every 10th frame, one camera, 2 px),
 # truth their in-between frames; limbs and D_C coverage (metres) at 1000
-# and 10000 samples, seeds 1 and 2 (SIZES and SEEDS in the environment
-# change them: SIZES=100000 SEEDS=1 for the paper's scale); the oracle
-# first. Never passes or fails.
+# and 10000 samples, seeds 1 and 2 (SIZES, SEEDS and MEASURES in the
+# environment change them: SIZES=100000 SEEDS=1 for the paper's scale,
+# MEASURES=limbs,D_C,D_I,D_S for every distance); the oracle first. Never
+# passes or fails.
 #
-# usage: [SIZES="1000 10000"] [SEEDS="1 2"] bench/pairs_densities.sh MIMIC_BINARY [DATA_DIR]
+# usage: [SIZES="1000 10000"] [SEEDS="1 2"] [MEASURES=limbs,D_C] bench/pairs_densities.sh MIMIC_BINARY [DATA_DIR]
 set -eu
 M=${1:?usage: pairs_densities.sh MIMIC_BINARY [DATA_DIR]}
 D=${2:-$(dirname "$0")/../../shared/data}
@@ -23,8 +24,8 @@ A+=(--pair "$P/20_11.bvh,$P/21_11.bvh" --pair "$P/20_03.bvh,$P/21_03.bvh")
 T+=(--truth "$P/20_11.bvh,$P/21_11.bvh" --truth "$P/20_03.bvh,$P/21_03.bvh")
 "$M" pairs annotate "${A[@]}" -o "$W/ann.json" 2>/dev/null >/dev/null
 "$M" pairs export "${A[@]}" --every 10 -o "$W/oracle.jsonl" 2>/dev/null >/dev/null
-cov() { "$M" pairs coverage "${T[@]}" --every 10 --offset 5 --samples "$1" --measures limbs,D_C --json 2>/dev/null |
-        python3 -c 'import json,sys; j=json.load(sys.stdin); print("limbs %.4f  D_C %.4f" % (j["limbs"], j["D_C"]))'; }
+cov() { "$M" pairs coverage "${T[@]}" --every 10 --offset 5 --samples "$1" --measures "${MEASURES:-limbs,D_C}" --json 2>/dev/null |
+        python3 -c 'import json,sys; j=json.load(sys.stdin); print("  ".join("%s %.4f" % (k, j[k]) for k in ("limbs", "D_C", "D_I", "D_S") if k in j))'; }
 echo "oracle: $(cov "$W/oracle.jsonl")"
 echo "load average $(cut -d' ' -f1-3 /proc/loadavg), $(date -u +%H:%M) UTC"
 for n in ${SIZES:-1000 10000}; do

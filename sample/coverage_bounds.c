@@ -193,18 +193,46 @@ void mim__bound_lower(mim_sample_metric_t metric, const float *fa, const float *
     }
 }
 
-/* The second bound's terms joint by joint (lb: N), their sum returned. */
-static double shape_aligned_joints(const double *rel_a, const mim__sc_pairs_t *w, const float *fb, double *lb)
+/* The second bound, a joint at a time (lb: N, each joint's term): each
+ * joint's term summed over azimuth is at least its term summed over
+ * elevation too (subadditivity, above), which needs no elevation. So the
+ * joints of the largest radial terms go first, each adding its elevations'
+ * share, and the bound stops as soon as the joints made and the radial
+ * terms of the others pass best: most samples end before most elevations
+ * (an asin each) are made. Returns the bound as mim__shape_distance_within
+ * compares it; at or below best, every joint was made (lb whole). */
+static double shape_aligned_bound(const double *rel_a, mim__sc_pairs_t *w, const float *fb, double slack, double best,
+                                  double *lb)
 {
-    double rel_b[S_REL], sum = 0;
-    mim__sc_radial_elevation(w, fb + S_DIM, rel_b);
+    enum { RE = MIM__SC_R * MIM__SC_EL };
+    double radial[N], rest = 0; /* b's radial sums: its first bound's features (float, SC_SLACK's rounding) */
     for (int i = 0; i < N; i++) {
-        lb[i] = 0;
-        for (int b = 0; b < MIM__SC_R * MIM__SC_EL; b++)
-            lb[i] += mim__chi_term(rel_a[i * MIM__SC_R * MIM__SC_EL + b], rel_b[i * MIM__SC_R * MIM__SC_EL + b]);
-        sum += lb[i];
+        radial[i] = 0;
+        for (int r = 0; r < MIM__SC_R; r++) {
+            double a = 0;
+            for (int e = 0; e < MIM__SC_EL; e++) a += rel_a[i * RE + r * MIM__SC_EL + e];
+            radial[i] += mim__chi_term(a, fb[i * MIM__SC_R + r]);
+        }
+        rest += radial[i];
     }
-    return sum;
+    int order[N];
+    for (int i = 0; i < N; i++) {
+        int t = i;
+        for (; t > 0 && radial[order[t - 1]] < radial[i]; t--) order[t] = order[t - 1];
+        order[t] = i;
+    }
+    double made = 0, lower = 0;
+    for (int t = 0; t < N; t++) {
+        const int i = order[t];
+        double rel_i[RE];
+        mim__sc_joint_radial_elevation(w, fb + S_DIM, i, rel_i);
+        lb[i] = 0;
+        for (int b = 0; b < RE; b++) lb[i] += mim__chi_term(rel_a[i * RE + b], rel_i[b]);
+        made += lb[i], rest -= radial[i];
+        lower = (made + (t + 1 < N ? fmax(rest, 0.0) : 0.0)) / N * (1 - REL) - SC_SLACK - slack;
+        if (lower > best) return lower;
+    }
+    return lower;
 }
 
 double mim__shape_distance_within(const mim_pair_prep_t *a, const double *rel_a, const mim_pair_prep_t *b, const float *fb,
@@ -213,13 +241,14 @@ double mim__shape_distance_within(const mim_pair_prep_t *a, const double *rel_a,
     double bb[3 * N], lb[N], rest[N + 1], terms[N][MIM_SC_BINS];
     mim__sc_pairs_t w;
     mim_sample_align(a->joints, b->joints, 3, bb);
-    mim__sc_pairs_begin(bb, &w);
+    mim__sc_pairs_begin_lazy(bb, &w);
     /* the second bound first: most samples end here */
-    const double lb2 = shape_aligned_joints(rel_a, &w, fb, lb) / N * (1 - REL) - SC_SLACK - slack;
+    const double lb2 = shape_aligned_bound(rel_a, &w, fb, slack, best, lb);
     if (lb2 > best) {
         *exact = 0;
         return lb2;
     }
+    mim__sc_pairs_elevations(&w);
     mim__sc_pairs_finish(&w);
     /* the joints of the largest bounds first: those most likely to pass best */
     int order[N];

@@ -28,12 +28,20 @@ void mim__shape_contexts(const double *p, float sc[MIM_PAIR_JOINTS][MIM_SC_BINS]
 /* The same a joint at a time. What the joints share comes first: each
  * joint pair's (i < j, row by row) distance and elevation (begin), then
  * its radial bin coordinate and the elevation's cosine (finish); p must
- * outlive w. */
+ * outlive w. begin_lazy takes the distances alone, each elevation then
+ * made on first need (mim__sc_joint_radial_elevation; the rest by
+ * mim__sc_pairs_elevations), with the same values as begin's. */
 typedef struct mim__sc_pairs {
     const double *p;
     double r[MIM__JOINT_PAIRS], el[MIM__JOINT_PAIRS], fr[MIM__JOINT_PAIRS], cos_el[MIM__JOINT_PAIRS];
+    double up[MIM__JOINT_PAIRS];           /* each pair's vector's up component */
+    uint8_t has_el[MIM__JOINT_PAIRS];      /* begin_lazy: its elevation made, and its bins' shares: */
+    int8_t rbin[MIM__JOINT_PAIRS], ebin[MIM__JOINT_PAIRS]; /* radial and elevation bin, */
+    double rshare[MIM__JOINT_PAIRS], eshare[MIM__JOINT_PAIRS]; /* the share of the bin after */
 } mim__sc_pairs_t;
 void mim__sc_pairs_begin(const double *p, mim__sc_pairs_t *w);
+void mim__sc_pairs_begin_lazy(const double *p, mim__sc_pairs_t *w);
+void mim__sc_pairs_elevations(mim__sc_pairs_t *w);
 void mim__sc_pairs_finish(mim__sc_pairs_t *w);
 void mim__sc_joint(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS]);
 /* One bin's chi-squared term: 0.5 (x - y)^2 / (x + y), 0 for empty bins. */
@@ -48,7 +56,9 @@ static inline double mim__chi_term(double x, double y) { return x + y > 0 ? 0.5 
  * sums of a computed histogram (either may be NULL). */
 void mim__sc_pair_radii(const double *p, float *fr);
 void mim__sc_radial(const float *fr, double *rad);
-void mim__sc_radial_elevation(const mim__sc_pairs_t *w, const float *fr, double *rel);
+/* Joint i's part of rel (MIM__SC_R x MIM__SC_EL), its pairs' elevations
+ * made where begin_lazy left them. */
+void mim__sc_joint_radial_elevation(mim__sc_pairs_t *w, const float *fr, int i, double *rel_i);
 void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], double *rad, double *rel);
 
 /* ---- work on threads (parallel.c) ---- */

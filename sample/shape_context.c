@@ -75,6 +75,48 @@ void mim__sc_pairs_begin(const double *p, mim__sc_pairs_t *w)
         }
 }
 
+void mim__sc_pairs_begin_lazy(const double *p, mim__sc_pairs_t *w)
+{
+    w->p = p;
+    for (int i = 0, k = 0; i < N; i++)
+        for (int j = i + 1; j < N; j++, k++) {
+            double v[3];
+            w->r[k] = pair_vector(p, i, j, v), w->up[k] = v[1], w->has_el[k] = 0;
+        }
+}
+
+/* The bins a coordinate f is shared between (b, b + 1) and the upper's
+ * share: spread's (1 - t, t), the end bins taking all beyond. */
+static int share(double f, int nbins, double *t)
+{
+    f = f > 0 ? (f < nbins - 1 ? f : nbins - 1) : 0;
+    int b = (int)f;
+    b = b < nbins - 2 ? b : nbins - 2;
+    *t = f - b;
+    return b;
+}
+
+/* Pair k's elevation (begin's value: asin of the same quotient) and its
+ * bins' shares, made once for both its joints; fr: the pairs' radial bin
+ * coordinates */
+static void lazy_pair(mim__sc_pairs_t *w, const float *fr, int k)
+{
+    if (w->has_el[k]) return;
+    const double v[3] = {0, w->up[k], 0};
+    w->el[k] = elevation(v, w->r[k]), w->has_el[k] = 1;
+    w->rbin[k] = (int8_t)share(fr[k], SC_R, &w->rshare[k]);
+    w->ebin[k] = (int8_t)share(elevation_coordinate(w->el[k]), SC_EL, &w->eshare[k]);
+}
+
+void mim__sc_pairs_elevations(mim__sc_pairs_t *w)
+{
+    for (int k = 0; k < PAIRS; k++)
+        if (!w->has_el[k]) {
+            const double v[3] = {0, w->up[k], 0};
+            w->el[k] = elevation(v, w->r[k]), w->has_el[k] = 1;
+        }
+}
+
 /* The pairs' radial bin coordinates from their distances; the bins' log
  * range: 1/8 to 2 of the mean joint distance. */
 static void radial_coordinates(const double *r, double *fr)
@@ -133,16 +175,6 @@ double mim__shape_cost(const float *a, const float *b, int n, int bins)
  * over all). Summed over azimuth a count is w (1 - tr, tr) x (1 - te, te)
  * in (r, el); summed over elevation too, w (1 - tr, tr) in r. */
 
-/* The bins a coordinate f is shared between (b, b + 1) and the upper's
- * share: spread's (1 - t, t), the end bins taking all beyond. */
-static int share(double f, int nbins, double *t)
-{
-    f = f > 0 ? (f < nbins - 1 ? f : nbins - 1) : 0;
-    int b = (int)f;
-    b = b < nbins - 2 ? b : nbins - 2;
-    *t = f - b;
-    return b;
-}
 
 void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], double *rad, double *rel)
 {
@@ -185,21 +217,22 @@ void mim__sc_radial(const float *fr, double *rad)
         }
 }
 
-void mim__sc_radial_elevation(const mim__sc_pairs_t *w, const float *fr, double *rel)
+void mim__sc_joint_radial_elevation(mim__sc_pairs_t *w, const float *fr, int i, double *rel_i)
 {
-    memset(rel, 0, sizeof(double) * N * SC_R * SC_EL);
-    /* pairs (i, i + d) in turn along each diagonal d, so that one pair's
-     * additions seldom wait for the one's before (another joint's bins) */
-    for (int d = 1; d < N; d++)
-        for (int i = 0; i + d < N; i++) {
-            const int j = i + d, k = mim__pair_index(i, j);
-            double tr, te;
-            const int r = share(fr[k], SC_R, &tr), e = share(elevation_coordinate(w->el[k]), SC_EL, &te);
-            const double m0 = weight * (1 - tr), m1 = weight * tr;
-            double *hi = rel + (i * SC_R + r) * SC_EL, *hj = rel + (j * SC_R + r) * SC_EL;
-            /* j sees i at the opposite elevation: bins mirrored */
-            hi[e] += m0 * (1 - te), hi[e + 1] += m0 * te, hi[SC_EL + e] += m1 * (1 - te), hi[SC_EL + e + 1] += m1 * te;
-            hj[SC_EL - 1 - e] += m0 * (1 - te), hj[SC_EL - 2 - e] += m0 * te;
-            hj[2 * SC_EL - 1 - e] += m1 * (1 - te), hj[2 * SC_EL - 2 - e] += m1 * te;
-        }
+    memset(rel_i, 0, sizeof(double) * SC_R * SC_EL);
+    for (int j = 0; j < N; j++) {
+        if (j == i) continue;
+        const int k = i < j ? mim__pair_index(i, j) : mim__pair_index(j, i);
+        lazy_pair(w, fr, k);
+        const double tr = w->rshare[k], te = w->eshare[k];
+        const int r = w->rbin[k], e = w->ebin[k];
+        const double m0 = weight * (1 - tr), m1 = weight * tr;
+        double *h = rel_i + r * SC_EL;
+        if (i < j) /* i the pair's first joint */
+            h[e] += m0 * (1 - te), h[e + 1] += m0 * te, h[SC_EL + e] += m1 * (1 - te), h[SC_EL + e + 1] += m1 * te;
+        else /* i the pair's second joint: it sees the first at the opposite elevation, bins mirrored */
+            h[SC_EL - 1 - e] += m0 * (1 - te), h[SC_EL - 2 - e] += m0 * te, h[2 * SC_EL - 1 - e] += m1 * (1 - te),
+                h[2 * SC_EL - 2 - e] += m1 * te;
+    }
 }
+
