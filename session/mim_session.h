@@ -345,7 +345,11 @@ typedef struct mim_session_report {
  * MIM_ORIENT_UNIT_TOL: MIM_EINVAL, MIM_ENONFINITE naming the segment); it
  * needs landmarks ("orientations need landmarks", MIM_EINVAL)
  * and, asked for explicitly, a segmented avatar (the reason, MIM_ENOLANDMARKS
- * or the skeleton's code).
+ * or the skeleton's code). The skeleton drive (asked for, or auto on the
+ * plain path: MIM_SESSION_DEFAULT_PLAIN_SKELETON) finds the template the
+ * same way and turns the avatar's rest frames by its landmark skeleton onto
+ * the landmarks (without landmarks, the template's retargeted), one solve;
+ * asked for, it needs a segmented avatar too.
  * report may be NULL. Errors: MIM_EINVAL with neither a template nor
  * landmarks, a relative other than -1, 0 or 1, or before mim_session_load_avatar; MIM_ENOTFOUND for an unknown template, or for landmarks
  * alone when the store has no index ("store has no index (run mimic
