@@ -81,26 +81,23 @@ void mim_pairs_bone_lengths_2d(const mim_pairs_annotations_t *a, uint32_t take,
     for (uint32_t i = 0; i < a->n; i++) m += a->take[i] == take;
     if (m < MIM_PAIRS_LENGTH_MIN_ANNOTATIONS) return;
     double *scale = malloc(2 * (size_t)m * sizeof *scale), *ratio = malloc(2 * (size_t)m * sizeof *ratio);
-    if (!scale || !ratio) goto done; /* out of memory: the prior's, as before */
+    uint32_t *mine = malloc((size_t)m * sizeof *mine); /* the take's annotations */
+    if (!scale || !ratio || !mine) goto done;           /* out of memory: the prior's, as before */
+    m = 0;
+    for (uint32_t i = 0; i < a->n; i++)
+        if (a->take[i] == take) mine[m++] = i;
     static const char *const legs[4] = {"l_knee", "r_knee", "l_ankle", "r_ankle"};
     for (int it = 0; it < LENGTH_ITERATIONS; it++) {
-        uint32_t at = 0;
-        for (uint32_t i = 0; i < a->n; i++)
-            if (a->take[i] == take)
-                for (int p = 0; p < 2; p++)
-                    scale[at++] = taylor_scale(a->points + (size_t)2 * MIM_PAIR_JOINTS * i + 2 * PJ * p, out);
+        for (uint32_t t = 0; t < 2 * m; t++)
+            scale[t] = taylor_scale(a->points + (size_t)2 * MIM_PAIR_JOINTS * mine[t / 2] + 2 * PJ * (t % 2), out);
         double next[PJ];
         for (int k = 0; k < PJ; k++) {
             const int parent = mim_pairs_parent[k];
             uint32_t n = 0;
-            at = 0;
-            for (uint32_t i = 0; i < a->n; i++) {
-                if (a->take[i] != take) continue;
-                for (int p = 0; p < 2; p++, at++) {
-                    const double *q = a->points + (size_t)2 * MIM_PAIR_JOINTS * i + 2 * PJ * p;
-                    double r = parent < 0 ? 0 : hypot(q[2 * k] - q[2 * parent], q[2 * k + 1] - q[2 * parent + 1]) / scale[at];
-                    if (scale[at] > 0 && isfinite(r)) ratio[n++] = r;
-                }
+            for (uint32_t t = 0; t < 2 * m && parent >= 0; t++) {
+                const double *q = a->points + (size_t)2 * MIM_PAIR_JOINTS * mine[t / 2] + 2 * PJ * (t % 2);
+                const double r = hypot(q[2 * k] - q[2 * parent], q[2 * k + 1] - q[2 * parent + 1]) / scale[t];
+                if (scale[t] > 0 && isfinite(r)) ratio[n++] = r;
             }
             if (parent < 0 || !n) {
                 next[k] = parent < 0 ? 0 : out[k];
@@ -118,7 +115,7 @@ void mim_pairs_bone_lengths_2d(const mim_pairs_annotations_t *a, uint32_t take,
         for (int k = 0; k < PJ; k++) out[k] = next[k] * want / have;
     }
 done:
-    free(scale), free(ratio);
+    free(scale), free(ratio), free(mine);
 }
 
 /* Each joint on its pixel's ray at its bone's length from its parent
