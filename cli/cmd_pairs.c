@@ -148,12 +148,10 @@ static int coverage(int argc, char **argv)
     }
     if (mim_cli_takes_begin(&tk)) return 1;
     mim_error_t err = {0};
-    size_t len;
     /* the true pose-pairs, prepared (triangulation, shape contexts) */
     mim_pair_prep_t *g = NULL, *sp = NULL;
     uint32_t m = 0;
     int status = 1;
-    char *text = NULL;
     mim_pairs_samples_t smp = {0};
     for (int t = 0; t < tk.n; t++) {
         double *fr = NULL;
@@ -176,11 +174,7 @@ static int coverage(int argc, char **argv)
         m += nf;
         free(fr);
     }
-    if (mim_file_read(samples_path, 0, &text, &len, &err) ||
-        mim_pairs_samples_parse(text, len, samples_path, &smp, &err)) {
-        fprintf(stderr, "mimic pairs coverage: %s\n", mim_error_text(&err));
-        goto done;
-    }
+    if (mim_cli_samples_read("pairs coverage", samples_path, &smp)) goto done;
     sp = malloc((size_t)smp.n * sizeof *sp);
     if (!sp) {
         fprintf(stderr, "mimic pairs coverage: out of memory for %u samples\n", smp.n);
@@ -224,7 +218,7 @@ static int coverage(int argc, char **argv)
     }
     status = 0;
 done:
-    free(g), free(sp), free(text), free(tk.map_text);
+    free(g), free(sp), free(tk.map_text);
     mim_pairs_samples_free(&smp);
     return status;
 }

@@ -64,17 +64,6 @@ static int parse_missing(const char *list, uint8_t *missing)
     return 0;
 }
 
-static int read_set(const char *path, mim_pairs_samples_t *s)
-{
-    mim_error_t err = {0};
-    char *text = NULL;
-    size_t len;
-    int rc = mim_file_read(path, 0, &text, &len, &err) || mim_pairs_samples_parse(text, len, path, s, &err);
-    if (rc) fprintf(stderr, "mimic " CMD ": %s\n", mim_error_text(&err));
-    free(text);
-    return rc ? -1 : 0;
-}
-
 int mim_cmd_pairs_complete(int argc, char **argv)
 {
     static const struct option longopts[] = {
@@ -128,7 +117,7 @@ int mim_cmd_pairs_complete(int argc, char **argv)
     mim_pairs_samples_t in = {0}, smp = {0};
     double *out = NULL;
     int status = 1;
-    if (read_set(in_path, &in) || read_set(samples_path, &smp)) goto done;
+    if (mim_cli_samples_read(CMD, in_path, &in) || mim_cli_samples_read(CMD, samples_path, &smp)) goto done;
     out = malloc((size_t)in.n * 3 * N * sizeof *out);
     if (!out) {
         fprintf(stderr, "mimic " CMD ": out of memory for %u pose-pairs\n", in.n);

@@ -234,11 +234,7 @@ int mim_cmd_pairs_retrieve(int argc, char **argv)
         goto done;
     }
     free(text), text = NULL;
-    if (mim_file_read(samples_path, 0, &text, &len, &err) ||
-        mim_pairs_samples_parse(text, len, samples_path, &smp, &err)) {
-        fprintf(stderr, "mimic " CMD ": %s\n", mim_error_text(&err));
-        goto done;
-    }
+    if (mim_cli_samples_read(CMD, samples_path, &smp)) goto done;
     for (int t = 0; t < tk.n; t++)
         if (mim_cli_takes_read(&tk, t, &truth[t], &n_truth[t])) goto done;
     for (uint32_t i = 0; i < ann.n && tk.n; i++)

@@ -172,13 +172,9 @@ static int read_start(const char *spec, double **starts, uint32_t *n_starts)
             if (mim_cli_number("pairs sample", "start's line", tok, 1, UINT32_MAX, &lines[n++])) return 2;
         }
     }
-    mim_error_t err = {0};
-    char *text = NULL;
-    size_t len;
     mim_pairs_samples_t s = {0};
     int rc = 0;
-    if (mim_file_read(path, 0, &text, &len, &err) || mim_pairs_samples_parse(text, len, path, &s, &err)) {
-        fprintf(stderr, "mimic pairs sample: --start: %s\n", mim_error_text(&err));
+    if (mim_cli_samples_read("pairs sample: --start", path, &s)) {
         rc = 1;
     } else if (!(*starts = malloc((size_t)n * 3 * MIM_PAIR_JOINTS * sizeof **starts))) {
         fprintf(stderr, "mimic pairs sample: --start: out of memory\n");
@@ -197,7 +193,6 @@ static int read_start(const char *spec, double **starts, uint32_t *n_starts)
         }
     }
     mim_pairs_samples_free(&s);
-    free(text);
     return rc;
 }
 

@@ -11,6 +11,7 @@
 #include "mim_query.h"
 #include "mim_session_pairs.h"
 #include "output.h"
+#include "pairs_input.h"
 
 #include <getopt.h>
 #include <jansson.h>
@@ -231,14 +232,10 @@ int mim_cmd_pairs_templates(int argc, char **argv)
     mim_session_t *s = NULL;
     if (open_store(store, &s)) return 2;
     mim_error_t err = {0};
-    char *text = NULL, real[PATH_MAX];
-    size_t len = 0;
+    char real[PATH_MAX];
     mim_pairs_samples_t smp = {0};
-    if (mim_file_read(samples_path, 0, &text, &len, &err) ||
-        mim_pairs_samples_parse(text, len, samples_path, &smp, &err)) {
-        fprintf(stderr, "mimic " CMD ": %s\n", mim_error_text(&err));
+    if (mim_cli_samples_read(CMD, samples_path, &smp)) {
         mim_session_close(&s);
-        free(text);
         return 1;
     }
     const char *samples_real = realpath(samples_path, real) ? real : samples_path;
@@ -311,7 +308,6 @@ int mim_cmd_pairs_templates(int argc, char **argv)
 done:
     mim_session_close(&s);
     mim_session_pairs_free(&p);
-    free(text);
     mim_pairs_samples_free(&smp);
     return status;
 }

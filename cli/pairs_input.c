@@ -206,6 +206,17 @@ int mim_cli_takes_read_all(const mim_cli_takes_t *t, double **frames, uint32_t *
     return 0;
 }
 
+int mim_cli_samples_read(const char *cmd, const char *path, mim_pairs_samples_t *s)
+{
+    mim_error_t err = {0};
+    char *text = NULL;
+    size_t len;
+    const int rc = mim_file_read(path, 0, &text, &len, &err) || mim_pairs_samples_parse(text, len, path, s, &err);
+    if (rc) fprintf(stderr, "mimic %s: %s\n", cmd, mim_error_text(&err));
+    free(text);
+    return rc ? -1 : 0;
+}
+
 int mim_cli_pairs_write(const char *cmd, const char *path, const void *text, size_t len)
 {
     mim_error_t err = {0};

@@ -2,6 +2,8 @@
 #ifndef MIM_CLI_PAIRS_INPUT_H
 #define MIM_CLI_PAIRS_INPUT_H
 
+#include "mim_sample.h"
+
 #include <stddef.h>
 #include <stdint.h>
 
@@ -49,6 +51,9 @@ int mim_cli_takes_read(const mim_cli_takes_t *t, int i, double **frames, uint32_
 /* Every chosen frame of every take, one after the other: 0, or -1 after
  * printing. */
 int mim_cli_takes_read_all(const mim_cli_takes_t *t, double **frames, uint32_t *n);
+/* A samples file (schemas/pair-samples.md) into *s: 0, or -1 after
+ * printing "mimic CMD: why" (unreadable, malformed: the parser's one line). */
+int mim_cli_samples_read(const char *cmd, const char *path, mim_pairs_samples_t *s);
 /* text to path, atomically (nothing half-written): 0, or -1 after printing
  * "mimic CMD: why". */
 int mim_cli_pairs_write(const char *cmd, const char *path, const void *text, size_t len);

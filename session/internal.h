@@ -128,6 +128,18 @@ double mim__angles_rms(const float *a, const float *b, uint32_t na);
  * from the landmark table on first need and kept. Thread-safe. */
 double mim__session_store_spread(mim_session_t *s);
 
+/* The drives' frames (frames.c, each under s->lock; their comments there):
+ * template id's cache slot; the orientation and skeleton drives' offsets
+ * into s->oD; the template drive's frames or offsets and W (which may take
+ * the skeleton drive on the plain path: r->drive says). */
+int mim__session_cache_template(mim_session_t *s, uint64_t id, uint32_t slots, template_slot_t **out, mim_error_t *err);
+int mim__session_orientation_offsets(mim_session_t *s, const mim_session_request_t *req, mim_session_report_t *r,
+                                     mim_error_t *err);
+int mim__session_skeleton_offsets(mim_session_t *s, const float *u, mim_error_t *err);
+int mim__session_template_frames(mim_session_t *s, const mim_session_request_t *req, mim_session_report_t *r,
+                                 double *weights, const float *u, const double **frames, const double **offsets,
+                                 const double **W, template_slot_t **first, mim_error_t *err);
+
 /* Template id's reference for relative transfer (relative.c; under
  * s->lock), found on first need and kept in s->refs; *out NULL when it has
  * none (the plain path). When damage in the store is why (the landmark
