@@ -18,7 +18,7 @@
  * (its answers compared with the scan's, bit for bit), and the bounded
  * search on --threads threads (default: the cores) over every truth: the
  * median of --runs runs each, in truths x samples per second. Also the
- * pose-pairs prepared per second (mim_pair_prepare_many), which `mimic
+ * samples prepared per second (mim_pair_prepare_many, their triangulations), which `mimic
  * pairs coverage` does first.
  *
  * usage: bench_pairs_coverage [--truth T.jsonl --samples S.jsonl | --truths M --count K]
@@ -62,13 +62,13 @@ static double *generate(uint32_t n, uint64_t stream, int repeats)
     return p;
 }
 
-static mim_pair_prep_t *prepare(const double *joints, uint32_t n, uint32_t threads, double *per_s)
+static mim_pair_prep_t *prepare(const double *joints, uint32_t n, uint32_t threads, unsigned parts, double *per_s)
 {
     mim_pair_prep_t *p = malloc((size_t)n * sizeof *p);
     mim_error_t err = {0};
     uint32_t bad = 0;
     double t0 = mim_now();
-    if (!p || mim_pair_prepare_many(joints, n, threads, p, &bad, &err)) {
+    if (!p || mim_pair_prepare_many(joints, n, threads, parts, p, &bad, &err)) {
         fprintf(stderr, "bench_pairs_coverage: pose-pair %u: %s\n", bad + 1, mim_error_text(&err));
         free(p);
         return NULL;
@@ -128,13 +128,14 @@ int main(int argc, char **argv)
     double *sj = samples_path ? read_pairs(samples_path, &k) : generate(k, 2, 1);
     if (!tj || !sj) return 1;
     double prep_rate;
-    mim_pair_prep_t *g = prepare(tj, m, threads, &prep_rate), *s = g ? prepare(sj, k, threads, &prep_rate) : NULL;
+    mim_pair_prep_t *g = prepare(tj, m, threads, MIM_PREP_ALL, &prep_rate),
+                    *s = g ? prepare(sj, k, threads, MIM_PREP_TRIANGULATION, &prep_rate) : NULL;
     if (!s) return 1;
     scan = scan < m ? scan : m;
     printf("%s: %u truths x %u samples; scan and 1-thread figures over the first %u truths; %u threads; median of %u runs; "
            "load average %.2f\n",
            truth_path ? "files" : "generated", m, k, scan, threads, runs, bench_load_average());
-    printf("prepared (triangulation, shape contexts): %.0f pose-pairs/s on %u threads\n\n", prep_rate, threads);
+    printf("samples prepared (triangulation, as for every distance): %.0f pose-pairs/s on %u threads\n\n", prep_rate, threads);
     printf("     first %u truths:%32s | all %u truths, bounds on %u threads:\n", scan, "", m, threads);
     printf("%-4s %12s %12s %6s %12s %6s | %12s %10s %10s %10s  %s\n", "", "scan 1 thr", "bounds 1 thr", "x",
            "bounds", "x", "pairs/s", "distances", "aligned", "given up", "answers");

@@ -148,7 +148,11 @@ static int coverage(int argc, char **argv)
     }
     if (mim_cli_takes_begin(&tk)) return 1;
     mim_error_t err = {0};
-    /* the true pose-pairs, prepared (triangulation, shape contexts) */
+    /* the true pose-pairs and the samples, prepared with what the measures read of each */
+    unsigned parts_a = 0, parts_b = 0;
+    for (int k = 0; k < 4; k++)
+        if (want[k])
+            parts_a |= mim_sample_metric_parts((mim_sample_metric_t)k, 0), parts_b |= mim_sample_metric_parts((mim_sample_metric_t)k, 1);
     mim_pair_prep_t *g = NULL, *sp = NULL;
     uint32_t m = 0;
     int status = 1;
@@ -165,7 +169,7 @@ static int coverage(int argc, char **argv)
         }
         g = grown;
         uint32_t bad = 0;
-        if (mim_pair_prepare_many(fr, nf, (uint32_t)threads, g + m, &bad, &err)) {
+        if (mim_pair_prepare_many(fr, nf, (uint32_t)threads, parts_a, g + m, &bad, &err)) {
             fprintf(stderr, "mimic pairs coverage: %s: frame %u: %s\n", tk.spec[t], (unsigned)(tk.offset + bad * tk.every),
                     mim_error_text(&err));
             free(fr);
@@ -181,7 +185,7 @@ static int coverage(int argc, char **argv)
         goto done;
     }
     uint32_t bad = 0;
-    if (mim_pair_prepare_many(smp.joints, smp.n, (uint32_t)threads, sp, &bad, &err)) {
+    if (mim_pair_prepare_many(smp.joints, smp.n, (uint32_t)threads, parts_b, sp, &bad, &err)) {
         fprintf(stderr, "mimic pairs coverage: %s: sample %u: %s\n", samples_path, bad + 1, mim_error_text(&err));
         goto done;
     }

@@ -219,6 +219,15 @@ int mim_sample_coverage(const mim_pair_prep_t *truth, uint32_t m, const mim_pair
 {
     if (!truth || !samples || !out || !m || !k)
         return mim_error_set(err, MIM_EINVAL, "coverage: needs truth pose-pairs and samples (%u and %u given)", m, k);
+    const unsigned need_a = mim_sample_metric_parts(metric, 0), need_b = mim_sample_metric_parts(metric, 1);
+    for (uint32_t i = 0; i < m + k; i++) {
+        const int sample = i >= m;
+        const mim_pair_prep_t *p = sample ? &samples[i - m] : &truth[i];
+        if ((p->parts & (sample ? need_b : need_a)) != (sample ? need_b : need_a))
+            return mim_error_set(err, MIM_EINVAL, "coverage: %s %u was prepared without the %s this distance reads",
+                                 sample ? "sample" : "truth", (sample ? i - m : i) + 1,
+                                 (sample ? need_b : need_a) & MIM_PREP_TRIANGULATION ? "triangulation" : "shape contexts");
+    }
     const mim_sample_coverage_options_t none = {0};
     if (!opt) opt = &none;
     const uint32_t threads = opt->threads ? opt->threads : 1;

@@ -37,7 +37,11 @@
  * 8 (n - 1) + 8 float epsilons in all (its counts sum to 1), and the
  * samples' radial bin coordinates, kept as floats (|fr| < 4 where it
  * counts), move at most 12 more; f is 3-Lipschitz in each argument and D_S
- * is 0.5 f summed over bins over n: SC_SLACK. */
+ * is 0.5 f summed over bins over n: SC_SLACK. The second bound's
+ * elevations are mim__bound_elevation's, off by at most
+ * MIM__BOUND_ELEVATION_ERR: each count's elevation coordinate by 4 / pi
+ * times that, its shares by twice that in sum, a joint's histogram (its
+ * counts sum to 1) by as much; times 1.5 for 0.5 f: EL_SLACK. */
 #include "internal.h"
 
 #include <float.h>
@@ -58,6 +62,7 @@
 #define LEN_SLACK 1e-6
 #define FAR_SLACK 1e-12
 #define SC_SLACK (1.5 * (8.0 * (N - 1) + 8.0 + 12.0) * (FLT_EPSILON / 2) + 1e-9)
+#define EL_SLACK (1.01 * 1.5 * 2 * 4 / M_PI * MIM__BOUND_ELEVATION_ERR)
 /* added to x + y in the first D_S bound: a term can only get smaller, and
  * 0 / 0 never arises (the loop stays free of branches) */
 #define TINY 1e-30f
@@ -229,7 +234,7 @@ static double shape_aligned_bound(const double *rel_a, mim__sc_pairs_t *w, const
         lb[i] = 0;
         for (int b = 0; b < RE; b++) lb[i] += mim__chi_term(rel_a[i * RE + b], rel_i[b]);
         made += lb[i], rest -= radial[i];
-        lower = (made + (t + 1 < N ? fmax(rest, 0.0) : 0.0)) / N * (1 - REL) - SC_SLACK - slack;
+        lower = (made + (t + 1 < N ? fmax(rest, 0.0) : 0.0)) / N * (1 - REL) - SC_SLACK - EL_SLACK - slack;
         if (lower > best) return lower;
     }
     return lower;
@@ -265,7 +270,7 @@ double mim__shape_distance_within(const mim_pair_prep_t *a, const double *rel_a,
         float h[MIM_SC_BINS];
         mim__sc_joint(&w, i, h);
         for (int k = 0; k < MIM_SC_BINS; k++) done += terms[i][k] = mim__chi_term(a->sc[i][k], h[k]);
-        const double lower = (done + rest[t + 1]) / N * (1 - REL) - SC_SLACK - slack;
+        const double lower = (done + rest[t + 1]) / N * (1 - REL) - SC_SLACK - EL_SLACK - slack;
         if (lower > best) {
             *exact = 0;
             return lower;

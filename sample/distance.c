@@ -3,7 +3,6 @@
  * D_S) after a least-squares rigid alignment. Choices: mim_sample.h. */
 #include "internal.h"
 
-#include <lapacke.h>
 #include <math.h>
 #include <stdatomic.h>
 #include <string.h>
@@ -37,50 +36,107 @@ double mim_ic_distance(const double *a, const mim_ic_t *ta, const double *b, con
     return half(a, b, ta->dim, ta, beta) + half(b, a, tb->dim, tb, beta);
 }
 
-static double det3(const double m[9])
+/* The eigenvector of the largest eigenvalue of a symmetric 4 x 4 matrix A
+ * (overwritten), by cyclic Jacobi rotations: each zeroes one off-diagonal
+ * entry, and the sweeps converge quadratically, to the rounding of the
+ * entries, with no library call. */
+static void top_eigenvector4(double A[4][4], double q[4])
 {
-    return m[0] * (m[4] * m[8] - m[5] * m[7]) - m[3] * (m[1] * m[8] - m[2] * m[7]) + m[6] * (m[1] * m[5] - m[2] * m[4]);
+    double V[4][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}};
+    for (int sweep = 0; sweep < 32; sweep++) {
+        double off = 0, diag = 0;
+        for (int p = 0; p < 4; p++) {
+            diag += A[p][p] * A[p][p];
+            for (int r = p + 1; r < 4; r++) off += A[p][r] * A[p][r];
+        }
+        if (!(off > 1e-36 * diag)) break; /* also ends on NaN */
+        for (int p = 0; p < 3; p++)
+            for (int r = p + 1; r < 4; r++) {
+                const double apr = A[p][r];
+                if (apr == 0) continue;
+                /* J^T A J with J = [c s; -s c] in the (p, r) plane zeroes A[p][r]
+                 * when t = s / c solves t^2 + 2 theta t - 1 = 0 (the smaller root) */
+                const double theta = (A[r][r] - A[p][p]) / (2 * apr);
+                const double t = (theta >= 0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1));
+                const double c = 1 / sqrt(t * t + 1), s = t * c;
+                for (int k = 0; k < 4; k++) {
+                    if (k == p || k == r) continue;
+                    const double akp = A[k][p], akr = A[k][r];
+                    A[k][p] = A[p][k] = c * akp - s * akr;
+                    A[k][r] = A[r][k] = s * akp + c * akr;
+                }
+                A[p][p] -= t * apr, A[r][r] += t * apr, A[p][r] = A[r][p] = 0;
+                for (int k = 0; k < 4; k++) {
+                    const double vkp = V[k][p], vkr = V[k][r];
+                    V[k][p] = c * vkp - s * vkr, V[k][r] = s * vkp + c * vkr;
+                }
+            }
+    }
+    int top = 0;
+    for (int p = 1; p < 4; p++)
+        if (A[p][p] > A[top][top]) top = p;
+    for (int k = 0; k < 4; k++) q[k] = V[k][top];
 }
 
-/* Kabsch: the rotation R (column-major dim x dim) and the centroids ca, cb
- * of the least-squares fit a ~ ca + R (b - cb) over n points, each
- * weighted by use[i] (NULL: all alike; 0: left out). */
+/* The rotation (column-major) that best turns the centred points b' onto
+ * a', given S[x][y] = sum b'_x a'_y. 3D: Horn's closed form (J. Opt. Soc.
+ * Am. A 4(4), 1987): the unit quaternion of the rotation is the top
+ * eigenvector of a symmetric 4 x 4 matrix made of S, so the answer is a
+ * rotation by construction (no reflection to undo, as after an SVD).
+ * 2D: the angle that maximises sum a' . (R b'). */
+static void best_rotation(const double S[3][3], int dim, double R[9])
+{
+    memset(R, 0, 9 * sizeof *R);
+    if (dim == 2) {
+        const double ang = atan2(S[0][1] - S[1][0], S[0][0] + S[1][1]), c = cos(ang), s = sin(ang);
+        R[0] = c, R[1] = s, R[2] = -s, R[3] = c; /* column-major [c -s; s c] */
+        return;
+    }
+    double N[4][4] = {
+        {S[0][0] + S[1][1] + S[2][2], S[1][2] - S[2][1], S[2][0] - S[0][2], S[0][1] - S[1][0]},
+        {S[1][2] - S[2][1], S[0][0] - S[1][1] - S[2][2], S[0][1] + S[1][0], S[2][0] + S[0][2]},
+        {S[2][0] - S[0][2], S[0][1] + S[1][0], -S[0][0] + S[1][1] - S[2][2], S[1][2] + S[2][1]},
+        {S[0][1] - S[1][0], S[2][0] + S[0][2], S[1][2] + S[2][1], -S[0][0] - S[1][1] + S[2][2]},
+    };
+    double q[4];
+    top_eigenvector4(N, q);
+    const double n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+    if (!(n2 > 0) || !isfinite(n2)) {
+        R[0] = R[4] = R[8] = 1.0;
+        return;
+    }
+    const double w = q[0], x = q[1], y = q[2], z = q[3], k = 2 / n2;
+    const double Rr[3][3] = {
+        {1 - k * (y * y + z * z), k * (x * y - w * z), k * (x * z + w * y)},
+        {k * (x * y + w * z), 1 - k * (x * x + z * z), k * (y * z - w * x)},
+        {k * (x * z - w * y), k * (y * z + w * x), 1 - k * (x * x + y * y)},
+    };
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++) R[3 * c + r] = Rr[r][c];
+}
+
+/* Kabsch's problem: the rotation R (column-major dim x dim) and the
+ * centroids ca, cb of the least-squares fit a ~ ca + R (b - cb) over n
+ * points, each weighted by use[i] (NULL: all alike; 0: left out). */
 static void fit(const double *a, const double *b, int n, int dim, const uint8_t *use, double R[9], double ca[3],
                 double cb[3])
 {
     int used = 0;
     for (int i = 0; i < n; i++) used += use ? use[i] : 1;
     ca[0] = ca[1] = ca[2] = cb[0] = cb[1] = cb[2] = 0;
-    if (!use) /* the plain fit: every point once, in this order (coverage's figures depend on it) */
-        for (int i = 0; i < n; i++)
-            for (int c = 0; c < dim; c++) ca[c] += a[dim * i + c] / used, cb[c] += b[dim * i + c] / used;
-    else
-        for (int i = 0; i < n; i++)
-            for (int c = 0; c < dim && use[i]; c++)
-                ca[c] += use[i] * a[dim * i + c] / used, cb[c] += use[i] * b[dim * i + c] / used;
-    /* H = sum w (b - cb)(a - ca)^T, column-major dim x dim; R = V U^T of H = U S V^T */
-    double H[9] = {0}, U[9], Vt[9], s[3], superb[2];
+    for (int i = 0; i < n; i++) {
+        const double w = use ? use[i] : 1;
+        for (int c = 0; c < dim && w > 0; c++) ca[c] += w * a[dim * i + c], cb[c] += w * b[dim * i + c];
+    }
+    for (int c = 0; c < dim && used > 0; c++) ca[c] /= used, cb[c] /= used;
+    double S[3][3] = {{0}};
     for (int i = 0; i < n; i++) {
         const double w = use ? use[i] : 1;
         if (w > 0)
             for (int r = 0; r < dim; r++)
-                for (int c = 0; c < dim; c++) H[dim * c + r] += w * (b[dim * i + r] - cb[r]) * (a[dim * i + c] - ca[c]);
+                for (int c = 0; c < dim; c++) S[r][c] += w * (b[dim * i + r] - cb[r]) * (a[dim * i + c] - ca[c]);
     }
-    memset(R, 0, 9 * sizeof *R);
-    if (LAPACKE_dgesvd(LAPACK_COL_MAJOR, 'A', 'A', dim, dim, H, dim, s, U, dim, Vt, dim, superb) == 0) {
-        /* d keeps R a rotation (no reflection) */
-        double d = 1.0;
-        if (dim == 3) d = det3(U) * det3(Vt) < 0 ? -1.0 : 1.0;
-        else d = (U[0] * U[3] - U[1] * U[2]) * (Vt[0] * Vt[3] - Vt[1] * Vt[2]) < 0 ? -1.0 : 1.0;
-        for (int r = 0; r < dim; r++)
-            for (int c = 0; c < dim; c++) {
-                double v = 0;
-                for (int k = 0; k < dim; k++) v += Vt[dim * r + k] * (k == dim - 1 ? d : 1.0) * U[dim * k + c];
-                R[dim * c + r] = v; /* R[r][c] = sum_k V[r][k] D_k U[c][k] */
-            }
-    } else {
-        for (int k = 0; k < dim; k++) R[dim * k + k] = 1.0;
-    }
+    best_rotation((const double(*)[3])S, dim, R);
 }
 
 void mim__align_points(const double *a, const double *b, int n, int dim, double *out)
@@ -137,13 +193,24 @@ static double limbs_distance(const double *a, const double *b)
     return best;
 }
 
+static int prepare_parts(const double *joints, unsigned parts, mim_pair_prep_t *out, mim_error_t *err)
+{
+    out->dim = 3, out->parts = parts;
+    memcpy(out->joints, joints, sizeof out->joints);
+    out->ic.n_edges = 0;
+    const int rc = parts & MIM_PREP_TRIANGULATION ? mim_ic_build(joints, 3, &out->ic, err) : mim__joints_finite(joints, 3, err);
+    if (!rc && (parts & MIM_PREP_SHAPE_CONTEXTS)) mim__shape_contexts(joints, out->sc);
+    return rc;
+}
+
 int mim_pair_prepare(const double *joints, mim_pair_prep_t *out, mim_error_t *err)
 {
-    out->dim = 3;
-    memcpy(out->joints, joints, sizeof out->joints);
-    int rc = mim_ic_build(joints, 3, &out->ic, err);
-    if (!rc) mim__shape_contexts(joints, out->sc);
-    return rc;
+    return prepare_parts(joints, MIM_PREP_ALL, out, err);
+}
+
+unsigned mim_sample_metric_parts(mim_sample_metric_t metric, int sample)
+{
+    return metric == MIM_METRIC_IC ? MIM_PREP_TRIANGULATION : metric == MIM_METRIC_SHAPE && !sample ? MIM_PREP_SHAPE_CONTEXTS : 0;
 }
 
 /* Many pose-pairs on threads: chunks taken in turn; the first failure
@@ -153,6 +220,7 @@ int mim_pair_prepare(const double *joints, mim_pair_prep_t *out, mim_error_t *er
 typedef struct prep_job {
     const double *joints;
     uint32_t n;
+    unsigned parts;
     mim_pair_prep_t *out;
     _Atomic uint32_t next, first_bad;
 } prep_job_t;
@@ -163,23 +231,23 @@ static void prep_work(void *ctx, uint32_t worker)
     prep_job_t *j = ctx;
     for (uint32_t s; (s = atomic_fetch_add(&j->next, PREP_CHUNK)) < j->n;)
         for (uint32_t i = s; i < s + PREP_CHUNK && i < j->n; i++)
-            if (mim_pair_prepare(j->joints + (size_t)i * 3 * MIM_PAIR_JOINTS, &j->out[i], NULL)) {
+            if (prepare_parts(j->joints + (size_t)i * 3 * MIM_PAIR_JOINTS, j->parts, &j->out[i], NULL)) {
                 uint32_t was = atomic_load(&j->first_bad);
                 while (i < was && !atomic_compare_exchange_weak(&j->first_bad, &was, i)) {}
                 break;
             }
 }
 
-int mim_pair_prepare_many(const double *joints, uint32_t n, uint32_t threads, mim_pair_prep_t *out, uint32_t *failed,
-                          mim_error_t *err)
+int mim_pair_prepare_many(const double *joints, uint32_t n, uint32_t threads, unsigned parts, mim_pair_prep_t *out,
+                          uint32_t *failed, mim_error_t *err)
 {
-    prep_job_t j = {.joints = joints, .n = n, .out = out};
+    prep_job_t j = {.joints = joints, .n = n, .parts = parts & MIM_PREP_ALL, .out = out};
     atomic_init(&j.next, 0), atomic_init(&j.first_bad, n);
     mim__parallel(threads, prep_work, &j);
     uint32_t bad = atomic_load(&j.first_bad);
     if (bad == n) return 0;
     if (failed) *failed = bad;
-    return mim_pair_prepare(joints + (size_t)bad * 3 * MIM_PAIR_JOINTS, &out[bad], err);
+    return prepare_parts(joints + (size_t)bad * 3 * MIM_PAIR_JOINTS, j.parts, &out[bad], err);
 }
 
 double mim_sample_distance(const mim_pair_prep_t *a, const mim_pair_prep_t *b, mim_sample_metric_t metric)

@@ -34,17 +34,24 @@ static void add_edge(uint8_t have[MIM_PAIR_JOINTS][MIM_PAIR_JOINTS], uint32_t a,
     have[a][b] = 1;
 }
 
+int mim__joints_finite(const double *joints, int dim, mim_error_t *err)
+{
+    for (uint32_t i = 0; i < (uint32_t)dim * MIM_PAIR_JOINTS; i++)
+        if (!isfinite(joints[i]))
+            return mim_error_set(err, MIM_ENONFINITE, "interaction coordinates: joint %u (%s of person %c) is not finite",
+                                 i / dim, mim_sample_joint_names[(i / dim) % MIM_PAIR_PERSON_JOINTS],
+                                 i / dim < MIM_PAIR_PERSON_JOINTS ? 'A' : 'B');
+    return 0;
+}
+
 int mim_ic_build(const double *joints, int dim, mim_ic_t *out, mim_error_t *err)
 {
     if (!joints || !out || (dim != 2 && dim != 3))
         return mim_error_set(err, MIM_EINVAL, "interaction coordinates: dimension %d (2 or 3)", dim);
     memset(out, 0, sizeof *out);
     out->dim = dim;
-    for (uint32_t i = 0; i < (uint32_t)dim * MIM_PAIR_JOINTS; i++)
-        if (!isfinite(joints[i]))
-            return mim_error_set(err, MIM_ENONFINITE, "interaction coordinates: joint %u (%s of person %c) is not finite",
-                                 i / dim, mim_sample_joint_names[(i / dim) % MIM_PAIR_PERSON_JOINTS],
-                                 i / dim < MIM_PAIR_PERSON_JOINTS ? 'A' : 'B');
+    int rc = mim__joints_finite(joints, dim, err);
+    if (rc) return rc;
     /* distinct points: rep[i] is the first joint at joint i's place */
     uint32_t rep[MIM_PAIR_JOINTS], uniq[MIM_PAIR_JOINTS], n_uniq = 0;
     for (uint32_t i = 0; i < MIM_PAIR_JOINTS; i++) {

@@ -12,6 +12,10 @@
  * against it. */
 json_t *mim__pairs_joint_labels(void);
 
+/* 0, or MIM_ENONFINITE naming the first joint (of 34, dim coordinates
+ * each) that is not finite (ic.c). */
+int mim__joints_finite(const double *joints, int dim, mim_error_t *err);
+
 /* The joint pair (i, j), i < j, among the 561 taken row by row. */
 #define MIM__JOINT_PAIRS (MIM_PAIR_JOINTS * (MIM_PAIR_JOINTS - 1) / 2)
 static inline int mim__pair_index(int i, int j) { return i * (2 * MIM_PAIR_JOINTS - i - 1) / 2 + (j - i - 1); }
@@ -28,17 +32,23 @@ void mim__shape_contexts(const double *p, float sc[MIM_PAIR_JOINTS][MIM_SC_BINS]
 /* The same a joint at a time. What the joints share comes first: each
  * joint pair's (i < j, row by row) distance and elevation (begin), then
  * its radial bin coordinate and the elevation's cosine (finish); p must
- * outlive w. begin_lazy takes the distances alone, each elevation then
- * made on first need (mim__sc_joint_radial_elevation; the rest by
- * mim__sc_pairs_elevations), with the same values as begin's. */
+ * outlive w. begin_lazy takes the distances and each pair's up component
+ * alone: mim__sc_joint_radial_elevation then makes the second bound's
+ * shares as it needs them (from mim__bound_elevation), and
+ * mim__sc_pairs_elevations the elevations, begin's values, for finish. */
 typedef struct mim__sc_pairs {
     const double *p;
     double r[MIM__JOINT_PAIRS], el[MIM__JOINT_PAIRS], fr[MIM__JOINT_PAIRS], cos_el[MIM__JOINT_PAIRS];
-    double up[MIM__JOINT_PAIRS];           /* each pair's vector's up component */
-    uint8_t has_el[MIM__JOINT_PAIRS];      /* begin_lazy: its elevation made, and its bins' shares: */
+    double up[MIM__JOINT_PAIRS];             /* each pair's vector's up component */
+    uint8_t has_share[MIM__JOINT_PAIRS];     /* begin_lazy: its bins' shares made: */
     int8_t rbin[MIM__JOINT_PAIRS], ebin[MIM__JOINT_PAIRS]; /* radial and elevation bin, */
     double rshare[MIM__JOINT_PAIRS], eshare[MIM__JOINT_PAIRS]; /* the share of the bin after */
 } mim__sc_pairs_t;
+/* The elevation (radians) of a vector of length r and up component up,
+ * within MIM__BOUND_ELEVATION_ERR of asin(up / r): the second bound's
+ * (coverage_bounds.c allows for the difference). */
+#define MIM__BOUND_ELEVATION_ERR 1e-8
+double mim__bound_elevation(double up, double r);
 void mim__sc_pairs_begin(const double *p, mim__sc_pairs_t *w);
 void mim__sc_pairs_begin_lazy(const double *p, mim__sc_pairs_t *w);
 void mim__sc_pairs_elevations(mim__sc_pairs_t *w);
@@ -56,8 +66,9 @@ static inline double mim__chi_term(double x, double y) { return x + y > 0 ? 0.5 
  * sums of a computed histogram (either may be NULL). */
 void mim__sc_pair_radii(const double *p, float *fr);
 void mim__sc_radial(const float *fr, double *rad);
-/* Joint i's part of rel (MIM__SC_R x MIM__SC_EL), its pairs' elevations
- * made where begin_lazy left them. */
+/* Joint i's part of rel (MIM__SC_R x MIM__SC_EL), its pairs' shares made
+ * where begin_lazy left them; as rel from mim__bound_elevation's
+ * elevations. */
 void mim__sc_joint_radial_elevation(mim__sc_pairs_t *w, const float *fr, int i, double *rel_i);
 void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], double *rad, double *rel);
 

@@ -129,21 +129,32 @@ typedef enum mim_sample_metric {
 #define MIM_LIMB_COUNT 12
 
 /* A pose-pair prepared for comparisons: its joints, its triangulation (for
- * D_I) and its shape contexts (for D_S), computed once. */
+ * D_I) and its shape contexts (for D_S), computed once. parts says which
+ * of the two were made (MIM_PREP_*). */
 #define MIM_SC_BINS (5 * 8 * 4)
+#define MIM_PREP_TRIANGULATION 1u  /* ic: D_I reads both pose-pairs' */
+#define MIM_PREP_SHAPE_CONTEXTS 2u /* sc: D_S reads a's alone (b's are made after the alignment) */
+#define MIM_PREP_ALL 3u
 typedef struct mim_pair_prep {
     int dim;
+    unsigned parts;
     double joints[3 * MIM_PAIR_JOINTS];
     mim_ic_t ic;
     float sc[MIM_PAIR_JOINTS][MIM_SC_BINS];
 } mim_pair_prep_t;
-/* Prepares a 3D pose-pair (34 x 3 doubles). Errors as mim_ic_build. */
+/* Prepares a 3D pose-pair (34 x 3 doubles), every part. Errors as
+ * mim_ic_build. */
 int mim_pair_prepare(const double *joints, mim_pair_prep_t *out, mim_error_t *err);
-/* Prepares n pose-pairs (n x 34 x 3 doubles) on `threads` threads (0: 1).
- * On an error, *failed (may be NULL) is the first pair that failed and
- * err says why, as mim_pair_prepare. */
-int mim_pair_prepare_many(const double *joints, uint32_t n, uint32_t threads, mim_pair_prep_t *out, uint32_t *failed,
-                          mim_error_t *err);
+/* Prepares n pose-pairs (n x 34 x 3 doubles) on `threads` threads (0: 1),
+ * the parts asked for (MIM_PREP_*; the samples of coverage need no shape
+ * contexts, and no triangulation unless for D_I: the 3D triangulation is
+ * most of the cost, and the shape contexts most of the memory). On an
+ * error, *failed (may be NULL) is the first pair that failed and err says
+ * why, as mim_pair_prepare. */
+int mim_pair_prepare_many(const double *joints, uint32_t n, uint32_t threads, unsigned parts, mim_pair_prep_t *out,
+                          uint32_t *failed, mim_error_t *err);
+/* The parts a metric reads of the truth (a) and of the sample (b). */
+unsigned mim_sample_metric_parts(mim_sample_metric_t metric, int sample);
 
 /* D_I, D_C or D_S (Section 6) between prepared 3D pose-pairs a and b, after
  * bringing b onto a (mim_sample_align); or LIMBS, the mean distance (metres)
@@ -402,7 +413,8 @@ typedef struct mim_sample_coverage {
  * when given). A distance is computed only for the samples that lower
  * bounds (coverage_bounds.c) leave as possibly nearest; every answer is
  * the one the exhaustive scan gives, to the bit, whatever the threads.
- * opt NULL: defaults. Errors: MIM_EINVAL (m or k of 0), MIM_ENOMEM. */
+ * opt NULL: defaults. Errors: MIM_EINVAL (m or k of 0, or a pose-pair
+ * without a part the metric reads: mim_sample_metric_parts), MIM_ENOMEM. */
 int mim_sample_coverage(const mim_pair_prep_t *truth, uint32_t m, const mim_pair_prep_t *samples, uint32_t k,
                         mim_sample_metric_t metric, const mim_sample_coverage_options_t *opt, mim_sample_coverage_t *out,
                         mim_error_t *err);

@@ -81,7 +81,7 @@ void mim__sc_pairs_begin_lazy(const double *p, mim__sc_pairs_t *w)
     for (int i = 0, k = 0; i < N; i++)
         for (int j = i + 1; j < N; j++, k++) {
             double v[3];
-            w->r[k] = pair_vector(p, i, j, v), w->up[k] = v[1], w->has_el[k] = 0;
+            w->r[k] = pair_vector(p, i, j, v), w->up[k] = v[1], w->has_share[k] = 0;
         }
 }
 
@@ -96,25 +96,45 @@ static int share(double f, int nbins, double *t)
     return b;
 }
 
-/* Pair k's elevation (begin's value: asin of the same quotient) and its
- * bins' shares, made once for both its joints; fr: the pairs' radial bin
- * coordinates */
+/* asin to within MIM__BOUND_ELEVATION_ERR (2.3e-9 measured over [-1, 1]),
+ * in a few multiplications where libm's asin takes a fifth of the second
+ * bound's time: the Taylor series to x^21 on [0, 1/2], and above it
+ * asin x = pi/2 - 2 asin sqrt((1 - x) / 2). */
+static double bound_asin(double x)
+{
+    static const double c[] = {1.0,          1.0 / 6,           3.0 / 40,         5.0 / 112,
+                               35.0 / 1152,  63.0 / 2816,       231.0 / 13312,    143.0 / 10240,
+                               6435.0 / 557056, 12155.0 / 1245184, 46189.0 / 5505024};
+    const double a = fabs(x);
+    const int far = a > 0.5;
+    const double z = far ? sqrt((1 - a) / 2) : a, z2 = z * z;
+    /* Estrin's scheme: the terms' products in parallel, not one long chain */
+    const double t2 = z2 * z2, t4 = t2 * t2, t8 = t4 * t4;
+    const double q03 = (c[0] + c[1] * z2) + (c[2] + c[3] * z2) * t2, q47 = (c[4] + c[5] * z2) + (c[6] + c[7] * z2) * t2;
+    const double q8 = (c[8] + c[9] * z2) + c[10] * t2, poly = (q03 + q47 * t4) + q8 * t8;
+    const double r = far ? M_PI / 2 - 2 * z * poly : z * poly;
+    return x < 0 ? -r : r;
+}
+
+double mim__bound_elevation(double up, double r) { return r > 0 ? bound_asin(up / r) : 0.0; }
+
+/* Pair k's bins' shares for the second bound, made once for both its
+ * joints: the radial from fr (the pairs' radial bin coordinates), the
+ * elevation's from mim__bound_elevation (the bound allows for its error) */
 static void lazy_pair(mim__sc_pairs_t *w, const float *fr, int k)
 {
-    if (w->has_el[k]) return;
-    const double v[3] = {0, w->up[k], 0};
-    w->el[k] = elevation(v, w->r[k]), w->has_el[k] = 1;
+    if (w->has_share[k]) return;
+    w->has_share[k] = 1;
     w->rbin[k] = (int8_t)share(fr[k], SC_R, &w->rshare[k]);
-    w->ebin[k] = (int8_t)share(elevation_coordinate(w->el[k]), SC_EL, &w->eshare[k]);
+    w->ebin[k] = (int8_t)share(elevation_coordinate(mim__bound_elevation(w->up[k], w->r[k])), SC_EL, &w->eshare[k]);
 }
 
 void mim__sc_pairs_elevations(mim__sc_pairs_t *w)
 {
-    for (int k = 0; k < PAIRS; k++)
-        if (!w->has_el[k]) {
-            const double v[3] = {0, w->up[k], 0};
-            w->el[k] = elevation(v, w->r[k]), w->has_el[k] = 1;
-        }
+    for (int k = 0; k < PAIRS; k++) {
+        const double v[3] = {0, w->up[k], 0};
+        w->el[k] = elevation(v, w->r[k]);
+    }
 }
 
 /* The pairs' radial bin coordinates from their distances; the bins' log

@@ -84,8 +84,8 @@ static void make_sets(uint64_t seed, uint32_t m, uint32_t k, mim_pair_prep_t **g
     *g = malloc((size_t)m * sizeof **g), *s = malloc((size_t)k * sizeof **s);
     assert_non_null(*g), assert_non_null(*s);
     mim_error_t err = {0};
-    assert_int_equal(mim_pair_prepare_many(tj, m, 2, *g, NULL, &err), 0);
-    assert_int_equal(mim_pair_prepare_many(sj, k, 2, *s, NULL, &err), 0);
+    assert_int_equal(mim_pair_prepare_many(tj, m, 2, MIM_PREP_ALL, *g, NULL, &err), 0);
+    assert_int_equal(mim_pair_prepare_many(sj, k, 2, MIM_PREP_ALL, *s, NULL, &err), 0);
     free(tj), free(sj);
 }
 
@@ -343,6 +343,75 @@ static void test_limbs_brute_force(void **state)
     free(g), free(s);
 }
 
+/* Samples prepared with only what a distance reads of them (no shape
+ * contexts; no triangulation but for D_I) give the same answers, to the
+ * bit; a pose-pair without a part its distance reads is refused, and so
+ * are joints that are not finite, whatever the parts. */
+static void test_prepared_parts(void **state)
+{
+    (void)state;
+    enum { M = 40, K = 400 };
+    mim_pair_prep_t *g, *s;
+    make_sets(6, M, K, &g, &s);
+    double *sj = malloc((size_t)K * 3 * J * sizeof *sj);
+    mim_pair_prep_t *tri = malloc(K * sizeof *tri), *bare = malloc(K * sizeof *bare);
+    assert_non_null(sj), assert_non_null(tri), assert_non_null(bare);
+    for (uint32_t j = 0; j < K; j++) memcpy(sj + (size_t)j * 3 * J, s[j].joints, 3 * J * sizeof *sj);
+    mim_error_t err = {0};
+    assert_int_equal(mim_pair_prepare_many(sj, K, 2, MIM_PREP_TRIANGULATION, tri, NULL, &err), 0);
+    assert_int_equal(mim_pair_prepare_many(sj, K, 2, 0, bare, NULL, &err), 0);
+    for (int metric = 0; metric < 4; metric++) {
+        const mim_sample_metric_t mt = (mim_sample_metric_t)metric;
+        double near0[M], near1[M];
+        uint32_t which0[M], which1[M];
+        const mim_sample_coverage_options_t o = {.threads = 2};
+        mim_sample_coverage_t full = {.nearest = near0, .which = which0}, part = {.nearest = near1, .which = which1};
+        assert_int_equal(mim_sample_coverage(g, M, s, K, mt, &o, &full, &err), 0);
+        const mim_pair_prep_t *fewer = mim_sample_metric_parts(mt, 1) ? tri : bare;
+        assert_int_equal(mim_sample_coverage(g, M, fewer, K, mt, &o, &part, &err), 0);
+        assert_memory_equal(near0, near1, sizeof near0);
+        assert_memory_equal(which0, which1, sizeof which0);
+        if (mt == MIM_METRIC_IC) {
+            mim_error_t e2 = {0};
+            assert_int_equal(mim_sample_coverage(g, M, bare, K, mt, &o, &part, &e2), MIM_EINVAL);
+            assert_non_null(strstr(mim_error_text(&e2), "sample 1 was prepared without the triangulation"));
+        }
+    }
+    /* truths need their shape contexts for D_S */
+    mim_pair_prep_t *gt = malloc(M * sizeof *gt);
+    assert_non_null(gt);
+    assert_int_equal(mim_pair_prepare_many(sj, M, 1, MIM_PREP_TRIANGULATION, gt, NULL, &err), 0);
+    mim_sample_coverage_t res = {0};
+    mim_error_t e3 = {0};
+    assert_int_equal(mim_sample_coverage(gt, M, tri, K, MIM_METRIC_SHAPE, NULL, &res, &e3), MIM_EINVAL);
+    assert_non_null(strstr(mim_error_text(&e3), "truth 1 was prepared without the shape contexts"));
+    /* a joint not finite, with no part made: refused, and found */
+    sj[3 * J * 7 + 5] = NAN;
+    uint32_t bad = 0;
+    mim_error_t e4 = {0};
+    assert_int_equal(mim_pair_prepare_many(sj, K, 2, 0, bare, &bad, &e4), MIM_ENONFINITE);
+    assert_int_equal(bad, 7);
+    free(g), free(s), free(sj), free(tri), free(bare), free(gt);
+}
+
+/* The second bound's elevations are within MIM__BOUND_ELEVATION_ERR of
+ * asin's, over all of [-1, 1] (the coverage_bounds.c slack's premise),
+ * and exact at the ends and at 0. */
+static void test_bound_elevation(void **state)
+{
+    (void)state;
+    double worst = 0;
+    for (int i = 0; i <= 2000000; i++) {
+        const double x = -1.0 + i * 1e-6;
+        worst = fmax(worst, fabs(mim__bound_elevation(x, 1.0) - asin(x)));
+        worst = fmax(worst, fabs(mim__bound_elevation(3 * x, 3.0) - asin(x)));
+    }
+    print_message("the bound's elevation: at most %.3g rad from asin's\n", worst);
+    assert_true(worst <= MIM__BOUND_ELEVATION_ERR);
+    assert_true(fabs(mim__bound_elevation(1, 1) - M_PI / 2) < 1e-15 && fabs(mim__bound_elevation(-2, 2) + M_PI / 2) < 1e-15);
+    assert_true(mim__bound_elevation(0, 1) == 0 && mim__bound_elevation(0.5, 0) == 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -351,6 +420,8 @@ int main(void)
         cmocka_unit_test(test_pruned_equals_scan),
         cmocka_unit_test(test_ties_and_one_sample),
         cmocka_unit_test(test_limbs_brute_force),
+        cmocka_unit_test(test_prepared_parts),
+        cmocka_unit_test(test_bound_elevation),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

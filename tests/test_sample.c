@@ -207,6 +207,72 @@ static void test_rigid_invariance(void **s)
     free(pa), free(pm), free(pb), free(px);
 }
 
+/* The sum of squared residuals of a_i ~ R b_i + t (R row-major). */
+static double residual(const double *a, const double *b, const double R[9], const double t[3])
+{
+    double e = 0;
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++)
+        for (int r = 0; r < 3; r++) {
+            double v = t[r] - a[3 * i + r];
+            for (int c = 0; c < 3; c++) v += R[3 * r + c] * b[3 * i + c];
+            e += v * v;
+        }
+    return e;
+}
+
+/* mim_sample_rigid_fit is the least-squares rotation: a rotation (det +1,
+ * also for a mirror image), exact for a turned copy at any angle (half
+ * turns, where the quaternion's scalar part is 0, among them), and no
+ * small turn of it (the translation fitted again) fits better; planar and
+ * collinear sets, whose rotation is not unique, still fit exactly. */
+static void test_rigid_fit(void **s)
+{
+    (void)s;
+    mim_rng_t r;
+    mim_rng_seed(&r, 8, 2);
+    const double axes[][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 2, -3}, {-0.3, 0.1, 0.9}};
+    const double angles[] = {0, 1e-9, 0.7, M_PI / 2, 3.0, M_PI};
+    for (int shape = 0; shape < 3; shape++)
+        for (size_t x = 0; x < sizeof axes / sizeof axes[0]; x++)
+            for (size_t y = 0; y < sizeof angles / sizeof angles[0]; y++) {
+                double a[3 * MIM_PAIR_JOINTS], b[3 * MIM_PAIR_JOINTS], R[9], t[3];
+                random_pair(&r, 3, b);
+                for (int i = 0; i < MIM_PAIR_JOINTS && shape; i++) /* 1: a plane; 2: a line */
+                    b[3 * i + 2] = 0.5 * b[3 * i], b[3 * i + 1] = shape == 2 ? -b[3 * i] : b[3 * i + 1];
+                const double shift[3] = {0.4, -2.0, 7.0};
+                rotate(b, axes[x][0], axes[x][1], axes[x][2], angles[y], shift, a);
+                mim_sample_rigid_fit(a, b, NULL, R, t);
+                const double det = R[0] * (R[4] * R[8] - R[5] * R[7]) - R[1] * (R[3] * R[8] - R[5] * R[6]) +
+                                   R[2] * (R[3] * R[7] - R[4] * R[6]);
+                assert_true(fabs(det - 1) < 1e-12);
+                if (residual(a, b, R, t) > 1e-20)
+                    fail_msg("shape %d, axis %zu, angle %g: residual %g", shape, x, angles[y], residual(a, b, R, t));
+            }
+    for (int trial = 0; trial < 50; trial++) {
+        double a[3 * MIM_PAIR_JOINTS], b[3 * MIM_PAIR_JOINTS], R[9], t[3];
+        random_pair(&r, 3, a), random_pair(&r, 3, b);
+        if (trial % 5 == 0) /* b a mirror image of a, noisy */
+            for (int i = 0; i < 3 * MIM_PAIR_JOINTS; i++) b[i] = (i % 3 ? a[i] : -a[i]) + 0.05 * mim_rng_gauss(&r);
+        mim_sample_rigid_fit(a, b, NULL, R, t);
+        const double det = R[0] * (R[4] * R[8] - R[5] * R[7]) - R[1] * (R[3] * R[8] - R[5] * R[6]) + R[2] * (R[3] * R[7] - R[4] * R[6]);
+        assert_true(fabs(det - 1) < 1e-12);
+        const double best = residual(a, b, R, t);
+        for (int k = 0; k < 20; k++) {
+            /* R turned a little about a random axis; t fitted again (centroids matched) */
+            mim_quat q = mim_quat_axis_angle(mim_v3_normalize(mim_v3(mim_rng_gauss(&r), mim_rng_gauss(&r), mim_rng_gauss(&r))), 1e-3);
+            double R2[9], t2[3], ca[3] = {0, 0, 0}, cb[3] = {0, 0, 0};
+            for (int c = 0; c < 3; c++) {
+                const mim_vec3 col = mim_quat_rotate(q, mim_v3(R[c], R[3 + c], R[6 + c]));
+                R2[c] = col.x, R2[3 + c] = col.y, R2[6 + c] = col.z;
+            }
+            for (int i = 0; i < MIM_PAIR_JOINTS; i++)
+                for (int c = 0; c < 3; c++) ca[c] += a[3 * i + c] / MIM_PAIR_JOINTS, cb[c] += b[3 * i + c] / MIM_PAIR_JOINTS;
+            for (int c = 0; c < 3; c++) t2[c] = ca[c] - (R2[3 * c] * cb[0] + R2[3 * c + 1] * cb[1] + R2[3 * c + 2] * cb[2]);
+            if (residual(a, b, R2, t2) < best * (1 - 1e-12)) fail_msg("trial %d: a turned fit is better: %.17g < %.17g", trial, residual(a, b, R2, t2), best);
+        }
+    }
+}
+
 /* eq. 13: C(G, G) = 0; adding samples never raises C; errors. */
 static void test_coverage(void **s)
 {
@@ -515,7 +581,8 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_delaunay_ladder), cmocka_unit_test(test_delaunay_3d), cmocka_unit_test(test_ic_bad_input),
-        cmocka_unit_test(test_dI),              cmocka_unit_test(test_rigid_invariance), cmocka_unit_test(test_coverage),
+        cmocka_unit_test(test_dI),              cmocka_unit_test(test_rigid_invariance), cmocka_unit_test(test_rigid_fit),
+        cmocka_unit_test(test_coverage),
         cmocka_unit_test(test_joint_map), cmocka_unit_test(test_unit_guess),
         cmocka_unit_test(test_samples_file), cmocka_unit_test(test_penetration),
         cmocka_unit_test(test_views),
