@@ -224,7 +224,8 @@ static double residual(const double *a, const double *b, const double R[9], cons
  * also for a mirror image), exact for a turned copy at any angle (half
  * turns, where the quaternion's scalar part is 0, among them), and no
  * small turn of it (the translation fitted again) fits better; planar and
- * collinear sets, whose rotation is not unique, still fit exactly. */
+ * collinear sets, whose rotation is not unique, still fit exactly; in 2D
+ * a turned copy is exact too. */
 static void test_rigid_fit(void **s)
 {
     (void)s;
@@ -248,6 +249,18 @@ static void test_rigid_fit(void **s)
                 if (residual(a, b, R, t) > 1e-20)
                     fail_msg("shape %d, axis %zu, angle %g: residual %g", shape, x, angles[y], residual(a, b, R, t));
             }
+    /* 2D: the closed-form angle, at every quadrant and a half turn */
+    const double turns[] = {0, 1.0, 2.5, M_PI, -2.5, -0.4};
+    for (size_t y = 0; y < sizeof turns / sizeof turns[0]; y++) {
+        double a[2 * MIM_PAIR_JOINTS], b[2 * MIM_PAIR_JOINTS], back[2 * MIM_PAIR_JOINTS];
+        random_pair(&r, 2, b);
+        const double c = cos(turns[y]), sn = sin(turns[y]);
+        for (int i = 0; i < MIM_PAIR_JOINTS; i++)
+            a[2 * i] = c * b[2 * i] - sn * b[2 * i + 1] + 0.7, a[2 * i + 1] = sn * b[2 * i] + c * b[2 * i + 1] - 3.0;
+        mim_sample_align(a, b, 2, back);
+        for (int i = 0; i < 2 * MIM_PAIR_JOINTS; i++)
+            if (fabs(back[i] - a[i]) > 1e-12) fail_msg("2D, angle %g: coordinate %d off by %g", turns[y], i, back[i] - a[i]);
+    }
     for (int trial = 0; trial < 50; trial++) {
         double a[3 * MIM_PAIR_JOINTS], b[3 * MIM_PAIR_JOINTS], R[9], t[3];
         random_pair(&r, 3, a), random_pair(&r, 3, b);
