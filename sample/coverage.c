@@ -3,7 +3,8 @@
  *
  * The exhaustive scan computes D for every truth and sample. The default
  * computes it only where lower bounds (coverage_bounds.c) cannot rule the
- * sample out: each truth bounds every sample at once, then takes the
+ * sample out: the truths of a chunk bound every sample at once (a sample's
+ * features read from memory once for all of them), then each takes the
  * samples in increasing bound order and stops at the first bound above
  * the nearest distance found. D_S goes on bounding a sample after aligning
  * it, and gives up its distance part-way once a bound passes the nearest.
@@ -26,7 +27,8 @@
 /* Consecutive truths taken at once, each trying its predecessor's nearest
  * first: up to 8, fewer for few truths (so that threads share them); never
  * a matter of the threads, so that the work done is the same on any. */
-static uint32_t truth_chunk(uint32_t m) { return m >= 128 ? 8 : m >= 16 ? m / 16 : 1; }
+static uint32_t truth_chunk(uint32_t m) { return m >= 128 ? MIM__BOUND_TRUTHS : m >= 16 ? m / 16 : 1; }
+_Static_assert(MIM__BOUND_TRUTHS == 8, "chunks of 8 truths at most");
 
 typedef struct job {
     const mim_pair_prep_t *truth, *samples;
@@ -140,15 +142,19 @@ static void keep(double d, uint32_t j, double *best, uint32_t *bj)
     if (d < *best || (d == *best && d < INFINITY && j < *bj)) *best = d, *bj = j;
 }
 
-/* A worker's room: the first bounds of every sample, the heap of those
- * that may still be nearest, the truth's features. */
+/* A worker's room: the first bounds of every sample for each truth of a
+ * chunk, the heap of those that may still be nearest, the truths'
+ * features and slack. */
 typedef struct room {
     float *lb, *fa;
+    double slack[MIM__BOUND_TRUTHS];
     uint64_t *heap;
-    double rel_a[N * MIM__SC_R * MIM__SC_EL];
+    double marg_a[MIM__SC_MARGINALS];
 } room_t;
 
-static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t hint, double *best, uint32_t *bj, uint64_t *nd,
+/* The nearest sample to truth i, the t-th of its chunk (its first bounds
+ * made by the caller). */
+static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t t, uint32_t hint, double *best, uint32_t *bj, uint64_t *nd,
                     uint64_t *na, uint64_t *nc)
 {
     const mim_pair_prep_t *a = &jb->truth[i];
@@ -162,23 +168,22 @@ static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t hint, double *be
         return;
     }
     const int shape = jb->metric == MIM_METRIC_SHAPE;
-    const double slack = mim__bound_slack(jb->metric, a) + jb->slack[0];
-    mim__bound_features(jb->metric, a, 1, rm->fa);
-    mim__bound_lower(jb->metric, rm->fa, jb->feat, jb->k, slack, rm->lb);
-    if (shape) mim__sc_histogram_marginals(a->sc, NULL, rm->rel_a);
+    const double slack = rm->slack[t];
+    const float *lb = rm->lb + (size_t)t * jb->k;
+    if (shape) mim__shape_truth_marginals(a, rm->marg_a);
     if (hint < jb->k) keep(mim_sample_distance(a, &jb->samples[hint], jb->metric), hint, best, bj), (*nd)++;
     uint32_t n = 0;
     for (uint32_t j = 0; j < jb->k; j++)
-        if (!jb->repeat[j] && j != hint && !(rm->lb[j] > *best)) rm->heap[n++] = key(rm->lb[j], j);
+        if (!jb->repeat[j] && j != hint && !(lb[j] > *best)) rm->heap[n++] = key(lb[j], j);
     for (uint32_t h = n / 2; h-- > 0;) sift_down(rm->heap, n, h);
     while (n) {
         const uint32_t j = (uint32_t)rm->heap[0];
-        if (rm->lb[j] > *best) break;
+        if (lb[j] > *best) break;
         pop(rm->heap, &n);
         const mim_pair_prep_t *b = &jb->samples[j];
         if (shape) {
             int exact;
-            const double d = mim__shape_distance_within(a, rm->rel_a, b, jb->feat + (size_t)j * jb->stride, slack, *best, &exact);
+            const double d = mim__shape_distance_within(a, rm->marg_a, b, jb->feat + (size_t)j * jb->stride, slack, *best, &exact);
             (*na)++;
             if (exact) keep(d, j, best, bj), (*nd)++;
             else (*nc)++;
@@ -193,16 +198,24 @@ static void truths(void *ctx, uint32_t worker)
     job_t *j = ctx;
     room_t rm = {0};
     if (!j->exhaustive) {
-        rm.lb = malloc((size_t)j->k * sizeof *rm.lb), rm.fa = malloc(j->stride * sizeof *rm.fa);
+        rm.lb = malloc((size_t)MIM__BOUND_TRUTHS * j->k * sizeof *rm.lb);
+        rm.fa = malloc((size_t)MIM__BOUND_TRUTHS * j->stride * sizeof *rm.fa);
         rm.heap = malloc((size_t)j->k * sizeof *rm.heap);
         if (!rm.lb || !rm.fa || !rm.heap) goto out; /* the others take this worker's share */
     }
     uint64_t nd = 0, na = 0, nc = 0;
     const uint32_t chunk = truth_chunk(j->m);
+    const uint32_t dim = mim__bound_dim(j->metric);
     for (uint32_t s; (s = atomic_fetch_add(&j->next, chunk)) < j->m;) {
+        const uint32_t n = s + chunk < j->m ? chunk : j->m - s;
+        for (uint32_t t = 0; t < n && !j->exhaustive; t++) {
+            rm.slack[t] = mim__bound_slack(j->metric, &j->truth[s + t]) + j->slack[0];
+            mim__bound_features(j->metric, &j->truth[s + t], 1, rm.fa + (size_t)t * dim);
+        }
+        if (!j->exhaustive) mim__bound_lower(j->metric, rm.fa, n, j->feat, j->k, rm.slack, rm.lb);
         uint32_t hint = UINT32_MAX;
-        for (uint32_t i = s; i < s + chunk && i < j->m; i++) {
-            nearest(j, &rm, i, hint, &j->nearest[i], &j->which[i], &nd, &na, &nc);
+        for (uint32_t i = s; i < s + n; i++) {
+            nearest(j, &rm, i, i - s, hint, &j->nearest[i], &j->which[i], &nd, &na, &nc);
             hint = j->which[i];
             uint32_t done = atomic_fetch_add(&j->done, 1) + 1;
             if (worker == 0 && j->progress) mim_progress_update(j->progress, done);

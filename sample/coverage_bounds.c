@@ -38,10 +38,10 @@
  * samples' radial bin coordinates, kept as floats (|fr| < 4 where it
  * counts), move at most 12 more; f is 3-Lipschitz in each argument and D_S
  * is 0.5 f summed over bins over n: SC_SLACK. The second bound's
- * elevations are mim__bound_elevation's, off by at most
- * MIM__BOUND_ELEVATION_ERR: each count's elevation coordinate by 4 / pi
- * times that, its shares by twice that in sum, a joint's histogram (its
- * counts sum to 1) by as much; times 1.5 for 0.5 f: EL_SLACK. */
+ * elevation coordinates (mim__sc_pairs_bound_shares', in floats) are off
+ * by at most MIM__BOUND_EL_COORD_ERR bins: each count's shares by twice
+ * that in sum, a joint's histogram (its counts sum to 1) by as much;
+ * times 1.5 for 0.5 f: EL_SLACK. */
 #include "internal.h"
 
 #include <float.h>
@@ -62,7 +62,7 @@
 #define LEN_SLACK 1e-6
 #define FAR_SLACK 1e-12
 #define SC_SLACK (1.5 * (8.0 * (N - 1) + 8.0 + 12.0) * (FLT_EPSILON / 2) + 1e-9)
-#define EL_SLACK (1.01 * 1.5 * 2 * 4 / M_PI * MIM__BOUND_ELEVATION_ERR)
+#define EL_SLACK (1.01 * 1.5 * 2 * MIM__BOUND_EL_COORD_ERR)
 /* added to x + y in the first D_S bound: a term can only get smaller, and
  * 0 / 0 never arises (the loop stays free of branches) */
 #define TINY 1e-30f
@@ -158,89 +158,116 @@ static float lanes_sum(const float *acc)
     return ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));
 }
 
-void mim__bound_lower(mim_sample_metric_t metric, const float *fa, const float *fb, uint32_t k, double slack, float *lb)
+/* One truth's first bound of one sample, before the rounding's allowance. */
+static inline float first_bound(mim_sample_metric_t metric, const float *fa, const float *b)
 {
-    const uint32_t stride = mim__bound_stride(metric);
-    const float keep = (float)(1 - REL);
-    const float less = (float)((metric == MIM_METRIC_SHAPE ? SC_SLACK : LEN_SLACK) + slack);
-    for (uint32_t j = 0; j < k; j++) {
-        const float *b = fb + (size_t)j * stride;
-        float acc[LANES] = {0};
-        float s;
-        if (metric == MIM_METRIC_CARTESIAN) {
-            for (uint32_t i = 0; i < C_DIM; i += LANES)
-                for (int l = 0; l < LANES; l++) acc[l] += (fa[i + l] - b[i + l]) * (fa[i + l] - b[i + l]);
-            s = sqrtf(lanes_sum(acc) / N);
-        } else if (metric == MIM_METRIC_LIMBS) {
-            /* the people as they are, then swapped (b's halves exchanged) */
-            float swapped[LANES] = {0};
-            for (uint32_t i = 0; i < L_DIM; i += LANES)
-                for (int l = 0; l < LANES; l++) {
-                    const uint32_t x = i + (uint32_t)l, y = (x + MIM_LIMB_COUNT) % L_N;
-                    acc[l] += fabsf(fa[x] - b[x]);
-                    swapped[l] += fabsf(fa[x] - b[y]);
-                }
-            s = fminf(lanes_sum(acc), lanes_sum(swapped)) / L_N;
-        } else if (metric == MIM_METRIC_SHAPE) {
-            for (uint32_t i = 0; i < S_DIM; i += LANES)
-                for (int l = 0; l < LANES; l++) {
-                    float x = fa[i + l], y = b[i + l];
-                    acc[l] += (x - y) * (x - y) / (x + y + TINY);
-                }
-            s = 0.5f * lanes_sum(acc) / N;
-        } else {
-            for (uint32_t i = 0; i < I_HALF; i += LANES)
-                for (int l = 0; l < LANES; l++)
-                    acc[l] += (fa[I_HALF + i + l] + b[I_HALF + i + l]) * fabsf(fa[i + l] - b[i + l]);
-            s = lanes_sum(acc);
-        }
-        lb[j] = s * keep - less;
+    float acc[LANES] = {0};
+    if (metric == MIM_METRIC_CARTESIAN) {
+        for (uint32_t i = 0; i < C_DIM; i += LANES)
+            for (int l = 0; l < LANES; l++) acc[l] += (fa[i + l] - b[i + l]) * (fa[i + l] - b[i + l]);
+        return sqrtf(lanes_sum(acc) / N);
     }
+    if (metric == MIM_METRIC_LIMBS) {
+        /* the people as they are, then swapped (b's halves exchanged) */
+        float swapped[LANES] = {0};
+        for (uint32_t i = 0; i < L_DIM; i += LANES)
+            for (int l = 0; l < LANES; l++) {
+                const uint32_t x = i + (uint32_t)l, y = (x + MIM_LIMB_COUNT) % L_N;
+                acc[l] += fabsf(fa[x] - b[x]);
+                swapped[l] += fabsf(fa[x] - b[y]);
+            }
+        return fminf(lanes_sum(acc), lanes_sum(swapped)) / L_N;
+    }
+    if (metric == MIM_METRIC_SHAPE) {
+        for (uint32_t i = 0; i < S_DIM; i += LANES)
+            for (int l = 0; l < LANES; l++) {
+                float x = fa[i + l], y = b[i + l];
+                acc[l] += (x - y) * (x - y) / (x + y + TINY);
+            }
+        return 0.5f * lanes_sum(acc) / N;
+    }
+    for (uint32_t i = 0; i < I_HALF; i += LANES)
+        for (int l = 0; l < LANES; l++) acc[l] += (fa[I_HALF + i + l] + b[I_HALF + i + l]) * fabsf(fa[i + l] - b[i + l]);
+    return lanes_sum(acc);
+}
+
+/* The truths go in the inner loop: a sample's features are read from
+ * memory once for all of them, not once a truth (D_I's are 4.5 KB). */
+MIM__VECTOR_CLONES static void bound_lower(mim_sample_metric_t metric, const float *fa, uint32_t n, const float *fb, uint32_t k,
+                                            const double *slack, float *lb)
+{
+    const uint32_t stride = mim__bound_stride(metric), dim = mim__bound_dim(metric);
+    const float keep = (float)(1 - REL);
+    float less[MIM__BOUND_TRUTHS];
+    for (uint32_t t = 0; t < n; t++) less[t] = (float)((metric == MIM_METRIC_SHAPE ? SC_SLACK : LEN_SLACK) + slack[t]);
+    for (uint32_t j = 0; j < k; j++)
+        for (uint32_t t = 0; t < n; t++)
+            lb[(size_t)t * k + j] = first_bound(metric, fa + (size_t)t * dim, fb + (size_t)j * stride) * keep - less[t];
+}
+
+void mim__bound_lower(mim_sample_metric_t metric, const float *fa, uint32_t n, const float *fb, uint32_t k, const double *slack,
+                      float *lb)
+{
+    bound_lower(metric, fa, n, fb, k, slack, lb);
 }
 
 /* The second bound, a joint at a time (lb: N, each joint's term): each
  * joint's term summed over azimuth is at least its term summed over
  * elevation too (subadditivity, above), which needs no elevation. So the
- * joints of the largest radial terms go first, each adding its elevations'
- * share, and the bound stops as soon as the joints made and the radial
- * terms of the others pass best: most samples end before most elevations
- * (an asin each) are made. Returns the bound as mim__shape_distance_within
- * compares it; at or below best, every joint was made (lb whole). */
-static double shape_aligned_bound(const double *rel_a, mim__sc_pairs_t *w, const float *fb, double slack, double best,
-                                  double *lb)
+ * joints go one by one, each adding what its elevations add, and the bound
+ * stops as soon as the joints made and the radial terms of the others pass
+ * best: most samples end before most joints are made. The joints that
+ * added most to this truth's earlier samples go first (gain: a running
+ * mean of it, each joint's starting above any, so that each is tried).
+ * Returns the bound as mim__shape_distance_within compares it; at or below
+ * best, every joint was made (lb whole). */
+static double shape_aligned_bound(const double *marg_a, double *gain, mim__sc_pairs_t *w, const float *fb, double slack,
+                                  double best, double *lb)
 {
     enum { RE = MIM__SC_R * MIM__SC_EL };
-    double radial[N], rest = 0; /* b's radial sums: its first bound's features (float, SC_SLACK's rounding) */
+    const double *rel_a = marg_a, *rad_a = marg_a + N * RE;
+    /* b's radial sums: its first bound's features (float, SC_SLACK's rounding) */
+    double term[N * MIM__SC_R], radial[N], rest = 0;
+    for (int b = 0; b < N * MIM__SC_R; b++) term[b] = mim__chi_term(rad_a[b], fb[b]);
     for (int i = 0; i < N; i++) {
         radial[i] = 0;
-        for (int r = 0; r < MIM__SC_R; r++) {
-            double a = 0;
-            for (int e = 0; e < MIM__SC_EL; e++) a += rel_a[i * RE + r * MIM__SC_EL + e];
-            radial[i] += mim__chi_term(a, fb[i * MIM__SC_R + r]);
-        }
+        for (int r = 0; r < MIM__SC_R; r++) radial[i] += term[i * MIM__SC_R + r];
         rest += radial[i];
     }
     int order[N];
     for (int i = 0; i < N; i++) {
         int t = i;
-        for (; t > 0 && radial[order[t - 1]] < radial[i]; t--) order[t] = order[t - 1];
+        for (; t > 0 && gain[order[t - 1]] < gain[i]; t--) order[t] = order[t - 1];
         order[t] = i;
     }
+    mim__sc_pairs_bound_shares(w, fb + S_DIM);
     double made = 0, lower = 0;
     for (int t = 0; t < N; t++) {
         const int i = order[t];
         double rel_i[RE];
-        mim__sc_joint_radial_elevation(w, fb + S_DIM, i, rel_i);
+        mim__sc_joint_radial_elevation(w, i, rel_i);
         lb[i] = 0;
         for (int b = 0; b < RE; b++) lb[i] += mim__chi_term(rel_a[i * RE + b], rel_i[b]);
         made += lb[i], rest -= radial[i];
+        gain[i] += (lb[i] - radial[i] - gain[i]) / 8;
         lower = (made + (t + 1 < N ? fmax(rest, 0.0) : 0.0)) / N * (1 - REL) - SC_SLACK - EL_SLACK - slack;
         if (lower > best) return lower;
     }
     return lower;
 }
 
-double mim__shape_distance_within(const mim_pair_prep_t *a, const double *rel_a, const mim_pair_prep_t *b, const float *fb,
+void mim__shape_truth_marginals(const mim_pair_prep_t *a, double *marg)
+{
+    enum { RE = MIM__SC_R * MIM__SC_EL };
+    mim__sc_histogram_marginals(a->sc, NULL, marg);
+    for (int b = 0; b < N * MIM__SC_R; b++) {
+        marg[N * RE + b] = 0;
+        for (int e = 0; e < MIM__SC_EL; e++) marg[N * RE + b] += marg[b * MIM__SC_EL + e];
+    }
+    for (int i = 0; i < N; i++) marg[N * MIM__SC_R * (MIM__SC_EL + 1) + i] = 1.0; /* above any gain: each joint tried */
+}
+
+double mim__shape_distance_within(const mim_pair_prep_t *a, double *marg_a, const mim_pair_prep_t *b, const float *fb,
                                   double slack, double best, int *exact)
 {
     double bb[3 * N], lb[N], rest[N + 1], terms[N][MIM_SC_BINS];
@@ -248,13 +275,12 @@ double mim__shape_distance_within(const mim_pair_prep_t *a, const double *rel_a,
     mim_sample_align(a->joints, b->joints, 3, bb);
     mim__sc_pairs_begin_lazy(bb, &w);
     /* the second bound first: most samples end here */
-    const double lb2 = shape_aligned_bound(rel_a, &w, fb, slack, best, lb);
+    const double lb2 = shape_aligned_bound(marg_a, marg_a + N * MIM__SC_R * (MIM__SC_EL + 1), &w, fb, slack, best, lb);
     if (lb2 > best) {
         *exact = 0;
         return lb2;
     }
-    mim__sc_pairs_elevations(&w);
-    mim__sc_pairs_finish(&w);
+    mim__sc_pairs_finish_lazy(&w);
     /* the joints of the largest bounds first: those most likely to pass best */
     int order[N];
     for (int i = 0; i < N; i++) {
@@ -268,6 +294,7 @@ double mim__shape_distance_within(const mim_pair_prep_t *a, const double *rel_a,
     for (int t = 0; t < N; t++) {
         const int i = order[t];
         float h[MIM_SC_BINS];
+        mim__sc_pairs_joint_ready(&w, i);
         mim__sc_joint(&w, i, h);
         for (int k = 0; k < MIM_SC_BINS; k++) done += terms[i][k] = mim__chi_term(a->sc[i][k], h[k]);
         const double lower = (done + rest[t + 1]) / N * (1 - REL) - SC_SLACK - EL_SLACK - slack;

@@ -24,6 +24,18 @@ void mim__pair_distances(const double *p, double *len);
 /* eq. 8's weight of an edge of length len (distance.c). */
 static inline double mim__ic_weight(double len, double beta) { return 1.0 / (len > beta ? len : beta); }
 
+/* Loops that coverage runs for every truth and sample, made twice: for
+ * AVX2 and FMA where the processor has them (chosen as the library
+ * loads), and for any x86-64. On static functions only (compilers differ
+ * on clones called from another file), each called by the exported one.
+ * Only bounds use it: what they compute carries its own allowance for
+ * rounding, so that either gives a bound. */
+#if !defined(MIM__VECTOR_CLONES) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define MIM__VECTOR_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#elif !defined(MIM__VECTOR_CLONES)
+#define MIM__VECTOR_CLONES
+#endif
+
 /* ---- 3D shape contexts (shape_context.c; D_S) ---- */
 #define MIM__SC_R 5  /* radial bins */
 #define MIM__SC_AZ 8 /* azimuth */
@@ -33,26 +45,28 @@ void mim__shape_contexts(const double *p, float sc[MIM_PAIR_JOINTS][MIM_SC_BINS]
  * joint pair's (i < j, row by row) distance and elevation (begin), then
  * its radial bin coordinate and the elevation's cosine (finish); p must
  * outlive w. begin_lazy takes the distances and each pair's up component
- * alone: mim__sc_joint_radial_elevation then makes the second bound's
- * shares as it needs them (from mim__bound_elevation), and
- * mim__sc_pairs_elevations the elevations, begin's values, for finish. */
+ * alone: mim__sc_pairs_bound_shares then makes the second bound's bins
+ * and shares; finish_lazy the radial bins' range, and joint_ready the
+ * elevations, coordinates and cosines of joint i's pairs (begin's and
+ * finish's values) before mim__sc_joint(i). */
 typedef struct mim__sc_pairs {
     const double *p;
     double r[MIM__JOINT_PAIRS], el[MIM__JOINT_PAIRS], fr[MIM__JOINT_PAIRS], cos_el[MIM__JOINT_PAIRS];
-    double up[MIM__JOINT_PAIRS];             /* each pair's vector's up component */
-    uint8_t has_share[MIM__JOINT_PAIRS];     /* begin_lazy: its bins' shares made: */
-    int8_t rbin[MIM__JOINT_PAIRS], ebin[MIM__JOINT_PAIRS]; /* radial and elevation bin, */
-    double rshare[MIM__JOINT_PAIRS], eshare[MIM__JOINT_PAIRS]; /* the share of the bin after */
+    double r0, r1;                                            /* the radial bins' log range */
+    double up[MIM__JOINT_PAIRS];                              /* each pair's vector's up component */
+    uint8_t made[MIM__JOINT_PAIRS];                           /* joint_ready: el, fr, cos_el made */
+    float rbin[MIM__JOINT_PAIRS], ebin[MIM__JOINT_PAIRS];     /* bound_shares: radial and elevation bin, */
+    float rshare[MIM__JOINT_PAIRS], eshare[MIM__JOINT_PAIRS]; /* the share of the bin after */
 } mim__sc_pairs_t;
-/* The elevation (radians) of a vector of length r and up component up,
- * within MIM__BOUND_ELEVATION_ERR of asin(up / r): the second bound's
- * (coverage_bounds.c allows for the difference). */
-#define MIM__BOUND_ELEVATION_ERR 1e-8
-double mim__bound_elevation(double up, double r);
+/* At most how far (in bins, as binning clamps them) the second bound's
+ * elevation coordinates (mim__sc_pairs_bound_shares) lie from those of
+ * asin(up / r): coverage_bounds.c allows for it. */
+#define MIM__BOUND_EL_COORD_ERR 4e-6
 void mim__sc_pairs_begin(const double *p, mim__sc_pairs_t *w);
 void mim__sc_pairs_begin_lazy(const double *p, mim__sc_pairs_t *w);
-void mim__sc_pairs_elevations(mim__sc_pairs_t *w);
 void mim__sc_pairs_finish(mim__sc_pairs_t *w);
+void mim__sc_pairs_finish_lazy(mim__sc_pairs_t *w);
+void mim__sc_pairs_joint_ready(mim__sc_pairs_t *w, int i);
 void mim__sc_joint(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS]);
 /* One bin's chi-squared term: 0.5 (x - y)^2 / (x + y), 0 for empty bins. */
 static inline double mim__chi_term(double x, double y) { return x + y > 0 ? 0.5 * (x - y) * (x - y) / (x + y) : 0.0; }
@@ -66,10 +80,12 @@ static inline double mim__chi_term(double x, double y) { return x + y > 0 ? 0.5 
  * sums of a computed histogram (either may be NULL). */
 void mim__sc_pair_radii(const double *p, float *fr);
 void mim__sc_radial(const float *fr, double *rad);
-/* Joint i's part of rel (MIM__SC_R x MIM__SC_EL), its pairs' shares made
- * where begin_lazy left them; as rel from mim__bound_elevation's
- * elevations. */
-void mim__sc_joint_radial_elevation(mim__sc_pairs_t *w, const float *fr, int i, double *rel_i);
+/* Every pair's bins and shares for the second bound (fr: as above), in
+ * loops free of branches, so that they vectorise; then joint i's part of
+ * rel (MIM__SC_R x MIM__SC_EL) from them: as rel from
+ * mim__bound_elevation's elevations. */
+void mim__sc_pairs_bound_shares(mim__sc_pairs_t *w, const float *fr);
+void mim__sc_joint_radial_elevation(const mim__sc_pairs_t *w, int i, double *rel_i);
 void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], double *rad, double *rel);
 
 /* ---- work on threads (parallel.c) ---- */
@@ -97,18 +113,28 @@ void mim__bound_features(mim_sample_metric_t metric, const mim_pair_prep_t *p, i
 /* What a pose-pair adds to its bounds' slack (its rounding grows with its
  * size and its distance from the origin). */
 double mim__bound_slack(mim_sample_metric_t metric, const mim_pair_prep_t *p);
-/* lb[j] <= D(a, b_j) as mim_sample_distance computes it, for the k
- * samples' features fb (k x stride) against the truth's fa; slack: a's
- * mim__bound_slack plus the samples' largest. */
-void mim__bound_lower(mim_sample_metric_t metric, const float *fa, const float *fb, uint32_t k, double slack, float *lb);
+/* lb[t k + j] <= D(a_t, b_j) as mim_sample_distance computes it, for the
+ * k samples' features fb (k x stride) against n truths' fa (n x dim, n up
+ * to MIM__BOUND_TRUTHS); slack[t]: a_t's mim__bound_slack plus the
+ * samples' largest. */
+#define MIM__BOUND_TRUTHS 8
+void mim__bound_lower(mim_sample_metric_t metric, const float *fa, uint32_t n, const float *fb, uint32_t k,
+                      const double *slack, float *lb);
 /* D_S of sample b (its features fb) against truth a, as mim_sample_distance
  * gives it, to the bit (*exact 1); or a lower bound of it above best
  * (*exact 0) as soon as one turns up: first the second bound, once b is
  * aligned, then the costs of the joints made so far with that bound's
- * terms for the others. rel_a: a's histogram summed over azimuth
- * (mim__sc_histogram_marginals). */
-double mim__shape_distance_within(const mim_pair_prep_t *a, const double *rel_a, const mim_pair_prep_t *b, const float *fb,
+ * terms for the others. marg_a: a's histogram's marginals and the
+ * second bound's gains, which it learns from each sample (made by
+ * mim__shape_truth_marginals, one for each truth and thread). */
+double mim__shape_distance_within(const mim_pair_prep_t *a, double *marg_a, const mim_pair_prep_t *b, const float *fb,
                                   double slack, double best, int *exact);
+/* a's histogram summed over azimuth (MIM__SC_R x MIM__SC_EL a joint, as
+ * mim__sc_histogram_marginals' rel), then those summed over elevation
+ * (MIM__SC_R a joint), then each joint's starting gain: MIM__SC_MARGINALS
+ * doubles. */
+#define MIM__SC_MARGINALS (MIM_PAIR_JOINTS * (MIM__SC_R * (MIM__SC_EL + 1) + 1))
+void mim__shape_truth_marginals(const mim_pair_prep_t *a, double *marg);
 
 /* The chi-squared cost between shape contexts (Belongie et al.), the mean
  * over n joints of 0.5 sum (a - b)^2 / (a + b) over their bins: D_S in 3D

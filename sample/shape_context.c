@@ -77,82 +77,98 @@ void mim__sc_pairs_begin(const double *p, mim__sc_pairs_t *w)
 
 void mim__sc_pairs_begin_lazy(const double *p, mim__sc_pairs_t *w)
 {
+    /* the coordinates apart, so that the loop over j vectorises; each
+     * distance is pair_vector's, to the bit (the same operations in order) */
+    double x[N], y[N], z[N];
+    for (int i = 0; i < N; i++) x[i] = p[3 * i], y[i] = p[3 * i + 1], z[i] = p[3 * i + 2];
     w->p = p;
-    for (int i = 0, k = 0; i < N; i++)
-        for (int j = i + 1; j < N; j++, k++) {
-            double v[3];
-            w->r[k] = pair_vector(p, i, j, v), w->up[k] = v[1], w->has_share[k] = 0;
+    for (int i = 0, k = 0; i < N; k += N - 1 - i, i++) {
+        double *r = w->r + k - i - 1, *up = w->up + k - i - 1; /* pair (i, j) at k + j - i - 1 */
+        for (int j = i + 1; j < N; j++) {
+            const double dx = x[j] - x[i], dy = y[j] - y[i], dz = z[j] - z[i];
+            r[j] = sqrt(dx * dx + dy * dy + dz * dz), up[j] = dy;
         }
+    }
 }
 
 /* The bins a coordinate f is shared between (b, b + 1) and the upper's
- * share: spread's (1 - t, t), the end bins taking all beyond. */
-static int share(double f, int nbins, double *t)
+ * share: spread's (1 - t, t), the end bins taking all beyond (NaN at the
+ * first). The bin a float, made by comparisons in place of a conversion,
+ * so that loops over it vectorise (f - b is exact). */
+static inline float share(float f, int nbins, float *t)
 {
-    f = f > 0 ? (f < nbins - 1 ? f : nbins - 1) : 0;
-    int b = (int)f;
-    b = b < nbins - 2 ? b : nbins - 2;
+    f = f > 0 ? f : 0.0f; /* NaN too */
+    f = f < nbins - 1 ? f : nbins - 1.0f;
+    float b = 0;
+    for (int k = 1; k < nbins - 1; k++) b += f >= k ? 1.0f : 0.0f;
     *t = f - b;
     return b;
 }
 
-/* asin to within MIM__BOUND_ELEVATION_ERR (2.3e-9 measured over [-1, 1]),
- * in a few multiplications where libm's asin takes a fifth of the second
- * bound's time: the Taylor series to x^21 on [0, 1/2], and above it
- * asin x = pi/2 - 2 asin sqrt((1 - x) / 2). */
-static double bound_asin(double x)
+/* The second bound's elevations, in floats (eight pairs at once where
+ * AVX2 is; MIM__BOUND_EL_COORD_ERR bounds how far they lie from libm's
+ * asin(up / r), which took a fifth of the bound's time). |el| = asin a, a = |up| / r, by the
+ * Taylor series to a^15 on [0, 1/2]; above it, asin a = pi/2 - 2 asin z
+ * with z^2 = (1 - a) / 2 = (r - |up|) / 2r, its numerator made in double
+ * so that near the poles (a near 1) z keeps its digits. */
+static inline float bound_elevation(double up, double r)
 {
-    static const double c[] = {1.0,          1.0 / 6,           3.0 / 40,         5.0 / 112,
-                               35.0 / 1152,  63.0 / 2816,       231.0 / 13312,    143.0 / 10240,
-                               6435.0 / 557056, 12155.0 / 1245184, 46189.0 / 5505024};
-    const double a = fabs(x);
-    const int far = a > 0.5;
-    const double z = far ? sqrt((1 - a) / 2) : a, z2 = z * z;
+    static const float c[] = {1.0f,         1.0f / 6,     3.0f / 40,        5.0f / 112,
+                              35.0f / 1152, 63.0f / 2816, 231.0f / 13312,   143.0f / 10240};
+    const float rf = r > 0 ? (float)r : 1.0f; /* r = 0 only where up = 0: el 0 */
+    const float a = (float)fabs(up) / rf, zz = (float)(r - fabs(up)) / (2 * rf);
+    /* both branches made and one kept, so that the loop vectorises */
+    const int far = a > 0.5f;
+    const float z = far ? sqrtf(zz > 0 ? zz : 0.0f) : a, z2 = z * z;
     /* Estrin's scheme: the terms' products in parallel, not one long chain */
-    const double t2 = z2 * z2, t4 = t2 * t2, t8 = t4 * t4;
-    const double q03 = (c[0] + c[1] * z2) + (c[2] + c[3] * z2) * t2, q47 = (c[4] + c[5] * z2) + (c[6] + c[7] * z2) * t2;
-    const double q8 = (c[8] + c[9] * z2) + c[10] * t2, poly = (q03 + q47 * t4) + q8 * t8;
-    const double r = far ? M_PI / 2 - 2 * z * poly : z * poly;
-    return x < 0 ? -r : r;
+    const float t2 = z2 * z2, t4 = t2 * t2;
+    const float poly = ((c[0] + c[1] * z2) + (c[2] + c[3] * z2) * t2) + ((c[4] + c[5] * z2) + (c[6] + c[7] * z2) * t2) * t4;
+    const float el = far ? (float)(M_PI / 2) - 2 * z * poly : z * poly;
+    return up < 0 ? -el : el;
 }
 
-double mim__bound_elevation(double up, double r) { return r > 0 ? bound_asin(up / r) : 0.0; }
-
-/* Pair k's bins' shares for the second bound, made once for both its
- * joints: the radial from fr (the pairs' radial bin coordinates), the
- * elevation's from mim__bound_elevation (the bound allows for its error) */
-static void lazy_pair(mim__sc_pairs_t *w, const float *fr, int k)
+MIM__VECTOR_CLONES static void bound_shares(mim__sc_pairs_t *w, const float *fr)
 {
-    if (w->has_share[k]) return;
-    w->has_share[k] = 1;
-    w->rbin[k] = (int8_t)share(fr[k], SC_R, &w->rshare[k]);
-    w->ebin[k] = (int8_t)share(elevation_coordinate(mim__bound_elevation(w->up[k], w->r[k])), SC_EL, &w->eshare[k]);
+    float fe[PAIRS];
+    for (int k = 0; k < PAIRS; k++) w->rbin[k] = share(fr[k], SC_R, &w->rshare[k]);
+    /* elevation_coordinate's, the division by pi made a product */
+    for (int k = 0; k < PAIRS; k++) fe[k] = bound_elevation(w->up[k], w->r[k]) * (float)(SC_EL / M_PI) + (SC_EL - 1) / 2.0f;
+    for (int k = 0; k < PAIRS; k++) w->ebin[k] = share(fe[k], SC_EL, &w->eshare[k]);
 }
 
-void mim__sc_pairs_elevations(mim__sc_pairs_t *w)
-{
-    for (int k = 0; k < PAIRS; k++) {
-        const double v[3] = {0, w->up[k], 0};
-        w->el[k] = elevation(v, w->r[k]);
-    }
-}
+void mim__sc_pairs_bound_shares(mim__sc_pairs_t *w, const float *fr) { bound_shares(w, fr); }
 
-/* The pairs' radial bin coordinates from their distances; the bins' log
- * range: 1/8 to 2 of the mean joint distance. */
-static void radial_coordinates(const double *r, double *fr)
+/* The bins' log range: 1/8 to 2 of the mean joint distance. */
+static void radial_range(const double *r, double *r0, double *r1)
 {
     double mean = 0;
     for (int k = 0; k < PAIRS; k++) mean += r[k];
     mean /= N * (N - 1) / 2.0;
     if (!(mean > 0)) mean = 1.0;
-    const double r0 = log(mean / 8.0), r1 = log(mean * 2.0);
-    for (int k = 0; k < PAIRS; k++) fr[k] = radial_coordinate(r[k], r0, r1);
+    *r0 = log(mean / 8.0), *r1 = log(mean * 2.0);
 }
 
 void mim__sc_pairs_finish(mim__sc_pairs_t *w)
 {
-    radial_coordinates(w->r, w->fr);
-    for (int k = 0; k < PAIRS; k++) w->cos_el[k] = cos(w->el[k]);
+    radial_range(w->r, &w->r0, &w->r1);
+    for (int k = 0; k < PAIRS; k++) w->fr[k] = radial_coordinate(w->r[k], w->r0, w->r1), w->cos_el[k] = cos(w->el[k]);
+}
+
+void mim__sc_pairs_finish_lazy(mim__sc_pairs_t *w)
+{
+    radial_range(w->r, &w->r0, &w->r1);
+    memset(w->made, 0, sizeof w->made);
+}
+
+void mim__sc_pairs_joint_ready(mim__sc_pairs_t *w, int i)
+{
+    for (int j = 0; j < N; j++) {
+        const int k = i < j ? mim__pair_index(i, j) : j < i ? mim__pair_index(j, i) : -1;
+        if (k < 0 || w->made[k]) continue;
+        const double v[3] = {0, w->up[k], 0};
+        w->made[k] = 1, w->el[k] = elevation(v, w->r[k]);
+        w->fr[k] = radial_coordinate(w->r[k], w->r0, w->r1), w->cos_el[k] = cos(w->el[k]);
+    }
 }
 
 void mim__sc_joint(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS])
@@ -219,10 +235,10 @@ void mim__pair_distances(const double *p, double *len)
 
 void mim__sc_pair_radii(const double *p, float *fr)
 {
-    double r[PAIRS], f[PAIRS];
+    double r[PAIRS], r0, r1;
     mim__pair_distances(p, r);
-    radial_coordinates(r, f);
-    for (int k = 0; k < PAIRS; k++) fr[k] = (float)f[k];
+    radial_range(r, &r0, &r1);
+    for (int k = 0; k < PAIRS; k++) fr[k] = (float)radial_coordinate(r[k], r0, r1);
 }
 
 void mim__sc_radial(const float *fr, double *rad)
@@ -230,22 +246,22 @@ void mim__sc_radial(const float *fr, double *rad)
     memset(rad, 0, sizeof(double) * N * SC_R);
     for (int i = 0, k = 0; i < N; i++)
         for (int j = i + 1; j < N; j++, k++) {
-            double tr;
-            const int r = share(fr[k], SC_R, &tr);
+            float t;
+            const int r = (int)share(fr[k], SC_R, &t);
+            const double tr = t;
             rad[i * SC_R + r] += weight * (1 - tr), rad[i * SC_R + r + 1] += weight * tr;
             rad[j * SC_R + r] += weight * (1 - tr), rad[j * SC_R + r + 1] += weight * tr;
         }
 }
 
-void mim__sc_joint_radial_elevation(mim__sc_pairs_t *w, const float *fr, int i, double *rel_i)
+void mim__sc_joint_radial_elevation(const mim__sc_pairs_t *w, int i, double *rel_i)
 {
     memset(rel_i, 0, sizeof(double) * SC_R * SC_EL);
     for (int j = 0; j < N; j++) {
         if (j == i) continue;
         const int k = i < j ? mim__pair_index(i, j) : mim__pair_index(j, i);
-        lazy_pair(w, fr, k);
         const double tr = w->rshare[k], te = w->eshare[k];
-        const int r = w->rbin[k], e = w->ebin[k];
+        const int r = (int)w->rbin[k], e = (int)w->ebin[k];
         const double m0 = weight * (1 - tr), m1 = weight * tr;
         double *h = rel_i + r * SC_EL;
         if (i < j) /* i the pair's first joint */

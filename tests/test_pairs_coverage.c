@@ -104,8 +104,9 @@ static void test_marginals(void **state)
         mim__sc_histogram_marginals(s[j].sc, rad_h, rel_h);
         mim__sc_pair_radii(s[j].joints, fr);
         mim__sc_radial(fr, rad);
-        mim__sc_pairs_begin_lazy(s[j].joints, &w); /* each joint's part, its elevations made as it needs them */
-        for (int i = J - 1; i >= 0; i--) mim__sc_joint_radial_elevation(&w, fr, i, rel + i * MIM__SC_R * MIM__SC_EL);
+        mim__sc_pairs_begin_lazy(s[j].joints, &w);
+        mim__sc_pairs_bound_shares(&w, fr);
+        for (int i = J - 1; i >= 0; i--) mim__sc_joint_radial_elevation(&w, i, rel + i * MIM__SC_R * MIM__SC_EL);
         for (int b = 0; b < J * MIM__SC_R; b++)
             if (fabs(rad[b] - rad_h[b]) > 1e-5) fail_msg("sample %u, radial bin %d: %.9g, histogram %.9g", j, b, rad[b], rad_h[b]);
         for (int b = 0; b < J * MIM__SC_R * MIM__SC_EL; b++)
@@ -125,19 +126,28 @@ static void test_bounds_below_distances(void **state)
     for (int metric = 0; metric < 4; metric++) {
         const mim_sample_metric_t mt = (mim_sample_metric_t)metric;
         const uint32_t stride = mim__bound_stride(mt);
-        float *fb = malloc((size_t)K * stride * sizeof *fb), *fa = malloc(stride * sizeof *fa), lb[K];
-        assert_non_null(fb), assert_non_null(fa);
-        double slack_b = 0, rel_a[J * MIM__SC_R * MIM__SC_EL];
+        const uint32_t dim = mim__bound_dim(mt), T = MIM__BOUND_TRUTHS;
+        float *fb = malloc((size_t)K * stride * sizeof *fb), *fa = malloc(T * stride * sizeof *fa);
+        float *lbs = malloc((size_t)T * K * sizeof *lbs);
+        assert_non_null(fb), assert_non_null(fa), assert_non_null(lbs);
+        double slack_b = 0, marg_a[MIM__SC_MARGINALS];
         for (uint32_t j = 0; j < K; j++) {
             mim__bound_features(mt, &s[j], 0, fb + (size_t)j * stride);
             slack_b = fmax(slack_b, mim__bound_slack(mt, &s[j]));
         }
-        double ratio = 0, ratio2 = 0;
+        double ratio = 0, ratio2 = 0, slacks[MIM__BOUND_TRUTHS];
         for (uint32_t i = 0; i < M; i++) {
-            const double slack = mim__bound_slack(mt, &g[i]) + slack_b;
-            mim__bound_features(mt, &g[i], 1, fa);
-            mim__bound_lower(mt, fa, fb, K, slack, lb);
-            mim__sc_histogram_marginals(g[i].sc, NULL, rel_a);
+            /* the first bounds of T truths at once, as coverage makes them */
+            if (i % T == 0) {
+                for (uint32_t t = 0; t < T && i + t < M; t++) {
+                    slacks[t] = mim__bound_slack(mt, &g[i + t]) + slack_b;
+                    mim__bound_features(mt, &g[i + t], 1, fa + (size_t)t * dim);
+                }
+                mim__bound_lower(mt, fa, M - i < T ? M - i : T, fb, K, slacks, lbs);
+            }
+            const double slack = slacks[i % T];
+            const float *lb = lbs + (size_t)(i % T) * K;
+            mim__shape_truth_marginals(&g[i], marg_a);
             for (uint32_t j = 0; j < K; j++) {
                 const double d = mim_sample_distance(&g[i], &s[j], mt);
                 if (!(lb[j] <= d)) fail_msg("metric %d, truth %u, sample %u: bound %.17g above %.17g", metric, i, j, lb[j], d);
@@ -147,12 +157,12 @@ static void test_bounds_below_distances(void **state)
                  * part-way (best just below d) and the distance itself */
                 const float *f = fb + (size_t)j * stride;
                 int exact;
-                const double lb2 = mim__shape_distance_within(&g[i], rel_a, &s[j], f, slack, -1.0, &exact);
+                const double lb2 = mim__shape_distance_within(&g[i], marg_a, &s[j], f, slack, -1.0, &exact);
                 if (exact || !(lb2 <= d)) fail_msg("D_S, truth %u, sample %u: second bound %.17g above %.17g", i, j, lb2, d);
                 ratio2 += d > 0 ? fmax(lb2, 0) / d / (M * K) : 0;
-                const double part = mim__shape_distance_within(&g[i], rel_a, &s[j], f, slack, lb2 + 0.9 * (d - lb2), &exact);
+                const double part = mim__shape_distance_within(&g[i], marg_a, &s[j], f, slack, lb2 + 0.9 * (d - lb2), &exact);
                 if (!(part <= d)) fail_msg("D_S, truth %u, sample %u: bound part-way %.17g above %.17g", i, j, part, d);
-                const double whole = mim__shape_distance_within(&g[i], rel_a, &s[j], f, slack, INFINITY, &exact);
+                const double whole = mim__shape_distance_within(&g[i], marg_a, &s[j], f, slack, INFINITY, &exact);
                 if (!exact || memcmp(&whole, &d, sizeof d)) fail_msg("D_S, truth %u, sample %u: %.17g, not %.17g", i, j, whole, d);
             }
         }
@@ -160,7 +170,7 @@ static void test_bounds_below_distances(void **state)
         print_message("metric %d: bound / distance %.3f on average (D_S's second %.3f)\n", metric, ratio, ratio2);
         assert_true(ratio > 0.1);
         if (mt == MIM_METRIC_SHAPE) assert_true(ratio2 > ratio);
-        free(fb), free(fa);
+        free(fb), free(fa), free(lbs);
     }
     free(g), free(s);
 }
@@ -394,22 +404,50 @@ static void test_prepared_parts(void **state)
     free(g), free(s), free(sj), free(tri), free(bare), free(gt);
 }
 
-/* The second bound's elevations are within MIM__BOUND_ELEVATION_ERR of
- * asin's, over all of [-1, 1] (the coverage_bounds.c slack's premise),
- * and exact at the ends and at 0. */
+/* The second bound's elevation coordinates (mim__sc_pairs_bound_shares',
+ * as the processor runs them) are within MIM__BOUND_EL_COORD_ERR of the
+ * histograms' (asin(up / r) by libm, in bin units; both as binning clamps
+ * them): over [-1, 1] in steps of 1e-6 and over vectors of every size and
+ * tilt, those near the vertical among them. */
+static double clamped(double f) { return f < 0 ? 0 : f > MIM__SC_EL - 1 ? MIM__SC_EL - 1 : f; }
 static void test_bound_elevation(void **state)
 {
     (void)state;
+    mim__sc_pairs_t w;
+    float fr[MIM__JOINT_PAIRS] = {0};
     double worst = 0;
-    for (int i = 0; i <= 2000000; i++) {
-        const double x = -1.0 + i * 1e-6;
-        worst = fmax(worst, fabs(mim__bound_elevation(x, 1.0) - asin(x)));
-        worst = fmax(worst, fabs(mim__bound_elevation(3 * x, 3.0) - asin(x)));
+    mim_rng_t rng;
+    mim_rng_seed(&rng, 42, 7);
+    const int n = MIM__JOINT_PAIRS;
+    for (int i = 0, done = 0; !done; i += n) {
+        for (int k = 0; k < n; k++) {
+            const int step = i + k;
+            if (step <= 2000000) { /* the sweep, at two lengths */
+                const double x = -1.0 + step * 1e-6, r = step % 2 ? 3.0 : 1.0;
+                w.up[k] = x * r, w.r[k] = r;
+            } else { /* random vectors: size 1e-4 to 10, the horizontal part down to 1e-12 of the vertical */
+                double v[3];
+                for (int c = 0; c < 3; c++) v[c] = 2 * mim_rng_unit(&rng) - 1;
+                const double size = pow(10, -4 + 5 * mim_rng_unit(&rng)), flat = pow(10, -12 * mim_rng_unit(&rng));
+                v[0] *= size * flat, v[2] *= size * flat, v[1] *= size;
+                w.up[k] = v[1], w.r[k] = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            }
+            done = step >= 3000000;
+        }
+        mim__sc_pairs_bound_shares(&w, fr);
+        for (int k = 0; k < n; k++) {
+            const double el = w.r[k] > 0 ? asin(w.up[k] / w.r[k]) : 0.0;
+            const double exact = (el + M_PI / 2) / M_PI * MIM__SC_EL - 0.5, bound = (double)w.ebin[k] + w.eshare[k];
+            worst = fmax(worst, fabs(clamped(bound) - clamped(exact)));
+        }
     }
-    print_message("the bound's elevation: at most %.3g rad from asin's\n", worst);
-    assert_true(worst <= MIM__BOUND_ELEVATION_ERR);
-    assert_true(fabs(mim__bound_elevation(1, 1) - M_PI / 2) < 1e-15 && fabs(mim__bound_elevation(-2, 2) + M_PI / 2) < 1e-15);
-    assert_true(mim__bound_elevation(0, 1) == 0 && mim__bound_elevation(0.5, 0) == 0);
+    print_message("the bound's elevation coordinates: at most %.3g bins from asin's\n", worst);
+    assert_true(worst <= MIM__BOUND_EL_COORD_ERR);
+    /* the poles and the horizontal exactly; r = 0 gives elevation 0 */
+    const double up[4] = {1, -2, 0, 0}, r[4] = {1, 2, 1, 0}, want[4] = {3, 0, 1.5, 1.5};
+    for (int k = 0; k < 4; k++) w.up[k] = up[k], w.r[k] = r[k];
+    mim__sc_pairs_bound_shares(&w, fr);
+    for (int k = 0; k < 4; k++) assert_true(clamped((double)w.ebin[k] + w.eshare[k]) == want[k]);
 }
 
 int main(void)
