@@ -94,3 +94,60 @@ mim_quat mim_quat_from_matrix(const double m[9])
     q.x *= inv, q.y *= inv, q.z *= inv, q.w *= inv;
     return q;
 }
+
+/* The eigenvector of the largest eigenvalue of a symmetric 4 x 4 matrix A
+ * (overwritten), by cyclic Jacobi rotations: each zeroes one off-diagonal
+ * entry, and the sweeps converge quadratically, to the rounding of the
+ * entries, with no library call. */
+static void top_eigenvector4(double A[4][4], double q[4])
+{
+    double V[4][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}};
+    for (int sweep = 0; sweep < 32; sweep++) {
+        double off = 0, diag = 0;
+        for (int p = 0; p < 4; p++) {
+            diag += A[p][p] * A[p][p];
+            for (int r = p + 1; r < 4; r++) off += A[p][r] * A[p][r];
+        }
+        if (!(off > 1e-36 * diag)) break; /* also ends on NaN */
+        for (int p = 0; p < 3; p++)
+            for (int r = p + 1; r < 4; r++) {
+                const double apr = A[p][r];
+                if (apr == 0) continue;
+                /* J^T A J with J = [c s; -s c] in the (p, r) plane zeroes A[p][r]
+                 * when t = s / c solves t^2 + 2 theta t - 1 = 0 (the smaller root) */
+                const double theta = (A[r][r] - A[p][p]) / (2 * apr);
+                const double t = (theta >= 0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1));
+                const double c = 1 / sqrt(t * t + 1), s = t * c;
+                for (int k = 0; k < 4; k++) {
+                    if (k == p || k == r) continue;
+                    const double akp = A[k][p], akr = A[k][r];
+                    A[k][p] = A[p][k] = c * akp - s * akr;
+                    A[k][r] = A[r][k] = s * akp + c * akr;
+                }
+                A[p][p] -= t * apr, A[r][r] += t * apr, A[p][r] = A[r][p] = 0;
+                for (int k = 0; k < 4; k++) {
+                    const double vkp = V[k][p], vkr = V[k][r];
+                    V[k][p] = c * vkp - s * vkr, V[k][r] = s * vkp + c * vkr;
+                }
+            }
+    }
+    int top = 0;
+    for (int p = 1; p < 4; p++)
+        if (A[p][p] > A[top][top]) top = p;
+    for (int k = 0; k < 4; k++) q[k] = V[k][top];
+}
+
+mim_quat mim_quat_best_rotation(const double M[3][3])
+{
+    double N[4][4] = {
+        {M[0][0] + M[1][1] + M[2][2], M[1][2] - M[2][1], M[2][0] - M[0][2], M[0][1] - M[1][0]},
+        {M[1][2] - M[2][1], M[0][0] - M[1][1] - M[2][2], M[0][1] + M[1][0], M[2][0] + M[0][2]},
+        {M[2][0] - M[0][2], M[0][1] + M[1][0], -M[0][0] + M[1][1] - M[2][2], M[1][2] + M[2][1]},
+        {M[0][1] - M[1][0], M[2][0] + M[0][2], M[1][2] + M[2][1], -M[0][0] - M[1][1] + M[2][2]},
+    };
+    double q[4];
+    top_eigenvector4(N, q);
+    const double n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+    if (!(n2 > 0) || !isfinite(n2)) return mim_quat_identity();
+    return mim_quat_normalize((mim_quat){q[1], q[2], q[3], q[0]});
+}

@@ -38,45 +38,8 @@
 
 #define NMAX (3 * MIM_LANDMARKS_MAX)
 
-/* The eigenvector of the largest eigenvalue of the symmetric 4 x 4 a
- * (cyclic Jacobi; a is destroyed). */
-static void top_eigenvector(double a[4][4], double v[4])
-{
-    double V[4][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}};
-    for (int sweep = 0; sweep < 32; sweep++) {
-        double off = 0, diag = 0;
-        for (int p = 0; p < 4; p++) {
-            diag += a[p][p] * a[p][p];
-            for (int q = p + 1; q < 4; q++) off += a[p][q] * a[p][q];
-        }
-        if (!(off > 1e-30 * diag)) break;
-        for (int p = 0; p < 3; p++)
-            for (int q = p + 1; q < 4; q++) {
-                if (a[p][q] == 0) continue;
-                double th = (a[q][q] - a[p][p]) / (2 * a[p][q]);
-                double t = (th >= 0 ? 1 : -1) / (fabs(th) + sqrt(th * th + 1)), c = 1 / sqrt(t * t + 1), s = t * c;
-                for (int k = 0; k < 4; k++) { /* a = J^T a J, the columns then the rows */
-                    double x = a[k][p], y = a[k][q];
-                    a[k][p] = c * x - s * y, a[k][q] = s * x + c * y;
-                }
-                for (int k = 0; k < 4; k++) {
-                    double x = a[p][k], y = a[q][k];
-                    a[p][k] = c * x - s * y, a[q][k] = s * x + c * y;
-                }
-                for (int k = 0; k < 4; k++) {
-                    double x = V[k][p], y = V[k][q];
-                    V[k][p] = c * x - s * y, V[k][q] = s * x + c * y;
-                }
-            }
-    }
-    int best = 0;
-    for (int p = 1; p < 4; p++)
-        if (a[p][p] > a[best][best]) best = p;
-    for (int k = 0; k < 4; k++) v[k] = V[k][best];
-}
-
-/* Horn's quaternion: the rotation is the top eigenvector of his 4 x 4
- * matrix, so it is never a reflection; the scale then
+/* Horn's quaternion (mim_quat_best_rotation), never a reflection; the
+ * scale then
  * Sum b . R a / Sum |a|^2, a = x - cx, b = target - ct. */
 void mim__similarity_fit(const double *target, const double *x, const uint8_t *present, uint32_t L, mim__similarity_t *f)
 {
@@ -96,14 +59,8 @@ void mim__similarity_fit(const double *target, const double *x, const uint8_t *p
                 aa += a * a;
                 for (int c = 0; c < 3; c++) M[r][c] += a * (target[3 * l + c] - f->ct[c]);
             }
-    double N[4][4] = {
-        {M[0][0] + M[1][1] + M[2][2], M[1][2] - M[2][1], M[2][0] - M[0][2], M[0][1] - M[1][0]},
-        {M[1][2] - M[2][1], M[0][0] - M[1][1] - M[2][2], M[0][1] + M[1][0], M[2][0] + M[0][2]},
-        {M[2][0] - M[0][2], M[0][1] + M[1][0], -M[0][0] + M[1][1] - M[2][2], M[1][2] + M[2][1]},
-        {M[0][1] - M[1][0], M[2][0] + M[0][2], M[1][2] + M[2][1], -M[0][0] - M[1][1] + M[2][2]}};
-    double q[4], Rc[9];
-    top_eigenvector(N, q);
-    mim_quat_to_matrix(mim_quat_normalize((mim_quat){q[1], q[2], q[3], q[0]}), Rc);
+    double Rc[9];
+    mim_quat_to_matrix(mim_quat_best_rotation((const double(*)[3])M), Rc);
     double ba = 0; /* Sum b . R a = Sum_rc R[r][c] M[c][r] */
     for (int r = 0; r < 3; r++)
         for (int c = 0; c < 3; c++) f->R[r][c] = Rc[3 * c + r], ba += f->R[r][c] * M[c][r]; /* Rc column-major */

@@ -36,54 +36,10 @@ double mim_ic_distance(const double *a, const mim_ic_t *ta, const double *b, con
     return half(a, b, ta->dim, ta, beta) + half(b, a, tb->dim, tb, beta);
 }
 
-/* The eigenvector of the largest eigenvalue of a symmetric 4 x 4 matrix A
- * (overwritten), by cyclic Jacobi rotations: each zeroes one off-diagonal
- * entry, and the sweeps converge quadratically, to the rounding of the
- * entries, with no library call. */
-static void top_eigenvector4(double A[4][4], double q[4])
-{
-    double V[4][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}};
-    for (int sweep = 0; sweep < 32; sweep++) {
-        double off = 0, diag = 0;
-        for (int p = 0; p < 4; p++) {
-            diag += A[p][p] * A[p][p];
-            for (int r = p + 1; r < 4; r++) off += A[p][r] * A[p][r];
-        }
-        if (!(off > 1e-36 * diag)) break; /* also ends on NaN */
-        for (int p = 0; p < 3; p++)
-            for (int r = p + 1; r < 4; r++) {
-                const double apr = A[p][r];
-                if (apr == 0) continue;
-                /* J^T A J with J = [c s; -s c] in the (p, r) plane zeroes A[p][r]
-                 * when t = s / c solves t^2 + 2 theta t - 1 = 0 (the smaller root) */
-                const double theta = (A[r][r] - A[p][p]) / (2 * apr);
-                const double t = (theta >= 0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1));
-                const double c = 1 / sqrt(t * t + 1), s = t * c;
-                for (int k = 0; k < 4; k++) {
-                    if (k == p || k == r) continue;
-                    const double akp = A[k][p], akr = A[k][r];
-                    A[k][p] = A[p][k] = c * akp - s * akr;
-                    A[k][r] = A[r][k] = s * akp + c * akr;
-                }
-                A[p][p] -= t * apr, A[r][r] += t * apr, A[p][r] = A[r][p] = 0;
-                for (int k = 0; k < 4; k++) {
-                    const double vkp = V[k][p], vkr = V[k][r];
-                    V[k][p] = c * vkp - s * vkr, V[k][r] = s * vkp + c * vkr;
-                }
-            }
-    }
-    int top = 0;
-    for (int p = 1; p < 4; p++)
-        if (A[p][p] > A[top][top]) top = p;
-    for (int k = 0; k < 4; k++) q[k] = V[k][top];
-}
-
 /* The rotation (column-major) that best turns the centred points b' onto
- * a', given S[x][y] = sum b'_x a'_y. 3D: Horn's closed form (J. Opt. Soc.
- * Am. A 4(4), 1987): the unit quaternion of the rotation is the top
- * eigenvector of a symmetric 4 x 4 matrix made of S, so the answer is a
- * rotation by construction (no reflection to undo, as after an SVD).
- * 2D: the angle that maximises sum a' . (R b'). */
+ * a', given S[x][y] = sum b'_x a'_y. 3D: Horn's closed form
+ * (mim_quat_best_rotation), a rotation by construction (no reflection to
+ * undo, as after an SVD). 2D: the angle that maximises sum a' . (R b'). */
 static void best_rotation(const double S[3][3], int dim, double R[9])
 {
     memset(R, 0, 9 * sizeof *R);
@@ -92,27 +48,7 @@ static void best_rotation(const double S[3][3], int dim, double R[9])
         R[0] = c, R[1] = s, R[2] = -s, R[3] = c; /* column-major [c -s; s c] */
         return;
     }
-    double N[4][4] = {
-        {S[0][0] + S[1][1] + S[2][2], S[1][2] - S[2][1], S[2][0] - S[0][2], S[0][1] - S[1][0]},
-        {S[1][2] - S[2][1], S[0][0] - S[1][1] - S[2][2], S[0][1] + S[1][0], S[2][0] + S[0][2]},
-        {S[2][0] - S[0][2], S[0][1] + S[1][0], -S[0][0] + S[1][1] - S[2][2], S[1][2] + S[2][1]},
-        {S[0][1] - S[1][0], S[2][0] + S[0][2], S[1][2] + S[2][1], -S[0][0] - S[1][1] + S[2][2]},
-    };
-    double q[4];
-    top_eigenvector4(N, q);
-    const double n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
-    if (!(n2 > 0) || !isfinite(n2)) {
-        R[0] = R[4] = R[8] = 1.0;
-        return;
-    }
-    const double w = q[0], x = q[1], y = q[2], z = q[3], k = 2 / n2;
-    const double Rr[3][3] = {
-        {1 - k * (y * y + z * z), k * (x * y - w * z), k * (x * z + w * y)},
-        {k * (x * y + w * z), 1 - k * (x * x + z * z), k * (y * z - w * x)},
-        {k * (x * z - w * y), k * (y * z + w * x), 1 - k * (x * x + y * y)},
-    };
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++) R[3 * c + r] = Rr[r][c];
+    mim_quat_to_matrix(mim_quat_best_rotation(S), R);
 }
 
 /* Kabsch's problem: the rotation R (column-major dim x dim) and the
@@ -252,6 +188,9 @@ int mim_pair_prepare_many(const double *joints, uint32_t n, uint32_t threads, un
 
 double mim_sample_distance(const mim_pair_prep_t *a, const mim_pair_prep_t *b, mim_sample_metric_t metric)
 {
+    /* a part the metric reads was not made: no answer rather than a wrong one */
+    const unsigned need_a = mim_sample_metric_parts(metric, 0), need_b = mim_sample_metric_parts(metric, 1);
+    if ((a->parts & need_a) != need_a || (b->parts & need_b) != need_b) return NAN;
     if (metric == MIM_METRIC_LIMBS) return limbs_distance(a->joints, b->joints);
     double bb[3 * MIM_PAIR_JOINTS];
     mim_sample_align(a->joints, b->joints, 3, bb);

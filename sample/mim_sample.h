@@ -161,7 +161,8 @@ unsigned mim_sample_metric_parts(mim_sample_metric_t metric, int sample);
  * of the 24 limb joints after the least-squares rigid motion over those 24
  * joints alone, the smaller of b as it is and b with its people swapped. D_I: eq. 8 on a's and b's own
  * triangulations (b's vectors turned by the alignment). Symmetric up to the
- * alignment's direction; 0 for a pair against itself, moved rigidly. */
+ * alignment's direction; 0 for a pair against itself, moved rigidly. NaN
+ * when a or b lacks a part the metric reads (mim_sample_metric_parts). */
 double mim_sample_distance(const mim_pair_prep_t *a, const mim_pair_prep_t *b, mim_sample_metric_t metric);
 
 /* ---- 2D annotations (annotate.c) ---- */

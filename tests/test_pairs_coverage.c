@@ -387,6 +387,10 @@ static void test_prepared_parts(void **state)
             assert_int_equal(mim_sample_coverage(g, M, bare, K, mt, &o, &part, &e2), MIM_EINVAL);
             assert_non_null(strstr(mim_error_text(&e2), "sample 1 was prepared without the triangulation"));
         }
+        /* one distance: the parts it reads give the full answer, a part missing none */
+        assert_true(mim_sample_distance(&g[0], fewer, mt) == mim_sample_distance(&g[0], &s[0], mt));
+        assert_true(isnan(mim_sample_distance(&g[0], &bare[0], mt)) == (mt == MIM_METRIC_IC));
+        assert_true(isnan(mim_sample_distance(&bare[0], &s[0], mt)) == (mt == MIM_METRIC_IC || mt == MIM_METRIC_SHAPE));
     }
     /* truths need their shape contexts for D_S */
     mim_pair_prep_t *gt = malloc(M * sizeof *gt);
