@@ -211,22 +211,12 @@ const char *bench_mh_dir(char *buf, size_t size)
     return buf;
 }
 
-/* The landmark skeleton's bones (child, parent), as transfer/retarget.c's tree. */
-static const char *const spread_bones[15][2] = {
-    {"spine", "pelvis"},     {"chest", "spine"},         {"head", "chest"},          {"l_shoulder", "chest"},
-    {"r_shoulder", "chest"}, {"l_elbow", "l_shoulder"},  {"r_elbow", "r_shoulder"},  {"l_wrist", "l_elbow"},
-    {"r_wrist", "r_elbow"},  {"l_hip", "pelvis"},        {"r_hip", "pelvis"},        {"l_knee", "l_hip"},
-    {"r_knee", "r_hip"},     {"l_ankle", "l_knee"},      {"r_ankle", "r_knee"}};
-
 int bench_pose_spread(const bench_dataset_t *d, double *rms, double *p10, double *p90)
 {
     const uint32_t L = d->map.count;
-    int ch[15], pa[15];
-    for (int k = 0; k < 15; k++) {
-        ch[k] = mim_landmarks_find(&d->map, spread_bones[k][0]);
-        pa[k] = mim_landmarks_find(&d->map, spread_bones[k][1]);
-        if (ch[k] < 0 || pa[k] < 0) return -1;
-    }
+    int ch[MIM_LANDMARK_BONES], pa[MIM_LANDMARK_BONES];
+    const char *missing;
+    if (mim_landmark_skeleton(&d->map, ch, pa, &missing)) return -1;
     size_t cap = (size_t)d->poses * d->subjects * d->subjects / 2 + 1, n = 0, all_n = 0;
     double *pair = malloc(cap * sizeof *pair), all = 0;
     float a[3 * MIM_LANDMARKS_MAX], b[3 * MIM_LANDMARKS_MAX], bm[3 * MIM_LANDMARKS_MAX];
@@ -243,7 +233,7 @@ int bench_pose_spread(const bench_dataset_t *d, double *rms, double *p10, double
                 sim.scale = 1; /* rigid: only the bones' directions count */
                 mim_reg_similarity_apply(&sim, b, L, bm);
                 double ss = 0;
-                for (int k = 0; k < 15; k++) {
+                for (int k = 0; k < MIM_LANDMARK_BONES; k++) {
                     double u[3], v[3], nu = 0, nv = 0, dot = 0;
                     for (int c = 0; c < 3; c++) {
                         u[c] = a[3 * ch[k] + c] - a[3 * pa[k] + c], v[c] = bm[3 * ch[k] + c] - bm[3 * pa[k] + c];
@@ -252,7 +242,7 @@ int bench_pose_spread(const bench_dataset_t *d, double *rms, double *p10, double
                     double ang = acos(fmax(-1, fmin(1, dot / sqrt(nu * nv)))) * 180 / M_PI;
                     ss += ang * ang, all += ang * ang, all_n++;
                 }
-                pair[n++] = sqrt(ss / 15);
+                pair[n++] = sqrt(ss / MIM_LANDMARK_BONES);
             }
     if (!n) {
         free(pair);

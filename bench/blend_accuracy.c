@@ -40,14 +40,15 @@
  *
  * usage: bench_blend_accuracy [--vertices N] [--mh DIR | --no-mh] [--no-imitation] [--iterations N]
  *                             [--settle S] [--damping D] [--new-only] [--gated-only] [--other-pose]
- *                             [--no-rest-ref]
+ *                             [--no-rest-ref] [--proportions canonical|body]
  *   --iterations N: N solves, no early stop (default: mimic's iteration)
  *   --settle S: mim_xfer_options_t.settle (< 0: none, as before issue 31)
  *   --damping D: mim_xfer_options_t.damping (0: mimic's)
  *   --new-only: of the plain rows only the nearest and 2 nearest by 1/distance
  *   --gated-only: only the gated relative rows (the session's path since issue 29) and their candidates
  *   --other-pose: templates from poses other than the query's (all-angle 1-NN)
- *   --no-rest-ref: references from poses other than A's rest */
+ *   --no-rest-ref: references from poses other than A's rest
+ *   --proportions body: indexes that see each body's own proportions (default: canonical, as mimic index) */
 #include "bench_data.h"
 #include "mim_core.h"
 #include "mim_index.h"
@@ -213,6 +214,9 @@ static int new_only, gated_only;
  * over all angles among poses other than A's rest pose (a store without
  * the avatar's rest pose). */
 static int other_pose, no_rest_ref;
+/* --proportions body: indexes without the landmark skeleton, each body's
+ * own proportions (the index's default before canonical proportions) */
+static int body_proportions;
 
 static double angle_distance(const float *x, const float *y, uint32_t na)
 {
@@ -479,7 +483,9 @@ static int run_set(const bench_dataset_t *d, void *user)
                 memcpy(tlm + 3 * L * ntrain, lm + 3 * L * t, sizeof(float) * 3 * L);
                 tsp[ntrain] = sp[t], tpp[ntrain] = pp[t], tid[ntrain] = ids[t], ntrain++;
             }
-        mim_index_input_t in = {ntrain, L, tlm, tid, tsp, tpp, d->map.mirror};
+        int32_t parent[MIM_LANDMARKS_MAX]; /* the landmark skeleton: canonical proportions, as a store's index */
+        const int skeleton = !body_proportions && !mim_index_skeleton(&d->map, parent);
+        mim_index_input_t in = {ntrain, L, tlm, tid, tsp, tpp, d->map.mirror, skeleton ? parent : NULL};
         mim_index_t *ix = NULL;
         int brc = mim_index_build(&ix, &in, NULL, NULL, &err);
         /* how alike the other subjects take a pose: the session's store gate (MIM_SESSION_RELATIVE_SPREAD_DEG) */
@@ -852,6 +858,8 @@ int main(int argc, char **argv)
             other_pose = 1;
         } else if (!strcmp(argv[i], "--no-rest-ref")) {
             no_rest_ref = 1;
+        } else if (!strcmp(argv[i], "--proportions") && i + 1 < argc) {
+            body_proportions = !strcmp(argv[++i], "body");
         } else if (!strcmp(argv[i], "--iterations") && i + 1 < argc) {
             xo.max_iterations = (uint32_t)strtoul(argv[++i], NULL, 10);
             xo.tol = -1, xo.no_early_stop = 1;
@@ -860,7 +868,7 @@ int main(int argc, char **argv)
         } else if (!strcmp(argv[i], "--settle") && i + 1 < argc) {
             xo.settle = strtod(argv[++i], NULL);
         } else {
-            fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--iterations N] [--settle S] [--damping D] [--new-only] [--gated-only] [--other-pose] [--no-rest-ref]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--iterations N] [--settle S] [--damping D] [--new-only] [--gated-only] [--other-pose] [--no-rest-ref] [--proportions canonical|body]\n", argv[0]);
             return 2;
         }
     }

@@ -79,7 +79,7 @@ static void loso_free(loso_t *lo)
 /* One index per subject over the other subjects' templates (landmarks tl,
  * L each, n templates), as `mimic index` builds it (default options). */
 static int loso_build(loso_t *lo, const float *tl, char (*subj)[64], char (*pose)[64], uint32_t n, uint32_t L,
-                      const uint32_t *mirror)
+                      const mim_landmark_map_t *map)
 {
     memset(lo, 0, sizeof *lo);
     lo->subject = calloc(n, sizeof *lo->subject), lo->ix = calloc(n, sizeof *lo->ix);
@@ -98,7 +98,8 @@ static int loso_build(loso_t *lo, const float *tl, char (*subj)[64], char (*pose
                 memcpy(lm + (size_t)3 * L * m, tl + (size_t)3 * L * u, sizeof *lm * 3 * L);
                 sp[m] = subj[u], pp[m] = pose[u], id[m] = u + 1, m++;
             }
-        mim_index_input_t in = {m, L, lm, id, sp, pp, mirror};
+        int32_t parent[MIM_LANDMARKS_MAX];
+        mim_index_input_t in = {m, L, lm, id, sp, pp, map->mirror, mim_index_skeleton(map, parent) ? NULL : parent};
         mim_error_t err = {0};
         if (mim_index_build(&lo->ix[i], &in, NULL, NULL, &err)) {
             fprintf(stderr, "leave-one-out index without %s: %s\n", subj[t], mim_error_text(&err));
@@ -447,7 +448,7 @@ static int run(const char *name, const char *folder, const char *tmp, const moti
         } while (tri[q][0] == tri[q][1] || tri[q][0] == tri[q][2] || tri[q][1] == tri[q][2]);
     }
     loso_t lo;
-    if (loso_build(&lo, truth, subject, pose, n, L, map->mirror)) return 1;
+    if (loso_build(&lo, truth, subject, pose, n, L, map)) return 1;
     struct { const char *name; mim_session_complete_options_t o; } rows[] = {
         {"nearest template alone (k 1, no blend)", {.k = 1, .no_blend = 1, .gaussian = -1, .no_local = 1}},
         {"median of k 3, no blend", {.k = 3, .no_blend = 1, .gaussian = -1, .no_local = 1}},

@@ -4,6 +4,7 @@
  * the subject's rest body and weights, forward kinematics, linear blend
  * skinning of the landmark vertices only. */
 #include "hard_set.h"
+#include "mim_index.h"
 #include "synth_internal.h"
 
 #include <stdio.h>
@@ -63,6 +64,10 @@ int bench_hard_make_draws(bench_hard_t *h, uint32_t subjects, uint32_t poses, ui
     uint32_t L = map.count;
     h->subjects = subjects, h->poses = poses, h->n_landmarks = L, h->draws = draws;
     memcpy(h->mirror, map.mirror, sizeof(uint32_t) * L);
+    if (mim_index_skeleton(&map, h->parent)) {
+        mim_synth_destroy(&s);
+        return mim_error_set(err, MIM_EUNSUPPORTED, "hard set: synth's landmarks are not the 16 default ones");
+    }
     h->landmarks = malloc(sizeof(float) * 3 * L * subjects * poses);
     h->redrawn = draws ? malloc(sizeof(float) * 3 * L * subjects * poses * draws) : NULL;
     h->pose_name = calloc(poses ? poses : 1, sizeof *h->pose_name);

@@ -25,6 +25,7 @@ typedef struct bench_hard {
     uint32_t subjects, poses, n_landmarks;
     float *landmarks;                   /* [(s * poses + p) * n_landmarks * 3] */
     uint32_t mirror[MIM_LANDMARKS_MAX]; /* the landmark map's mirror table */
+    int32_t parent[MIM_LANDMARKS_MAX];  /* its landmark skeleton (mim_index_skeleton) */
     char (*pose_name)[32];              /* poses names, "rest+0" ... */
     uint32_t draws;                     /* bench_hard_make_draws: other jitters of every body */
     float *redrawn;                     /* [((s * poses + p) * draws + d) * n_landmarks * 3], or NULL */

@@ -132,7 +132,9 @@ int main(int argc, char **argv)
     }
     std::vector<const char *> sp, pp;
     for (uint32_t t = 0; t < subjects * poses; t++) sp.push_back(subj[t].c_str()), pp.push_back(pose[t].c_str());
-    mim_index_input_t in = {subjects * poses, D.L, lm.data(), ids.data(), sp.data(), pp.data(), ds.map.mirror};
+    int32_t parent[MIM_LANDMARKS_MAX]; // as mimic index: canonical proportions
+    mim_index_input_t in = {subjects * poses, D.L, lm.data(), ids.data(), sp.data(), pp.data(), ds.map.mirror,
+                            mim_index_skeleton(&ds.map, parent) ? nullptr : parent};
     mim_index_t *ix = nullptr;
     mim_error_t err = {};
     if (mim_index_build(&ix, &in, nullptr, nullptr, &err)) {

@@ -214,7 +214,9 @@ int main(int argc, char **argv)
             jitter(base + 3 * L * b, L, lm + (size_t)i * 3 * L);
             ids[i] = i + 1, sp[i] = names[b][0], pp[i] = names[b][1];
         }
-        mim_index_input_t in = {n, L, lm, ids, sp, pp, ds.map.mirror};
+        int32_t parent[MIM_LANDMARKS_MAX]; /* as mimic index: canonical proportions */
+        mim_index_input_t in = {n, L, lm, ids, sp, pp, ds.map.mirror,
+                                mim_index_skeleton(&ds.map, parent) ? NULL : parent};
         mim_index_options_t o = {0};
         mim_index_report_t rep;
         mim_index_t *ix = NULL, *ix2 = NULL, *exact = NULL;

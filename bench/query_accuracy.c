@@ -31,11 +31,14 @@
  * (F = 2: 24-40 degrees apart); --sweep 5 runs the default index alone
  * (its discriminants and its SVMs) and the angle discriminants, --sweep 6
  * no index (baseline and bounds only), --sweep 7 the shape and the angle
- * discriminants alone (C and gamma given: fast). On the hard set two
+ * discriminants alone (C and gamma given: fast). --proportions body builds
+ * every index without the landmark skeleton, so that frames keep their
+ * bodies' proportions (the default before canonical proportions). On the hard set two
  * references have the jitter unknown (jitter_ml, from --jitters D other
  * jitters of every body, default 128; 0 leaves them out).
  *
  *   bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1-7]
+ *                        [--proportions canonical|body]
  *                        [--hard-subjects S] [--hard-poses P] [--hard-spread F] [--jitters D]
  * Prints a Markdown table per dataset. */
 #include "bench_data.h"
@@ -287,11 +290,15 @@ typedef struct {
     const float *redrawn; /* hard set: D other jitters of every body (jitter_ml), or NULL */
     uint32_t D;
     const uint32_t *mirror;
+    const int32_t *parent; /* the landmark skeleton, or NULL */
     const cond_t *cond;
     int n_cond;
     const method_t *method;
     int n_method;
 } set_t;
+
+/* --proportions body: the indexes take each body as it is (no skeleton) */
+static int body_proportions;
 
 static void run_set(const set_t *set, int draws)
 {
@@ -347,7 +354,8 @@ static void run_set(const set_t *set, int draws)
                 build_s[mi] = build_s[same[mi]], cv[mi] = cv[same[mi]], lc[mi] = lc[same[mi]];
                 continue;
             }
-            mim_index_input_t in = {ntrain, L, tlm, tid, tsp, tpp, set->mirror};
+            mim_index_input_t in = {ntrain, L, tlm, tid, tsp, tpp, set->mirror,
+                                    body_proportions ? NULL : set->parent};
             mim_index_report_t rep;
             mim_error_t err = {0};
             if (mim_index_build(&ix[mi], &in, &set->method[mi].o, &rep, &err)) {
@@ -394,8 +402,9 @@ static void run_set(const set_t *set, int draws)
         for (int mi = 0; mi < NM; mi++) mim_index_close(&ix[mi]);
         free(tlm), free(tsp), free(tpp), free(tid);
     }
-    printf("\n### %s (%u subjects x %u poses, leave one subject out, %d draws per noisy/missing frame)\n\n", set->name,
-           S, P, draws);
+    printf("\n### %s (%u subjects x %u poses, leave one subject out, %d draws per noisy/missing frame; %s "
+           "proportions)\n\n",
+           set->name, S, P, draws, body_proportions || !set->parent ? "the bodies'" : "canonical");
     printf("| condition |");
     for (int mi = 0; mi < NM; mi++) printf(" %s |", set->method[mi].label);
     printf(" 1-NN, all %u angles | Bayes bound (own bodies known) |", nf);
@@ -436,7 +445,10 @@ static float *dataset_landmarks(const bench_dataset_t *d)
 static void run_dataset(const char *name, bench_dataset_t *d, int draws)
 {
     float *lm = dataset_landmarks(d);
-    set_t set = {name, d->subjects, d->poses, d->map.count, lm, NULL, 0, d->map.mirror, cond_issue4, 6, methods_issue4, 4};
+    int32_t parent[MIM_LANDMARKS_MAX];
+    const int skeleton = !mim_index_skeleton(&d->map, parent);
+    set_t set = {name,         d->subjects,   d->poses, d->map.count, lm, NULL, 0, d->map.mirror,
+                 skeleton ? parent : NULL, cond_issue4, 6, methods_issue4, 4};
     run_set(&set, draws);
     free(lm);
 }
@@ -452,7 +464,7 @@ static int run_hard(uint32_t S, uint32_t P, double spread, int sweep, int draws,
     char name[96];
     snprintf(name, sizeof name, "hard (synth seed 1, nearby poses, variants x%g: %g-%g degrees)", spread, 12 * spread,
              20 * spread);
-    set_t set = {name, S, P, h.n_landmarks, h.landmarks, h.redrawn, h.draws, h.mirror, cond_hard, 7,
+    set_t set = {name, S, P, h.n_landmarks, h.landmarks, h.redrawn, h.draws, h.mirror, h.parent, cond_hard, 7,
                  methods_hard, (int)(sizeof methods_hard / sizeof *methods_hard)};
     if (sweep == 5) set.n_method = 3; /* the default, its SVMs alone, the angle discriminants */
     if (sweep == 6) set.n_method = 0; /* the baselines and bounds only */
@@ -474,6 +486,7 @@ int main(int argc, char **argv)
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--draws") && i + 1 < argc) draws = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--no-mh")) mh = 0;
+        else if (!strcmp(argv[i], "--proportions") && i + 1 < argc) body_proportions = !strcmp(argv[++i], "body");
         else if (!strcmp(argv[i], "--no-hard")) hard = 0;
         else if (!strcmp(argv[i], "--hard-only")) easy = 0;
         else if (!strcmp(argv[i], "--sweep") && i + 1 < argc) sweep = atoi(argv[++i]);
@@ -483,7 +496,8 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--jitters") && i + 1 < argc) jitters = (uint32_t)atoi(argv[++i]);
         else {
             fprintf(stderr, "usage: bench_query_accuracy [--draws N] [--no-mh] [--no-hard | --hard-only] [--sweep 1-7] "
-                            "[--hard-subjects S] [--hard-poses P] [--hard-spread F] [--jitters D]\n");
+                            "[--hard-subjects S] [--hard-poses P] [--hard-spread F] [--jitters D] "
+                            "[--proportions canonical|body]\n");
             return 2;
         }
     }

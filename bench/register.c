@@ -140,7 +140,9 @@ static int run_set(const bench_dataset_t *d, void *user)
             snprintf(lab[nt][0], 16, "s%u", t / d->poses), snprintf(lab[nt][1], 16, "p%u", t % d->poses);
             sp[nt] = lab[nt][0], pp[nt] = lab[nt][1], ids[nt] = t + 1, nt++;
         }
-        mim_index_input_t in = {nt, L, tlm, ids, sp, pp, d->map.mirror};
+        int32_t parent[MIM_LANDMARKS_MAX]; /* as mimic index: canonical proportions */
+        mim_index_input_t in = {nt, L, tlm, ids, sp, pp, d->map.mirror,
+                                mim_index_skeleton(&d->map, parent) ? NULL : parent};
         mim_index_t *ix = NULL;
         if (mim_index_build(&ix, &in, NULL, NULL, &err)) {
             fprintf(stderr, "%s: index: %s\n", d->name, mim_error_text(&err));

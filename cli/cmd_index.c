@@ -20,7 +20,8 @@ static const char *pose_class(void *ctx, const char *dataset, const char *pose)
 static void help(FILE *out)
 {
     fprintf(out, "usage: mimic index --store DIR [--features D] [--noise F] [--augment N] [--shape-noise F]\n"
-                 "                   [--discriminants F] [--exact-max N] [--pose-map CSV] [--json]\n\n"
+                 "                   [--discriminants F] [--exact-max N] [--proportions canonical|body]\n"
+                 "                   [--pose-map CSV] [--json]\n\n"
                  "Builds the pose recognition index of a store and keeps it in the store, so that\n"
                  "mimic query opens it in milliseconds: the D most salient landmark angles (a\n"
                  "decision tree on the pose labels, mirrored samples included), one SVM per pose\n"
@@ -47,6 +48,12 @@ static void help(FILE *out)
                  "  --exact-max N   a class of up to N templates is searched by an exact scan, a\n"
                  "                  larger one by a kd-forest (4 trees, 128 checks: approximate, a\n"
                  "                  tenth of the scan's time at 1 000 000 templates); default 8192\n"
+                 "  --proportions P canonical (default): in a store of the 16 default landmarks,\n"
+                 "                  the angles of every frame, template or query, are taken on the\n"
+                 "                  templates' mean segment lengths with the frame's own segment\n"
+                 "                  directions, so that people of other proportions in one pose\n"
+                 "                  answer alike (the class is still picked on the frame as it is);\n"
+                 "                  body: each frame as it is (other landmark maps: always)\n"
                  "  --pose-map CSV  which poses of different datasets are one class: a CSV with the\n"
                  "                  columns dataset, pose, class. Without it, in a store of several\n"
                  "                  datasets (mimic ingest --dataset) every dataset's poses and\n"
@@ -76,6 +83,7 @@ int mim_cmd_index(int argc, char **argv)
                                               {"shape-noise", required_argument, 0, 'S'},
                                               {"exact-max", required_argument, 0, 'x'},
                                               {"pose-map", required_argument, 0, 'P'},
+                                              {"proportions", required_argument, 0, 'p'},
                                               {"json", no_argument, 0, 'j'},
                                               {"help", no_argument, 0, 'h'},
                                               {0, 0, 0, 0}};
@@ -84,7 +92,7 @@ int mim_cmd_index(int argc, char **argv)
     mim_index_options_t o = {0};
     optind = 0;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "s:d:n:a:D:S:x:jh", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "s:d:n:a:D:S:x:p:jh", longopts, NULL)) != -1) {
         uint64_t v;
         if (c == 's') store = optarg;
         else if (c == 'd') {
@@ -109,6 +117,13 @@ int mim_cmd_index(int argc, char **argv)
             if (mim_cli_number("index", "exact-max", optarg, 1, UINT32_MAX, &v)) return 2;
             o.exact_max = (uint32_t)v;
         } else if (c == 'P') pose_map_path = optarg;
+        else if (c == 'p') {
+            if (strcmp(optarg, "canonical") && strcmp(optarg, "body")) {
+                fprintf(stderr, "mimic index: --proportions '%s': use canonical or body\n", optarg);
+                return 2;
+            }
+            o.proportions = strcmp(optarg, "body") ? MIM_INDEX_PROPORTIONS_CANONICAL : MIM_INDEX_PROPORTIONS_BODY;
+        }
         else if (c == 'j') as_json = 1;
         else if (c == 'h') return help(stdout), 0;
         else {
@@ -168,6 +183,7 @@ int mim_cmd_index(int argc, char **argv)
                                  "augment", (json_int_t)rep.augment, "noise", rep.noise, "weight", rep.weight,
                                  "discriminant_noise", rep.discriminant_noise, "shape_noise",
                                  rep.shape_noise > 0 ? rep.shape_noise : 0.0, "seconds", rep.seconds);
+        json_object_set_new(root, "proportions", json_string(rep.canonical ? "canonical" : "body"));
         json_object_set_new(root, "datasets", json_integer(lab.datasets));
         json_object_set_new(root, "mapped_templates", json_integer(lab.mapped));
         json_object_set_new(root, "single_template_classes", json_integer(lab.single));
@@ -194,6 +210,8 @@ int mim_cmd_index(int argc, char **argv)
             printf("augmented    %u noisy copies per template, sigma %g of the landmark radius\n", rep.augment, rep.noise);
         else
             printf("augmented    no (templates only)\n");
+        printf("proportions  %s\n", rep.canonical ? "canonical angles: segment directions on the templates' mean lengths"
+                                                  : "each body's own");
         if (rep.shape_noise >= 0)
             printf("shape        discriminants over the landmarks, noise levels up to %g of the landmark radius\n",
                    rep.shape_noise);

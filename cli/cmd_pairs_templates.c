@@ -52,7 +52,7 @@ static void help(FILE *out)
             "  --person a|b|both     which person of each sample (default both)\n"
             "  --proportions WHICH   avatar (default) or sample (above)\n"
             "  --pose-label WHICH    class (default): the pose class the index gives the person's\n"
-            "                        landmarks (its nearest template's pose label; none in a store\n"
+            "                        own joints (its nearest template's pose label; none in a store\n"
             "                        whose index clusters by k-means), so that a sampled pose joins\n"
             "                        the class it resembles; sample: P LINE-PERSON (sampled-12-a),\n"
             "                        one pose class per person: the index then trains an SVM for\n"
@@ -65,8 +65,11 @@ static void help(FILE *out)
             "  -h, --help            this help\n\n"
             "A result equal to a stored template is not stored twice (counted as a duplicate).\n"
             "Afterwards each new template is looked for again with its sample's own joints: a warning\n"
-            "(and --json's not_found_again) names those mimic query answers with another template,\n"
-            "as --proportions avatar can make among many like samples.\n"
+            "(and --json's not_found_again) names those mimic query answers with another template, and\n"
+            "why. The index of a store of the 16 default landmarks sees every body on canonical\n"
+            "proportions, so the avatar's bone lengths do not hide a person; the rebuilt index can\n"
+            "still put one in another pose class than the one it gave it before it joined (over\n"
+            "another landmark map, --proportions avatar can also make it miss among like samples).\n"
             "Nothing is stored unless every selected person is transferred.\n"
             "Exit status: 0 done, 1 an input failed (the samples file, a sample's landmarks, an\n"
             "unknown avatar id, a transfer), 2 bad usage or the command could not run (the store,\n"
@@ -74,17 +77,31 @@ static void help(FILE *out)
             MIM_SESSION_PAIRS_PREFIX_MAX);
 }
 
+/* Whether name (an index class, "dataset/label" in a store of several
+ * datasets) is label. */
+static int class_is(const char *name, const char *label)
+{
+    const size_t n = strlen(name), l = strlen(label);
+    return n >= l && !strcmp(name + n - l, label) && (n == l || name[n - l - 1] == '/');
+}
+
 /* Whether each stored person is found again by its own joints: the
  * rebuilt index's nearest template to the sample's joints (as they are,
- * the sample's proportions) should be the one stored from them. With
- * --proportions avatar a person's template holds the avatar's bone
- * lengths, which move the descriptor's angles between landmarks no bone
- * joins (about 1 rad for motion capture joints against a synth avatar),
- * so among many like samples the nearest can be another's. Counts the
- * people found into *found and lists the others in miss (JSON objects);
- * -1 when the store cannot be read back (not an error of the command). */
+ * the sample's proportions) should be the one stored from them. The index
+ * sees canonical proportions (a store of the 16 default landmarks), so the
+ * avatar's bone lengths do not move the person away from its sample; what
+ * can is the class: the person's pose label is the class the index gave
+ * its joints before it joined, and the index rebuilt with it may put the
+ * same joints in another class (its discriminants are learnt from every
+ * template, the new ones too), whose nearest template is then another.
+ * Counts the people found into *found and lists the others in miss (JSON
+ * objects, why: "class" or "nearer", another template of its own class
+ * nearer; *other_class counts the first) and whether the index sees
+ * canonical proportions into *canonical; -1 when the store cannot be read
+ * back (not an error of the command). */
 static int check_found(const char *store, const mim_pairs_samples_t *smp, const mim_session_pairs_t *p,
-                       const uint64_t *ids, uint32_t n, uint32_t *found, json_t *miss)
+                       const char *prefix, const uint64_t *ids, uint32_t n, uint32_t *found, uint32_t *other_class,
+                       int *canonical, json_t *miss)
 {
     mim_error_t err = {0};
     mim_session_t *s = NULL;
@@ -93,7 +110,10 @@ static int check_found(const char *store, const mim_pairs_samples_t *smp, const 
     const mim_query_t *q = mim_session_open(&s, store, &so, &err) ? NULL : mim_session_query(s);
     const mim_landmark_map_t *map = s ? mim_session_map(s) : NULL;
     int rc = q && map ? 0 : -1;
-    *found = 0;
+    *found = *other_class = 0;
+    mim_index_info_t info = {0};
+    if (q) mim_index_get_info(mim_query_index(q), &info);
+    *canonical = (int)info.canonical;
     for (uint32_t i = 0; i < n && !rc; i++) {
         mim_session_pairs_person_t pp;
         if (mim_session_pairs_person(p, i, &pp)) {
@@ -119,10 +139,15 @@ static int check_found(const char *store, const mim_pairs_samples_t *smp, const 
         if (hit.id == ids[i]) {
             (*found)++;
         } else {
-            char who[2] = {pp.person, 0};
-            json_array_append_new(miss, json_pack("{s:I, s:I, s:s, s:I, s:f}", "id", (json_int_t)ids[i], "line",
-                                                  (json_int_t)pp.line, "person", who, "nearest", (json_int_t)hit.id,
-                                                  "distance", (double)hit.distance));
+            char who[2] = {pp.person, 0}, label[MIM_SESSION_PAIRS_PREFIX_MAX + 32];
+            if (prefix) snprintf(label, sizeof label, "%s%ld-%c", prefix, pp.line, pp.person);
+            const char *answered = mim_index_class_name(mim_query_index(q), ans.cls);
+            const int same = class_is(answered, prefix ? label : pp.pose_class);
+            *other_class += !same;
+            json_array_append_new(miss, json_pack("{s:I, s:I, s:s, s:I, s:f, s:s, s:s}", "id", (json_int_t)ids[i],
+                                                  "line", (json_int_t)pp.line, "person", who, "nearest",
+                                                  (json_int_t)hit.id, "distance", (double)hit.distance, "why",
+                                                  same ? "nearer" : "class", "class", answered));
         }
     }
     mim_session_close(&s);
@@ -270,16 +295,23 @@ int mim_cmd_pairs_templates(int argc, char **argv)
     const uint32_t added = rep.added, dup = rep.duplicates;
     /* each stored person found again by its own joints? (not when some were duplicates: ids then skip people) */
     json_t *miss = json_array();
-    uint32_t found = 0;
-    const int checked = miss && !dup && check_found(store, &smp, p, rep.ids, added, &found, miss) == 0;
-    if (checked && found < added)
+    uint32_t found = 0, other_class = 0;
+    int canonical = 0;
+    const int checked = miss && !dup &&
+                        check_found(store, &smp, p, prefix, rep.ids, added, &found, &other_class, &canonical, miss) == 0;
+    if (checked && found < added) {
         fprintf(stderr,
                 "mimic " CMD ": warning: %u of %u sampled people are not found again by their own joints (mimic "
-                "query answers another template)%s\n",
-                added - found, added,
-                retarget ? ": their templates hold the avatar's proportions, not the sample's; --proportions sample "
-                           "keeps the sample's"
-                         : "");
+                "query answers another template; --json lists them)",
+                added - found, added);
+        if (other_class)
+            fprintf(stderr, "; %u in another pose class than the one the index gave them before they joined it",
+                    other_class);
+        if (retarget && !canonical) /* an index of another landmark map sees the avatar's bone lengths */
+            fprintf(stderr, "; their templates hold the avatar's proportions, not the sample's; --proportions sample "
+                            "keeps the sample's");
+        fprintf(stderr, "\n");
+    }
     if (as_json) {
         json_t *arr = json_array();
         for (uint32_t i = 0; arr && i < added; i++) json_array_append_new(arr, json_integer((json_int_t)rep.ids[i]));

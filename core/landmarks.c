@@ -30,6 +30,32 @@ int mim_landmarks_find(const mim_landmark_map_t *map, const char *name)
     return -1;
 }
 
+/* The landmark skeleton over the default names: child, parent; parents
+ * come before their children. */
+static const char *const skeleton[MIM_LANDMARK_BONES][2] = {
+    {"spine", "pelvis"},          {"chest", "spine"},         {"head", "chest"},
+    {"l_shoulder", "chest"},      {"r_shoulder", "chest"},    {"l_elbow", "l_shoulder"},
+    {"r_elbow", "r_shoulder"},    {"l_wrist", "l_elbow"},     {"r_wrist", "r_elbow"},
+    {"l_hip", "pelvis"},          {"r_hip", "pelvis"},        {"l_knee", "l_hip"},
+    {"r_knee", "r_hip"},          {"l_ankle", "l_knee"},      {"r_ankle", "r_knee"},
+};
+
+int mim_landmark_skeleton(const mim_landmark_map_t *map, int child[MIM_LANDMARK_BONES],
+                          int parent[MIM_LANDMARK_BONES], const char **missing)
+{
+    *missing = NULL;
+    if (map->count != MIM_LANDMARKS_DEFAULT_COUNT) return MIM_EUNSUPPORTED;
+    for (size_t k = 0; k < MIM_LANDMARK_BONES; k++) {
+        child[k] = mim_landmarks_find(map, skeleton[k][0]);
+        parent[k] = mim_landmarks_find(map, skeleton[k][1]);
+        if (child[k] < 0 || parent[k] < 0) {
+            *missing = child[k] < 0 ? skeleton[k][0] : skeleton[k][1];
+            return MIM_EUNSUPPORTED;
+        }
+    }
+    return 0;
+}
+
 void mim_landmarks_default(mim_landmark_map_t *map, const uint32_t vertices[MIM_LANDMARKS_DEFAULT_COUNT],
                            uint32_t topology_vertices)
 {

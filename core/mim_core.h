@@ -127,6 +127,15 @@ extern const char *const mim_segment_names[MIM_SEGMENTS];
 int mim_segment_parent(uint32_t s);
 /* The index of the landmark called name in map, or -1. */
 int mim_landmarks_find(const mim_landmark_map_t *map, const char *name);
+/* The landmark skeleton (landmarks.c): the 16 default landmarks as a tree
+ * of 15 bones rooted at the pelvis (pelvis-spine-chest-head,
+ * chest-shoulder-elbow-wrist, pelvis-hip-knee-ankle), each bone a child
+ * landmark and its parent as map indices, parents before children. 0, or
+ * MIM_EUNSUPPORTED when the map is not the 16 default landmarks (*missing
+ * then names the first one it lacks; NULL when its count is not 16). */
+#define MIM_LANDMARK_BONES 15
+int mim_landmark_skeleton(const mim_landmark_map_t *map, int child[MIM_LANDMARK_BONES],
+                          int parent[MIM_LANDMARK_BONES], const char **missing);
 /* Fills the 16 default names and their mirror table with the given vertices. */
 void mim_landmarks_default(mim_landmark_map_t *map, const uint32_t vertices[MIM_LANDMARKS_DEFAULT_COUNT],
                            uint32_t topology_vertices);

@@ -27,7 +27,7 @@ static void keep(cand_t *best, uint32_t *nb, uint32_t k, float d2, uint32_t row)
     best[i] = (cand_t){d2, row};
 }
 
-static int query_desc(const mim_index_t *ix, const float *positions, const uint8_t *present,
+static int query_desc(const mim_index_t *ix, const float *positions, const float *angled, const uint8_t *present,
                       const mim_index_query_options_t *opt, uint32_t k, float *q, double *xd, uint8_t *mask,
                       float *w, mim_index_answer_t *ans, mim_index_hit_t *hits, cand_t *best_st, int *ind_st,
                       float *dist_st, mim_error_t *err);
@@ -129,8 +129,9 @@ static int vote(const mim_index_t *ix, const mim_index_query_options_t *opt, con
  * (lda.c: built on request). Not both: adding their log-likelihoods
  * measured worse than the shape discriminants alone (bench/RESULTS.md).
  * -1: neither. */
-static int64_t discriminant_class(const mim_index_t *ix, const float *positions, const uint8_t *present,
-                                  uint32_t missing, const double *shape_scores, double *posterior)
+static int64_t discriminant_class(const mim_index_t *ix, const float *positions, const float *angled,
+                                  const uint8_t *present, uint32_t missing, const double *shape_scores,
+                                  double *posterior)
 {
     const uint32_t nc = ix->n_classes;
     double st[256], *a = nc <= 256 ? st : malloc(sizeof *a * nc);
@@ -142,7 +143,7 @@ static int64_t discriminant_class(const mim_index_t *ix, const float *positions,
             if (isfinite(a[k]) && (c < 0 || a[k] > a[c])) c = k;
     } else
         c = mim__shape_class(&ix->shape, positions, present, a);
-    if (c < 0 && !missing && ix->lda.nf) c = mim__lda_class(&ix->lda, positions, ix->n_landmarks, a);
+    if (c < 0 && !missing && ix->lda.nf) c = mim__lda_class(&ix->lda, angled, ix->n_landmarks, a);
     if (c >= 0) {
         double z = 0;
         for (uint32_t k = 0; k < nc; k++)
@@ -165,6 +166,12 @@ int mim_index_query(const mim_index_t *ix, const float *positions, const uint8_t
         for (int c = 0; c < 3; c++)
             if ((!present || present[l]) && !isfinite(positions[3 * l + c]))
                 return mim_error_set(err, MIM_ENONFINITE, "landmark %u is not a finite position", l);
+    float canonical[3 * MIM_LANDMARKS_MAX]; /* the frame as the angles see it (proportions.c) */
+    const float *angled = positions;
+    if (ix->prop.on) {
+        mim__proportions_apply(&ix->prop, L, positions, present, canonical);
+        angled = canonical;
+    }
     /* scratch on the stack for the usual d, on the heap for a large one */
     float q_st[256];
     double xd_st[256];
@@ -183,18 +190,19 @@ int mim_index_query(const mim_index_t *ix, const float *positions, const uint8_t
         if (!heap) return MIM_ENOMEM;
         xd = heap, q = (float *)(xd + d), w = q + d, mask = (uint8_t *)(w + d);
     }
-    int rc = query_desc(ix, positions, present, opt, k, q, xd, mask, w, ans, hits, best_st, ind_st, dist_st, err);
+    int rc = query_desc(ix, positions, angled, present, opt, k, q, xd, mask, w, ans, hits, best_st, ind_st, dist_st,
+                        err);
     free(heap);
     return rc;
 }
 
-static int query_desc(const mim_index_t *ix, const float *positions, const uint8_t *present,
+static int query_desc(const mim_index_t *ix, const float *positions, const float *angled, const uint8_t *present,
                       const mim_index_query_options_t *opt, uint32_t k, float *q, double *xd, uint8_t *mask,
                       float *w, mim_index_answer_t *ans, mim_index_hit_t *hits, cand_t *best_st, int *ind_st,
                       float *dist_st, mim_error_t *err)
 {
     uint32_t d = ix->d, d2 = ix->d2, de = d2 - d, L = ix->n_landmarks;
-    mim_index_descriptor(positions, present, L, ix->selected, d2, q);
+    mim_index_descriptor(angled, present, L, ix->selected, d2, q);
     uint32_t avail = 0, avail2 = 0;
     for (uint32_t f = 0; f < d2; f++) {
         mask[f] = !isnan(q[f]);
@@ -226,6 +234,11 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
          * mean (issue 29, shape_complete.c), with no scan of the templates */
         float qc_st[256], *qc = d <= 256 ? qc_st : malloc(sizeof *qc * d);
         if (!qc) return MIM_ENOMEM;
+        if (ix->prop.on) { /* the completed frame as the angles see it */
+            float as_given[3 * MIM_LANDMARKS_MAX];
+            memcpy(as_given, full, sizeof *full * 3 * L);
+            mim__proportions_apply(&ix->prop, L, as_given, NULL, full);
+        }
         mim_index_descriptor(full, NULL, L, ix->selected, d, qc);
         for (uint32_t f = 0; f < d; f++)
             if (!mask[f]) q[f] = qc[f], xd[f] = q[f] * ix->w[f];
@@ -268,7 +281,7 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
         int64_t lc = -1;
         double lp = 0;
         if (sa > 1) /* the discriminants alone: no SVM is evaluated */
-            lc = discriminant_class(ix, positions, present, ans->missing, shape_scores, &lp);
+            lc = discriminant_class(ix, positions, angled, present, ans->missing, shape_scores, &lp);
         if (lc >= 0) {
             cls = (uint32_t)lc, prob = lp;
         } else {
@@ -281,7 +294,7 @@ static int query_desc(const mim_index_t *ix, const float *positions, const uint8
                 if (pr[c] > best) best = pr[c], cls = c;
             }
             prob = sum > 0 ? best / sum : 0;
-            if (sa > 0 && sa <= 1 && prob < sa && (lc = discriminant_class(ix, positions, present, ans->missing, shape_scores, &lp)) >= 0)
+            if (sa > 0 && sa <= 1 && prob < sa && (lc = discriminant_class(ix, positions, angled, present, ans->missing, shape_scores, &lp)) >= 0)
                 cls = (uint32_t)lc, prob = lp;
             int vrc = 0;
             if (!(lc >= 0) && vb > 0 && prob < vb)

@@ -1,10 +1,10 @@
-/* The recognition index as one blob, version 6: laid out to be used in
+/* The recognition index as one blob, version 7: laid out to be used in
  * place, where the store's memory map holds it, and verified by section as
  * queries first need each one, so that opening an index of 1 000 000
  * templates (739 MiB) reads a few hundred KiB instead of all of it
  * (bench/RESULTS.md, "Opening in place").
  *
- *    0  "MIXB"  4 u32 version (6)  8 u64 bytes after the header
+ *    0  "MIXB"  4 u32 version (7)  8 u64 bytes after the header
  *   16  u64 checksum: XXH3-64 of the head (bytes 64 .. 64 + head bytes)
  *   24  u32 0x01020304 (byte order)  28 u32 header bytes (64)
  *   32  u64 head bytes (a multiple of 64)  40 u32 rows a chunk  44 u32 0
@@ -26,6 +26,8 @@
  *       u32 m (3 n_landmarks, or 0: none), n_classes (or 0);
  *       f64 noise_max; f64 mu[n_classes * m], f64 S[m * m]
  *                                          the shape discriminants (shape.c)
+ *       u32 m (n_landmarks, or 0: none), 0; i32 parent[m]; f32 length[m]
+ *                                          the canonical proportions (proportions.c)
  *   then the bulk, each section 64-byte aligned (offsets follow from the
  *   sizes; nothing points): u64 ids[n], u32 subject[n], u32 pose[n],
  *   f32 desc[n * d], f32 extra[n * (d2 - d)], and the forests' bytes in
@@ -65,8 +67,8 @@
  * Versions. The index is made from the store by mimic index, so mimic
  * reads only the version it writes, and answers an older blob (versions 1
  * to 4, a 32-byte header and one checksum, read by copying; version 5,
- * this layout without the shape discriminants) with one line that says to
- * rebuild it. */
+ * this layout without the shape discriminants; version 6, without the
+ * proportions) with one line that says to rebuild it. */
 #include "internal.h"
 
 #include <math.h>
@@ -74,7 +76,7 @@
 #include <string.h>
 #include <xxhash.h>
 
-#define VERSION 6
+#define VERSION 7
 #define HDR 64
 #define CHUNK_ROWS 256
 #define SEED_HEAD 0x6d69785648ULL
@@ -210,6 +212,9 @@ int mim_index_save(const mim_index_t *ix, void **blob, size_t *len, mim_error_t 
     double noise_max = m ? sh->noise_max : 0;
     put(&h, sm, sizeof sm), put(&h, &noise_max, 8);
     if (m) put(&h, sh->mu, 8ull * nc * m), put(&h, sh->S, 8ull * m * m);
+    uint32_t pr[2] = {ix->prop.on ? ix->n_landmarks : 0, 0}; /* canonical proportions, none: 0 */
+    put(&h, pr, sizeof pr);
+    if (pr[0]) put(&h, ix->prop.parent, 4ull * pr[0]), put(&h, ix->prop.length, 4ull * pr[0]);
     static const unsigned char zero[64];
     if (h.len % 64) put(&h, zero, 64 - h.len % 64); /* the head ends 64-byte aligned */
     bulk_t b;
@@ -416,6 +421,22 @@ int mim__index_parse(mim_index_t **out, const unsigned char *p, size_t len, int 
         if (rc) BAD("index blob: the shape discriminants' covariance is not positive definite");
     } else if (sm[1] || noise_max != 0) {
         BAD("index blob: no shape discriminants, but %u classes and noise %g for them", sm[1], noise_max);
+    }
+    const uint32_t *pr = take(&c, 2, 4);
+    if (!pr) goto trunc;
+    if (pr[0]) { /* canonical proportions: a tree over the landmarks, positive lengths */
+        const int32_t *parent = pr[0] == L ? take(&c, L, 4) : NULL;
+        const float *length = parent ? take(&c, L, 4) : NULL;
+        if (pr[0] != L || pr[1]) BAD("index blob: proportions for %u landmarks, the index has %u", pr[0], L);
+        if (!parent || !length) goto trunc;
+        if (mim__proportions_check(parent, L)) BAD("index blob: the proportions' skeleton is not a tree");
+        for (uint32_t l = 0; l < L; l++)
+            if (parent[l] >= 0 ? !(length[l] > 0 && isfinite(length[l])) : length[l] != 0)
+                BAD("index blob: proportions: landmark %u's segment length %g", l, (double)length[l]);
+        memcpy(ix->prop.parent, parent, 4ull * L), memcpy(ix->prop.length, length, 4ull * L);
+        ix->prop.on = 1;
+    } else if (pr[1]) {
+        BAD("index blob: no proportions, but %u after them", pr[1]);
     }
     if (up(c.off, 64) != c.end) BAD("index blob: %llu bytes left over in its head", (unsigned long long)(c.end - c.off));
     /* the bulk: sections where the sizes put them, all inside the blob */

@@ -57,6 +57,11 @@ struct mim_index {
         double *V, *lam, *Vmu;  /* S's eigenvectors (columns), eigenvalues, V^T mu_c: made at build and open */
         double *U;              /* 3 * 3L: V^T of a unit translation along x, y, z */
     } shape;
+    struct mim__proportions {   /* proportions.c; on 0: frames as they are */
+        uint32_t on;
+        int32_t parent[MIM_LANDMARKS_MAX]; /* the landmark skeleton: each landmark's parent, -1 the root */
+        float length[MIM_LANDMARKS_MAX];   /* the mean length of the segment to its parent (root: 0) */
+    } prop;
     /* In place (blob.c): the arrays above, the label
      * strings and the SVMs' arrays point into the blob, which is not ours
      * (borrowed) or is our own aligned copy (own); lazy says which sections
@@ -174,6 +179,18 @@ void mim__shape_free(mim__shape_t *m);
  * mim__shape_class (none, fewer than 3 landmarks) or out of memory. */
 int mim__shape_complete(const mim__shape_t *m, const float *positions, const uint8_t *present, float *out,
                         uint32_t *cls, double *scores);
+
+/* proportions.c: canonical proportions. check: 0 when parent (L
+ * entries) is a tree over the L landmarks (one root, -1). build: the
+ * skeleton and the mean segment lengths of in's templates (in->parent not
+ * NULL): MIM_EINVAL when it is not a tree, or a segment has length 0 in
+ * every template. apply: out (3L) = the frame redrawn on the canonical
+ * lengths (lost landmarks, present 0 or not finite, kept as they are). */
+typedef struct mim__proportions mim__proportions_t;
+int mim__proportions_check(const int32_t *parent, uint32_t L);
+int mim__proportions_build(mim__proportions_t *p, const mim_index_input_t *in, mim_error_t *err);
+void mim__proportions_apply(const mim__proportions_t *p, uint32_t L, const float *pos, const uint8_t *present,
+                            float *out);
 
 /* classes.c: up to per_class templates of each class (cls, n templates,
  * nc classes), spread evenly over its templates in input order; their

@@ -133,7 +133,16 @@ typedef struct mim_index_input {
     const char *const *subjects;  /* n_templates labels ("" or NULL: none); NULL: none at all */
     const char *const *poses;     /* likewise */
     const uint32_t *mirror;       /* n_landmarks, the landmark map's mirror table; NULL: none */
+    /* The landmark skeleton: each landmark's parent (-1: the root; a tree
+     * over all n_landmarks, as mim_landmark_skeleton gives for the 16
+     * default landmarks); NULL: none, and no canonical proportions. */
+    const int32_t *parent;
 } mim_index_input_t;
+
+/* The landmark skeleton of map as mim_index_input_t.parent wants it
+ * (parent has map->count entries): 0, or MIM_EUNSUPPORTED for a map that
+ * is not the 16 default landmarks (mim_landmark_skeleton), which has none. */
+int mim_index_skeleton(const mim_landmark_map_t *map, int32_t *parent);
 
 typedef struct mim_index_options {
     uint32_t features;        /* d; 0 means 60 */
@@ -176,8 +185,21 @@ typedef struct mim_index_options {
      * discriminant_noise x the bodies' scale; whole frames only. Stored in
      * the index. */
     double discriminant_noise; /* > 0: build them (MIM_INDEX_DISCRIMINANT_NOISE_MEASURED was their best); else none */
+    /* Proportions (proportions.c): with a landmark skeleton in the input,
+     * MIM_INDEX_PROPORTIONS_CANONICAL takes the angles of every frame,
+     * template or query, on the frame redrawn with the templates' mean
+     * segment lengths and its own segment directions, so that the
+     * descriptor, the SVMs and the k-NN do not see whose bones they are
+     * (bodies of other proportions in one pose answer alike); the shape
+     * discriminants and the completion see the frame as it is (noise:
+     * proportions.c). MIM_INDEX_PROPORTIONS_BODY takes each frame as it is
+     * everywhere. Stored in the index. Without a skeleton: the body's. */
+    int proportions; /* 0 means MIM_INDEX_PROPORTIONS_DEFAULT */
     mim_progress_t *progress; /* fn and ctx set by the caller, run by the build; NULL: quiet */
 } mim_index_options_t;
+
+enum { MIM_INDEX_PROPORTIONS_BODY = 1, MIM_INDEX_PROPORTIONS_CANONICAL = 2 };
+#define MIM_INDEX_PROPORTIONS_DEFAULT MIM_INDEX_PROPORTIONS_CANONICAL
 
 #define MIM_INDEX_NOISE_DEFAULT 0.025
 #define MIM_INDEX_AUGMENT_DEFAULT 4u
@@ -197,6 +219,7 @@ typedef struct mim_index_report {
     double weight;                       /* the angle weighting's power (0: none) */
     double discriminant_noise;           /* the angle discriminants' training noise / the bodies' scale (0: none) */
     double shape_noise;                  /* the shape discriminants' top noise level / the RMS radius (-1: none) */
+    uint32_t canonical;                  /* frames seen on canonical proportions (1) or their own (0) */
     mim_select_report_t select;
     double seconds;
 } mim_index_report_t;
@@ -244,6 +267,7 @@ typedef struct mim_index_info {
     double weight;    /* the angle weighting's power (0: none) */
     double discriminant_noise; /* the linear discriminants' training noise / the bodies' scale (0: none) */
     double shape_noise;        /* the shape discriminants' top noise level / the RMS radius (-1: none) */
+    uint32_t canonical;        /* frames seen on canonical proportions (1) or their own (0) */
     /* kd-forests (classes above the exact scan's size) read from the blob
      * and built when it was made or loaded (a forest that would not load
      * is built again) */

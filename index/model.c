@@ -182,11 +182,18 @@ static double body_scale(const mim_index_input_t *in)
     return r[m / 2];
 }
 
-/* Template t's landmarks with Gaussian noise of sigma on every coordinate. */
-static void noisy_landmarks(const mim_index_input_t *in, uint32_t t, double sigma, mim_rng_t *rng, float *out)
+/* Template t's landmarks (raw: as given) with Gaussian noise of sigma on
+ * every coordinate, then seen as the angles see them (on canonical
+ * proportions when prop is on), as a noisy query would be. */
+static void noisy_landmarks(const mim_index_input_t *raw, const mim__proportions_t *prop, uint32_t t, double sigma,
+                            mim_rng_t *rng, float *out)
 {
-    const float *p = in->landmarks + (size_t)t * in->n_landmarks * 3;
-    for (uint32_t i = 0; i < 3 * in->n_landmarks; i++) out[i] = (float)(p[i] + sigma * mim_rng_gauss(rng));
+    const uint32_t L = raw->n_landmarks;
+    const float *p = raw->landmarks + (size_t)t * L * 3;
+    float noisy[3 * MIM_LANDMARKS_MAX];
+    for (uint32_t i = 0; i < 3 * L; i++) noisy[i] = (float)(p[i] + sigma * mim_rng_gauss(rng));
+    if (prop->on) mim__proportions_apply(prop, L, noisy, NULL, out);
+    else memcpy(out, noisy, sizeof *out * 3 * L);
 }
 
 /* Nearest of k centres (rows of nf doubles) to the angles a; NaN left out. */
@@ -389,17 +396,37 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
         return mim_error_set(err, MIM_EINVAL, "noise augmentation: noise %g (at most 1) and %u copies (at most 64)",
                              opt.noise, opt.augment);
     if (!(opt.weight <= 4)) return mim_error_set(err, MIM_EINVAL, "angle weighting: power %g (at most 4)", opt.weight);
-    double noise = opt.noise < 0 ? 0 : opt.noise > 0 ? opt.noise : MIM_INDEX_NOISE_DEFAULT;
-    uint32_t A = noise > 0 ? (opt.augment ? opt.augment : MIM_INDEX_AUGMENT_DEFAULT) : 0;
-    const double scale = body_scale(in); /* the training noises' unit */
-    double sigma = A ? noise * scale : 0;
-    if (!A) noise = 0;
-    double wpow = opt.weight < 0 ? 0 : opt.weight > 0 ? opt.weight : MIM_INDEX_WEIGHT_DEFAULT;
-    if (!(wpow > 0) || !A) wpow = 0;
     if (!(opt.discriminant_noise <= 1))
         return mim_error_set(err, MIM_EINVAL, "linear discriminants: noise %g (at most 1)", opt.discriminant_noise);
     if (!(opt.shape_noise <= 1))
         return mim_error_set(err, MIM_EINVAL, "shape discriminants: noise %g (at most 1)", opt.shape_noise);
+    const int proportions = opt.proportions ? opt.proportions : MIM_INDEX_PROPORTIONS_DEFAULT;
+    if (proportions != MIM_INDEX_PROPORTIONS_BODY && proportions != MIM_INDEX_PROPORTIONS_CANONICAL)
+        return mim_error_set(err, MIM_EINVAL, "proportions %d: neither the body's nor canonical", opt.proportions);
+    /* canonical proportions: the angles below see the templates redrawn
+     * on the mean segment lengths (proportions.c), as queries' will be;
+     * the shape discriminants and the training noise see them as given */
+    const mim_index_input_t *raw = in;
+    mim__proportions_t prop = {0};
+    mim_index_input_t canonical_in;
+    float *canonical = NULL;
+    if (in->parent && proportions == MIM_INDEX_PROPORTIONS_CANONICAL) {
+        int prc = mim__proportions_build(&prop, in, err);
+        if (prc) return prc;
+        if (!(canonical = malloc(sizeof *canonical * 3 * (size_t)n * L))) return MIM_ENOMEM;
+        for (uint32_t t = 0; t < n; t++)
+            mim__proportions_apply(&prop, L, in->landmarks + (size_t)t * L * 3, NULL, canonical + (size_t)t * L * 3);
+        canonical_in = *in;
+        canonical_in.landmarks = canonical;
+        in = &canonical_in;
+    }
+    double noise = opt.noise < 0 ? 0 : opt.noise > 0 ? opt.noise : MIM_INDEX_NOISE_DEFAULT;
+    uint32_t A = noise > 0 ? (opt.augment ? opt.augment : MIM_INDEX_AUGMENT_DEFAULT) : 0;
+    const double scale = body_scale(raw); /* the training noises' unit */
+    double sigma = A ? noise * scale : 0;
+    if (!A) noise = 0;
+    double wpow = opt.weight < 0 ? 0 : opt.weight > 0 ? opt.weight : MIM_INDEX_WEIGHT_DEFAULT;
+    if (!(wpow > 0) || !A) wpow = 0;
     double dnoise = opt.discriminant_noise > 0 ? opt.discriminant_noise : 0;
     double snoise = opt.shape_noise < 0 ? -1 : opt.shape_noise > 0 ? opt.shape_noise : MIM_INDEX_SHAPE_NOISE_DEFAULT;
     mim_index_t *ix = calloc(1, sizeof *ix);
@@ -415,6 +442,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
         goto out;
     }
     ix->n_landmarks = L, ix->d = d, ix->d2 = d2, ix->n_templates = n;
+    ix->prop = prop;
     ix->augment = A, ix->noise = noise, ix->weight = wpow;
     ix->exact_max = opt.exact_max ? opt.exact_max : 8192;
     ix->checks = opt.checks ? opt.checks : 128;
@@ -422,7 +450,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
     ix->n_classes = nc, ix->class_source = source;
     if (dnoise > 0 && (rc = mim__lda_build(&ix->lda, in, cls, nc, dnoise * scale, err))) goto out;
     ix->discriminant_noise = ix->lda.nf ? dnoise : 0;
-    if (snoise >= 0 && (rc = mim__shape_build(&ix->shape, in, cls, nc, snoise, err))) goto out;
+    if (snoise >= 0 && (rc = mim__shape_build(&ix->shape, raw, cls, nc, snoise, err))) goto out;
     progress = opt.progress;
     if (progress) mim_progress_begin(progress, "index", (nc > 1 && !(opt.C > 0 && opt.gamma > 0) ? 16 : 0) + nc);
 
@@ -463,7 +491,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
     for (uint32_t i = 0; i < m; i++) /* the noisy copies after the templates */
         for (uint32_t a = 0; a < A; a++) {
             size_t row = m + (size_t)i * A + a;
-            noisy_landmarks(in, rows[i], sigma, &rng, noisy);
+            noisy_landmarks(raw, &prop, rows[i], sigma, &rng, noisy);
             mim_index_angles(noisy, NULL, L, x + row * nf);
             y[row] = cls[rows[i]];
         }
@@ -579,7 +607,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
             for (uint32_t a = 0; a < A; a++) {
                 size_t row = sm + (size_t)i * A + a;
                 uint32_t r = rows[i];
-                noisy_landmarks(in, order[r], sigma, &rng, noisy);
+                noisy_landmarks(raw, &prop, order[r], sigma, &rng, noisy);
                 mim_index_descriptor(noisy, NULL, L, ix->selected, d2, desc);
                 y[row] = y[i], grp[row] = grp[i];
                 for (uint32_t f = 0; f < d; f++) /* an undefined angle: the template's own */
@@ -622,6 +650,7 @@ int mim_index_build(mim_index_t **out, const mim_index_input_t *in, const mim_in
         report->augment = A, report->noise = noise, report->weight = wpow;
         report->discriminant_noise = ix->discriminant_noise;
         report->shape_noise = ix->shape.n_classes ? ix->shape.noise_max : -1;
+        report->canonical = ix->prop.on;
         report->seconds = mim_now() - t0;
     }
     *out = ix;
@@ -632,7 +661,7 @@ out:
     free(st.s), free(st.slot);
     mim_index_close(&ix);
     free(cls), free(names), free(order), free(rows), free(mmap), free(y), free(grp), free(x), free(desc), free(sx);
-    free(noisy);
+    free(noisy), free(canonical);
     return rc;
 }
 
@@ -645,6 +674,7 @@ void mim_index_get_info(const mim_index_t *ix, mim_index_info_t *o)
     o->augment = ix->augment, o->noise = ix->noise, o->weight = ix->weight;
     o->discriminant_noise = ix->discriminant_noise;
     o->shape_noise = ix->shape.n_classes ? ix->shape.noise_max : -1;
+    o->canonical = ix->prop.on;
     o->forests_loaded = ix->forests_loaded, o->forests_built = ix->forests_built;
     o->in_place = ix->borrowed && !ix->own;
     o->classes_ready = ix->n_classes;

@@ -170,8 +170,12 @@ int mim_query_build_index_labelled(mim_db_t *db, const mim_index_options_t *opt,
         goto out;
     }
     if (labels) *labels = lrep;
+    /* the landmark skeleton, for canonical proportions: the 16 default
+     * landmarks' (another map has none) */
+    int32_t parent[MIM_LANDMARKS_MAX];
+    const int skeleton = !mim_index_skeleton(&map, parent);
     mim_index_input_t in = {g.n, map.count, g.lm, g.ids, (const char *const *)g.subjects,
-                            (const char *const *)g.poses, map.mirror};
+                            (const char *const *)g.poses, map.mirror, skeleton ? parent : NULL};
     if ((rc = mim_index_build(&ix, &in, opt, report, err))) goto out;
     if ((rc = mim_index_save(ix, &blob, &len, err))) goto out;
     mim_index_info_t info;

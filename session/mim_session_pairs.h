@@ -56,8 +56,8 @@ typedef struct mim_session_pairs_person {
                                  one, 2 + sample: a header, then a sample a line) */
     char person;              /* 'a' or 'b' */
     const float *landmarks;   /* 3 * map count floats, map order: the targets that pose the avatar */
-    const char *pose_class;   /* after the transfer: the pose class the index gave the landmarks ("" in an
-                                 index of k-means clusters); before it NULL */
+    const char *pose_class;   /* after the transfer: the pose class the index gave the person's own joints
+                                 ("" in an index of k-means clusters); before it NULL */
 } mim_session_pairs_person_t;
 
 /* 0 when the session's store can take pose-pairs: it has an index

@@ -18,8 +18,10 @@
  * store of 12, 100 pose-pairs: 78 of the 200 people found their own
  * template through mimic query, and the index took 60 s; with the class
  * label 198 of 200, and 3 s). So by default a sampled template joins the
- * class the index gives its landmarks, and its source says where it came
- * from. */
+ * class the index gives the person's own joints (those mimic query is
+ * given to find it again; its classes see the bodies' proportions, so not
+ * the landmarks retargeted onto the avatar's), and its source says where
+ * it came from. */
 #include "mim_session_pairs.h"
 
 #include "internal.h"
@@ -35,7 +37,7 @@ typedef struct {
     uint32_t sample; /* index into the samples */
     long line;       /* its line in the file */
     char person;     /* 'a' or 'b' */
-    uint32_t cls;    /* the pose class of its landmarks, in classes_t */
+    uint32_t cls;    /* the pose class of its own joints, in classes_t */
 } item_t;
 
 /* The pose classes the index gave, each name once (there are few). */
@@ -51,6 +53,7 @@ struct mim_session_pairs {
     uint32_t n_samples, n, nl;  /* samples, people, landmarks a person */
     uint32_t n_vertices;        /* of each body */
     uint32_t features;          /* the index's angles, kept by the rebuild */
+    int proportions;            /* the index's proportions (MIM_INDEX_PROPORTIONS_*), kept too */
     int labelled;               /* the index's classes are pose labels (not k-means clusters) */
     item_t *items;              /* n */
     float *lm;                  /* n * 3 * nl */
@@ -166,6 +169,27 @@ static int person_landmarks(const prep_t *pp, const double *joints, const char *
     return mim_landmarks_check(out, NULL, nl, what, -1, err);
 }
 
+/* The pose class the store's index gives a person's own joints (the
+ * map's landmarks as the sample holds them), into *cls ("" where the
+ * index's classes are not pose labels); who names the person in errors. */
+static int person_class(const mim_session_t *s, const prep_t *pp, int labelled, const double *joints, const char *who,
+                        classes_t *c, uint32_t *cls, mim_error_t *err)
+{
+    float raw[3 * MIM_LANDMARKS_MAX];
+    for (uint32_t l = 0; l < pp->nl; l++)
+        for (int k = 0; k < 3; k++) raw[3 * l + k] = (float)joints[3 * pp->idx[l] + k];
+    const mim_index_t *ix = mim_query_index(mim_session_query(s));
+    mim_index_answer_t ans;
+    mim_index_hit_t hit;
+    mim_error_t e = {0};
+    int rc = mim_index_query(ix, raw, NULL, NULL, &ans, &hit, &e);
+    if (rc) return mim_error_set(err, rc, "%s: its pose class: %s", who, mim_error_text(&e));
+    const long k = class_of(c, labelled ? mim_index_class_name(ix, ans.cls) : "");
+    if (k < 0) return mim_error_set(err, MIM_ENOMEM, "out of memory");
+    *cls = (uint32_t)k;
+    return 0;
+}
+
 int mim_session_pairs_prefix_ok(const char *p)
 {
     if (!p || strlen(p) > MIM_SESSION_PAIRS_PREFIX_MAX) return 0;
@@ -220,6 +244,9 @@ int mim_session_pairs_prepare(mim_session_t *s, const mim_pairs_samples_t *smp,
                                    .nl = mim_session_map(s)->count, .n_vertices = mim_session_mesh(s)->n_vertices,
                                    .features = mim_session_index_status(s)->built.d,
                                    .labelled = mim_session_index_status(s)->built.class_source == MIM_CLASSES_LABELS};
+        mim_index_info_t info;
+        mim_index_get_info(mim_query_index(mim_session_query(s)), &info);
+        p->proportions = info.canonical ? MIM_INDEX_PROPORTIONS_CANONICAL : MIM_INDEX_PROPORTIONS_BODY;
         p->origin = strdup(origin);
         p->items = calloc(p->n, sizeof *p->items);
     }
@@ -240,12 +267,13 @@ int mim_session_pairs_prepare(mim_session_t *s, const mim_pairs_samples_t *smp,
         goto done;
     }
     for (uint32_t i = 0; i < p->n && !rc; i++) {
-        const item_t *it = &p->items[i];
+        item_t *it = &p->items[i];
         char who[4200];
         snprintf(who, sizeof who, "%s:%ld: person %c", origin, it->line, it->person);
         const double *joints = smp->joints + (size_t)it->sample * 3 * MIM_PAIR_JOINTS +
                                (it->person == 'b' ? 3 * MIM_PAIR_PERSON_JOINTS : 0);
         rc = person_landmarks(&pp, joints, who, p->lm + (size_t)i * 3 * p->nl, err);
+        if (!rc) rc = person_class(s, &pp, p->labelled, joints, who, &p->classes, &it->cls, err);
     }
 done:
     free(pp.scratch);
@@ -285,7 +313,7 @@ int mim_session_pairs_transfer(mim_session_t *s, mim_session_pairs_t *p, mim_err
     mim_progress_begin(pr, "transfer", p->n);
     int rc = 0;
     for (uint32_t i = 0; i < p->n && !rc; i++) {
-        item_t *it = &p->items[i];
+        const item_t *it = &p->items[i];
         mim_session_request_t req = {.landmarks = p->lm + (size_t)i * 3 * p->nl};
         mim_session_report_t rep;
         mim_error_t e = {0};
@@ -294,9 +322,6 @@ int mim_session_pairs_transfer(mim_session_t *s, mim_session_pairs_t *p, mim_err
             mim_error_set(err, rc, "%s:%ld: person %c: %s", p->origin, it->line, it->person, mim_error_text(&e));
         else if (fwrite(out, sizeof *out, 3 * (size_t)n, p->spool) != 3 * (size_t)n)
             rc = mim_error_set(err, MIM_EIO, "cannot write the results to a temporary file (is the disk full?)");
-        long k = rc ? 0 : class_of(&p->classes, p->labelled ? rep.class_name : "");
-        if (k < 0) rc = mim_error_set(err, MIM_ENOMEM, "out of memory");
-        it->cls = (uint32_t)k;
         mim_progress_update(pr, i + 1);
     }
     mim_progress_end(pr);
@@ -415,7 +440,7 @@ int mim_session_pairs_store(mim_session_pairs_t *p, const char *store, const mim
     /* the index, as mimic index builds it, with the angles the store's had */
     mim_db_t *db = NULL;
     mim_db_options_t o = opt->db ? *opt->db : (mim_db_options_t){0};
-    mim_index_options_t io = {.features = p->features, .progress = p->progress};
+    mim_index_options_t io = {.features = p->features, .proportions = p->proportions, .progress = p->progress};
     mim_error_t e = {0};
     rc = mim_db_open(&db, store, &o, &e);
     if (!rc) rc = mim_query_build_index(db, &io, &report->index, &e);

@@ -236,7 +236,7 @@ static void test_build_query_blob(void **s)
     (void)s;
     synth_set_t ss;
     synth_set(&ss, 4, 12, 11);
-    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror, NULL};
     mim_index_options_t o = {.features = 40};
     mim_index_report_t rep;
     mim_index_t *ix = NULL;
@@ -341,7 +341,7 @@ static void test_reproducible_without_rand(void **s)
     (void)s;
     synth_set_t ss;
     synth_set(&ss, 4, 12, 17);
-    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror, NULL};
     mim_index_options_t o = {.features = 40};
     mim_index_t *ix1 = NULL, *ix2 = NULL;
     srand(1);
@@ -423,7 +423,7 @@ static void test_concurrent_queries(void **s)
     (void)s;
     synth_set_t ss;
     synth_set(&ss, 4, 12, 19);
-    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror, NULL};
     /* frames: each template as is, perturbed, and with two landmarks missing */
     uint32_t n = 3 * ss.n;
     float *frames = malloc(sizeof(float) * 48 * n);
@@ -480,7 +480,7 @@ static void test_saved_forests(void **s)
     (void)s;
     synth_set_t ss;
     synth_set(&ss, 4, 12, 29);
-    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror, NULL};
     mim_index_options_t o = {.features = 40, .exact_max = 2, .checks = 1};
     mim_index_t *ix = NULL, *back = NULL;
     assert_int_equal(mim_index_build(&ix, &in, &o, NULL, NULL), 0);
@@ -560,7 +560,7 @@ static void test_in_place_answers(void **s)
     (void)s;
     synth_set_t ss;
     synth_set(&ss, 4, 12, 43);
-    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror, NULL};
     for (int variant = 0; variant < 2; variant++) {
         mim_index_options_t o = {.features = 40, .exact_max = variant ? 2 : 0, .checks = 1};
         mim_index_t *ix = NULL, *cp = NULL, *ip = NULL;
@@ -570,7 +570,7 @@ static void test_in_place_answers(void **s)
         assert_int_equal(mim_index_save(ix, &blob, &len, NULL), 0);
         uint32_t ver;
         memcpy(&ver, (unsigned char *)blob + 4, 4);
-        assert_int_equal(ver, 6);
+        assert_int_equal(ver, 7);
         assert_int_equal((uintptr_t)blob % 64, 0);
         assert_int_equal(mim_index_load(&cp, blob, len, NULL), 0);
         assert_int_equal(mim_index_open_in_place(&ip, blob, len, NULL), 0);
@@ -623,7 +623,7 @@ static void test_in_place_damage(void **s)
     (void)s;
     synth_set_t ss;
     synth_set(&ss, 4, 12, 47);
-    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror, NULL};
     /* no shape discriminants: a frame with landmarks missing is completed
      * by the scan, which reads every template's further angles (with them
      * the classes' Gaussians complete it and nothing reads those here) */
@@ -772,7 +772,7 @@ static void test_in_place_first_use_threads(void **s)
     enum { THREADS = 4 };
     synth_set_t ss;
     synth_set(&ss, 4, 12, 53);
-    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror, NULL};
     mim_index_options_t o = {.features = 40, .exact_max = 2, .checks = 1};
     mim_index_t *ix = NULL;
     assert_int_equal(mim_index_build(&ix, &in, &o, NULL, NULL), 0);
@@ -818,7 +818,7 @@ static void test_kmeans_classes(void **s)
     (void)s;
     synth_set_t ss;
     synth_set(&ss, 3, 12, 13);
-    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, NULL, ss.map.mirror};
+    mim_index_input_t in = {ss.n, 16, ss.lm, ss.ids, ss.sp, NULL, ss.map.mirror, NULL};
     mim_index_report_t rep;
     mim_index_t *ix = NULL;
     assert_int_equal(mim_index_build(&ix, &in, NULL, &rep, NULL), 0);
@@ -835,13 +835,13 @@ static void test_kmeans_classes(void **s)
     float lm4[36 * 12];
     for (uint32_t t = 0; t < 36; t++)
         for (int l = 0; l < 4; l++) memcpy(lm4 + 12 * t + 3 * l, ss.lm + 48 * t + 3 * (l == 3 ? 7 : l), 12);
-    mim_index_input_t in4 = {36, 4, lm4, ss.ids, ss.sp, ss.pp, NULL};
+    mim_index_input_t in4 = {36, 4, lm4, ss.ids, ss.sp, ss.pp, NULL, NULL};
     assert_int_equal(mim_index_build(&ix, &in4, NULL, &rep, NULL), 0);
     assert_int_equal(rep.d, 12);
     mim_index_close(&ix);
     /* bad input */
     mim_error_t err = {0};
-    mim_index_input_t in3 = {36, 3, lm4, ss.ids, NULL, NULL, NULL};
+    mim_index_input_t in3 = {36, 3, lm4, ss.ids, NULL, NULL, NULL, NULL};
     assert_int_equal(mim_index_build(&ix, &in3, NULL, NULL, &err), MIM_EINVAL);
     lm4[5] = NAN;
     mim_error_clear(&err);
@@ -865,7 +865,7 @@ static void test_gaussian_completion(void **s)
     synth_set_t ss;
     synth_set_imitating(&ss, 6, 12, 21, 3.5);
     const uint32_t P = 12, train = 5 * P;
-    mim_index_input_t in = {train, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror};
+    mim_index_input_t in = {train, 16, ss.lm, ss.ids, ss.sp, ss.pp, ss.map.mirror, NULL};
     mim_index_t *ix = NULL;
     assert_int_equal(mim_index_build(&ix, &in, NULL, NULL, NULL), 0);
     static const uint32_t lost_sets[2][3] = {{7, 5, 13}, {8, 0, 12}}; /* l_wrist l_elbow l_ankle; r_wrist head r_knee */

@@ -41,7 +41,7 @@ static void set_make(set_t *s)
 /* The index of the first S - 1 subjects with options o. */
 static mim_index_t *build(const set_t *s, const mim_index_options_t *o)
 {
-    mim_index_input_t in = {(S - 1) * P, s->h.n_landmarks, s->h.landmarks, s->ids, s->subj, s->pose, s->h.mirror};
+    mim_index_input_t in = {(S - 1) * P, s->h.n_landmarks, s->h.landmarks, s->ids, s->subj, s->pose, s->h.mirror, NULL};
     mim_index_t *ix = NULL;
     mim_error_t err = {0};
     mim_index_report_t rep;
@@ -245,7 +245,7 @@ static void test_shape_discriminants(void **state)
     free(blob);
     /* out of range */
     mim_index_options_t bad = {.shape_noise = 1.5};
-    mim_index_input_t in = {(S - 1) * P, s->h.n_landmarks, s->h.landmarks, s->ids, s->subj, s->pose, s->h.mirror};
+    mim_index_input_t in = {(S - 1) * P, s->h.n_landmarks, s->h.landmarks, s->ids, s->subj, s->pose, s->h.mirror, NULL};
     mim_index_t *ix = NULL;
     mim_error_t err = {0};
     assert_int_equal(mim_index_build(&ix, &in, &bad, NULL, &err), MIM_EINVAL);
@@ -345,7 +345,7 @@ static void test_angle_discriminants(void **state)
     free(blob);
     /* out of range */
     mim_index_options_t bad = {.discriminant_noise = 1.5};
-    mim_index_input_t in = {(S - 1) * P, s->h.n_landmarks, s->h.landmarks, s->ids, s->subj, s->pose, s->h.mirror};
+    mim_index_input_t in = {(S - 1) * P, s->h.n_landmarks, s->h.landmarks, s->ids, s->subj, s->pose, s->h.mirror, NULL};
     mim_index_t *ix = NULL;
     mim_error_t err = {0};
     assert_int_equal(mim_index_build(&ix, &in, &bad, NULL, &err), MIM_EINVAL);
@@ -394,7 +394,7 @@ static void test_blob_options(void **state)
         free(blob);
     }
     /* out of range */
-    mim_index_input_t in = {P, s->h.n_landmarks, s->h.landmarks, s->ids, s->subj, s->pose, s->h.mirror};
+    mim_index_input_t in = {P, s->h.n_landmarks, s->h.landmarks, s->ids, s->subj, s->pose, s->h.mirror, NULL};
     mim_index_options_t bad1 = {.noise = 2}, bad2 = {.augment = 65}, bad3 = {.weight = 5};
     assert_int_equal(mim_index_build(&ix, &in, &bad1, NULL, NULL), MIM_EINVAL);
     assert_int_equal(mim_index_build(&ix, &in, &bad2, NULL, NULL), MIM_EINVAL);

@@ -90,7 +90,9 @@ static void test_ends_turn_with_their_parent_bone(void **state)
     mim_synth_destroy(&syn);
     free(scratch);
     /* the Gaussians of 5 subjects; the sixth's bodies lose both wrists and both ankles */
-    mim_index_input_t in = {TRAIN, L, lm, ids, sp, pp, map.mirror};
+    int32_t parent[MIM_LANDMARKS_MAX]; /* as a store's index: canonical proportions */
+    assert_int_equal(mim_index_skeleton(&map, parent), 0);
+    mim_index_input_t in = {TRAIN, L, lm, ids, sp, pp, map.mirror, parent};
     mim_index_t *ix = NULL;
     assert_int_equal(mim_index_build(&ix, &in, NULL, NULL, NULL), 0);
     const int ends[4] = {mim_landmarks_find(&map, "l_wrist"), mim_landmarks_find(&map, "r_wrist"),

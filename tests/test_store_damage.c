@@ -405,7 +405,7 @@ static void test_index_bulk_damage(void **s)
     memcpy(&ver, (const char *)blob + 4, 4);
     memcpy(&hb, (const char *)blob + 32, 8);
     memcpy(&n, (const char *)blob + 64 + 8, 4);
-    assert_int_equal(ver, 6);
+    assert_int_equal(ver, 7);
     uint64_t at = (64 + hb + 63) / 64 * 64;
     at = (at + 8ull * n + 63) / 64 * 64;
     at = (at + 4ull * n + 63) / 64 * 64;

@@ -17,7 +17,7 @@ struct mim_xfer_topology {
  * each a child landmark and its parent, parents before children, rooted at
  * the pelvis. Fills the map indices; MIM_EUNSUPPORTED (naming what) when
  * the map is not the 16 default landmarks; what names the caller. */
-#define MIM__XFER_BONES 15
+#define MIM__XFER_BONES MIM_LANDMARK_BONES
 int mim__xfer_landmark_tree(const mim_landmark_map_t *map, int *root, int child[MIM__XFER_BONES],
                             int parent[MIM__XFER_BONES], const char *what, mim_error_t *err);
 

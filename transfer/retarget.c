@@ -12,30 +12,15 @@
 #include <math.h>
 #include <string.h>
 
-/* The landmark skeleton over the default names: child, parent. Parents
- * come before their children. */
-static const char *const tree[MIM__XFER_BONES][2] = {
-    {"spine", "pelvis"},          {"chest", "spine"},         {"head", "chest"},
-    {"l_shoulder", "chest"},      {"r_shoulder", "chest"},    {"l_elbow", "l_shoulder"},
-    {"r_elbow", "r_shoulder"},    {"l_wrist", "l_elbow"},     {"r_wrist", "r_elbow"},
-    {"l_hip", "pelvis"},          {"r_hip", "pelvis"},        {"l_knee", "l_hip"},
-    {"r_knee", "r_hip"},          {"l_ankle", "l_knee"},      {"r_ankle", "r_knee"},
-};
-
 int mim__xfer_landmark_tree(const mim_landmark_map_t *map, int *root, int child[MIM__XFER_BONES],
                             int parent[MIM__XFER_BONES], const char *what, mim_error_t *err)
 {
+    const char *missing;
     *root = mim_landmarks_find(map, "pelvis");
-    if (*root < 0 || map->count != MIM__XFER_BONES + 1)
-        return mim_error_set(err, MIM_EUNSUPPORTED, "transfer: %s needs the 16 default landmarks (pelvis, spine, ...)",
-                             what);
-    for (size_t k = 0; k < MIM__XFER_BONES; k++) {
-        child[k] = mim_landmarks_find(map, tree[k][0]);
-        parent[k] = mim_landmarks_find(map, tree[k][1]);
-        if (child[k] < 0 || parent[k] < 0)
-            return mim_error_set(err, MIM_EUNSUPPORTED, "transfer: %s needs landmark '%s'", what,
-                                 child[k] < 0 ? tree[k][0] : tree[k][1]);
-    }
+    if (mim_landmark_skeleton(map, child, parent, &missing))
+        return missing ? mim_error_set(err, MIM_EUNSUPPORTED, "transfer: %s needs landmark '%s'", what, missing)
+                       : mim_error_set(err, MIM_EUNSUPPORTED,
+                                       "transfer: %s needs the 16 default landmarks (pelvis, spine, ...)", what);
     return 0;
 }
 
