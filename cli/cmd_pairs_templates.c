@@ -64,6 +64,8 @@ static void help(FILE *out)
             "                        on stdout (schemas/pairs-templates.schema.json)\n"
             "  -h, --help            this help\n\n"
             "A result equal to a stored template is not stored twice (counted as a duplicate).\n"
+            "With --pose-label class, a person whose own joints the rebuilt index puts in another\n"
+            "class than its label takes that class, and the index is built again (up to 6 times).\n"
             "Afterwards each new template is looked for again with its sample's own joints: a warning\n"
             "(and --json's not_found_again) names those mimic query answers with another template, and\n"
             "why. The index of a store of the 16 default landmarks sees every body on canonical\n"
@@ -318,6 +320,7 @@ int mim_cmd_pairs_templates(int argc, char **argv)
         json_t *j = arr ? json_pack("{s:I, s:o, s:I, s:f}", "templates", (json_int_t)added, "ids", arr, "duplicates",
                                     (json_int_t)dup, "seconds", seconds)
                         : NULL;
+        if (j) json_object_set_new(j, "relabelled", json_integer((json_int_t)rep.relabelled));
         if (j && checked) {
             json_object_set_new(j, "found_again", json_integer((json_int_t)found));
             json_object_set(j, "not_found_again", miss);
@@ -334,7 +337,9 @@ int mim_cmd_pairs_templates(int argc, char **argv)
                n_samples == 1 ? "" : "s", samples_path);
         if (added) printf(" (ids %llu..%llu)", (unsigned long long)rep.ids[0], (unsigned long long)rep.ids[added - 1]);
         if (dup) printf(", %u already stored", dup);
-        printf(" in %.2f s; index rebuilt: %u classes, %u angles\n", seconds, rep.index.n_classes, rep.index.d);
+        printf(" in %.2f s; index rebuilt: %u classes, %u angles", seconds, rep.index.n_classes, rep.index.d);
+        if (rep.relabelled) printf(" (%u labels moved to the class it gives their joints)", rep.relabelled);
+        printf("\n");
     }
     json_decref(miss);
 done:

@@ -144,6 +144,11 @@ uint64_t mim_db_content_hash(const float *positions, uint32_t n_vertices);
 int mim_db_template_put(mim_db_txn_t *txn, const mim_template_in_t *t, uint64_t *id, int *existed,
                         mim_error_t *err);
 int mim_db_template_get(mim_db_txn_t *txn, uint64_t id, mim_template_view_t *out, mim_error_t *err);
+/* Gives template id the pose label pose (NULL or "": none); everything
+ * else of it stays. A write transaction; MIM_ENOTFOUND for no such id.
+ * The index is not marked stale by it (the store's counts stay): build it
+ * again. */
+int mim_db_template_relabel(mim_db_txn_t *txn, uint64_t id, const char *pose, mim_error_t *err);
 /* Calls fn for every template in id order; stops early when fn returns non-zero
  * (and returns that value). Views are valid until the txn ends. */
 typedef int (*mim_db_template_fn)(const mim_template_view_t *t, void *user);

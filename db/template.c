@@ -147,6 +147,31 @@ int mim_db_template_get(mim_db_txn_t *t, uint64_t id, mim_template_view_t *out, 
     return mim__db_template_decode(t, t->version, &v, id, out, err);
 }
 
+int mim_db_template_relabel(mim_db_txn_t *t, uint64_t id, const char *pose, mim_error_t *err)
+{
+    if (!t->write) return mim_error_set(err, MIM_EINVAL, "template relabel needs a write transaction");
+    mim_template_view_t v;
+    int rc = mim_db_template_get(t, id, &v, err);
+    if (rc) return rc;
+    /* the record is rewritten in place of the old, which the view lends
+     * from: its fields are copied first */
+    float *pos = malloc((size_t)v.n_vertices * 12);
+    char *source = strdup(v.source), *subject = strdup(v.subject), *dataset = strdup(v.dataset);
+    if (!pos || !source || !subject || !dataset) {
+        free(pos), free(source), free(subject), free(dataset);
+        return mim_error_set(err, MIM_ENOMEM, "template %llu: out of memory", (unsigned long long)id);
+    }
+    memcpy(pos, v.positions, (size_t)v.n_vertices * 12);
+    const mim_template_in_t in = {pos, v.n_vertices, v.content_hash, source, subject, pose, dataset};
+    size_t pos_off, size = mim__db_template_size(&in, &pos_off), key = (size_t)id;
+    MDB_val k = {sizeof key, &key}, nv = {size, NULL};
+    rc = mdb_put(t->txn, t->db->dbi[DBI_TEMPLATES], &k, &nv, MDB_RESERVE);
+    if (rc) rc = mim__db_fail(t->db, err, rc, "template");
+    else mim__db_template_encode(nv.mv_data, size, pos_off, id, &in);
+    free(pos), free(source), free(subject), free(dataset);
+    return rc;
+}
+
 /* Looks for a stored template with the same content; *found = its id or 0.
  * A stored record that fails its checks stops the put: new data is not
  * written beside damage. */

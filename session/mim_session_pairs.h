@@ -112,12 +112,16 @@ typedef struct mim_session_pairs_report {
     uint32_t duplicates;        /* results equal to a stored template: not stored twice */
     const uint64_t *ids;        /* the added templates' ids, in people order; valid until free */
     mim_index_report_t index;   /* the rebuilt index (the same number of angles as before) */
+    uint32_t relabelled;        /* labels moved to the class the rebuilt index gives the person's own joints */
 } mim_session_pairs_report_t;
 
 /* The transferred people into store (the one p's session had open, closed
  * now), one transaction: each body a template with its encoding (subject
  * the avatar's, source and pose label as the options say), then the index
- * rebuilt as mimic index builds it. Nothing is stored unless all are.
+ * rebuilt as mimic index builds it. With class labels (no label_prefix),
+ * a person whose own joints the rebuilt index puts in another class than
+ * its label takes that class, and the index is built again (up to 6
+ * times; report's relabelled). Nothing is stored unless all are.
  * Errors, all the store's or the system's: opening it, MIM_ETOPOLOGY (its
  * connectivity changed since), MIM_ENOTFOUND (no avatar_id), a write or
  * the commit (the message ends "nothing stored"), the rebuild ("N templates

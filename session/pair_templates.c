@@ -38,6 +38,7 @@ typedef struct {
     long line;       /* its line in the file */
     char person;     /* 'a' or 'b' */
     uint32_t cls;    /* the pose class of its own joints, in classes_t */
+    uint64_t id;     /* its template once stored (0: a duplicate, or not yet) */
 } item_t;
 
 /* The pose classes the index gave, each name once (there are few). */
@@ -57,6 +58,7 @@ struct mim_session_pairs {
     int labelled;               /* the index's classes are pose labels (not k-means clusters) */
     item_t *items;              /* n */
     float *lm;                  /* n * 3 * nl */
+    float *own;                 /* n * 3 * nl: each person's own joints, the map's landmarks */
     FILE *spool;                /* the bodies, 3 * n_vertices floats each, once transferred */
     int stored;
     classes_t classes;
@@ -169,24 +171,19 @@ static int person_landmarks(const prep_t *pp, const double *joints, const char *
     return mim_landmarks_check(out, NULL, nl, what, -1, err);
 }
 
-/* The pose class the store's index gives a person's own joints (the
- * map's landmarks as the sample holds them), into *cls ("" where the
- * index's classes are not pose labels); who names the person in errors. */
-static int person_class(const mim_session_t *s, const prep_t *pp, int labelled, const double *joints, const char *who,
-                        classes_t *c, uint32_t *cls, mim_error_t *err)
+/* The pose class index ix gives a person's own joints (own: the map's
+ * landmarks as the sample holds them), as a name (valid while ix lives;
+ * "" where the classes are not pose labels); who names the person in
+ * errors. */
+static int person_class(const mim_index_t *ix, int labelled, const float *own, const char *who, const char **name,
+                        mim_error_t *err)
 {
-    float raw[3 * MIM_LANDMARKS_MAX];
-    for (uint32_t l = 0; l < pp->nl; l++)
-        for (int k = 0; k < 3; k++) raw[3 * l + k] = (float)joints[3 * pp->idx[l] + k];
-    const mim_index_t *ix = mim_query_index(mim_session_query(s));
     mim_index_answer_t ans;
     mim_index_hit_t hit;
     mim_error_t e = {0};
-    int rc = mim_index_query(ix, raw, NULL, NULL, &ans, &hit, &e);
+    int rc = mim_index_query(ix, own, NULL, NULL, &ans, &hit, &e);
     if (rc) return mim_error_set(err, rc, "%s: its pose class: %s", who, mim_error_text(&e));
-    const long k = class_of(c, labelled ? mim_index_class_name(ix, ans.cls) : "");
-    if (k < 0) return mim_error_set(err, MIM_ENOMEM, "out of memory");
-    *cls = (uint32_t)k;
+    *name = labelled ? mim_index_class_name(ix, ans.cls) : "";
     return 0;
 }
 
@@ -216,7 +213,7 @@ void mim_session_pairs_free(mim_session_pairs_t **pp)
     mim_session_pairs_t *p = pp ? *pp : NULL;
     if (!p) return;
     if (p->spool) fclose(p->spool);
-    free(p->origin), free(p->items), free(p->lm), free(p->classes.name), free(p->ids);
+    free(p->origin), free(p->items), free(p->lm), free(p->own), free(p->classes.name), free(p->ids);
     free(p);
     *pp = NULL;
 }
@@ -262,7 +259,8 @@ int mim_session_pairs_prepare(mim_session_t *s, const mim_pairs_samples_t *smp,
     /* every person's landmarks first: a bad sample stops the run before
      * any transfer */
     if ((rc = prep_init(&pp, s, !opt->sample_proportions, err))) goto done;
-    if (!(p->lm = malloc((size_t)p->n * 3 * p->nl * sizeof *p->lm))) {
+    if (!(p->lm = malloc((size_t)p->n * 3 * p->nl * sizeof *p->lm)) ||
+        !(p->own = malloc((size_t)p->n * 3 * p->nl * sizeof *p->own))) {
         rc = mim_error_set(err, MIM_ENOMEM, "out of memory for %u people's landmarks", p->n);
         goto done;
     }
@@ -273,7 +271,14 @@ int mim_session_pairs_prepare(mim_session_t *s, const mim_pairs_samples_t *smp,
         const double *joints = smp->joints + (size_t)it->sample * 3 * MIM_PAIR_JOINTS +
                                (it->person == 'b' ? 3 * MIM_PAIR_PERSON_JOINTS : 0);
         rc = person_landmarks(&pp, joints, who, p->lm + (size_t)i * 3 * p->nl, err);
-        if (!rc) rc = person_class(s, &pp, p->labelled, joints, who, &p->classes, &it->cls, err);
+        float *own = p->own + (size_t)i * 3 * p->nl;
+        for (uint32_t l = 0; l < p->nl; l++)
+            for (int k = 0; k < 3; k++) own[3 * l + k] = (float)joints[3 * pp.idx[l] + k];
+        const char *name = NULL;
+        if (!rc) rc = person_class(mim_query_index(mim_session_query(s)), p->labelled, own, who, &name, err);
+        long k = rc ? 0 : class_of(&p->classes, name);
+        if (k < 0) rc = mim_error_set(err, MIM_ENOMEM, "out of memory");
+        it->cls = (uint32_t)k;
     }
 done:
     free(pp.scratch);
@@ -399,6 +404,7 @@ static int store_all(mim_session_pairs_t *p, const char *store, const mim_sessio
         int existed;
         float *frames6 = pos + 3 * (size_t)n, *W = pos + 9 * (size_t)n;
         if ((rc = mim_db_template_put(t, &tin, &id, &existed, &e))) break;
+        p->items[i].id = existed ? 0 : id;
         if (existed) {
             (*dup)++;
         } else {
@@ -417,6 +423,58 @@ done:
     mim_db_close(&db);
     mim_xfer_topology_close(&topo);
     free(pos), free(work), free(subject), free(dataset);
+    return rc;
+}
+
+/* Labels that hold: the rebuilt index learns its classes from the new
+ * templates too, so the class it gives a person's own joints can move
+ * from the one it gave before they joined (their label). Each person
+ * whose class moved takes the new one, and the index is built again,
+ * until none moves or after MIM__PAIRS_SETTLE_ROUNDS rebuilds (each costs
+ * an index build). *moved counts the labels changed. */
+#define MIM__PAIRS_SETTLE_ROUNDS 6
+static int settle_labels(mim_session_pairs_t *p, mim_db_t *db, const mim_index_options_t *io,
+                         mim_session_pairs_report_t *report, mim_error_t *err)
+{
+    uint32_t *moved_to = malloc(sizeof *moved_to * (p->n ? p->n : 1));
+    if (!moved_to) return mim_error_set(err, MIM_ENOMEM, "out of memory for %u people", p->n);
+    int rc = 0;
+    for (int round = 0; round < MIM__PAIRS_SETTLE_ROUNDS && !rc; round++) {
+        mim_query_t *q = NULL;
+        uint32_t n_moved = 0;
+        if ((rc = mim_query_open(&q, db, err))) break;
+        for (uint32_t i = 0; i < p->n && !rc; i++) {
+            const item_t *it = &p->items[i];
+            moved_to[i] = it->cls;
+            if (!it->id) continue;
+            char who[4200];
+            snprintf(who, sizeof who, "%s:%ld: person %c", p->origin, it->line, it->person);
+            const char *name = "";
+            rc = person_class(mim_query_index(q), p->labelled, p->own + (size_t)i * 3 * p->nl, who, &name, err);
+            const long k = rc || !strcmp(name, p->classes.name[it->cls]) ? (long)it->cls : class_of(&p->classes, name);
+            if (k < 0) rc = mim_error_set(err, MIM_ENOMEM, "out of memory");
+            else if ((uint32_t)k != it->cls) moved_to[i] = (uint32_t)k, n_moved++;
+        }
+        mim_query_close(&q);
+        if (rc || !n_moved) break;
+        mim_db_txn_t *t = NULL;
+        rc = mim_db_begin(db, 1, &t, err);
+        for (uint32_t i = 0; i < p->n && !rc; i++) {
+            if (moved_to[i] == p->items[i].cls) continue;
+            mim_template_view_t v;
+            if ((rc = mim_db_template_get(t, p->items[i].id, &v, err))) break;
+            char dataset[MIM_SESSION_LABEL_MAX];
+            snprintf(dataset, sizeof dataset, "%s", v.dataset);
+            rc = mim_db_template_relabel(t, p->items[i].id, unqualified(p->classes.name[moved_to[i]], dataset), err);
+        }
+        if (!rc) rc = mim_db_commit(&t, err);
+        mim_db_abort(&t);
+        if (rc) break;
+        for (uint32_t i = 0; i < p->n; i++) p->items[i].cls = moved_to[i];
+        report->relabelled += n_moved;
+        rc = mim_query_build_index(db, io, &report->index, err);
+    }
+    free(moved_to);
     return rc;
 }
 
@@ -444,6 +502,7 @@ int mim_session_pairs_store(mim_session_pairs_t *p, const char *store, const mim
     mim_error_t e = {0};
     rc = mim_db_open(&db, store, &o, &e);
     if (!rc) rc = mim_query_build_index(db, &io, &report->index, &e);
+    if (!rc && p->labelled && !opt->label_prefix) rc = settle_labels(p, db, &io, report, &e);
     mim_db_close(&db);
     if (rc)
         mim_error_set(err, rc, "%u templates stored, but the index was not rebuilt: %s (run mimic index)",
