@@ -76,6 +76,10 @@ static void loso_free(loso_t *lo)
     memset(lo, 0, sizeof *lo);
 }
 
+/* --proportions body: indexes whose angles see each body's own
+ * proportions (the index's default before canonical proportions) */
+static int body_proportions;
+
 /* One index per subject over the other subjects' templates (landmarks tl,
  * L each, n templates), as `mimic index` builds it (default options). */
 static int loso_build(loso_t *lo, const float *tl, char (*subj)[64], char (*pose)[64], uint32_t n, uint32_t L,
@@ -99,7 +103,8 @@ static int loso_build(loso_t *lo, const float *tl, char (*subj)[64], char (*pose
                 sp[m] = subj[u], pp[m] = pose[u], id[m] = u + 1, m++;
             }
         int32_t parent[MIM_LANDMARKS_MAX];
-        mim_index_input_t in = {m, L, lm, id, sp, pp, map->mirror, mim_index_skeleton(map, parent) ? NULL : parent};
+        mim_index_input_t in = {m, L, lm, id, sp, pp, map->mirror,
+                                body_proportions || mim_index_skeleton(map, parent) ? NULL : parent};
         mim_error_t err = {0};
         if (mim_index_build(&lo->ix[i], &in, NULL, NULL, &err)) {
             fprintf(stderr, "leave-one-out index without %s: %s\n", subj[t], mim_error_text(&err));
@@ -511,7 +516,14 @@ int main(int argc, char **argv)
     bench_sets_init(&sets);
     for (int i = 1; i < argc; i++) {
         if (bench_sets_arg(&sets, argc, argv, &i)) continue;
-        fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--imitation DEG | --no-imitation]\n", argv[0]);
+        if (!strcmp(argv[i], "--proportions") && i + 1 < argc) {
+            body_proportions = !strcmp(argv[++i], "body");
+            continue;
+        }
+        fprintf(stderr,
+                "usage: %s [--vertices N] [--mh DIR | --no-mh] [--imitation DEG | --no-imitation] "
+                "[--proportions canonical|body]\n",
+                argv[0]);
         return 2;
     }
     mim_error_t err = {0};

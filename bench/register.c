@@ -39,6 +39,7 @@
 
 typedef struct args {
     uint32_t target_vertices, subjects, poses;
+    int body_proportions; /* --proportions body: indexes whose angles see each body's own proportions */
 } args_t;
 
 typedef struct row {
@@ -142,7 +143,7 @@ static int run_set(const bench_dataset_t *d, void *user)
         }
         int32_t parent[MIM_LANDMARKS_MAX]; /* as mimic index: canonical proportions */
         mim_index_input_t in = {nt, L, tlm, ids, sp, pp, d->map.mirror,
-                                mim_index_skeleton(&d->map, parent) ? NULL : parent};
+                                a->body_proportions || mim_index_skeleton(&d->map, parent) ? NULL : parent};
         mim_index_t *ix = NULL;
         if (mim_index_build(&ix, &in, NULL, NULL, &err)) {
             fprintf(stderr, "%s: index: %s\n", d->name, mim_error_text(&err));
@@ -230,9 +231,10 @@ int main(int argc, char **argv)
         if (!strcmp(argv[i], "--target-vertices") && i + 1 < argc) a.target_vertices = (uint32_t)strtoul(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--subjects") && i + 1 < argc) a.subjects = (uint32_t)strtoul(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--poses") && i + 1 < argc) a.poses = (uint32_t)strtoul(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--proportions") && i + 1 < argc) a.body_proportions = !strcmp(argv[++i], "body");
         else {
             fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--target-vertices N] [--subjects K] "
-                            "[--poses P]\n", argv[0]);
+                            "[--poses P] [--proportions canonical|body]\n", argv[0]);
             return 2;
         }
     }
