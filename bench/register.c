@@ -8,8 +8,11 @@
  * connectivity with the store, while the true place of every store vertex
  * is the original body's vertex. The target's subject is left out of the
  * index (strict leave-one-subject-out); its 16 landmarks are the original
- * body's landmark vertices. The nearest template comes from the
- * recognition index (mim_index_query), as in mimic ingest --register.
+ * body's landmark vertices. The start comes from the recognition index as
+ * in mimic ingest --register (mim_ingest_start_template): of its 8 nearest
+ * in the pose class, the one whose landmarks a similarity brings closest
+ * to the target's (mim_reg_likest); --start index takes the index's
+ * nearest, --proportions body an index whose angles see proportions.
  *
  * Rows: mimic's registration (similarity fit, transfer, non-rigid ICP),
  * the baseline of the same code without ICP (landmark-guided Laplacian
@@ -21,11 +24,13 @@
  * mesh, one core, median.
  *
  * usage: bench_register [--vertices N] [--mh DIR | --no-mh] [--target-vertices N]
- *                       [--subjects K] [--poses P]
+ *                       [--subjects K] [--poses P] [--proportions canonical|body]
+ *                       [--start likest|index]
  * The default target keeps 30 % of the vertices (mh-bodies: 13,380 -> 4,014). */
 #include "bench_data.h"
 #include "mim_core.h"
 #include "mim_index.h"
+#include "mim_ingest.h"
 #include "mim_register.h"
 #include "mim_transfer.h"
 #include "retriangulate.h"
@@ -40,6 +45,7 @@
 typedef struct args {
     uint32_t target_vertices, subjects, poses;
     int body_proportions; /* --proportions body: indexes whose angles see each body's own proportions */
+    int index_start;      /* --start index: from the index's nearest, not the likest of its nearest */
 } args_t;
 
 typedef struct row {
@@ -159,12 +165,23 @@ static int run_set(const bench_dataset_t *d, void *user)
             mim_mesh_free(&dec);
             target_v += target.n_vertices;
             for (uint32_t l = 0; l < L; l++) memcpy(lm + 3 * l, truth + 3 * d->map.vertex[l], 12);
+            /* where mimic register starts (mim_ingest_start_template): of
+             * the index's nearest in the pose class, the body most like
+             * the target's (--start index: the index's nearest) */
             mim_index_answer_t ans;
-            mim_index_hit_t hit;
-            if (mim_index_query(ix, lm, NULL, NULL, &ans, &hit, &err) || !ans.n_hits) {
+            mim_index_hit_t hits[MIM_INGEST_CANDIDATES];
+            mim_index_query_options_t qo = {.k = a->index_start ? 1 : MIM_INGEST_CANDIDATES};
+            if (mim_index_query(ix, lm, NULL, &qo, &ans, hits, &err) || !ans.n_hits) {
                 fprintf(stderr, "%s: query: %s\n", d->name, mim_error_text(&err));
                 return 1;
             }
+            float cand[MIM_INGEST_CANDIDATES * 3 * MIM_LANDMARKS_MAX];
+            for (uint32_t c = 0; c < ans.n_hits; c++)
+                for (uint32_t l = 0; l < L; l++)
+                    memcpy(cand + ((size_t)c * L + l) * 3, d->pos[hits[c].id - 1] + 3 * d->map.vertex[l], 12);
+            uint32_t best = 0;
+            if (ans.n_hits > 1 && mim_reg_likest(lm, L, cand, ans.n_hits, &best, NULL)) best = 0;
+            const mim_index_hit_t hit = hits[best];
             picked_same_pose += (hit.id - 1) % d->poses == p;
             const float *tmpl = d->pos[hit.id - 1];
             for (int m = 0; m < NM; m++) {
@@ -232,9 +249,10 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--subjects") && i + 1 < argc) a.subjects = (uint32_t)strtoul(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--poses") && i + 1 < argc) a.poses = (uint32_t)strtoul(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--proportions") && i + 1 < argc) a.body_proportions = !strcmp(argv[++i], "body");
+        else if (!strcmp(argv[i], "--start") && i + 1 < argc) a.index_start = !strcmp(argv[++i], "index");
         else {
             fprintf(stderr, "usage: %s [--vertices N] [--mh DIR | --no-mh] [--target-vertices N] [--subjects K] "
-                            "[--poses P] [--proportions canonical|body]\n", argv[0]);
+                            "[--poses P] [--proportions canonical|body] [--start likest|index]\n", argv[0]);
             return 2;
         }
     }

@@ -83,6 +83,37 @@ int mim_ingest_foreign_landmarks(const char *mesh_path, const mim_mesh_t *mesh,
                          mesh_path, mesh->n_vertices, src->option ? src->option : "--landmarks", side_name);
 }
 
+int mim_ingest_start_template(mim_db_t *db, const mim_landmark_map_t *map, mim_ingest_nearest_fn nearest, void *ctx,
+                              const float *landmarks, uint64_t *id, mim_error_t *err)
+{
+    uint64_t ids[MIM_INGEST_CANDIDATES];
+    uint32_t n = 0, L = map->count;
+    int rc = nearest(ctx, landmarks, MIM_INGEST_CANDIDATES, ids, &n, err);
+    if (rc) return rc;
+    if (!n) return mim_error_set(err, MIM_ENOTFOUND, "the index found no template");
+    float cand[MIM_INGEST_CANDIDATES * 3 * MIM_LANDMARKS_MAX];
+    mim_db_txn_t *t = NULL;
+    if ((rc = mim_db_begin(db, 0, &t, err))) return rc;
+    for (uint32_t c = 0; c < n && !rc; c++) {
+        mim_template_view_t v;
+        if ((rc = mim_db_template_get(t, ids[c], &v, err))) break;
+        for (uint32_t l = 0; l < L; l++) {
+            if (map->vertex[l] >= v.n_vertices) {
+                rc = mim_error_set(err, MIM_ETOPOLOGY, "template %llu: %u vertices, landmark %u is vertex %u",
+                                   (unsigned long long)ids[c], v.n_vertices, l, map->vertex[l]);
+                break;
+            }
+            memcpy(cand + ((size_t)c * L + l) * 3, v.positions + 3 * (size_t)map->vertex[l], 3 * sizeof(float));
+        }
+    }
+    mim_db_abort(&t);
+    if (rc) return rc;
+    uint32_t best = 0;
+    if (n > 1 && mim_reg_likest(landmarks, L, cand, n, &best, NULL)) best = 0; /* no fit: the index's nearest */
+    *id = ids[best];
+    return 0;
+}
+
 /* ---- the registrar ---- */
 struct mim_ingest_registrar {
     mim_db_t *db;
@@ -198,7 +229,7 @@ int mim_ingest_register_mesh(mim_ingest_registrar_t *r, const mim_mesh_t *mesh, 
                                  "registration needs them spread over the body",
                                  origin, r->map.count, 1e3 * (isfinite(span) ? span : 0));
     }
-    int rc = r->nearest(r->nearest_ctx, landmarks, &id, err);
+    int rc = mim_ingest_start_template(r->db, &r->map, r->nearest, r->nearest_ctx, landmarks, &id, err);
     if (rc) return rc;
     float *tmpl = malloc((size_t)3 * r->n * sizeof *tmpl);
     if (!tmpl) return mim_error_set(err, MIM_ENOMEM, "%s: out of memory", origin);

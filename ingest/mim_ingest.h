@@ -116,11 +116,23 @@ int mim_ingest_foreign_landmarks(const char *mesh_path, const mim_mesh_t *mesh,
                                  const mim_ingest_landmark_sources_t *src, const mim_landmark_map_t *store_map,
                                  float *out, char *how, size_t how_size, mim_error_t *err);
 
-/* The nearest template to a landmark frame (3 * map count floats), found
+/* The nearest templates to a landmark frame (3 * map count floats), found
  * by the caller (through the store's index: query/ is not ingest's to
- * use); 0 and *id, or an error with its message. Called from many threads
- * at once. */
-typedef int (*mim_ingest_nearest_fn)(void *ctx, const float *landmarks, uint64_t *id, mim_error_t *err);
+ * use): up to k ids, nearest first, into ids and their count into *n; 0,
+ * or an error with its message. Called from many threads at once. */
+typedef int (*mim_ingest_nearest_fn)(void *ctx, const float *landmarks, uint32_t k, uint64_t *ids, uint32_t *n,
+                                     mim_error_t *err);
+
+/* The template registration starts from: of the MIM_INGEST_CANDIDATES
+ * nearest that nearest gives (the index's: the frame's pose class, by
+ * angles that do not see proportions), the one whose landmarks (map's, in
+ * db) a similarity brings nearest to the frame's (mim_reg_likest: the body
+ * most like it; bench/RESULTS.md "Canonical proportions for the angles").
+ * 0 and *id, or nearest's error, the store's, MIM_ENOTFOUND for no
+ * candidate. */
+#define MIM_INGEST_CANDIDATES 8u
+int mim_ingest_start_template(mim_db_t *db, const mim_landmark_map_t *map, mim_ingest_nearest_fn nearest, void *ctx,
+                              const float *landmarks, uint64_t *id, mim_error_t *err);
 
 /* A registrar: the store's connectivity and landmark map, the caller's
  * nearest-template function, and a pool of registration contexts (one per

@@ -71,11 +71,12 @@ uint32_t mim_query_landmark_count(const mim_query_t *q);
 int mim_query_frame(const mim_query_t *q, const float *positions, const uint8_t *present,
                     const mim_index_query_options_t *opt, mim_index_answer_t *ans, mim_index_hit_t *hits,
                     mim_error_t *err);
-/* The nearest template's id to one complete frame; ctx is the
- * mim_query_t (the shape of mim_ingest_nearest_fn, so that registration
- * finds its starting template through the index). MIM_ENOTFOUND when the
- * index gives none. Thread-safe. */
-int mim_query_nearest(void *ctx, const float *positions, uint64_t *id, mim_error_t *err);
+/* The k nearest templates' ids to one complete frame (its pose class's,
+ * nearest first; *n of them); ctx is the mim_query_t (the shape of
+ * mim_ingest_nearest_fn, so that registration finds its starting template
+ * through the index). MIM_ENOTFOUND when the index gives none.
+ * Thread-safe. */
+int mim_query_nearest(void *ctx, const float *positions, uint32_t k, uint64_t *ids, uint32_t *n, mim_error_t *err);
 int mim_query_batch(const mim_query_t *q, const mim_landmark_frames_t *frames, const mim_index_query_options_t *opt,
                     mim_index_answer_t *answers, mim_index_hit_t *hits, mim_error_t *err);
 

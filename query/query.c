@@ -271,15 +271,18 @@ int mim_query_frame(const mim_query_t *q, const float *positions, const uint8_t 
     return mim_index_query(q->ix, positions, present, opt, ans, hits, err);
 }
 
-int mim_query_nearest(void *ctx, const float *positions, uint64_t *id, mim_error_t *err)
+int mim_query_nearest(void *ctx, const float *positions, uint32_t k, uint64_t *ids, uint32_t *n, mim_error_t *err)
 {
     const mim_query_t *q = ctx;
     mim_index_answer_t ans;
-    mim_index_hit_t hit;
-    int rc = mim_index_query(q->ix, positions, NULL, NULL, &ans, &hit, err);
+    mim_index_hit_t hits[64];
+    mim_index_query_options_t qo = {.k = k < 64 ? k : 64};
+    *n = 0;
+    int rc = mim_index_query(q->ix, positions, NULL, &qo, &ans, hits, err);
     if (rc) return rc;
     if (!ans.n_hits) return mim_error_set(err, MIM_ENOTFOUND, "the index found no template");
-    *id = hit.id;
+    for (uint32_t i = 0; i < ans.n_hits; i++) ids[i] = hits[i].id;
+    *n = ans.n_hits;
     return 0;
 }
 

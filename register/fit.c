@@ -75,6 +75,23 @@ int mim_reg_similarity_fit(const float *src, const float *dst, uint32_t n, mim_r
     return 0;
 }
 
+int mim_reg_likest(const float *target, uint32_t n, const float *cand, uint32_t nc, uint32_t *best, mim_error_t *err)
+{
+    double least = INFINITY;
+    float moved[3 * MIM_LANDMARKS_MAX];
+    if (n > MIM_LANDMARKS_MAX) return mim_error_set(err, MIM_EINVAL, "%u landmarks: at most %d", n, MIM_LANDMARKS_MAX);
+    for (uint32_t c = 0; c < nc; c++) {
+        const float *lm = cand + (size_t)c * 3 * n;
+        mim_reg_similarity_t s;
+        if (mim_reg_similarity_fit(lm, target, n, &s, NULL)) continue;
+        mim_reg_similarity_apply(&s, lm, n, moved);
+        double ss = 0;
+        for (uint32_t i = 0; i < 3 * n; i++) ss += ((double)moved[i] - target[i]) * ((double)moved[i] - target[i]);
+        if (ss < least) least = ss, *best = c;
+    }
+    return isfinite(least) ? 0 : mim_error_set(err, MIM_EINVAL, "none of %u candidate bodies fits the landmarks", nc);
+}
+
 void mim_reg_similarity_apply(const mim_reg_similarity_t *s, const float *in, uint32_t n, float *out)
 {
     for (uint32_t i = 0; i < n; i++) {

@@ -55,6 +55,13 @@ typedef struct mim_reg_similarity {
 int mim_reg_similarity_fit(const float *src, const float *dst, uint32_t n, mim_reg_similarity_t *out,
                            mim_error_t *err);
 void mim_reg_similarity_apply(const mim_reg_similarity_t *s, const float *in, uint32_t n, float *out);
+/* Of nc candidate bodies' landmarks (cand: nc x 3n floats), the one a
+ * similarity brings nearest to the target's landmarks (3n floats), in RMS
+ * distance: the body most like the target's, where registration starts
+ * (the index's nearest by angles in the target's pose class does not see
+ * proportions). *best gets its index; a candidate whose fit fails is
+ * passed over. MIM_EINVAL when nc is 0 or every fit fails. */
+int mim_reg_likest(const float *target, uint32_t n, const float *cand, uint32_t nc, uint32_t *best, mim_error_t *err);
 
 /* ---- the target surface (surface.c) ---- */
 /* Checks that a mesh can be registered onto: finite, a body

@@ -191,8 +191,8 @@ static void turn_points(const double R[9], int transpose, const float *in, uint3
 }
 
 /* The proxy's vertices that registration crushed (mim_reg_crushed): its
- * triangles against the template registration started from, the index's
- * nearest to the landmarks as the registrar finds it, so that a binding
+ * triangles against the template registration started from, found as the
+ * registrar finds it (mim_ingest_start_template), so that a binding
  * from the cache gets the same flags. NULL without an index or that
  * template (then nothing is flagged). */
 static float *proxy_crushed(mim_session_t *s, const float *lm)
@@ -200,7 +200,8 @@ static float *proxy_crushed(mim_session_t *s, const float *lm)
     const uint32_t n = s->mesh.n_vertices, count = s->map.count;
     uint64_t id = 0;
     mim_error_t e = {0};
-    if (!s->query || mim_query_nearest(s->query, lm, &id, &e)) return NULL;
+    if (!s->query || mim_ingest_start_template(s->db, &s->map, mim_query_nearest, s->query, lm, &id, &e))
+        return NULL;
     float *t = malloc(3 * (size_t)n * sizeof *t), tl[3 * MIM_LANDMARKS_MAX];
     float *flags = malloc(((size_t)n + 1) * sizeof *flags);
     if (!t || !flags || mim_session_template(s, id, t, NULL, NULL, 0, &e)) {

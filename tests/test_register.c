@@ -282,6 +282,39 @@ static double det3(const double m[9])
     return m[0] * (m[4] * m[8] - m[5] * m[7]) - m[3] * (m[1] * m[8] - m[2] * m[7]) + m[6] * (m[1] * m[5] - m[2] * m[4]);
 }
 
+/* mim_reg_likest: of candidate bodies, the one a similarity brings
+ * nearest to the target, whatever its place, turn and size; candidates
+ * that cannot be fitted are passed over; none at all is refused. */
+static void test_likest(void **s)
+{
+    (void)s;
+    mim_rng_t rng;
+    mim_rng_seed(&rng, 7, 0);
+    enum { NC = 4 };
+    float cand[NC][3 * 16], target[3 * 16];
+    for (int c = 0; c < NC; c++)
+        for (int i = 0; i < 3 * 16; i++) cand[c][i] = (float)(mim_rng_unit(&rng) - 0.5);
+    /* the target: candidate 2 turned, scaled and moved, 1 mm off */
+    double R[9];
+    rotation(0.2, 1.0, -0.4, 0.9, R);
+    mim_reg_similarity_t known = {1.8, {0}, {2.0, 0.5, -1.0}};
+    memcpy(known.R, R, sizeof R);
+    mim_reg_similarity_apply(&known, cand[2], 16, target);
+    for (int i = 0; i < 3 * 16; i++) target[i] += (float)(0.001 * (mim_rng_unit(&rng) - 0.5));
+    uint32_t best = 99;
+    mim_error_t err = {0};
+    assert_int_equal(mim_reg_likest(target, 16, &cand[0][0], NC, &best, &err), 0);
+    assert_int_equal(best, 2);
+    /* candidate 2 collapsed to a point: passed over, another is the likest */
+    for (int i = 0; i < 3 * 16; i++) cand[2][i] = 0.25f;
+    best = 99;
+    assert_int_equal(mim_reg_likest(target, 16, &cand[0][0], NC, &best, &err), 0);
+    assert_true(best != 2 && best < NC);
+    assert_int_equal(mim_reg_likest(target, 16, &cand[2][0], 1, &best, &err), MIM_EINVAL);
+    assert_int_equal(mim_reg_likest(target, 16, &cand[0][0], 0, &best, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "candidate"));
+}
+
 static void test_similarity(void **s)
 {
     (void)s;
@@ -603,7 +636,7 @@ static void test_binding(void **s)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_similarity), cmocka_unit_test(test_target_check), cmocka_unit_test(test_round_trip),
+        cmocka_unit_test(test_similarity), cmocka_unit_test(test_likest), cmocka_unit_test(test_target_check), cmocka_unit_test(test_round_trip),
         cmocka_unit_test(test_run_bad_input), cmocka_unit_test(test_binding),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
