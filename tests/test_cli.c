@@ -68,6 +68,7 @@ static void test_usage_errors(void **s)
         {{"ingest", "--store", "s", "--batch", "zero", NULL}, "--batch 'zero' is not a number in 1..1000000"},
         {{"info", NULL}, "--store DIR is required"},
         {{"index", "--store", "s", "--noise", "2", NULL}, "mimic index: --noise '2' is not a number in 0..1"},
+        {{"index", "--store", "s", "--proportions", "tall", NULL}, "mimic index: --proportions 'tall': use canonical or body"},
         {{"index", "--store", "s", "--discriminants", "2", NULL}, "mimic index: --discriminants '2' is not a number in 0..1"},
         {{"index", "--store", "s", "--discriminants", "x", NULL}, "mimic index: --discriminants 'x' is not a number in 0..1"},
         {{"index", "--store", "s", "--shape-noise", "2", NULL}, "mimic index: --shape-noise '2' is not a number in 0..1"},

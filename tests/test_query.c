@@ -465,6 +465,19 @@ static void test_index_knn_line(void **st)
     assert_int_equal(run(NULL, &err, bad), 2);
     assert_non_null(strstr(err, "exact-max"));
     free(err);
+    /* proportions: canonical by default (a store of the 16 default
+     * landmarks), said in the text and the JSON; body on request */
+    const char *props[][7] = {{"index", "--store", g_store, "--json", NULL},
+                              {"index", "--store", g_store, "--proportions", "body", "--json", NULL},
+                              {"index", "--store", g_store, NULL}};
+    const char *want[] = {"\"proportions\": \"canonical\"", "\"proportions\": \"body\"",
+                          "proportions  canonical angles"};
+    for (int k = 0; k < 3; k++) {
+        char *out = NULL;
+        assert_int_equal(run(&out, NULL, props[k]), 0);
+        if (!strstr(out, want[k])) fail_msg("%s: %s", want[k], out);
+        free(out);
+    }
 }
 
 /* Issue 30 item 14: an index blob of an older version in the store (of
