@@ -102,8 +102,7 @@ static int class_is(const char *name, const char *label)
  * canonical proportions into *canonical; -1 when the store cannot be read
  * back (not an error of the command). */
 static int check_found(const char *store, const mim_pairs_samples_t *smp, const mim_session_pairs_t *p,
-                       const char *prefix, const uint64_t *ids, uint32_t n, uint32_t *found, uint32_t *other_class,
-                       int *canonical, json_t *miss)
+                       const char *prefix, uint32_t *found, uint32_t *other_class, int *canonical, json_t *miss)
 {
     mim_error_t err = {0};
     mim_session_t *s = NULL;
@@ -116,12 +115,14 @@ static int check_found(const char *store, const mim_pairs_samples_t *smp, const 
     mim_index_info_t info = {0};
     if (q) mim_index_get_info(mim_query_index(q), &info);
     *canonical = (int)info.canonical;
+    const uint32_t n = mim_session_pairs_count(p, NULL);
     for (uint32_t i = 0; i < n && !rc; i++) {
         mim_session_pairs_person_t pp;
         if (mim_session_pairs_person(p, i, &pp)) {
             rc = -1;
             break;
         }
+        if (!pp.id) continue; /* a duplicate: stored before, under another source */
         /* the person's joints by the map's names, as the sample holds them */
         const double *joints = smp->joints + (size_t)pp.sample * 3 * MIM_PAIR_JOINTS +
                                (pp.person == 'b' ? 3 * MIM_PAIR_PERSON_JOINTS : 0);
@@ -138,7 +139,7 @@ static int check_found(const char *store, const mim_pairs_samples_t *smp, const 
             rc = -1;
             break;
         }
-        if (hit.id == ids[i]) {
+        if (hit.id == pp.id) {
             (*found)++;
         } else {
             char who[2] = {pp.person, 0}, label[MIM_SESSION_PAIRS_PREFIX_MAX + 32];
@@ -146,7 +147,7 @@ static int check_found(const char *store, const mim_pairs_samples_t *smp, const 
             const char *answered = mim_index_class_name(mim_query_index(q), ans.cls);
             const int same = class_is(answered, prefix ? label : pp.pose_class);
             *other_class += !same;
-            json_array_append_new(miss, json_pack("{s:I, s:I, s:s, s:I, s:f, s:s, s:s}", "id", (json_int_t)ids[i],
+            json_array_append_new(miss, json_pack("{s:I, s:I, s:s, s:I, s:f, s:s, s:s}", "id", (json_int_t)pp.id,
                                                   "line", (json_int_t)pp.line, "person", who, "nearest",
                                                   (json_int_t)hit.id, "distance", (double)hit.distance, "why",
                                                   same ? "nearer" : "class", "class", answered));
@@ -295,12 +296,11 @@ int mim_cmd_pairs_templates(int argc, char **argv)
     status = 0;
     const double seconds = mim_now() - t0;
     const uint32_t added = rep.added, dup = rep.duplicates;
-    /* each stored person found again by its own joints? (not when some were duplicates: ids then skip people) */
+    /* each stored person found again by its own joints? (duplicates were stored before: not theirs to find) */
     json_t *miss = json_array();
     uint32_t found = 0, other_class = 0;
     int canonical = 0;
-    const int checked = miss && !dup &&
-                        check_found(store, &smp, p, prefix, rep.ids, added, &found, &other_class, &canonical, miss) == 0;
+    const int checked = miss && check_found(store, &smp, p, prefix, &found, &other_class, &canonical, miss) == 0;
     if (checked && found < added) {
         fprintf(stderr,
                 "mimic " CMD ": warning: %u of %u sampled people are not found again by their own joints (mimic "

@@ -58,6 +58,8 @@ typedef struct mim_session_pairs_person {
     const float *landmarks;   /* 3 * map count floats, map order: the targets that pose the avatar */
     const char *pose_class;   /* after the transfer: the pose class the index gave the person's own joints
                                  ("" in an index of k-means clusters); before it NULL */
+    uint64_t id;              /* after the store: its template (0: equal to one stored already, not
+                                 stored again; before the store, 0) */
 } mim_session_pairs_person_t;
 
 /* 0 when the session's store can take pose-pairs: it has an index

@@ -299,7 +299,8 @@ int mim_session_pairs_person(const mim_session_pairs_t *p, uint32_t i, mim_sessi
     const item_t *it = &p->items[i];
     *out = (mim_session_pairs_person_t){.sample = it->sample, .line = it->line, .person = it->person,
                                         .landmarks = p->lm + (size_t)i * 3 * p->nl,
-                                        .pose_class = p->spool ? p->classes.name[it->cls] : NULL};
+                                        .pose_class = p->spool ? p->classes.name[it->cls] : NULL,
+                                        .id = p->stored ? it->id : 0};
     return 0;
 }
 

@@ -431,6 +431,27 @@ static void test_found_again_real(void **s)
     free(text), free(samples400), free(samples40), free(syn), free(st);
 }
 
+/* A samples file that holds each pose-pair twice: the second copies are
+ * duplicates (stored once), and the found-again check still runs, over
+ * the people stored (it was skipped when any result was a duplicate).
+ * On a copy of the store as made (runs before test_sampled_templates). */
+static void test_duplicates_checked(void **s)
+{
+    (void)s;
+    char *l1 = pair_line(people[0], people[1]), *l2 = pair_line(people[2], people[3]);
+    const char *lines[] = {l1, l2, l1, l2};
+    char *path = write_samples("twice.jsonl", lines, 4, 1), *st = tp_copy_store(dir, store, "twice");
+    const char *args[] = {"pairs", "templates", "--store", st, "--samples", path, "--avatar", "1", "--json", NULL};
+    json_t *rep = run_json(args);
+    assert_int_equal(json_integer_value(json_object_get(rep, "templates")), PEOPLE);
+    assert_int_equal(json_integer_value(json_object_get(rep, "duplicates")), PEOPLE);
+    assert_non_null(json_object_get(rep, "found_again"));
+    assert_int_equal(json_integer_value(json_object_get(rep, "found_again")), PEOPLE);
+    assert_int_equal(json_array_size(json_object_get(rep, "not_found_again")), 0);
+    json_decref(rep);
+    free(l1), free(l2), free(path), free(st);
+}
+
 /* --person, --max, --pose-label sample with --label-prefix, --proportions
  * sample, --help, and the text report. */
 static void test_options(void **s)
@@ -554,6 +575,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_joint_order),
+        cmocka_unit_test(test_duplicates_checked), /* before test_sampled_templates stores these people */
         cmocka_unit_test(test_bad_input),
         cmocka_unit_test(test_sampled_templates),
         cmocka_unit_test(test_options),
