@@ -432,7 +432,8 @@ done:
  * from the one it gave before they joined (their label). Each person
  * whose class moved takes the new one, and the index is built again,
  * until none moves or after MIM__PAIRS_SETTLE_ROUNDS rebuilds (each costs
- * an index build). *moved counts the labels changed. */
+ * an index build). report's relabelled counts the labels changed, its
+ * index is the last build's. */
 #define MIM__PAIRS_SETTLE_ROUNDS 6
 static int settle_labels(mim_session_pairs_t *p, mim_db_t *db, const mim_index_options_t *io,
                          mim_session_pairs_report_t *report, mim_error_t *err)
@@ -462,11 +463,10 @@ static int settle_labels(mim_session_pairs_t *p, mim_db_t *db, const mim_index_o
         rc = mim_db_begin(db, 1, &t, err);
         for (uint32_t i = 0; i < p->n && !rc; i++) {
             if (moved_to[i] == p->items[i].cls) continue;
-            mim_template_view_t v;
+            mim_template_view_t v; /* its dataset: the label is stored without it, as store_all does */
             if ((rc = mim_db_template_get(t, p->items[i].id, &v, err))) break;
-            char dataset[MIM_SESSION_LABEL_MAX];
-            snprintf(dataset, sizeof dataset, "%s", v.dataset);
-            rc = mim_db_template_relabel(t, p->items[i].id, unqualified(p->classes.name[moved_to[i]], dataset), err);
+            const char *label = unqualified(p->classes.name[moved_to[i]], v.dataset);
+            rc = mim_db_template_relabel(t, p->items[i].id, label, err);
         }
         if (!rc) rc = mim_db_commit(&t, err);
         mim_db_abort(&t);
