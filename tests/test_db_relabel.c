@@ -69,6 +69,7 @@ static void test_relabel(void **s)
     assert_int_equal(mim_db_begin(db, 1, &t, &err), 0);
     assert_int_equal(mim_db_template_relabel(t, ids[0], "wave", &err), 0);
     assert_int_equal(mim_db_template_relabel(t, 99, "wave", &err), MIM_ENOTFOUND);
+    assert_non_null(strstr(err.msg, "template 99: not in the store"));
     assert_int_equal(mim_db_commit(&t, &err), 0);
     assert_int_equal(mim_db_begin(db, 0, &t, &err), 0);
     mim_template_view_t v;
@@ -83,7 +84,9 @@ static void test_relabel(void **s)
     assert_int_equal(mim_db_template_get(t, ids[1], &v, &err), 0);
     assert_string_equal(v.pose, "sit"); /* the other untouched */
     /* a read transaction cannot relabel */
+    mim_error_clear(&err);
     assert_int_equal(mim_db_template_relabel(t, ids[1], "wave", &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "needs a write transaction"));
     mim_db_abort(&t);
 
     /* an aborted relabel leaves the label; to none and back */

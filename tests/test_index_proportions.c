@@ -244,7 +244,19 @@ static void test_refused(void **st)
     assert_null(ix);
     in.parent = s->parent;
     mim_index_options_t o = {.proportions = 3};
+    mim_error_clear(&err);
     assert_int_equal(mim_index_build(&ix, &in, &o, NULL, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "proportions 3: neither the body's nor canonical"));
+    assert_null(ix);
+    /* a segment of length 0 in every template has no direction to keep */
+    static float flat[N][3 * L];
+    memcpy(flat, s->lm, sizeof flat);
+    const int elbow = mim_landmarks_find(&s->map, "l_elbow"), shoulder = mim_landmarks_find(&s->map, "l_shoulder");
+    for (uint32_t t = 0; t < N; t++) memcpy(flat[t] + 3 * elbow, flat[t] + 3 * shoulder, 12);
+    in.landmarks = &flat[0][0];
+    mim_error_clear(&err);
+    assert_int_equal(mim_index_build(&ix, &in, NULL, NULL, &err), MIM_EINVAL);
+    assert_non_null(strstr(err.msg, "coincide in every template"));
     assert_null(ix);
     mim_landmark_map_t m = s->map;
     snprintf(m.names[head], sizeof m.names[head], "crown");
