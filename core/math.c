@@ -137,6 +137,72 @@ static void top_eigenvector4(double A[4][4], double q[4])
     for (int k = 0; k < 4; k++) q[k] = V[k][top];
 }
 
+/* The same eigenvector the fast way (Theobald's QCP): Horn's matrix is
+ * symmetric and traceless, so its eigenvalues are the roots of
+ * l^4 - (|A|^2 / 2) l^2 - (tr A^3 / 3) l + det A, all real. Newton's method
+ * from above the largest (at most sqrt(3/4) |A|, as the others sum to
+ * minus it) falls onto it monotonically, where the quartic is convex; the
+ * eigenvector is then the largest column of the adjugate of A - l I.
+ * Returns 0 (Jacobi's rotations then decide) when the steps do not settle
+ * or the largest root is close to the next, where that column is made of
+ * cancelling terms. */
+static double det3(double a, double b, double c, double d, double e, double f, double g, double h, double i)
+{
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
+}
+
+static int top_eigenvector4_qcp(const double A[4][4], double q[4])
+{
+    double f2 = 0, t3 = 0, A2[4][4];
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++) {
+            f2 += A[r][c] * A[r][c];
+            A2[r][c] = A[r][0] * A[0][c] + A[r][1] * A[1][c] + A[r][2] * A[2][c] + A[r][3] * A[3][c];
+        }
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++) t3 += A2[r][c] * A[c][r];
+    if (!(f2 > 0) || !isfinite(f2)) return 0;
+    const double det = A[0][0] * det3(A[1][1], A[1][2], A[1][3], A[2][1], A[2][2], A[2][3], A[3][1], A[3][2], A[3][3]) -
+                       A[0][1] * det3(A[1][0], A[1][2], A[1][3], A[2][0], A[2][2], A[2][3], A[3][0], A[3][2], A[3][3]) +
+                       A[0][2] * det3(A[1][0], A[1][1], A[1][3], A[2][0], A[2][1], A[2][3], A[3][0], A[3][1], A[3][3]) -
+                       A[0][3] * det3(A[1][0], A[1][1], A[1][2], A[2][0], A[2][1], A[2][2], A[3][0], A[3][1], A[3][2]);
+    const double c2 = -0.5 * f2, c1 = -t3 / 3, scale = sqrt(f2);
+    double l = sqrt(0.75 * f2);
+    int settled = 0;
+    for (int it = 0; it < 64 && !settled; it++) {
+        const double p = ((l * l + c2) * l + c1) * l + det, dp = (4 * l * l + 2 * c2) * l + c1;
+        if (!(dp > 0)) break;
+        const double step = p / dp;
+        l -= step;
+        settled = !(fabs(step) > 1e-15 * scale);
+    }
+    if (!settled) return 0;
+    /* the columns of adj(A - l I): cofactors of each row, all 4 columns */
+    double B[4][4], best = -1;
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++) B[r][c] = A[r][c] - (r == c ? l : 0);
+    for (int col = 0; col < 4; col++) {
+        double v[4], n2 = 0;
+        for (int r = 0; r < 4; r++) {
+            double m[9];
+            for (int x = 0, k = 0; x < 4; x++)
+                for (int y = 0; y < 4; y++)
+                    if (x != col && y != r) m[k++] = B[x][y];
+            v[r] = ((r + col) % 2 ? -1 : 1) * det3(m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]);
+            n2 += v[r] * v[r];
+        }
+        if (n2 > best) {
+            best = n2;
+            for (int r = 0; r < 4; r++) q[r] = v[r];
+        }
+    }
+    /* the column is the product of the three gaps to the other roots
+     * times a component of the eigenvector (the largest at least 1/2):
+     * below 1e-4 of the scale cubed, its digits cancel (each entry is off
+     * by some rounding of the scale cubed) */
+    return best > 1e-8 * scale * scale * scale * scale * scale * scale;
+}
+
 mim_quat mim_quat_best_rotation(const double M[3][3])
 {
     double N[4][4] = {
@@ -146,7 +212,7 @@ mim_quat mim_quat_best_rotation(const double M[3][3])
         {M[0][1] - M[1][0], M[2][0] + M[0][2], M[1][2] + M[2][1], -M[0][0] - M[1][1] + M[2][2]},
     };
     double q[4];
-    top_eigenvector4(N, q);
+    if (!top_eigenvector4_qcp(N, q)) top_eigenvector4(N, q);
     const double n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
     if (!(n2 > 0) || !isfinite(n2)) return mim_quat_identity();
     return mim_quat_normalize((mim_quat){q[1], q[2], q[3], q[0]});

@@ -360,9 +360,10 @@ mim_quat mim_quat_from_matrix(const double m[9]);
 /* Horn's closed form (J. Opt. Soc. Am. A 4(4), 1987): the rotation that
  * best turns centred points x onto centred points y (least squares),
  * given M[r][c] = sum x_r y_c. Its unit quaternion is the top eigenvector
- * of a symmetric 4 x 4 matrix made of M (cyclic Jacobi rotations, no
- * library), so it is a rotation by construction, never a reflection.
- * The identity when M is not finite. */
+ * of a symmetric 4 x 4 matrix made of M (Newton's method on its
+ * characteristic polynomial, cyclic Jacobi rotations where its top
+ * eigenvalues nearly meet; no library), so it is a rotation by
+ * construction, never a reflection. The identity when M is not finite. */
 mim_quat mim_quat_best_rotation(const double M[3][3]);
 
 /* The rotation matrix of a unit quaternion. Inline: transfer's morph turns

@@ -36,6 +36,7 @@ typedef struct job {
     mim_sample_metric_t metric;
     int exhaustive;
     float *feat;     /* k x stride: the samples' bound features */
+    double *joints;  /* k x 3 x 34: the samples' joints, packed, so that a sample's are near its features */
     uint8_t *repeat; /* k: 1 when an earlier sample is the same pose-pair */
     uint64_t *hash;  /* k: of each sample's joints, to find the repeats */
     double *slack;   /* per worker, then [0]: the samples' largest mim__bound_slack */
@@ -64,6 +65,7 @@ static void features(void *ctx, uint32_t worker)
     for (uint32_t s; (s = atomic_fetch_add(&j->next, SAMPLE_CHUNK)) < j->k;)
         for (uint32_t i = s; i < s + SAMPLE_CHUNK && i < j->k; i++) {
             mim__bound_features(j->metric, &j->samples[i], 0, j->feat + (size_t)i * j->stride);
+            memcpy(j->joints + (size_t)i * 3 * N, j->samples[i].joints, sizeof j->samples[i].joints);
             slack = fmax(slack, mim__bound_slack(j->metric, &j->samples[i]));
             j->hash[i] = joints_hash(&j->samples[i]);
         }
@@ -152,6 +154,19 @@ typedef struct room {
     double marg_a[MIM__SC_MARGINALS];
 } room_t;
 
+/* What measuring sample j reads: its joints, and for D_I and D_S (which
+ * take them packed) its features (D_I's weights, not its lengths). */
+static void prefetch(const job_t *jb, uint32_t j)
+{
+    const int aligned = jb->metric == MIM_METRIC_IC || jb->metric == MIM_METRIC_SHAPE;
+    const char *p = (const char *)(aligned ? jb->joints + (size_t)j * 3 * N : jb->samples[j].joints);
+    for (size_t o = 0; o < 3 * N * sizeof(double); o += 64) __builtin_prefetch(p + o);
+    if (!aligned) return;
+    const uint32_t from = jb->metric == MIM_METRIC_IC ? mim__bound_dim(jb->metric) / 2 : 0;
+    const char *f = (const char *)(jb->feat + (size_t)j * jb->stride + from);
+    for (size_t o = 0; o < (jb->stride - from) * sizeof(float); o += 64) __builtin_prefetch(f + o);
+}
+
 /* The nearest sample to truth i, the t-th of its chunk (its first bounds
  * made by the caller). */
 static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t t, uint32_t hint, double *best, uint32_t *bj, uint64_t *nd,
@@ -167,7 +182,7 @@ static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t t, uint32_t hint
         *nd += jb->k;
         return;
     }
-    const int shape = jb->metric == MIM_METRIC_SHAPE;
+    const int shape = jb->metric == MIM_METRIC_SHAPE, ic = jb->metric == MIM_METRIC_IC;
     const double slack = rm->slack[t];
     const float *lb = rm->lb + (size_t)t * jb->k;
     if (shape) mim__shape_truth_marginals(a, rm->marg_a);
@@ -180,10 +195,15 @@ static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t t, uint32_t hint
         const uint32_t j = (uint32_t)rm->heap[0];
         if (lb[j] > *best) break;
         pop(rm->heap, &n);
+        if (n) prefetch(jb, (uint32_t)rm->heap[0]); /* the next sample's, while this one is measured */
         const mim_pair_prep_t *b = &jb->samples[j];
-        if (shape) {
+        if (shape || ic) {
             int exact;
-            const double d = mim__shape_distance_within(a, rm->marg_a, b, jb->feat + (size_t)j * jb->stride, slack, *best, &exact);
+            const float *fb = jb->feat + (size_t)j * jb->stride;
+            const double *b_joints = jb->joints + (size_t)j * 3 * N;
+            const double d = shape ? mim__shape_distance_within(a, rm->marg_a, b_joints, fb, slack, *best, &exact)
+                                   : mim__ic_distance_within(a, rm->fa + (size_t)t * mim__bound_dim(jb->metric), b, b_joints, fb,
+                                                             slack, *best, &exact);
             (*na)++;
             if (exact) keep(d, j, best, bj), (*nd)++;
             else (*nc)++;
@@ -253,9 +273,10 @@ int mim_sample_coverage(const mim_pair_prep_t *truth, uint32_t m, const mim_pair
     if (!j.exhaustive) {
         j.feat = malloc((size_t)k * j.stride * sizeof *j.feat);
         j.repeat = calloc(k, 1), j.hash = malloc((size_t)k * sizeof *j.hash);
+        j.joints = malloc((size_t)k * 3 * N * sizeof *j.joints);
     }
     int rc = 0;
-    if (!j.nearest || !j.which || !j.slack || (!j.exhaustive && (!j.feat || !j.repeat || !j.hash))) {
+    if (!j.nearest || !j.which || !j.slack || (!j.exhaustive && (!j.feat || !j.repeat || !j.hash || !j.joints))) {
         rc = mim_error_set(err, MIM_ENOMEM, "coverage: out of memory for %u truths and %u samples", m, k);
         goto done;
     }
@@ -282,6 +303,6 @@ int mim_sample_coverage(const mim_pair_prep_t *truth, uint32_t m, const mim_pair
     out->coverage = sum / m;
     out->distances = atomic_load(&j.distances), out->aligned = atomic_load(&j.aligned), out->cut = atomic_load(&j.cut);
 done:
-    free(nearest), free(which), free(j.slack), free(j.feat), free(j.repeat), free(j.hash);
+    free(nearest), free(which), free(j.slack), free(j.feat), free(j.repeat), free(j.hash), free(j.joints);
     return rc;
 }

@@ -41,7 +41,13 @@
  * elevation coordinates (mim__sc_pairs_bound_shares', in floats) are off
  * by at most MIM__BOUND_EL_COORD_ERR bins: each count's shares by twice
  * that in sum, a joint's histogram (its counts sum to 1) by as much;
- * times 1.5 for 0.5 f: EL_SLACK. */
+ * times 1.5 for 0.5 f: EL_SLACK. The third bound's whole histograms
+ * (mim__sc_joint_bound, in floats) share each count with its radial,
+ * elevation and azimuth coordinates off by 4 float epsilons,
+ * MIM__BOUND_EL_COORD_ERR and MIM__BOUND_AZ_COORD_ERR bins, its cosine of
+ * elevation by 8 epsilons: each count's shares by twice their sum; their
+ * products round by 4 epsilons and both histograms' sums by SC_SLACK's
+ * 8 (n - 1) + 8; times 1.5: WHOLE_SLACK. */
 #include "internal.h"
 
 #include <float.h>
@@ -63,6 +69,7 @@
 #define FAR_SLACK 1e-12
 #define SC_SLACK (1.5 * (8.0 * (N - 1) + 8.0 + 12.0) * (FLT_EPSILON / 2) + 1e-9)
 #define EL_SLACK (1.01 * 1.5 * 2 * MIM__BOUND_EL_COORD_ERR)
+#define WHOLE_SLACK (1.01 * 1.5 * (2 * (MIM__BOUND_EL_COORD_ERR + MIM__BOUND_AZ_COORD_ERR + 12 * FLT_EPSILON) + (4 + 2 * (8.0 * (N - 1) + 8)) * FLT_EPSILON))
 /* added to x + y in the first D_S bound: a term can only get smaller, and
  * 0 / 0 never arises (the loop stays free of branches) */
 #define TINY 1e-30f
@@ -211,6 +218,51 @@ void mim__bound_lower(mim_sample_metric_t metric, const float *fa, uint32_t n, c
     bound_lower(metric, fa, n, fb, k, slack, lb);
 }
 
+/* D_I once b is aligned. Each edge term of eq. 8 compares
+ * u_e(a) - u_e(bb) = d_j - d_i, with d = a - bb: so D_I is the sum over
+ * the 561 joint pairs of (wa_p + wb_p) |d_j - d_i|, w the first bound's
+ * weights (0 off a triangulation's edges). In floats: each |d_j - d_i| is
+ * off by 4 float epsilons of itself and one of |d_i| + |d_j| (d rounded
+ * to floats), the weights by half of one, the sum in lanes by 72 of
+ * itself: all within REL, and 2 epsilons of the largest |d|. */
+MIM__VECTOR_CLONES static float ic_aligned(const double *a, const double *bb, const float *wa, const float *wb, float *dmax)
+{
+    float x[N], y[N], z[N], len[I_HALF] = {0}, big = 0;
+    for (int i = 0; i < N; i++) {
+        x[i] = (float)(a[3 * i] - bb[3 * i]), y[i] = (float)(a[3 * i + 1] - bb[3 * i + 1]), z[i] = (float)(a[3 * i + 2] - bb[3 * i + 2]);
+        const float ax = fabsf(x[i]), ay = fabsf(y[i]), az = fabsf(z[i]), m = ax > ay ? (ax > az ? ax : az) : (ay > az ? ay : az);
+        big = m > big ? m : big;
+    }
+    for (int i = 0, k = 0; i < N; k += N - 1 - i, i++) {
+        float *out = len + k - i - 1; /* pair (i, j) at k + j - i - 1 */
+        for (int j = i + 1; j < N; j++) {
+            const float dx = x[j] - x[i], dy = y[j] - y[i], dz = z[j] - z[i];
+            out[j] = sqrtf(dx * dx + dy * dy + dz * dz);
+        }
+    }
+    float acc[LANES] = {0};
+    for (uint32_t i = 0; i < I_HALF; i += LANES)
+        for (int l = 0; l < LANES; l++) acc[l] += (wa[i + l] + wb[i + l]) * len[i + l];
+    *dmax = 2 * big; /* |d| <= sqrt(3) of its largest coordinate */
+    return lanes_sum(acc);
+}
+
+double mim__ic_distance_within(const mim_pair_prep_t *a, const float *fa, const mim_pair_prep_t *b, const double *bj,
+                               const float *fb, double slack, double best, int *exact)
+{
+    double bb[3 * N];
+    mim_sample_align(a->joints, bj, 3, bb);
+    float dmax;
+    const double sum = ic_aligned(a->joints, bb, fa + I_HALF, fb + I_HALF, &dmax);
+    const double lower = sum * (1 - REL) - 2 * FLT_EPSILON * dmax - LEN_SLACK - slack;
+    if (lower > best) {
+        *exact = 0;
+        return lower;
+    }
+    *exact = 1; /* the scan's: mim_sample_distance's alignment and eq. 8 */
+    return mim_ic_distance(a->joints, &a->ic, bb, &b->ic, MIM_IC_DEFAULT_BETA);
+}
+
 /* The second bound, a joint at a time (lb: N, each joint's term): each
  * joint's term summed over azimuth is at least its term summed over
  * elevation too (subadditivity, above), which needs no elevation. So the
@@ -234,12 +286,16 @@ static double shape_aligned_bound(const double *marg_a, double *gain, mim__sc_pa
         for (int r = 0; r < MIM__SC_R; r++) radial[i] += term[i * MIM__SC_R + r];
         rest += radial[i];
     }
+    /* the order of the samples before, sorted again: gains move a little a sample */
+    double *const kept = gain + N;
     int order[N];
-    for (int i = 0; i < N; i++) {
-        int t = i;
-        for (; t > 0 && gain[order[t - 1]] < gain[i]; t--) order[t] = order[t - 1];
-        order[t] = i;
+    for (int t = 0; t < N; t++) {
+        const int i = (int)kept[t];
+        int u = t;
+        for (; u > 0 && gain[order[u - 1]] < gain[i]; u--) order[u] = order[u - 1];
+        order[u] = i;
     }
+    for (int t = 0; t < N; t++) kept[t] = order[t];
     mim__sc_pairs_bound_shares(w, fb + S_DIM);
     double made = 0, lower = 0;
     for (int t = 0; t < N; t++) {
@@ -256,6 +312,18 @@ static double shape_aligned_bound(const double *marg_a, double *gain, mim__sc_pa
     return lower;
 }
 
+/* One joint's chi-squared cost in float lanes (the third bound's). */
+MIM__VECTOR_CLONES static double joint_cost(const float *a, const float *h)
+{
+    float acc[LANES] = {0};
+    for (int k = 0; k < MIM_SC_BINS; k += LANES)
+        for (int l = 0; l < LANES; l++) {
+            const float x = a[k + l], y = h[k + l];
+            acc[l] += 0.5f * (x - y) * (x - y) / (x + y + TINY);
+        }
+    return lanes_sum(acc);
+}
+
 void mim__shape_truth_marginals(const mim_pair_prep_t *a, double *marg)
 {
     enum { RE = MIM__SC_R * MIM__SC_EL };
@@ -264,15 +332,18 @@ void mim__shape_truth_marginals(const mim_pair_prep_t *a, double *marg)
         marg[N * RE + b] = 0;
         for (int e = 0; e < MIM__SC_EL; e++) marg[N * RE + b] += marg[b * MIM__SC_EL + e];
     }
-    for (int i = 0; i < N; i++) marg[N * MIM__SC_R * (MIM__SC_EL + 1) + i] = 1.0; /* above any gain: each joint tried */
+    for (int i = 0; i < N; i++) {
+        marg[N * MIM__SC_R * (MIM__SC_EL + 1) + i] = 1.0; /* above any gain: each joint tried */
+        marg[N * (MIM__SC_R * (MIM__SC_EL + 1) + 1) + i] = i;
+    }
 }
 
-double mim__shape_distance_within(const mim_pair_prep_t *a, double *marg_a, const mim_pair_prep_t *b, const float *fb,
-                                  double slack, double best, int *exact)
+double mim__shape_distance_within(const mim_pair_prep_t *a, double *marg_a, const double *bj, const float *fb, double slack,
+                                  double best, int *exact)
 {
     double bb[3 * N], lb[N], rest[N + 1], terms[N][MIM_SC_BINS];
     mim__sc_pairs_t w;
-    mim_sample_align(a->joints, b->joints, 3, bb);
+    mim_sample_align(a->joints, bj, 3, bb);
     mim__sc_pairs_begin_lazy(bb, &w);
     /* the second bound first: most samples end here */
     const double lb2 = shape_aligned_bound(marg_a, marg_a + N * MIM__SC_R * (MIM__SC_EL + 1), &w, fb, slack, best, lb);
@@ -280,8 +351,8 @@ double mim__shape_distance_within(const mim_pair_prep_t *a, double *marg_a, cons
         *exact = 0;
         return lb2;
     }
-    mim__sc_pairs_finish_lazy(&w);
-    /* the joints of the largest bounds first: those most likely to pass best */
+    /* the third bound: the joints' whole histograms in floats, those of
+     * the largest bounds first (most likely to pass best) */
     int order[N];
     for (int i = 0; i < N; i++) {
         int t = i;
@@ -294,14 +365,21 @@ double mim__shape_distance_within(const mim_pair_prep_t *a, double *marg_a, cons
     for (int t = 0; t < N; t++) {
         const int i = order[t];
         float h[MIM_SC_BINS];
-        mim__sc_pairs_joint_ready(&w, i);
-        mim__sc_joint(&w, i, h);
-        for (int k = 0; k < MIM_SC_BINS; k++) done += terms[i][k] = mim__chi_term(a->sc[i][k], h[k]);
-        const double lower = (done + rest[t + 1]) / N * (1 - REL) - SC_SLACK - EL_SLACK - slack;
+        mim__sc_joint_bound(&w, i, h);
+        done += joint_cost(a->sc[i], h);
+        const double lower = (done + rest[t + 1]) / N * (1 - REL) - SC_SLACK - EL_SLACK - WHOLE_SLACK - slack;
         if (lower > best) {
             *exact = 0;
             return lower;
         }
+    }
+    /* no bound above best: the histograms as the scan makes them */
+    mim__sc_pairs_finish_lazy(&w);
+    for (int i = 0; i < N; i++) {
+        float h[MIM_SC_BINS];
+        mim__sc_pairs_joint_ready(&w, i);
+        mim__sc_joint(&w, i, h);
+        for (int k = 0; k < MIM_SC_BINS; k++) terms[i][k] = mim__chi_term(a->sc[i][k], h[k]);
     }
     /* every joint made: the sum in mim__shape_cost's order, as the scan's */
     double total = 0;

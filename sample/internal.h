@@ -68,6 +68,15 @@ void mim__sc_pairs_finish(mim__sc_pairs_t *w);
 void mim__sc_pairs_finish_lazy(mim__sc_pairs_t *w);
 void mim__sc_pairs_joint_ready(mim__sc_pairs_t *w, int i);
 void mim__sc_joint(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS]);
+/* Joint i's histogram for the third bound, in floats: from
+ * mim__sc_pairs_bound_shares' bins and shares, with azimuths from
+ * mim__sc_bound_azimuth and cosines of elevation from the pair's
+ * vector. */
+void mim__sc_joint_bound(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS]);
+/* The azimuth bin coordinate of the vector (x, ., z), within
+ * MIM__BOUND_AZ_COORD_ERR bins of (atan2(z, x) + pi) / 2pi 8 - 1/2. */
+#define MIM__BOUND_AZ_COORD_ERR 4e-6
+float mim__sc_bound_azimuth(float x, float z);
 /* One bin's chi-squared term: 0.5 (x - y)^2 / (x + y), 0 for empty bins. */
 static inline double mim__chi_term(double x, double y) { return x + y > 0 ? 0.5 * (x - y) * (x - y) / (x + y) : 0.0; }
 
@@ -120,20 +129,26 @@ double mim__bound_slack(mim_sample_metric_t metric, const mim_pair_prep_t *p);
 #define MIM__BOUND_TRUTHS 8
 void mim__bound_lower(mim_sample_metric_t metric, const float *fa, uint32_t n, const float *fb, uint32_t k,
                       const double *slack, float *lb);
-/* D_S of sample b (its features fb) against truth a, as mim_sample_distance
+/* D_S of sample b (its joints bj, its features fb) against truth a, as mim_sample_distance
  * gives it, to the bit (*exact 1); or a lower bound of it above best
  * (*exact 0) as soon as one turns up: first the second bound, once b is
  * aligned, then the costs of the joints made so far with that bound's
  * terms for the others. marg_a: a's histogram's marginals and the
  * second bound's gains, which it learns from each sample (made by
  * mim__shape_truth_marginals, one for each truth and thread). */
-double mim__shape_distance_within(const mim_pair_prep_t *a, double *marg_a, const mim_pair_prep_t *b, const float *fb,
-                                  double slack, double best, int *exact);
+double mim__shape_distance_within(const mim_pair_prep_t *a, double *marg_a, const double *bj, const float *fb, double slack,
+                                  double best, int *exact);
+/* D_I of sample b (its joints bj, its features fb) against truth a (fa), as
+ * mim_sample_distance gives it, to the bit (*exact 1), or a lower bound of
+ * it above best (*exact 0): once b is aligned, eq. 8 in floats. */
+double mim__ic_distance_within(const mim_pair_prep_t *a, const float *fa, const mim_pair_prep_t *b, const double *bj,
+                               const float *fb, double slack, double best, int *exact);
 /* a's histogram summed over azimuth (MIM__SC_R x MIM__SC_EL a joint, as
  * mim__sc_histogram_marginals' rel), then those summed over elevation
- * (MIM__SC_R a joint), then each joint's starting gain: MIM__SC_MARGINALS
+ * (MIM__SC_R a joint), then each joint's starting gain, then the joints
+ * in the order of the gains of the sample before: MIM__SC_MARGINALS
  * doubles. */
-#define MIM__SC_MARGINALS (MIM_PAIR_JOINTS * (MIM__SC_R * (MIM__SC_EL + 1) + 1))
+#define MIM__SC_MARGINALS (MIM_PAIR_JOINTS * (MIM__SC_R * (MIM__SC_EL + 1) + 2))
 void mim__shape_truth_marginals(const mim_pair_prep_t *a, double *marg);
 
 /* The chi-squared cost between shape contexts (Belongie et al.), the mean

@@ -138,6 +138,73 @@ MIM__VECTOR_CLONES static void bound_shares(mim__sc_pairs_t *w, const float *fr)
 
 void mim__sc_pairs_bound_shares(mim__sc_pairs_t *w, const float *fr) { bound_shares(w, fr); }
 
+/* The azimuth coordinate of (x, z), as (atan2(z, x) + pi) / 2pi SC_AZ - 1/2
+ * is, in floats (MIM__BOUND_AZ_COORD_ERR bounds how far): the angle from
+ * the x or z axis, whichever is nearer, by atan's series to u^15 on
+ * |u| <= tan(pi/8) (past it, pi/4 + atan((t - 1) / (t + 1))), then the
+ * octant put back. Both branches made and one kept, so that loops over it
+ * vectorise. */
+static inline float bound_azimuth(float x, float z)
+{
+    static const float c[] = {1.0f, -1.0f / 3, 1.0f / 5, -1.0f / 7, 1.0f / 9, -1.0f / 11, 1.0f / 13, -1.0f / 15};
+    const float ax = x < 0 ? -x : x, az = z < 0 ? -z : z;
+    const int steep = az > ax;
+    const float hi = steep ? az : ax, lo = steep ? ax : az;
+    const float t = hi > 0 ? lo / hi : 0.0f; /* in [0, 1] */
+    const int past = t > 0.41421356f;
+    const float u = past ? (t - 1) / (t + 1) : t, u2 = u * u, u4 = u2 * u2, u8 = u4 * u4;
+    const float poly = ((c[0] + c[1] * u2) + (c[2] + c[3] * u2) * u4) + ((c[4] + c[5] * u2) + (c[6] + c[7] * u2) * u4) * u8;
+    float ang = (past ? (float)(M_PI / 4) : 0.0f) + u * poly; /* atan(lo / hi), in [0, pi/4] */
+    ang = steep ? (float)(M_PI / 2) - ang : ang;                 /* the angle from +x in the quadrant */
+    ang = x < 0 ? (float)M_PI - ang : ang;
+    ang = z < 0 ? -ang : ang;
+    return (ang + (float)M_PI) * (float)(SC_AZ / (2 * M_PI)) - 0.5f;
+}
+
+MIM__VECTOR_CLONES static void joint_bound(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS])
+{
+    const double *p = w->p;
+    float fa[N], cosel[N];
+    for (int j = 0; j < N; j++) {
+        const float x = (float)(p[3 * j] - p[3 * i]), z = (float)(p[3 * j + 2] - p[3 * i + 2]);
+        const int k = i < j ? mim__pair_index(i, j) : j < i ? mim__pair_index(j, i) : 0;
+        const float r = (float)w->r[k];
+        fa[j] = bound_azimuth(x, z);
+        cosel[j] = r > 0 ? sqrtf(x * x + z * z) / r : 1.0f;
+        cosel[j] = cosel[j] < 1 ? cosel[j] : 1.0f;
+    }
+    float h[MIM_SC_BINS];
+    memset(h, 0, sizeof h);
+    for (int j = 0; j < N; j++) {
+        if (j == i) continue;
+        const int k = i < j ? mim__pair_index(i, j) : mim__pair_index(j, i);
+        const float tr = w->rshare[k];
+        const int r0 = (int)w->rbin[k];
+        /* the pair's second joint sees the first at the opposite elevation: bins mirrored */
+        const float te = i < j ? w->eshare[k] : 1 - w->eshare[k];
+        const int e0 = i < j ? (int)w->ebin[k] : SC_EL - 2 - (int)w->ebin[k];
+        const float c = cosel[j], f = fa[j];
+        const int a0 = (int)floorf(f);
+        const float ta = f - (float)a0;
+        const int a1 = (a0 + 1 + SC_AZ) % SC_AZ, a0w = (a0 + SC_AZ) % SC_AZ;
+        for (int dr = 0; dr < 2; dr++)
+            for (int de = 0; de < 2; de++) {
+                const float k2 = weight * (dr ? tr : 1 - tr) * (de ? te : 1 - te);
+                float *row = h + WORK(r0 + dr, e0 + de, 0);
+                row[a0w] += k2 * c * (1 - ta), row[a1] += k2 * c * ta;
+                const float all = k2 * (1 - c) / SC_AZ;
+                for (int u = 0; u < SC_AZ; u++) row[u] += all;
+            }
+    }
+    for (int r = 0; r < SC_R; r++)
+        for (int a = 0; a < SC_AZ; a++)
+            for (int e = 0; e < SC_EL; e++) sc[(r * SC_AZ + a) * SC_EL + e] = h[WORK(r, e, a)];
+}
+
+void mim__sc_joint_bound(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS]) { joint_bound(w, i, sc); }
+
+float mim__sc_bound_azimuth(float x, float z) { return bound_azimuth(x, z); }
+
 /* The bins' log range: 1/8 to 2 of the mean joint distance. */
 static void radial_range(const double *r, double *r0, double *r1)
 {

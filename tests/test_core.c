@@ -467,6 +467,62 @@ static void test_quat_matrix(void **s)
     assert_true(fabs(da - db) < 1e-12);
 }
 
+/* Horn's best rotation: points turned by a random rotation give it back
+ * (the fast root and the Jacobi fallback alike); with noise, no small turn
+ * of the answer fits better; a line (any turn about it fits as well), a
+ * plane, a point, and a matrix that is not finite give a unit quaternion. */
+static double turned_residual(const double (*x)[3], const double (*y)[3], int n, mim_quat q)
+{
+    double s = 0;
+    for (int i = 0; i < n; i++) {
+        const double e = mim_v3_norm(mim_v3_sub(mim_quat_rotate(q, mim_v3(x[i][0], x[i][1], x[i][2])), mim_v3(y[i][0], y[i][1], y[i][2])));
+        s += e * e;
+    }
+    return s;
+}
+
+static void test_best_rotation(void **s)
+{
+    (void)s;
+    mim_rng_t r;
+    mim_rng_seed(&r, 12, 0);
+    enum { P = 30 };
+    for (int trial = 0; trial < 400; trial++) {
+        double x[P][3], y[P][3], M[3][3] = {{0}};
+        const int shape = trial % 4; /* 0 a cloud, 1 a plane, 2 a line, 3 noisy */
+        const mim_quat q = random_rotation(&r);
+        for (int i = 0; i < P; i++) {
+            for (int c = 0; c < 3; c++) x[i][c] = mim_rng_gauss(&r);
+            if (shape == 1) x[i][2] = 0.5 * x[i][0] - x[i][1];
+            if (shape == 2) x[i][1] = 2 * x[i][0], x[i][2] = -x[i][0];
+            const mim_vec3 t = mim_quat_rotate(q, mim_v3(x[i][0], x[i][1], x[i][2]));
+            y[i][0] = t.x, y[i][1] = t.y, y[i][2] = t.z;
+            if (shape == 3)
+                for (int c = 0; c < 3; c++) y[i][c] += 0.3 * mim_rng_gauss(&r);
+        }
+        for (int i = 0; i < P; i++)
+            for (int a = 0; a < 3; a++)
+                for (int b = 0; b < 3; b++) M[a][b] += x[i][a] * y[i][b];
+        const mim_quat got = mim_quat_best_rotation((const double(*)[3])M);
+        assert_true(fabs(got.x * got.x + got.y * got.y + got.z * got.z + got.w * got.w - 1) < 1e-12);
+        const double best = turned_residual((const double(*)[3])x, (const double(*)[3])y, P, got);
+        if (shape < 3) { /* an exact turn: found to the rounding (a line: any turn about it) */
+            if (best > 1e-20 * P) fail_msg("trial %d (shape %d): residual %g", trial, shape, best);
+            if (shape == 0) assert_true(fabs(fabs(got.x * q.x + got.y * q.y + got.z * q.z + got.w * q.w) - 1) < 1e-12);
+            continue;
+        }
+        for (int k = 0; k < 20; k++) {
+            const mim_quat d = mim_quat_axis_angle(mim_v3_normalize(mim_v3(mim_rng_gauss(&r), mim_rng_gauss(&r), mim_rng_gauss(&r))), 1e-4);
+            const double other = turned_residual((const double(*)[3])x, (const double(*)[3])y, P, mim_quat_mul(d, got));
+            if (other < best * (1 - 1e-12)) fail_msg("trial %d: a turned fit is better: %.17g < %.17g", trial, other, best);
+        }
+    }
+    const double zero[3][3] = {{0}}, bad[3][3] = {{1, 0, 0}, {0, NAN, 0}, {0, 0, 1}};
+    const mim_quat z = mim_quat_best_rotation(zero), b = mim_quat_best_rotation(bad);
+    assert_true(fabs(z.x * z.x + z.y * z.y + z.z * z.z + z.w * z.w - 1) < 1e-12);
+    assert_true(b.x == 0 && b.y == 0 && b.z == 0 && b.w == 1);
+}
+
 /* The generator: one stream per (seed, stream), pinned values (synth's
  * datasets are byte-identical for a seed only while these hold), ranges. */
 static void test_rng(void **s)
@@ -790,6 +846,7 @@ int main(void)
         cmocka_unit_test(test_landmarks_check),
         cmocka_unit_test(test_landmark_frames_implausible),
         cmocka_unit_test(test_landmark_frames_cap),
+        cmocka_unit_test(test_best_rotation),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

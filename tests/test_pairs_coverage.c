@@ -157,12 +157,12 @@ static void test_bounds_below_distances(void **state)
                  * part-way (best just below d) and the distance itself */
                 const float *f = fb + (size_t)j * stride;
                 int exact;
-                const double lb2 = mim__shape_distance_within(&g[i], marg_a, &s[j], f, slack, -1.0, &exact);
+                const double lb2 = mim__shape_distance_within(&g[i], marg_a, s[j].joints, f, slack, -1.0, &exact);
                 if (exact || !(lb2 <= d)) fail_msg("D_S, truth %u, sample %u: second bound %.17g above %.17g", i, j, lb2, d);
                 ratio2 += d > 0 ? fmax(lb2, 0) / d / (M * K) : 0;
-                const double part = mim__shape_distance_within(&g[i], marg_a, &s[j], f, slack, lb2 + 0.9 * (d - lb2), &exact);
+                const double part = mim__shape_distance_within(&g[i], marg_a, s[j].joints, f, slack, lb2 + 0.9 * (d - lb2), &exact);
                 if (!(part <= d)) fail_msg("D_S, truth %u, sample %u: bound part-way %.17g above %.17g", i, j, part, d);
-                const double whole = mim__shape_distance_within(&g[i], marg_a, &s[j], f, slack, INFINITY, &exact);
+                const double whole = mim__shape_distance_within(&g[i], marg_a, s[j].joints, f, slack, INFINITY, &exact);
                 if (!exact || memcmp(&whole, &d, sizeof d)) fail_msg("D_S, truth %u, sample %u: %.17g, not %.17g", i, j, whole, d);
             }
         }
@@ -455,6 +455,55 @@ static void test_bound_elevation(void **state)
     for (int k = 0; k < 4; k++) assert_true(clamped((double)w.ebin[k] + w.eshare[k]) == want[k]);
 }
 
+/* The third bound's azimuths within MIM__BOUND_AZ_COORD_ERR bins of
+ * atan2's (circularly), over every direction in steps of 1e-6 turns and
+ * vectors of every size, nearly vertical ones (tiny x and z) among them;
+ * and its whole histograms near the scan's for the pose-pairs of a set. */
+static void test_bound_azimuth(void **state)
+{
+    (void)state;
+    double worst = 0;
+    mim_rng_t rng;
+    mim_rng_seed(&rng, 43, 7);
+    for (int step = 0; step <= 3000000; step++) {
+        double x, z;
+        if (step <= 1000000) {
+            const double ang = 2 * M_PI * step * 1e-6 - M_PI;
+            x = cos(ang), z = sin(ang);
+        } else {
+            const double size = pow(10, -12 + 13 * mim_rng_unit(&rng));
+            x = (2 * mim_rng_unit(&rng) - 1) * size, z = (2 * mim_rng_unit(&rng) - 1) * size;
+            if (step % 7 == 0) x = 0;
+            if (step % 11 == 0) z = step % 2 ? 0.0 : -0.0;
+        }
+        const double exact = (atan2(z, x) + M_PI) / (2 * M_PI) * MIM__SC_AZ - 0.5;
+        const double d = fabs(mim__sc_bound_azimuth((float)x, (float)z) - exact);
+        worst = fmax(worst, fmin(d, MIM__SC_AZ - d));
+    }
+    print_message("the bound's azimuth coordinates: at most %.3g bins from atan2's\n", worst);
+    assert_true(worst <= MIM__BOUND_AZ_COORD_ERR);
+    enum { K = 60 };
+    mim_pair_prep_t *g, *s;
+    make_sets(6, 10, K, &g, &s);
+    double far = 0;
+    for (uint32_t j = 0; j < K; j++) {
+        float fr[MIM__JOINT_PAIRS], h[MIM_SC_BINS];
+        mim__sc_pairs_t w;
+        mim__sc_pair_radii(s[j].joints, fr);
+        mim__sc_pairs_begin_lazy(s[j].joints, &w);
+        mim__sc_pairs_bound_shares(&w, fr);
+        for (int i = 0; i < J; i++) {
+            mim__sc_joint_bound(&w, i, h);
+            double l1 = 0;
+            for (int b = 0; b < MIM_SC_BINS; b++) l1 += fabs((double)h[b] - s[j].sc[i][b]);
+            far = fmax(far, l1);
+        }
+    }
+    print_message("the third bound's histograms: at most %.3g (L1) from the scan's\n", far);
+    assert_true(far < 1e-4);
+    free(g), free(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -465,6 +514,7 @@ int main(void)
         cmocka_unit_test(test_limbs_brute_force),
         cmocka_unit_test(test_prepared_parts),
         cmocka_unit_test(test_bound_elevation),
+        cmocka_unit_test(test_bound_azimuth),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
