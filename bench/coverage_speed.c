@@ -160,8 +160,9 @@ int main(int argc, char **argv)
                bad ? "DIFFER from the scan's" : "the scan's, to the bit");
     }
     printf("\n(truths x samples per second; x: against the scan on one thread; bounds: on %u threads; distances:\n"
-           "computed in full, of all truth-sample pairs; aligned: D_S's samples aligned and bounded again; given up:\n"
-           "of all pairs, D_S's stopped part-way; answers: the first truths' nearest distances and samples)\n", threads);
+           "computed in full, of all truth-sample pairs; aligned: D_I's and D_S's samples aligned and bounded again;\n"
+           "given up: of all pairs, those stopped part-way; answers: the first truths' nearest distances and samples)\n",
+           threads);
     free(near0), free(near1), free(which0), free(which1), free(g), free(s), free(tj), free(sj);
     return 0;
 }

@@ -6,8 +6,9 @@
  * sample out: the truths of a chunk bound every sample at once (a sample's
  * features read from memory once for all of them), then each takes the
  * samples in increasing bound order and stops at the first bound above
- * the nearest distance found. D_S goes on bounding a sample after aligning
- * it, and gives up its distance part-way once a bound passes the nearest.
+ * the nearest distance found. D_I and D_S go on bounding a sample after
+ * aligning it (D_S a joint at a time), and make its distance as the scan
+ * does only where no bound passes the nearest.
  * The nearest of the truth before (the truths of a take come in order) is
  * tried first. A sample that repeats an earlier one (a chain's refused
  * step) is skipped: it is exactly as far, and the scan keeps the earlier.

@@ -16,7 +16,9 @@
  *   as a rigid motion keeps lengths; so each half of eq. 8 is at least its
  *   weighted mean of length differences: D_I >= sum over the 561 joint pairs
  *   p of (wa_p + wb_p) |La_p - Lb_p|, L the pairs' lengths and w_p a
- *   triangulation's weight over its weights' sum (0 off its edges).
+ *   triangulation's weight over its weights' sum (0 off its edges). Once
+ *   b is aligned, the distance itself in floats, lowered by its rounding
+ *   (ic_aligned).
  * - D_S. f(x, y) = (x - y)^2 / (x + y) is convex and positively homogeneous,
  *   hence subadditive (f(s + t) = 2 f((s + t) / 2) <= f(s) + f(t)): adding
  *   bins together never raises the chi-squared cost. Summed over azimuth and

@@ -129,11 +129,12 @@ double mim__bound_slack(mim_sample_metric_t metric, const mim_pair_prep_t *p);
 #define MIM__BOUND_TRUTHS 8
 void mim__bound_lower(mim_sample_metric_t metric, const float *fa, uint32_t n, const float *fb, uint32_t k,
                       const double *slack, float *lb);
-/* D_S of sample b (its joints bj, its features fb) against truth a, as mim_sample_distance
- * gives it, to the bit (*exact 1); or a lower bound of it above best
- * (*exact 0) as soon as one turns up: first the second bound, once b is
- * aligned, then the costs of the joints made so far with that bound's
- * terms for the others. marg_a: a's histogram's marginals and the
+/* D_S of sample b (its joints bj, its features fb) against truth a, as
+ * mim_sample_distance gives it, to the bit (*exact 1); or a lower bound of
+ * it above best (*exact 0) as soon as one turns up: first the second
+ * bound, once b is aligned, then the third (the joints' whole histograms
+ * in floats, with the second bound's terms for the joints not yet made);
+ * the scan's histograms only where no bound passes best. marg_a: a's histogram's marginals and the
  * second bound's gains, which it learns from each sample (made by
  * mim__shape_truth_marginals, one for each truth and thread). */
 double mim__shape_distance_within(const mim_pair_prep_t *a, double *marg_a, const double *bj, const float *fb, double slack,

@@ -406,8 +406,8 @@ typedef struct mim_sample_coverage {
     uint32_t *which;    /* NULL, or the caller's m entries: that j, the lowest of equal ones
                            (UINT32_MAX when no distance is below infinity) */
     uint64_t distances; /* distances computed */
-    uint64_t aligned;   /* D_S: samples aligned and bounded again (coverage_bounds.c) */
-    uint64_t cut;       /* D_S: of those, the ones given up, a bound having passed the nearest */
+    uint64_t aligned;   /* D_I, D_S: samples aligned and bounded again (coverage_bounds.c) */
+    uint64_t cut;       /* D_I, D_S: of those, the ones given up, a bound having passed the nearest */
 } mim_sample_coverage_t;
 /* C(G, S) = 1/m sum_i min_j D(g_i, s_j) over the m truth pairs g and the k
  * samples s, in the metric given, into out (its nearest and which filled
