@@ -151,6 +151,16 @@ static double det3(double a, double b, double c, double d, double e, double f, d
     return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
 }
 
+/* The determinant of B without row x and column y. */
+static double minor3(const double B[4][4], int x, int y)
+{
+    double m[9];
+    for (int r = 0, k = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++)
+            if (r != x && c != y) m[k++] = B[r][c];
+    return det3(m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]);
+}
+
 static int top_eigenvector4_qcp(const double A[4][4], double q[4])
 {
     double f2 = 0, t3 = 0, A2[4][4];
@@ -177,24 +187,20 @@ static int top_eigenvector4_qcp(const double A[4][4], double q[4])
         settled = !(fabs(step) > 1e-15 * scale);
     }
     if (!settled) return 0;
-    /* the columns of adj(A - l I): cofactors of each row, all 4 columns */
-    double B[4][4], best = -1;
+    /* adj(A - l I) = (product of the gaps) v v^T: its largest column is
+     * the one of its largest diagonal entry */
+    double B[4][4], diag[4];
     for (int r = 0; r < 4; r++)
         for (int c = 0; c < 4; c++) B[r][c] = A[r][c] - (r == c ? l : 0);
-    for (int col = 0; col < 4; col++) {
-        double v[4], n2 = 0;
-        for (int r = 0; r < 4; r++) {
-            double m[9];
-            for (int x = 0, k = 0; x < 4; x++)
-                for (int y = 0; y < 4; y++)
-                    if (x != col && y != r) m[k++] = B[x][y];
-            v[r] = ((r + col) % 2 ? -1 : 1) * det3(m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]);
-            n2 += v[r] * v[r];
-        }
-        if (n2 > best) {
-            best = n2;
-            for (int r = 0; r < 4; r++) q[r] = v[r];
-        }
+    int col = 0;
+    for (int c = 0; c < 4; c++) {
+        diag[c] = minor3(B, c, c);
+        if (fabs(diag[c]) > fabs(diag[col])) col = c;
+    }
+    double best = 0;
+    for (int r = 0; r < 4; r++) {
+        q[r] = r == col ? diag[col] : ((r + col) % 2 ? -1 : 1) * minor3(B, col, r);
+        best += q[r] * q[r];
     }
     /* the column is the product of the three gaps to the other roots
      * times a component of the eigenvector (the largest at least 1/2):

@@ -54,8 +54,8 @@ static void best_rotation(const double S[3][3], int dim, double R[9])
 /* Kabsch's problem: the rotation R (column-major dim x dim) and the
  * centroids ca, cb of the least-squares fit a ~ ca + R (b - cb) over n
  * points, each weighted by use[i] (NULL: all alike; 0: left out). */
-static void fit(const double *a, const double *b, int n, int dim, const uint8_t *use, double R[9], double ca[3],
-                double cb[3])
+static inline __attribute__((always_inline)) void fit_any(const double *a, const double *b, int n, int dim, const uint8_t *use,
+                                                         double R[9], double ca[3], double cb[3])
 {
     int used = 0;
     for (int i = 0; i < n; i++) used += use ? use[i] : 1;
@@ -73,6 +73,15 @@ static void fit(const double *a, const double *b, int n, int dim, const uint8_t 
                 for (int c = 0; c < dim; c++) S[r][c] += w * (b[dim * i + r] - cb[r]) * (a[dim * i + c] - ca[c]);
     }
     best_rotation((const double(*)[3])S, dim, R);
+}
+
+/* The same, made apart for 3D points all alike (every alignment of
+ * coverage): the same operations in the same order, so the same bits. */
+static void fit(const double *a, const double *b, int n, int dim, const uint8_t *use, double R[9], double ca[3],
+                double cb[3])
+{
+    if (!use && dim == 3) fit_any(a, b, n, 3, NULL, R, ca, cb);
+    else fit_any(a, b, n, dim, use, R, ca, cb);
 }
 
 void mim__align_points(const double *a, const double *b, int n, int dim, double *out)
