@@ -71,7 +71,9 @@
 #define FAR_SLACK 1e-12
 #define SC_SLACK (1.5 * (8.0 * (N - 1) + 8.0 + 12.0) * (FLT_EPSILON / 2) + 1e-9)
 #define EL_SLACK (1.01 * 1.5 * 2 * MIM__BOUND_EL_COORD_ERR)
-#define WHOLE_SLACK (1.01 * 1.5 * (2 * (MIM__BOUND_EL_COORD_ERR + MIM__BOUND_AZ_COORD_ERR + 12 * FLT_EPSILON) + (4 + 2 * (8.0 * (N - 1) + 8)) * FLT_EPSILON))
+#define WHOLE_SLACK                                                                                                    \
+    (1.01 * 1.5 *                                                                                                      \
+     (2 * (MIM__BOUND_EL_COORD_ERR + MIM__BOUND_AZ_COORD_ERR + 12 * FLT_EPSILON) + (4 + 2 * (8.0 * (N - 1) + 8)) * FLT_EPSILON))
 /* added to x + y in the first D_S bound: a term can only get smaller, and
  * 0 / 0 never arises (the loop stays free of branches) */
 #define TINY 1e-30f
@@ -167,6 +169,15 @@ static float lanes_sum(const float *acc)
     return ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));
 }
 
+/* sum (x - y)^2 / (x + y) over n floats (a multiple of LANES), in lanes. */
+static inline float chi_lanes(const float *x, const float *y, uint32_t n)
+{
+    float acc[LANES] = {0};
+    for (uint32_t i = 0; i < n; i += LANES)
+        for (int l = 0; l < LANES; l++) acc[l] += (x[i + l] - y[i + l]) * (x[i + l] - y[i + l]) / (x[i + l] + y[i + l] + TINY);
+    return lanes_sum(acc);
+}
+
 /* One truth's first bound of one sample, before the rounding's allowance. */
 static inline float first_bound(mim_sample_metric_t metric, const float *fa, const float *b)
 {
@@ -187,14 +198,7 @@ static inline float first_bound(mim_sample_metric_t metric, const float *fa, con
             }
         return fminf(lanes_sum(acc), lanes_sum(swapped)) / L_N;
     }
-    if (metric == MIM_METRIC_SHAPE) {
-        for (uint32_t i = 0; i < S_DIM; i += LANES)
-            for (int l = 0; l < LANES; l++) {
-                float x = fa[i + l], y = b[i + l];
-                acc[l] += (x - y) * (x - y) / (x + y + TINY);
-            }
-        return 0.5f * lanes_sum(acc) / N;
-    }
+    if (metric == MIM_METRIC_SHAPE) return 0.5f * chi_lanes(fa, b, S_DIM) / N;
     for (uint32_t i = 0; i < I_HALF; i += LANES)
         for (int l = 0; l < LANES; l++) acc[l] += (fa[I_HALF + i + l] + b[I_HALF + i + l]) * fabsf(fa[i + l] - b[i + l]);
     return lanes_sum(acc);
@@ -231,7 +235,8 @@ MIM__VECTOR_CLONES static float ic_aligned(const double *a, const double *bb, co
 {
     float x[N], y[N], z[N], len[I_HALF] = {0}, big = 0;
     for (int i = 0; i < N; i++) {
-        x[i] = (float)(a[3 * i] - bb[3 * i]), y[i] = (float)(a[3 * i + 1] - bb[3 * i + 1]), z[i] = (float)(a[3 * i + 2] - bb[3 * i + 2]);
+        x[i] = (float)(a[3 * i] - bb[3 * i]), y[i] = (float)(a[3 * i + 1] - bb[3 * i + 1]);
+        z[i] = (float)(a[3 * i + 2] - bb[3 * i + 2]);
         const float ax = fabsf(x[i]), ay = fabsf(y[i]), az = fabsf(z[i]), m = ax > ay ? (ax > az ? ax : az) : (ay > az ? ay : az);
         big = m > big ? m : big;
     }
@@ -315,16 +320,7 @@ static double shape_aligned_bound(const double *marg_a, double *gain, mim__sc_pa
 }
 
 /* One joint's chi-squared cost in float lanes (the third bound's). */
-MIM__VECTOR_CLONES static double joint_cost(const float *a, const float *h)
-{
-    float acc[LANES] = {0};
-    for (int k = 0; k < MIM_SC_BINS; k += LANES)
-        for (int l = 0; l < LANES; l++) {
-            const float x = a[k + l], y = h[k + l];
-            acc[l] += 0.5f * (x - y) * (x - y) / (x + y + TINY);
-        }
-    return lanes_sum(acc);
-}
+MIM__VECTOR_CLONES static double joint_cost(const float *a, const float *h) { return 0.5f * chi_lanes(a, h, MIM_SC_BINS); }
 
 void mim__shape_truth_marginals(const mim_pair_prep_t *a, double *marg)
 {

@@ -475,7 +475,8 @@ static double turned_residual(const double (*x)[3], const double (*y)[3], int n,
 {
     double s = 0;
     for (int i = 0; i < n; i++) {
-        const double e = mim_v3_norm(mim_v3_sub(mim_quat_rotate(q, mim_v3(x[i][0], x[i][1], x[i][2])), mim_v3(y[i][0], y[i][1], y[i][2])));
+        const mim_vec3 turned = mim_quat_rotate(q, mim_v3(x[i][0], x[i][1], x[i][2]));
+        const double e = mim_v3_norm(mim_v3_sub(turned, mim_v3(y[i][0], y[i][1], y[i][2])));
         s += e * e;
     }
     return s;
@@ -512,7 +513,8 @@ static void test_best_rotation(void **s)
             continue;
         }
         for (int k = 0; k < 20; k++) {
-            const mim_quat d = mim_quat_axis_angle(mim_v3_normalize(mim_v3(mim_rng_gauss(&r), mim_rng_gauss(&r), mim_rng_gauss(&r))), 1e-4);
+            const mim_vec3 axis = mim_v3_normalize(mim_v3(mim_rng_gauss(&r), mim_rng_gauss(&r), mim_rng_gauss(&r)));
+            const mim_quat d = mim_quat_axis_angle(axis, 1e-4);
             const double other = turned_residual((const double(*)[3])x, (const double(*)[3])y, P, mim_quat_mul(d, got));
             if (other < best * (1 - 1e-12)) fail_msg("trial %d: a turned fit is better: %.17g < %.17g", trial, other, best);
         }

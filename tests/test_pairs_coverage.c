@@ -160,7 +160,8 @@ static void test_bounds_below_distances(void **state)
                 const double lb2 = mim__shape_distance_within(&g[i], marg_a, s[j].joints, f, slack, -1.0, &exact);
                 if (exact || !(lb2 <= d)) fail_msg("D_S, truth %u, sample %u: second bound %.17g above %.17g", i, j, lb2, d);
                 ratio2 += d > 0 ? fmax(lb2, 0) / d / (M * K) : 0;
-                const double part = mim__shape_distance_within(&g[i], marg_a, s[j].joints, f, slack, lb2 + 0.9 * (d - lb2), &exact);
+                const double part =
+                    mim__shape_distance_within(&g[i], marg_a, s[j].joints, f, slack, lb2 + 0.9 * (d - lb2), &exact);
                 if (!(part <= d)) fail_msg("D_S, truth %u, sample %u: bound part-way %.17g above %.17g", i, j, part, d);
                 const double whole = mim__shape_distance_within(&g[i], marg_a, s[j].joints, f, slack, INFINITY, &exact);
                 if (!exact || memcmp(&whole, &d, sizeof d)) fail_msg("D_S, truth %u, sample %u: %.17g, not %.17g", i, j, whole, d);
