@@ -152,7 +152,7 @@ typedef struct room {
     float *lb, *fa;
     double slack[MIM__BOUND_TRUTHS];
     uint64_t *heap;
-    double marg_a[MIM__SC_MARGINALS];
+    mim__shape_truth_t shape_a;
 } room_t;
 
 /* What measuring sample j reads: its joints, and for D_I and D_S (which
@@ -186,7 +186,7 @@ static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t t, uint32_t hint
     const int shape = jb->metric == MIM_METRIC_SHAPE, ic = jb->metric == MIM_METRIC_IC;
     const double slack = rm->slack[t];
     const float *lb = rm->lb + (size_t)t * jb->k;
-    if (shape) mim__shape_truth_marginals(a, rm->marg_a);
+    if (shape) mim__shape_truth(a, &rm->shape_a);
     if (hint < jb->k) keep(mim_sample_distance(a, &jb->samples[hint], jb->metric), hint, best, bj), (*nd)++;
     uint32_t n = 0;
     for (uint32_t j = 0; j < jb->k; j++)
@@ -202,7 +202,7 @@ static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t t, uint32_t hint
             int exact;
             const float *fb = jb->feat + (size_t)j * jb->stride;
             const double *b_joints = jb->joints + (size_t)j * 3 * N;
-            const double d = shape ? mim__shape_distance_within(a, rm->marg_a, b_joints, fb, slack, *best, &exact)
+            const double d = shape ? mim__shape_distance_within(a, &rm->shape_a, b_joints, fb, slack, *best, &exact)
                                    : mim__ic_distance_within(a, rm->fa + (size_t)t * mim__bound_dim(jb->metric), b, b_joints, fb,
                                                              slack, *best, &exact);
             (*na)++;

@@ -39,12 +39,16 @@
  * 8 (n - 1) + 8 float epsilons in all (its counts sum to 1), and the
  * samples' radial bin coordinates, kept as floats (|fr| < 4 where it
  * counts), move at most 12 more; f is 3-Lipschitz in each argument and D_S
- * is 0.5 f summed over bins over n: SC_SLACK. The second bound's
- * elevation coordinates (mim__sc_pairs_bound_shares', in floats) are off
- * by at most MIM__BOUND_EL_COORD_ERR bins: each count's shares by twice
- * that in sum, a joint's histogram (its counts sum to 1) by as much;
- * times 1.5 for 0.5 f: EL_SLACK. The third bound's whole histograms
- * (mim__sc_joint_bound, in floats) share each count with its radial,
+ * is 0.5 f summed over bins over n: SC_SLACK. The second bound's rows
+ * (mim__sc_row, in floats) have elevation coordinates off by at most
+ * MIM__BOUND_EL_COORD_ERR bins: each count's elevation shares by twice
+ * that in sum; its hats (1 - |f - bin|) round by an epsilon each, four in
+ * all, their products by half of one, the lanes' sums (at most 8
+ * additions) by 4 of the total, the weight by half of one; the truth's
+ * sums, rounded to floats, by half of one: a joint's histograms (their
+ * counts sum to 1) by 2 MIM__BOUND_EL_COORD_ERR + 10 epsilons; times 1.5
+ * for 0.5 f: ROW_SLACK. The third bound's whole histograms
+ * (mim__sc_row_histogram, in floats) share each count with its radial,
  * elevation and azimuth coordinates off by 4 float epsilons,
  * MIM__BOUND_EL_COORD_ERR and MIM__BOUND_AZ_COORD_ERR bins, its cosine of
  * elevation by 8 epsilons: each count's shares by twice their sum; their
@@ -63,14 +67,14 @@
 #define I_HALF PAD(PAIRS)
 #define L_N (2 * MIM_LIMB_COUNT)
 #define L_DIM PAD(L_N)
-#define S_DIM PAD(N * MIM__SC_R)
-#define S_REL (N * MIM__SC_R * MIM__SC_EL)
+#define S_DIM MIM__SC_RADIAL
+#define RE (MIM__SC_R * MIM__SC_EL)
 
 #define REL 1e-4
 #define LEN_SLACK 1e-6
 #define FAR_SLACK 1e-12
 #define SC_SLACK (1.5 * (8.0 * (N - 1) + 8.0 + 12.0) * (FLT_EPSILON / 2) + 1e-9)
-#define EL_SLACK (1.01 * 1.5 * 2 * MIM__BOUND_EL_COORD_ERR)
+#define ROW_SLACK (1.01 * 1.5 * (2 * MIM__BOUND_EL_COORD_ERR + 10 * FLT_EPSILON))
 #define WHOLE_SLACK                                                                                                    \
     (1.01 * 1.5 *                                                                                                      \
      (2 * (MIM__BOUND_EL_COORD_ERR + MIM__BOUND_AZ_COORD_ERR + 12 * FLT_EPSILON) + (4 + 2 * (8.0 * (N - 1) + 8)) * FLT_EPSILON))
@@ -270,81 +274,86 @@ double mim__ic_distance_within(const mim_pair_prep_t *a, const float *fa, const 
     return mim_ic_distance(a->joints, &a->ic, bb, &b->ic, MIM_IC_DEFAULT_BETA);
 }
 
+/* 0.5 (x - y)^2 / (x + y) for each of n floats (a multiple of LANES). */
+MIM__VECTOR_CLONES static void chi_each(const float *x, const float *y, uint32_t n, float *out)
+{
+    for (uint32_t i = 0; i < n; i++) out[i] = 0.5f * (x[i] - y[i]) * (x[i] - y[i]) / (x[i] + y[i] + TINY);
+}
+
+/* One joint's chi-squared cost in float lanes over n bins (the second
+ * bound's, n = MIM__SC_REL, and the third's, n = MIM_SC_BINS). */
+MIM__VECTOR_CLONES static double joint_cost(const float *a, const float *h, uint32_t n)
+{
+    return 0.5f * chi_lanes(a, h, n);
+}
+
 /* The second bound, a joint at a time (lb: N, each joint's term): each
  * joint's term summed over azimuth is at least its term summed over
  * elevation too (subadditivity, above), which needs no elevation. So the
- * joints go one by one, each adding what its elevations add, and the bound
- * stops as soon as the joints made and the radial terms of the others pass
- * best: most samples end before most joints are made. The joints that
- * added most to this truth's earlier samples go first (gain: a running
- * mean of it, each joint's starting above any, so that each is tried).
- * Returns the bound as mim__shape_distance_within compares it; at or below
- * best, every joint was made (lb whole). */
-static double shape_aligned_bound(const double *marg_a, double *gain, mim__sc_pairs_t *w, const float *fb, double slack,
-                                  double best, double *lb)
+ * joints go one by one, each adding what its elevations add (its row,
+ * made from the aligned joints alone), and the bound stops as soon as the
+ * joints made and the radial terms of the others pass best: most samples
+ * end before most joints are made. The joints that added most to this
+ * truth's earlier samples go first (gain: a running mean of it, each
+ * joint's starting above any, so that each is tried). Returns the bound
+ * as mim__shape_distance_within compares it; at or below best, every
+ * joint was made (lb whole). */
+static double shape_aligned_bound(mim__shape_truth_t *ta, const mim__sc_coords_t *c, const float *fb, double slack, double best,
+                                  double *lb)
 {
-    enum { RE = MIM__SC_R * MIM__SC_EL };
-    const double *rel_a = marg_a, *rad_a = marg_a + N * RE;
     /* b's radial sums: its first bound's features (float, SC_SLACK's rounding) */
-    double term[N * MIM__SC_R], radial[N], rest = 0;
-    for (int b = 0; b < N * MIM__SC_R; b++) term[b] = mim__chi_term(rad_a[b], fb[b]);
+    float term[S_DIM];
+    double radial[N], rest = 0;
+    chi_each(ta->rad, fb, S_DIM, term);
     for (int i = 0; i < N; i++) {
         radial[i] = 0;
         for (int r = 0; r < MIM__SC_R; r++) radial[i] += term[i * MIM__SC_R + r];
         rest += radial[i];
     }
     /* the order of the samples before, sorted again: gains move a little a sample */
-    double *const kept = gain + N;
-    int order[N];
-    for (int t = 0; t < N; t++) {
-        const int i = (int)kept[t];
+    int *const order = ta->order;
+    for (int t = 1; t < N; t++) {
+        const int i = order[t];
         int u = t;
-        for (; u > 0 && gain[order[u - 1]] < gain[i]; u--) order[u] = order[u - 1];
+        for (; u > 0 && ta->gain[order[u - 1]] < ta->gain[i]; u--) order[u] = order[u - 1];
         order[u] = i;
     }
-    for (int t = 0; t < N; t++) kept[t] = order[t];
-    mim__sc_pairs_bound_shares(w, fb + S_DIM);
     double made = 0, lower = 0;
     for (int t = 0; t < N; t++) {
         const int i = order[t];
-        double rel_i[RE];
-        mim__sc_joint_radial_elevation(w, i, rel_i);
-        lb[i] = 0;
-        for (int b = 0; b < RE; b++) lb[i] += mim__chi_term(rel_a[i * RE + b], rel_i[b]);
+        mim__sc_row_t row;
+        float rel_i[MIM__SC_REL];
+        mim__sc_row(c, fb + S_DIM, i, &row);
+        mim__sc_row_radial_elevation(&row, rel_i);
+        lb[i] = joint_cost(ta->rel[i], rel_i, MIM__SC_REL);
         made += lb[i], rest -= radial[i];
-        gain[i] += (lb[i] - radial[i] - gain[i]) / 8;
-        lower = (made + (t + 1 < N ? fmax(rest, 0.0) : 0.0)) / N * (1 - REL) - SC_SLACK - EL_SLACK - slack;
+        ta->gain[i] += (lb[i] - radial[i] - ta->gain[i]) / 8;
+        lower = (made + (t + 1 < N ? fmax(rest, 0.0) : 0.0)) / N * (1 - REL) - SC_SLACK - ROW_SLACK - slack;
         if (lower > best) return lower;
     }
     return lower;
 }
 
-/* One joint's chi-squared cost in float lanes (the third bound's). */
-MIM__VECTOR_CLONES static double joint_cost(const float *a, const float *h) { return 0.5f * chi_lanes(a, h, MIM_SC_BINS); }
-
-void mim__shape_truth_marginals(const mim_pair_prep_t *a, double *marg)
+void mim__shape_truth(const mim_pair_prep_t *a, mim__shape_truth_t *ta)
 {
-    enum { RE = MIM__SC_R * MIM__SC_EL };
-    mim__sc_histogram_marginals(a->sc, NULL, marg);
-    for (int b = 0; b < N * MIM__SC_R; b++) {
-        marg[N * RE + b] = 0;
-        for (int e = 0; e < MIM__SC_EL; e++) marg[N * RE + b] += marg[b * MIM__SC_EL + e];
-    }
-    for (int i = 0; i < N; i++) {
-        marg[N * MIM__SC_R * (MIM__SC_EL + 1) + i] = 1.0; /* above any gain: each joint tried */
-        marg[N * (MIM__SC_R * (MIM__SC_EL + 1) + 1) + i] = i;
-    }
+    double rad[N * MIM__SC_R], rel[N * RE];
+    memset(ta, 0, sizeof *ta);
+    mim__sc_histogram_marginals(a->sc, rad, rel);
+    for (int i = 0; i < N; i++)
+        for (int b = 0; b < RE; b++) ta->rel[i][b] = (float)rel[i * RE + b];
+    for (int b = 0; b < N * MIM__SC_R; b++) ta->rad[b] = (float)rad[b];
+    for (int i = 0; i < N; i++) ta->gain[i] = 1.0, ta->order[i] = i; /* above any gain: each joint tried */
 }
 
-double mim__shape_distance_within(const mim_pair_prep_t *a, double *marg_a, const double *bj, const float *fb, double slack,
-                                  double best, int *exact)
+double mim__shape_distance_within(const mim_pair_prep_t *a, mim__shape_truth_t *ta, const double *bj, const float *fb,
+                                  double slack, double best, int *exact)
 {
     double bb[3 * N], lb[N], rest[N + 1], terms[N][MIM_SC_BINS];
-    mim__sc_pairs_t w;
+    mim__sc_coords_t c;
     mim_sample_align(a->joints, bj, 3, bb);
-    mim__sc_pairs_begin_lazy(bb, &w);
+    mim__sc_coords(bb, &c);
     /* the second bound first: most samples end here */
-    const double lb2 = shape_aligned_bound(marg_a, marg_a + N * MIM__SC_R * (MIM__SC_EL + 1), &w, fb, slack, best, lb);
+    const double lb2 = shape_aligned_bound(ta, &c, fb, slack, best, lb);
     if (lb2 > best) {
         *exact = 0;
         return lb2;
@@ -362,16 +371,20 @@ double mim__shape_distance_within(const mim_pair_prep_t *a, double *marg_a, cons
     double done = 0;
     for (int t = 0; t < N; t++) {
         const int i = order[t];
+        mim__sc_row_t row;
         float h[MIM_SC_BINS];
-        mim__sc_joint_bound(&w, i, h);
-        done += joint_cost(a->sc[i], h);
-        const double lower = (done + rest[t + 1]) / N * (1 - REL) - SC_SLACK - EL_SLACK - WHOLE_SLACK - slack;
+        mim__sc_row(&c, fb + S_DIM, i, &row);
+        mim__sc_row_histogram(&row, i, h);
+        done += joint_cost(a->sc[i], h, MIM_SC_BINS);
+        const double lower = (done + rest[t + 1]) / N * (1 - REL) - SC_SLACK - ROW_SLACK - WHOLE_SLACK - slack;
         if (lower > best) {
             *exact = 0;
             return lower;
         }
     }
     /* no bound above best: the histograms as the scan makes them */
+    mim__sc_pairs_t w;
+    mim__sc_pairs_begin_lazy(bb, &w);
     mim__sc_pairs_finish_lazy(&w);
     for (int i = 0; i < N; i++) {
         float h[MIM_SC_BINS];

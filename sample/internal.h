@@ -41,38 +41,57 @@ static inline double mim__ic_weight(double len, double beta) { return 1.0 / (len
 #define MIM__SC_AZ 8 /* azimuth */
 #define MIM__SC_EL 4 /* elevation */
 void mim__shape_contexts(const double *p, float sc[MIM_PAIR_JOINTS][MIM_SC_BINS]);
-/* The same a joint at a time. What the joints share comes first: each
- * joint pair's (i < j, row by row) distance and elevation (begin), then
- * its radial bin coordinate and the elevation's cosine (finish); p must
- * outlive w. begin_lazy takes the distances and each pair's up component
- * alone: mim__sc_pairs_bound_shares then makes the second bound's bins
- * and shares; finish_lazy the radial bins' range, and joint_ready the
- * elevations, coordinates and cosines of joint i's pairs (begin's and
- * finish's values) before mim__sc_joint(i). */
+/* The same a joint at a time (for the scan's histograms where no bound
+ * passes). What the joints share comes first: each joint pair's (i < j,
+ * row by row) distance and elevation (begin), then its radial bin
+ * coordinate and the elevation's cosine (finish); p must outlive w.
+ * begin_lazy takes the distances and each pair's up component alone,
+ * finish_lazy the radial bins' range, and joint_ready the elevations,
+ * coordinates and cosines of joint i's pairs (begin's and finish's
+ * values) before mim__sc_joint(i). */
 typedef struct mim__sc_pairs {
     const double *p;
     double r[MIM__JOINT_PAIRS], el[MIM__JOINT_PAIRS], fr[MIM__JOINT_PAIRS], cos_el[MIM__JOINT_PAIRS];
-    double r0, r1;                                            /* the radial bins' log range */
-    double up[MIM__JOINT_PAIRS];                              /* each pair's vector's up component */
-    uint8_t made[MIM__JOINT_PAIRS];                           /* joint_ready: el, fr, cos_el made */
-    float rbin[MIM__JOINT_PAIRS], ebin[MIM__JOINT_PAIRS];     /* bound_shares: radial and elevation bin, */
-    float rshare[MIM__JOINT_PAIRS], eshare[MIM__JOINT_PAIRS]; /* the share of the bin after */
+    double r0, r1;                  /* the radial bins' log range */
+    double up[MIM__JOINT_PAIRS];    /* each pair's vector's up component */
+    uint8_t made[MIM__JOINT_PAIRS]; /* joint_ready: el, fr, cos_el made */
 } mim__sc_pairs_t;
-/* At most how far (in bins, as binning clamps them) the second bound's
- * elevation coordinates (mim__sc_pairs_bound_shares) lie from those of
- * asin(up / r): coverage_bounds.c allows for it. */
-#define MIM__BOUND_EL_COORD_ERR 4e-6
 void mim__sc_pairs_begin(const double *p, mim__sc_pairs_t *w);
 void mim__sc_pairs_begin_lazy(const double *p, mim__sc_pairs_t *w);
 void mim__sc_pairs_finish(mim__sc_pairs_t *w);
 void mim__sc_pairs_finish_lazy(mim__sc_pairs_t *w);
 void mim__sc_pairs_joint_ready(mim__sc_pairs_t *w, int i);
 void mim__sc_joint(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS]);
-/* Joint i's histogram for the third bound, in floats: from
- * mim__sc_pairs_bound_shares' bins and shares, with azimuths from
- * mim__sc_bound_azimuth and cosines of elevation from the pair's
- * vector. */
-void mim__sc_joint_bound(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS]);
+
+/* A joint's row, for the second and third bounds: its pairs side by side
+ * (MIM__SC_ROW lanes, so that they vectorise), in floats, made from the
+ * joints alone, so that a joint's bound needs no other joint's pairs.
+ * coords: a pose-pair's joints split by coordinate (the padding 0). */
+#define MIM__SC_ROW 40
+typedef struct mim__sc_coords {
+    double x[MIM__SC_ROW], y[MIM__SC_ROW], z[MIM__SC_ROW];
+} mim__sc_coords_t;
+void mim__sc_coords(const double *p, mim__sc_coords_t *c);
+/* Row i: for each joint j, the pair's radial bin coordinate (from fr, the
+ * 561 of mim__sc_pair_radii; -2, in no bin, for j = i and the padding),
+ * j's elevation bin coordinate seen from i (both as binning clamps them),
+ * and j - i (over its largest coordinate where that is below a picometre
+ * or huge: the third bound's azimuths and cosines take ratios). */
+typedef struct mim__sc_row {
+    float fr[MIM__SC_ROW], fe[MIM__SC_ROW];
+    float dx[MIM__SC_ROW], dy[MIM__SC_ROW], dz[MIM__SC_ROW];
+} mim__sc_row_t;
+/* At most how far (in bins) the rows' elevation coordinates lie from
+ * those of libm's asin(up / r), both clamped: coverage_bounds.c allows
+ * for it. */
+#define MIM__BOUND_EL_COORD_ERR 4e-6
+void mim__sc_row(const mim__sc_coords_t *c, const float *fr, int i, mim__sc_row_t *row);
+/* The row's histogram summed over azimuth (MIM__SC_R x MIM__SC_EL, then 0
+ * to MIM__SC_REL), and its whole histogram (the third bound's), in floats,
+ * azimuths from mim__sc_bound_azimuth. */
+#define MIM__SC_REL 24
+void mim__sc_row_radial_elevation(const mim__sc_row_t *row, float rel[MIM__SC_REL]);
+void mim__sc_row_histogram(const mim__sc_row_t *row, int i, float sc[MIM_SC_BINS]);
 /* The azimuth bin coordinate of the vector (x, ., z), within
  * MIM__BOUND_AZ_COORD_ERR bins of (atan2(z, x) + pi) / 2pi 8 - 1/2. */
 #define MIM__BOUND_AZ_COORD_ERR 4e-6
@@ -81,20 +100,14 @@ float mim__sc_bound_azimuth(float x, float z);
 static inline double mim__chi_term(double x, double y) { return x + y > 0 ? 0.5 * (x - y) * (x - y) / (x + y) : 0.0; }
 
 /* Their sums over bins, whose cost bounds D_S from below (coverage_bounds.c).
- * fr: the joint pairs' radial bin coordinates as floats (which a rigid
- * motion keeps). From them (and, for rel, the pairs' elevations in w),
- * the histograms summed over azimuth and elevation (rad: 34 x MIM__SC_R)
- * and over azimuth (rel: 34 x MIM__SC_R x MIM__SC_EL), in double: what
- * mim__shape_contexts' histograms sum to in exact arithmetic; and the same
- * sums of a computed histogram (either may be NULL). */
+ * fr: the joint pairs' radial bin coordinates as floats, clamped as
+ * binning clamps them (which a rigid motion keeps). From them the
+ * histograms summed over azimuth and elevation (rad: 34 x MIM__SC_R), in
+ * double: what mim__shape_contexts' histograms sum to in exact
+ * arithmetic; and the same sums of a computed histogram (rad and rel,
+ * 34 x MIM__SC_R x MIM__SC_EL; either may be NULL). */
 void mim__sc_pair_radii(const double *p, float *fr);
 void mim__sc_radial(const float *fr, double *rad);
-/* Every pair's bins and shares for the second bound (fr: as above), in
- * loops free of branches, so that they vectorise; then joint i's part of
- * rel (MIM__SC_R x MIM__SC_EL) from them: as rel from
- * mim__bound_elevation's elevations. */
-void mim__sc_pairs_bound_shares(mim__sc_pairs_t *w, const float *fr);
-void mim__sc_joint_radial_elevation(const mim__sc_pairs_t *w, int i, double *rel_i);
 void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], double *rad, double *rel);
 
 /* ---- work on threads (parallel.c) ---- */
@@ -129,29 +142,33 @@ double mim__bound_slack(mim_sample_metric_t metric, const mim_pair_prep_t *p);
 #define MIM__BOUND_TRUTHS 8
 void mim__bound_lower(mim_sample_metric_t metric, const float *fa, uint32_t n, const float *fb, uint32_t k,
                       const double *slack, float *lb);
+/* What D_S's aligned bounds take from truth a, made once a truth: its
+ * histograms summed over azimuth (mim__sc_histogram_marginals' rel, in
+ * floats, each joint's padded to MIM__SC_REL), those summed over
+ * elevation too (its first bound's features), and the second bound's
+ * gains, which it learns from each sample, the joints in the order of the
+ * sample before. One for each truth and thread. */
+#define MIM__SC_RADIAL ((MIM_PAIR_JOINTS * MIM__SC_R + 7) / 8 * 8)
+typedef struct mim__shape_truth {
+    float rel[MIM_PAIR_JOINTS][MIM__SC_REL];
+    float rad[MIM__SC_RADIAL];
+    double gain[MIM_PAIR_JOINTS];
+    int order[MIM_PAIR_JOINTS];
+} mim__shape_truth_t;
+void mim__shape_truth(const mim_pair_prep_t *a, mim__shape_truth_t *ta);
 /* D_S of sample b (its joints bj, its features fb) against truth a, as
  * mim_sample_distance gives it, to the bit (*exact 1); or a lower bound of
  * it above best (*exact 0) as soon as one turns up: first the second
  * bound, once b is aligned, then the third (the joints' whole histograms
  * in floats, with the second bound's terms for the joints not yet made);
- * the scan's histograms only where no bound passes best. marg_a: a's histogram's marginals and the
- * second bound's gains, which it learns from each sample (made by
- * mim__shape_truth_marginals, one for each truth and thread). */
-double mim__shape_distance_within(const mim_pair_prep_t *a, double *marg_a, const double *bj, const float *fb, double slack,
-                                  double best, int *exact);
+ * the scan's histograms only where no bound passes best. */
+double mim__shape_distance_within(const mim_pair_prep_t *a, mim__shape_truth_t *ta, const double *bj, const float *fb,
+                                  double slack, double best, int *exact);
 /* D_I of sample b (its joints bj, its features fb) against truth a (fa), as
  * mim_sample_distance gives it, to the bit (*exact 1), or a lower bound of
  * it above best (*exact 0): once b is aligned, eq. 8 in floats. */
 double mim__ic_distance_within(const mim_pair_prep_t *a, const float *fa, const mim_pair_prep_t *b, const double *bj,
                                const float *fb, double slack, double best, int *exact);
-/* a's histogram summed over azimuth (MIM__SC_R x MIM__SC_EL a joint, as
- * mim__sc_histogram_marginals' rel), then those summed over elevation
- * (MIM__SC_R a joint), then each joint's starting gain, then the joints
- * in the order of the gains of the sample before: MIM__SC_MARGINALS
- * doubles. */
-#define MIM__SC_MARGINALS (MIM_PAIR_JOINTS * (MIM__SC_R * (MIM__SC_EL + 1) + 2))
-void mim__shape_truth_marginals(const mim_pair_prep_t *a, double *marg);
-
 /* The chi-squared cost between shape contexts (Belongie et al.), the mean
  * over n joints of 0.5 sum (a - b)^2 / (a + b) over their bins: D_S in 3D
  * and the shape density's distance in 2D. */

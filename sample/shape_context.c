@@ -91,53 +91,6 @@ void mim__sc_pairs_begin_lazy(const double *p, mim__sc_pairs_t *w)
     }
 }
 
-/* The bins a coordinate f is shared between (b, b + 1) and the upper's
- * share: spread's (1 - t, t), the end bins taking all beyond (NaN at the
- * first). The bin a float, made by comparisons in place of a conversion,
- * so that loops over it vectorise (f - b is exact). */
-static inline float share(float f, int nbins, float *t)
-{
-    f = f > 0 ? f : 0.0f; /* NaN too */
-    f = f < nbins - 1 ? f : nbins - 1.0f;
-    float b = 0;
-    for (int k = 1; k < nbins - 1; k++) b += f >= k ? 1.0f : 0.0f;
-    *t = f - b;
-    return b;
-}
-
-/* The second bound's elevations, in floats (eight pairs at once where
- * AVX2 is; MIM__BOUND_EL_COORD_ERR bounds how far they lie from libm's
- * asin(up / r), which took a fifth of the bound's time). |el| = asin a, a = |up| / r, by the
- * Taylor series to a^15 on [0, 1/2]; above it, asin a = pi/2 - 2 asin z
- * with z^2 = (1 - a) / 2 = (r - |up|) / 2r, its numerator made in double
- * so that near the poles (a near 1) z keeps its digits. */
-static inline float bound_elevation(double up, double r)
-{
-    static const float c[] = {1.0f,         1.0f / 6,     3.0f / 40,        5.0f / 112,
-                              35.0f / 1152, 63.0f / 2816, 231.0f / 13312,   143.0f / 10240};
-    const float rf = r > 0 ? (float)r : 1.0f; /* r = 0 only where up = 0: el 0 */
-    const float a = (float)fabs(up) / rf, zz = (float)(r - fabs(up)) / (2 * rf);
-    /* both branches made and one kept, so that the loop vectorises */
-    const int far = a > 0.5f;
-    const float z = far ? sqrtf(zz > 0 ? zz : 0.0f) : a, z2 = z * z;
-    /* Estrin's scheme: the terms' products in parallel, not one long chain */
-    const float t2 = z2 * z2, t4 = t2 * t2;
-    const float poly = ((c[0] + c[1] * z2) + (c[2] + c[3] * z2) * t2) + ((c[4] + c[5] * z2) + (c[6] + c[7] * z2) * t2) * t4;
-    const float el = far ? (float)(M_PI / 2) - 2 * z * poly : z * poly;
-    return up < 0 ? -el : el;
-}
-
-MIM__VECTOR_CLONES static void bound_shares(mim__sc_pairs_t *w, const float *fr)
-{
-    float fe[PAIRS];
-    for (int k = 0; k < PAIRS; k++) w->rbin[k] = share(fr[k], SC_R, &w->rshare[k]);
-    /* elevation_coordinate's, the division by pi made a product */
-    for (int k = 0; k < PAIRS; k++) fe[k] = bound_elevation(w->up[k], w->r[k]) * (float)(SC_EL / M_PI) + (SC_EL - 1) / 2.0f;
-    for (int k = 0; k < PAIRS; k++) w->ebin[k] = share(fe[k], SC_EL, &w->eshare[k]);
-}
-
-void mim__sc_pairs_bound_shares(mim__sc_pairs_t *w, const float *fr) { bound_shares(w, fr); }
-
 /* The azimuth coordinate of (x, z), as (atan2(z, x) + pi) / 2pi SC_AZ - 1/2
  * is, in floats (MIM__BOUND_AZ_COORD_ERR bounds how far): the angle from
  * the x or z axis, whichever is nearer, by atan's series to u^15 on
@@ -161,28 +114,140 @@ static inline float bound_azimuth(float x, float z)
     return (ang + (float)M_PI) * (float)(SC_AZ / (2 * M_PI)) - 0.5f;
 }
 
-MIM__VECTOR_CLONES static void joint_bound(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS])
+float mim__sc_bound_azimuth(float x, float z) { return bound_azimuth(x, z); }
+
+/* ---- a joint's row: its pairs side by side, in floats (the bounds') ---- */
+#define ROW MIM__SC_ROW
+#define LANES 8
+_Static_assert(ROW % LANES == 0 && ROW >= N, "a row holds every joint, in whole lanes");
+
+/* The bin below a coordinate clamped to [0, nbins - 1] and the share of
+ * the bin after it (spread's 1 - t and t; f - b is exact). */
+static inline int bin_below(float f, int nbins, float *t)
 {
-    const double *p = w->p;
-    float fa[N], cosel[N];
-    for (int j = 0; j < N; j++) {
-        const float x = (float)(p[3 * j] - p[3 * i]), z = (float)(p[3 * j + 2] - p[3 * i + 2]);
-        const int k = i < j ? mim__pair_index(i, j) : j < i ? mim__pair_index(j, i) : 0;
-        const float r = (float)w->r[k];
-        fa[j] = bound_azimuth(x, z);
-        cosel[j] = r > 0 ? sqrtf(x * x + z * z) / r : 1.0f;
-        cosel[j] = cosel[j] < 1 ? cosel[j] : 1.0f;
+    const int b = f >= nbins - 1 ? nbins - 2 : (int)f;
+    *t = f - (float)b;
+    return b;
+}
+
+static inline float clamp_coordinate(float f, int nbins)
+{
+    f = f > 0 ? f : 0.0f; /* NaN too */
+    return f < nbins - 1 ? f : nbins - 1.0f;
+}
+
+void mim__sc_coords(const double *p, mim__sc_coords_t *c)
+{
+    memset(c, 0, sizeof *c);
+    for (int j = 0; j < N; j++) c->x[j] = p[3 * j], c->y[j] = p[3 * j + 1], c->z[j] = p[3 * j + 2];
+}
+
+/* One lane of a row: j's elevation bin coordinate seen from i, from
+ * j - i = (dx, dy, dz), clamped as binning clamps it. |el| = atan(u) for
+ * u = |dy| / h (h = |(dx, dz)|) at most 1, else pi/2 - atan(1 / u), atan
+ * by a polynomial fitted on [0, 1] (within 1.3e-7 of atan there in
+ * floats): one square root and one division, both branches made and one
+ * kept, so that the loop vectorises. MIM__BOUND_EL_COORD_ERR bounds how
+ * far the coordinate lies from libm's asin (test_bound_elevation). */
+static inline float lane_elevation(float dx, float dy, float dz)
+{
+    static const float c[] = {0.99999934f,  -0.33329859f, 0.19946562f,  -0.13908616f,
+                              0.096421652f, -0.055911936f, 0.021862714f, -0.0040545058f};
+    const float h = sqrtf(dx * dx + dz * dz), ady = dy < 0 ? -dy : dy;
+    const int steep = ady > h;
+    const float hi = steep ? ady : h, lo = steep ? h : ady;
+    const float u = hi > 0 ? lo / hi : 0.0f, s = u * u; /* 0 / 0 (j at i): el 0 */
+    /* Estrin's scheme: the terms' products in parallel, not one long chain */
+    const float s2 = s * s, s4 = s2 * s2;
+    const float poly = ((c[0] + c[1] * s) + (c[2] + c[3] * s) * s2) + ((c[4] + c[5] * s) + (c[6] + c[7] * s) * s2) * s4;
+    float el = steep ? (float)(M_PI / 2) - u * poly : u * poly;
+    el = dy < 0 ? -el : el;
+    /* elevation_coordinate's, the division by pi made a product */
+    return clamp_coordinate(el * (float)(SC_EL / M_PI) + (SC_EL - 1) / 2.0f, SC_EL);
+}
+
+/* Outside these a vector's largest coordinate (metres) is scaled in
+ * double first: the squares of its floats would lose digits or
+ * overflow. */
+#define ROW_TINY 1e-12
+#define ROW_HUGE 1e15
+
+MIM__VECTOR_CLONES static void make_row(const mim__sc_coords_t *c, const float *fr, int i, mim__sc_row_t *w)
+{
+    int rescale = 0;
+    for (int j = 0; j < ROW; j++) {
+        const double x = c->x[j] - c->x[i], y = c->y[j] - c->y[i], z = c->z[j] - c->z[i];
+        const double ax = fabs(x), ay = fabs(y), az = fabs(z), m = ax > ay ? (ax > az ? ax : az) : (ay > az ? ay : az);
+        rescale |= m > 0 && !(m >= ROW_TINY && m <= ROW_HUGE);
+        const float dx = (float)x, dy = (float)y, dz = (float)z;
+        w->fe[j] = lane_elevation(dx, dy, dz);
+        w->dx[j] = dx, w->dy[j] = dy, w->dz[j] = dz;
+    }
+    for (int j = 0; rescale && j < ROW; j++) {
+        const double x = c->x[j] - c->x[i], y = c->y[j] - c->y[i], z = c->z[j] - c->z[i];
+        const double m = fmax(fabs(x), fmax(fabs(y), fabs(z)));
+        if (!(m > 0 && !(m >= ROW_TINY && m <= ROW_HUGE))) continue;
+        const float dx = (float)(x / m), dy = (float)(y / m), dz = (float)(z / m);
+        w->fe[j] = lane_elevation(dx, dy, dz);
+        w->dx[j] = dx, w->dy[j] = dy, w->dz[j] = dz;
+    }
+    /* the radial coordinates: pair (i, j) of the 561 for j > i (in a run),
+     * (j, i) for j < i; none for j = i and the padding (-2 is in no bin) */
+    for (int j = 0; j < i; j++) w->fr[j] = fr[mim__pair_index(j, i)];
+    w->fr[i] = -2.0f;
+    if (i + 1 < N) memcpy(w->fr + i + 1, fr + mim__pair_index(i, i + 1), (size_t)(N - 1 - i) * sizeof *fr);
+    for (int j = N; j < ROW; j++) w->fr[j] = -2.0f;
+}
+
+void mim__sc_row(const mim__sc_coords_t *c, const float *fr, int i, mim__sc_row_t *w) { make_row(c, fr, i, w); }
+
+/* The row's histogram summed over azimuth: each count's radial shares
+ * times its elevation shares (spread's, summed over azimuth), made as
+ * the hat functions max(0, 1 - |f - bin|) of the clamped coordinates so
+ * that the lanes go side by side with no branch. */
+MIM__VECTOR_CLONES static void row_radial_elevation(const mim__sc_row_t *w, float rel[MIM__SC_REL])
+{
+    float acc[SC_R * SC_EL][LANES];
+    memset(acc, 0, sizeof acc);
+    for (int j = 0; j < ROW; j += LANES) {
+        float hr[SC_R][LANES], he[SC_EL][LANES];
+        for (int r = 0; r < SC_R; r++)
+            for (int l = 0; l < LANES; l++) {
+                const float d = w->fr[j + l] - (float)r, ad = d < 0 ? -d : d;
+                hr[r][l] = ad < 1 ? 1 - ad : 0.0f;
+            }
+        for (int e = 0; e < SC_EL; e++)
+            for (int l = 0; l < LANES; l++) {
+                const float d = w->fe[j + l] - (float)e, ad = d < 0 ? -d : d;
+                he[e][l] = ad < 1 ? 1 - ad : 0.0f;
+            }
+        for (int r = 0; r < SC_R; r++)
+            for (int e = 0; e < SC_EL; e++)
+                for (int l = 0; l < LANES; l++) acc[r * SC_EL + e][l] += hr[r][l] * he[e][l];
+    }
+    for (int b = 0; b < SC_R * SC_EL; b++) {
+        const float *a = acc[b];
+        rel[b] = weight * (((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7])));
+    }
+    for (int b = SC_R * SC_EL; b < MIM__SC_REL; b++) rel[b] = 0;
+}
+
+void mim__sc_row_radial_elevation(const mim__sc_row_t *w, float rel[MIM__SC_REL]) { row_radial_elevation(w, rel); }
+
+MIM__VECTOR_CLONES static void row_histogram(const mim__sc_row_t *w, int i, float sc[MIM_SC_BINS])
+{
+    float fa[ROW], cosel[ROW];
+    for (int j = 0; j < ROW; j++) {
+        const float dx = w->dx[j], dy = w->dy[j], dz = w->dz[j], h2 = dx * dx + dz * dz, len = sqrtf(h2 + dy * dy);
+        const float c = len > 0 ? sqrtf(h2) / len : 1.0f;
+        fa[j] = bound_azimuth(dx, dz), cosel[j] = c < 1 ? c : 1.0f;
     }
     float h[MIM_SC_BINS];
     memset(h, 0, sizeof h);
     for (int j = 0; j < N; j++) {
         if (j == i) continue;
-        const int k = i < j ? mim__pair_index(i, j) : mim__pair_index(j, i);
-        const float tr = w->rshare[k];
-        const int r0 = (int)w->rbin[k];
-        /* the pair's second joint sees the first at the opposite elevation: bins mirrored */
-        const float te = i < j ? w->eshare[k] : 1 - w->eshare[k];
-        const int e0 = i < j ? (int)w->ebin[k] : SC_EL - 2 - (int)w->ebin[k];
+        float tr, te;
+        const int r0 = bin_below(w->fr[j], SC_R, &tr), e0 = bin_below(w->fe[j], SC_EL, &te);
         const float c = cosel[j], f = fa[j];
         const int a0 = (int)floorf(f);
         const float ta = f - (float)a0;
@@ -201,9 +266,7 @@ MIM__VECTOR_CLONES static void joint_bound(const mim__sc_pairs_t *w, int i, floa
             for (int e = 0; e < SC_EL; e++) sc[(r * SC_AZ + a) * SC_EL + e] = h[WORK(r, e, a)];
 }
 
-void mim__sc_joint_bound(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS]) { joint_bound(w, i, sc); }
-
-float mim__sc_bound_azimuth(float x, float z) { return bound_azimuth(x, z); }
+void mim__sc_row_histogram(const mim__sc_row_t *w, int i, float sc[MIM_SC_BINS]) { row_histogram(w, i, sc); }
 
 /* The bins' log range: 1/8 to 2 of the mean joint distance. */
 static void radial_range(const double *r, double *r0, double *r1)
@@ -305,7 +368,7 @@ void mim__sc_pair_radii(const double *p, float *fr)
     double r[PAIRS], r0, r1;
     mim__pair_distances(p, r);
     radial_range(r, &r0, &r1);
-    for (int k = 0; k < PAIRS; k++) fr[k] = (float)radial_coordinate(r[k], r0, r1);
+    for (int k = 0; k < PAIRS; k++) fr[k] = clamp_coordinate((float)radial_coordinate(r[k], r0, r1), SC_R);
 }
 
 void mim__sc_radial(const float *fr, double *rad)
@@ -314,28 +377,9 @@ void mim__sc_radial(const float *fr, double *rad)
     for (int i = 0, k = 0; i < N; i++)
         for (int j = i + 1; j < N; j++, k++) {
             float t;
-            const int r = (int)share(fr[k], SC_R, &t);
+            const int r = bin_below(fr[k], SC_R, &t);
             const double tr = t;
             rad[i * SC_R + r] += weight * (1 - tr), rad[i * SC_R + r + 1] += weight * tr;
             rad[j * SC_R + r] += weight * (1 - tr), rad[j * SC_R + r + 1] += weight * tr;
         }
 }
-
-void mim__sc_joint_radial_elevation(const mim__sc_pairs_t *w, int i, double *rel_i)
-{
-    memset(rel_i, 0, sizeof(double) * SC_R * SC_EL);
-    for (int j = 0; j < N; j++) {
-        if (j == i) continue;
-        const int k = i < j ? mim__pair_index(i, j) : mim__pair_index(j, i);
-        const double tr = w->rshare[k], te = w->eshare[k];
-        const int r = (int)w->rbin[k], e = (int)w->ebin[k];
-        const double m0 = weight * (1 - tr), m1 = weight * tr;
-        double *h = rel_i + r * SC_EL;
-        if (i < j) /* i the pair's first joint */
-            h[e] += m0 * (1 - te), h[e + 1] += m0 * te, h[SC_EL + e] += m1 * (1 - te), h[SC_EL + e + 1] += m1 * te;
-        else /* i the pair's second joint: it sees the first at the opposite elevation, bins mirrored */
-            h[SC_EL - 1 - e] += m0 * (1 - te), h[SC_EL - 2 - e] += m0 * te, h[2 * SC_EL - 1 - e] += m1 * (1 - te),
-                h[2 * SC_EL - 2 - e] += m1 * te;
-    }
-}
-

@@ -100,13 +100,19 @@ static void test_marginals(void **state)
     for (uint32_t j = 0; j < K; j++) {
         float fr[MIM__JOINT_PAIRS];
         double rad_h[J * MIM__SC_R], rel_h[J * MIM__SC_R * MIM__SC_EL], rad[J * MIM__SC_R], rel[J * MIM__SC_R * MIM__SC_EL];
-        mim__sc_pairs_t w;
+        mim__sc_coords_t c;
         mim__sc_histogram_marginals(s[j].sc, rad_h, rel_h);
         mim__sc_pair_radii(s[j].joints, fr);
         mim__sc_radial(fr, rad);
-        mim__sc_pairs_begin_lazy(s[j].joints, &w);
-        mim__sc_pairs_bound_shares(&w, fr);
-        for (int i = J - 1; i >= 0; i--) mim__sc_joint_radial_elevation(&w, i, rel + i * MIM__SC_R * MIM__SC_EL);
+        mim__sc_coords(s[j].joints, &c);
+        for (int i = J - 1; i >= 0; i--) {
+            mim__sc_row_t row;
+            float rel_i[MIM__SC_REL];
+            mim__sc_row(&c, fr, i, &row);
+            mim__sc_row_radial_elevation(&row, rel_i);
+            for (int b = 0; b < MIM__SC_R * MIM__SC_EL; b++) rel[i * MIM__SC_R * MIM__SC_EL + b] = rel_i[b];
+            for (int b = MIM__SC_R * MIM__SC_EL; b < MIM__SC_REL; b++) assert_true(rel_i[b] == 0);
+        }
         for (int b = 0; b < J * MIM__SC_R; b++)
             if (fabs(rad[b] - rad_h[b]) > 1e-5) fail_msg("sample %u, radial bin %d: %.9g, histogram %.9g", j, b, rad[b], rad_h[b]);
         for (int b = 0; b < J * MIM__SC_R * MIM__SC_EL; b++)
@@ -130,7 +136,8 @@ static void test_bounds_below_distances(void **state)
         float *fb = malloc((size_t)K * stride * sizeof *fb), *fa = malloc(T * stride * sizeof *fa);
         float *lbs = malloc((size_t)T * K * sizeof *lbs);
         assert_non_null(fb), assert_non_null(fa), assert_non_null(lbs);
-        double slack_b = 0, marg_a[MIM__SC_MARGINALS];
+        double slack_b = 0;
+        mim__shape_truth_t ta;
         for (uint32_t j = 0; j < K; j++) {
             mim__bound_features(mt, &s[j], 0, fb + (size_t)j * stride);
             slack_b = fmax(slack_b, mim__bound_slack(mt, &s[j]));
@@ -147,7 +154,7 @@ static void test_bounds_below_distances(void **state)
             }
             const double slack = slacks[i % T];
             const float *lb = lbs + (size_t)(i % T) * K;
-            mim__shape_truth_marginals(&g[i], marg_a);
+            mim__shape_truth(&g[i], &ta);
             for (uint32_t j = 0; j < K; j++) {
                 const double d = mim_sample_distance(&g[i], &s[j], mt);
                 if (!(lb[j] <= d)) fail_msg("metric %d, truth %u, sample %u: bound %.17g above %.17g", metric, i, j, lb[j], d);
@@ -157,13 +164,13 @@ static void test_bounds_below_distances(void **state)
                  * part-way (best just below d) and the distance itself */
                 const float *f = fb + (size_t)j * stride;
                 int exact;
-                const double lb2 = mim__shape_distance_within(&g[i], marg_a, s[j].joints, f, slack, -1.0, &exact);
+                const double lb2 = mim__shape_distance_within(&g[i], &ta, s[j].joints, f, slack, -1.0, &exact);
                 if (exact || !(lb2 <= d)) fail_msg("D_S, truth %u, sample %u: second bound %.17g above %.17g", i, j, lb2, d);
                 ratio2 += d > 0 ? fmax(lb2, 0) / d / (M * K) : 0;
                 const double part =
-                    mim__shape_distance_within(&g[i], marg_a, s[j].joints, f, slack, lb2 + 0.9 * (d - lb2), &exact);
+                    mim__shape_distance_within(&g[i], &ta, s[j].joints, f, slack, lb2 + 0.9 * (d - lb2), &exact);
                 if (!(part <= d)) fail_msg("D_S, truth %u, sample %u: bound part-way %.17g above %.17g", i, j, part, d);
-                const double whole = mim__shape_distance_within(&g[i], marg_a, s[j].joints, f, slack, INFINITY, &exact);
+                const double whole = mim__shape_distance_within(&g[i], &ta, s[j].joints, f, slack, INFINITY, &exact);
                 if (!exact || memcmp(&whole, &d, sizeof d)) fail_msg("D_S, truth %u, sample %u: %.17g, not %.17g", i, j, whole, d);
             }
         }
@@ -410,50 +417,58 @@ static void test_prepared_parts(void **state)
     free(g), free(s), free(sj), free(tri), free(bare), free(gt);
 }
 
-/* The second bound's elevation coordinates (mim__sc_pairs_bound_shares',
- * as the processor runs them) are within MIM__BOUND_EL_COORD_ERR of the
- * histograms' (asin(up / r) by libm, in bin units; both as binning clamps
- * them): over [-1, 1] in steps of 1e-6 and over vectors of every size and
- * tilt, those near the vertical among them. */
+/* The rows' elevation coordinates (mim__sc_row's, as the processor runs
+ * them) are within MIM__BOUND_EL_COORD_ERR of the histograms' (libm's
+ * asin(up / r), in bin units; both as binning clamps them): over every
+ * elevation in steps of 1e-6 of its sine and over vectors of every size
+ * and tilt, those near the vertical, below a picometre and huge among
+ * them. Joint 0 sits at the origin, the others at the vectors. */
 static double clamped(double f) { return f < 0 ? 0 : f > MIM__SC_EL - 1 ? MIM__SC_EL - 1 : f; }
+static double row_worst(mim__sc_coords_t *c)
+{
+    static const float fr[MIM__JOINT_PAIRS] = {0};
+    mim__sc_row_t row;
+    double worst = 0;
+    mim__sc_row(c, fr, 0, &row);
+    for (int j = 1; j < J; j++) {
+        const double x = c->x[j], y = c->y[j], z = c->z[j], r = sqrt(x * x + y * y + z * z);
+        const double el = r > 0 ? asin(y / r) : 0.0, exact = (el + M_PI / 2) / M_PI * MIM__SC_EL - 0.5;
+        worst = fmax(worst, fabs((double)row.fe[j] - clamped(exact)));
+    }
+    return worst;
+}
 static void test_bound_elevation(void **state)
 {
     (void)state;
-    mim__sc_pairs_t w;
-    float fr[MIM__JOINT_PAIRS] = {0};
+    mim__sc_coords_t c;
     double worst = 0;
     mim_rng_t rng;
     mim_rng_seed(&rng, 42, 7);
-    const int n = MIM__JOINT_PAIRS;
-    for (int i = 0, done = 0; !done; i += n) {
-        for (int k = 0; k < n; k++) {
-            const int step = i + k;
-            if (step <= 2000000) { /* the sweep, at two lengths */
-                const double x = -1.0 + step * 1e-6, r = step % 2 ? 3.0 : 1.0;
-                w.up[k] = x * r, w.r[k] = r;
-            } else { /* random vectors: size 1e-4 to 10, the horizontal part down to 1e-12 of the vertical */
-                double v[3];
-                for (int c = 0; c < 3; c++) v[c] = 2 * mim_rng_unit(&rng) - 1;
-                const double size = pow(10, -4 + 5 * mim_rng_unit(&rng)), flat = pow(10, -12 * mim_rng_unit(&rng));
-                v[0] *= size * flat, v[2] *= size * flat, v[1] *= size;
-                w.up[k] = v[1], w.r[k] = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-            }
-            done = step >= 3000000;
+    memset(&c, 0, sizeof c);
+    for (int step = 0, j = 1; step <= 3000000; step++) {
+        double v[3];
+        if (step <= 2000000) { /* the sweep, at two lengths */
+            const double sine = -1.0 + step * 1e-6, r = step % 2 ? 3.0 : 1.0;
+            v[0] = sqrt(fmax(0, 1 - sine * sine)) * r, v[1] = sine * r, v[2] = 0;
+        } else { /* random vectors: size 1e-4 to 10 (a few 1e-20 and 1e20), the horizontal part down to 1e-12 of the vertical */
+            for (int k = 0; k < 3; k++) v[k] = 2 * mim_rng_unit(&rng) - 1;
+            const double size = step % 101 == 0 ? 1e-20 : step % 103 == 0 ? 1e20 : pow(10, -4 + 5 * mim_rng_unit(&rng));
+            const double flat = pow(10, -12 * mim_rng_unit(&rng));
+            v[0] *= size * flat, v[2] *= size * flat, v[1] *= size;
         }
-        mim__sc_pairs_bound_shares(&w, fr);
-        for (int k = 0; k < n; k++) {
-            const double el = w.r[k] > 0 ? asin(w.up[k] / w.r[k]) : 0.0;
-            const double exact = (el + M_PI / 2) / M_PI * MIM__SC_EL - 0.5, bound = (double)w.ebin[k] + w.eshare[k];
-            worst = fmax(worst, fabs(clamped(bound) - clamped(exact)));
-        }
+        c.x[j] = v[0], c.y[j] = v[1], c.z[j] = v[2];
+        if (++j == J) worst = fmax(worst, row_worst(&c)), j = 1;
     }
-    print_message("the bound's elevation coordinates: at most %.3g bins from asin's\n", worst);
+    print_message("the rows' elevation coordinates: at most %.3g bins from asin's\n", worst);
     assert_true(worst <= MIM__BOUND_EL_COORD_ERR);
-    /* the poles and the horizontal exactly; r = 0 gives elevation 0 */
-    const double up[4] = {1, -2, 0, 0}, r[4] = {1, 2, 1, 0}, want[4] = {3, 0, 1.5, 1.5};
-    for (int k = 0; k < 4; k++) w.up[k] = up[k], w.r[k] = r[k];
-    mim__sc_pairs_bound_shares(&w, fr);
-    for (int k = 0; k < 4; k++) assert_true(clamped((double)w.ebin[k] + w.eshare[k]) == want[k]);
+    /* the poles and the horizontal exactly; a joint on joint 0 gives elevation 0 */
+    const double up[4] = {1, -2, 0, 0}, side[4] = {0, 0, 1, 0}, want[4] = {3, 0, 1.5, 1.5};
+    static const float fr[MIM__JOINT_PAIRS] = {0};
+    mim__sc_row_t row;
+    memset(&c, 0, sizeof c);
+    for (int k = 0; k < 4; k++) c.y[k + 1] = up[k], c.z[k + 1] = side[k];
+    mim__sc_row(&c, fr, 0, &row);
+    for (int k = 0; k < 4; k++) assert_true(row.fe[k + 1] == want[k]);
 }
 
 /* The third bound's azimuths within MIM__BOUND_AZ_COORD_ERR bins of
@@ -489,12 +504,13 @@ static void test_bound_azimuth(void **state)
     double far = 0;
     for (uint32_t j = 0; j < K; j++) {
         float fr[MIM__JOINT_PAIRS], h[MIM_SC_BINS];
-        mim__sc_pairs_t w;
+        mim__sc_coords_t c;
         mim__sc_pair_radii(s[j].joints, fr);
-        mim__sc_pairs_begin_lazy(s[j].joints, &w);
-        mim__sc_pairs_bound_shares(&w, fr);
+        mim__sc_coords(s[j].joints, &c);
         for (int i = 0; i < J; i++) {
-            mim__sc_joint_bound(&w, i, h);
+            mim__sc_row_t row;
+            mim__sc_row(&c, fr, i, &row);
+            mim__sc_row_histogram(&row, i, h);
             double l1 = 0;
             for (int b = 0; b < MIM_SC_BINS; b++) l1 += fabs((double)h[b] - s[j].sc[i][b]);
             far = fmax(far, l1);
