@@ -176,10 +176,11 @@ MIM__VECTOR_CLONES static void make_row(const mim__sc_coords_t *c, const float *
 {
     int rescale = 0;
     for (int j = 0; j < ROW; j++) {
-        const double x = c->x[j] - c->x[i], y = c->y[j] - c->y[i], z = c->z[j] - c->z[i];
-        const double ax = fabs(x), ay = fabs(y), az = fabs(z), m = ax > ay ? (ax > az ? ax : az) : (ay > az ? ay : az);
-        rescale |= m > 0 && !(m >= ROW_TINY && m <= ROW_HUGE);
-        const float dx = (float)x, dy = (float)y, dz = (float)z;
+        const float dx = (float)(c->x[j] - c->x[i]), dy = (float)(c->y[j] - c->y[i]), dz = (float)(c->z[j] - c->z[i]);
+        const float ax = dx < 0 ? -dx : dx, ay = dy < 0 ? -dy : dy, az = dz < 0 ? -dz : dz;
+        const float m = ax > ay ? (ax > az ? ax : az) : (ay > az ? ay : az);
+        /* a joint on another (m 0) too: the second pass leaves it as it is */
+        rescale |= j != i && j < N && !(m >= (float)ROW_TINY && m <= (float)ROW_HUGE);
         w->fe[j] = lane_elevation(dx, dy, dz);
         w->dx[j] = dx, w->dy[j] = dy, w->dz[j] = dz;
     }

@@ -68,7 +68,12 @@ static void make_sets(uint64_t seed, uint32_t m, uint32_t k, mim_pair_prep_t **g
         case 1: memcpy(p, truth, 3 * J * sizeof *p); break;
         case 2: memcpy(p, truth, 3 * J * sizeof *p), move(p, shift[0], shift[1], shift[2], 1.0, 1.0, shift); break;
         case 3: memcpy(p, truth, 3 * J * sizeof *p), move(p, 0, 1, 0, 0.0, 1.3, none); break;
-        case 4: sp_random_pair(&r, 0.8, p), memcpy(p + 3 * 20, p + 3 * 3, 3 * sizeof *p); break;
+        case 4: { /* two joints at one place, two 3e-25 m apart (their squares not floats) */
+            const double near[6] = {1e-24, 2e-24, -1e-24, 1.1e-24, 1.7e-24, -1e-24};
+            sp_random_pair(&r, 0.8, p), memcpy(p + 3 * 20, p + 3 * 3, 3 * sizeof *p);
+            memcpy(p + 3 * 4, near, 3 * sizeof *p), memcpy(p + 3 * 21, near + 3, 3 * sizeof *p);
+            break;
+        }
         case 5:
             sp_random_pair(&r, 0.8, p);
             for (int i = 0; i < J; i++) p[3 * i + 2] = 0.3;
