@@ -37,7 +37,7 @@ typedef struct job {
     mim_sample_metric_t metric;
     int exhaustive;
     float *feat;     /* k x stride: the samples' bound features */
-    double *joints;  /* k x 3 x 34: the samples' joints, packed, so that a sample's are near its features */
+    double *joints;  /* k x 3 x 34: the samples' joints less their centroid (mim__align_centre), packed */
     uint8_t *repeat; /* k: 1 when an earlier sample is the same pose-pair */
     uint64_t *hash;  /* k: of each sample's joints, to find the repeats */
     double *slack;   /* per worker, then [0]: the samples' largest mim__bound_slack */
@@ -66,7 +66,9 @@ static void features(void *ctx, uint32_t worker)
     for (uint32_t s; (s = atomic_fetch_add(&j->next, SAMPLE_CHUNK)) < j->k;)
         for (uint32_t i = s; i < s + SAMPLE_CHUNK && i < j->k; i++) {
             mim__bound_features(j->metric, &j->samples[i], 0, j->feat + (size_t)i * j->stride);
-            memcpy(j->joints + (size_t)i * 3 * N, j->samples[i].joints, sizeof j->samples[i].joints);
+            mim__centred_t c;
+            mim__align_centre(j->samples[i].joints, &c);
+            memcpy(j->joints + (size_t)i * 3 * N, c.p, sizeof c.p);
             slack = fmax(slack, mim__bound_slack(j->metric, &j->samples[i]));
             j->hash[i] = joints_hash(&j->samples[i]);
         }
@@ -153,6 +155,7 @@ typedef struct room {
     double slack[MIM__BOUND_TRUTHS];
     uint64_t *heap;
     mim__shape_truth_t shape_a;
+    mim__centred_t centred_a;
 } room_t;
 
 /* What measuring sample j reads: its joints, and for D_I and D_S (which
@@ -187,6 +190,7 @@ static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t t, uint32_t hint
     const double slack = rm->slack[t];
     const float *lb = rm->lb + (size_t)t * jb->k;
     if (shape) mim__shape_truth(a, &rm->shape_a);
+    if (shape || ic) mim__align_centre(a->joints, &rm->centred_a);
     if (hint < jb->k) keep(mim_sample_distance(a, &jb->samples[hint], jb->metric), hint, best, bj), (*nd)++;
     uint32_t n = 0;
     for (uint32_t j = 0; j < jb->k; j++)
@@ -201,10 +205,11 @@ static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t t, uint32_t hint
         if (shape || ic) {
             int exact;
             const float *fb = jb->feat + (size_t)j * jb->stride;
-            const double *b_joints = jb->joints + (size_t)j * 3 * N;
-            const double d = shape ? mim__shape_distance_within(a, &rm->shape_a, b_joints, fb, slack, *best, &exact)
-                                   : mim__ic_distance_within(a, rm->fa + (size_t)t * mim__bound_dim(jb->metric), b, b_joints, fb,
-                                                             slack, *best, &exact);
+            const double *b_centred = jb->joints + (size_t)j * 3 * N;
+            const double d =
+                shape ? mim__shape_distance_within(a, &rm->centred_a, &rm->shape_a, b_centred, fb, slack, *best, &exact)
+                      : mim__ic_distance_within(a, &rm->centred_a, rm->fa + (size_t)t * mim__bound_dim(jb->metric), b, b_centred, fb,
+                                                slack, *best, &exact);
             (*na)++;
             if (exact) keep(d, j, best, bj), (*nd)++;
             else (*nc)++;

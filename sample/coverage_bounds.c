@@ -258,11 +258,11 @@ MIM__VECTOR_CLONES static float ic_aligned(const double *a, const double *bb, co
     return lanes_sum(acc);
 }
 
-double mim__ic_distance_within(const mim_pair_prep_t *a, const float *fa, const mim_pair_prep_t *b, const double *bj,
-                               const float *fb, double slack, double best, int *exact)
+double mim__ic_distance_within(const mim_pair_prep_t *a, const mim__centred_t *ac, const float *fa, const mim_pair_prep_t *b,
+                               const double *bc, const float *fb, double slack, double best, int *exact)
 {
     double bb[3 * N];
-    mim_sample_align(a->joints, bj, 3, bb);
+    mim__align_centred(ac, bc, bb);
     float dmax;
     const double sum = ic_aligned(a->joints, bb, fa + I_HALF, fb + I_HALF, &dmax);
     const double lower = sum * (1 - REL) - 2 * FLT_EPSILON * dmax - LEN_SLACK - slack;
@@ -345,12 +345,12 @@ void mim__shape_truth(const mim_pair_prep_t *a, mim__shape_truth_t *ta)
     for (int i = 0; i < N; i++) ta->gain[i] = 1.0, ta->order[i] = i; /* above any gain: each joint tried */
 }
 
-double mim__shape_distance_within(const mim_pair_prep_t *a, mim__shape_truth_t *ta, const double *bj, const float *fb,
-                                  double slack, double best, int *exact)
+double mim__shape_distance_within(const mim_pair_prep_t *a, const mim__centred_t *ac, mim__shape_truth_t *ta, const double *bc,
+                                  const float *fb, double slack, double best, int *exact)
 {
     double bb[3 * N], lb[N], rest[N + 1], terms[N][MIM_SC_BINS];
     mim__sc_coords_t c;
-    mim_sample_align(a->joints, bj, 3, bb);
+    mim__align_centred(ac, bc, bb);
     mim__sc_coords(bb, &c);
     /* the second bound first: most samples end here */
     const double lb2 = shape_aligned_bound(ta, &c, fb, slack, best, lb);

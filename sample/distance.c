@@ -101,6 +101,32 @@ void mim_sample_align(const double *a, const double *b, int dim, double *out)
     mim__align_points(a, b, MIM_PAIR_JOINTS, dim, out);
 }
 
+void mim__align_centre(const double *p, mim__centred_t *out)
+{
+    double *c = out->c;
+    c[0] = c[1] = c[2] = 0;
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++)
+        for (int k = 0; k < 3; k++) c[k] += p[3 * i + k];
+    for (int k = 0; k < 3; k++) c[k] /= MIM_PAIR_JOINTS;
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++)
+        for (int k = 0; k < 3; k++) out->p[3 * i + k] = p[3 * i + k] - c[k];
+}
+
+void mim__align_centred(const mim__centred_t *a, const double *bc, double *out)
+{
+    double S[3][3] = {{0}}, R[9];
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++)
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 3; c++) S[r][c] += bc[3 * i + r] * a->p[3 * i + c];
+    best_rotation((const double(*)[3])S, 3, R);
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++)
+        for (int r = 0; r < 3; r++) {
+            double v = a->c[r];
+            for (int c = 0; c < 3; c++) v += R[3 * c + r] * bc[3 * i + c];
+            out[3 * i + r] = v;
+        }
+}
+
 void mim_sample_rigid_fit(const double *a, const double *b, const uint8_t *use, double R[9], double t[3])
 {
     double Rc[9], ca[3], cb[3];

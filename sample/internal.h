@@ -120,6 +120,15 @@ void mim__parallel(uint32_t threads, void (*fn)(void *ctx, uint32_t worker), voi
 /* ---- alignment over any points (distance.c) ---- */
 /* mim_sample_align over n points. */
 void mim__align_points(const double *a, const double *b, int n, int dim, double *out);
+/* mim_sample_align (3D) in two steps, for one pose-pair against many:
+ * each pose-pair's centroid c and its joints less it p, made once; then
+ * b (its joints less its centroid, bc) onto a. The same
+ * operations in the same order as mim_sample_align's, so the same bits. */
+typedef struct mim__centred {
+    double c[3], p[3 * MIM_PAIR_JOINTS];
+} mim__centred_t;
+void mim__align_centre(const double *p, mim__centred_t *out);
+void mim__align_centred(const mim__centred_t *a, const double *bc, double *out);
 /* The 24 limb joints (x y z) of pose-pair p, A's then B's, or B's then A's
  * (swap 1). */
 void mim__limb_joints(const double *p, int swap, double *out);
@@ -156,19 +165,20 @@ typedef struct mim__shape_truth {
     int order[MIM_PAIR_JOINTS];
 } mim__shape_truth_t;
 void mim__shape_truth(const mim_pair_prep_t *a, mim__shape_truth_t *ta);
-/* D_S of sample b (its joints bj, its features fb) against truth a, as
+/* D_S of sample b (its joints less their centroid bc, mim__align_centre;
+ * its features fb) against truth a (ac: a's, centred), as
  * mim_sample_distance gives it, to the bit (*exact 1); or a lower bound of
  * it above best (*exact 0) as soon as one turns up: first the second
  * bound, once b is aligned, then the third (the joints' whole histograms
  * in floats, with the second bound's terms for the joints not yet made);
  * the scan's histograms only where no bound passes best. */
-double mim__shape_distance_within(const mim_pair_prep_t *a, mim__shape_truth_t *ta, const double *bj, const float *fb,
-                                  double slack, double best, int *exact);
-/* D_I of sample b (its joints bj, its features fb) against truth a (fa), as
- * mim_sample_distance gives it, to the bit (*exact 1), or a lower bound of
- * it above best (*exact 0): once b is aligned, eq. 8 in floats. */
-double mim__ic_distance_within(const mim_pair_prep_t *a, const float *fa, const mim_pair_prep_t *b, const double *bj,
-                               const float *fb, double slack, double best, int *exact);
+double mim__shape_distance_within(const mim_pair_prep_t *a, const mim__centred_t *ac, mim__shape_truth_t *ta, const double *bc,
+                                  const float *fb, double slack, double best, int *exact);
+/* D_I of sample b (bc and fb as above) against truth a (ac as above, fa),
+ * as mim_sample_distance gives it, to the bit (*exact 1), or a lower bound
+ * of it above best (*exact 0): once b is aligned, eq. 8 in floats. */
+double mim__ic_distance_within(const mim_pair_prep_t *a, const mim__centred_t *ac, const float *fa, const mim_pair_prep_t *b,
+                               const double *bc, const float *fb, double slack, double best, int *exact);
 /* The chi-squared cost between shape contexts (Belongie et al.), the mean
  * over n joints of 0.5 sum (a - b)^2 / (a + b) over their bins: D_S in 3D
  * and the shape density's distance in 2D. */
