@@ -120,6 +120,17 @@ static uint64_t key(float lb, uint32_t j)
     return (uint64_t)u << 32 | j;
 }
 
+/* A key's bound (NaN made -inf), read from the key: the heap's top is at
+ * hand, its bound in a 400 KB array may not be. */
+static float key_bound(uint64_t k)
+{
+    uint32_t u = (uint32_t)(k >> 32);
+    u = (u & 0x80000000u) ? u & 0x7fffffffu : ~u;
+    float lb;
+    memcpy(&lb, &u, sizeof lb);
+    return lb;
+}
+
 static void sift_down(uint64_t *h, uint32_t n, uint32_t i)
 {
     for (;;) {
@@ -198,7 +209,7 @@ static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t t, uint32_t hint
     for (uint32_t h = n / 2; h-- > 0;) sift_down(rm->heap, n, h);
     while (n) {
         const uint32_t j = (uint32_t)rm->heap[0];
-        if (lb[j] > *best) break;
+        if (key_bound(rm->heap[0]) > *best) break;
         pop(rm->heap, &n);
         if (n) prefetch(jb, (uint32_t)rm->heap[0]); /* the next sample's, while this one is measured */
         const mim_pair_prep_t *b = &jb->samples[j];
