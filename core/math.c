@@ -154,11 +154,10 @@ static double det3(double a, double b, double c, double d, double e, double f, d
 /* The determinant of B without row x and column y. */
 static double minor3(const double B[4][4], int x, int y)
 {
-    double m[9];
-    for (int r = 0, k = 0; r < 4; r++)
-        for (int c = 0; c < 4; c++)
-            if (r != x && c != y) m[k++] = B[r][c];
-    return det3(m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]);
+    static const int rest[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
+    const int *r = rest[x], *c = rest[y];
+    return det3(B[r[0]][c[0]], B[r[0]][c[1]], B[r[0]][c[2]], B[r[1]][c[0]], B[r[1]][c[1]], B[r[1]][c[2]], B[r[2]][c[0]],
+                B[r[2]][c[1]], B[r[2]][c[2]]);
 }
 
 static int top_eigenvector4_qcp(const double A[4][4], double q[4])
