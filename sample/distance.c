@@ -186,7 +186,10 @@ unsigned mim_sample_metric_parts(mim_sample_metric_t metric, int sample)
 
 /* Many pose-pairs on threads: chunks taken in turn; the first failure
  * (the lowest index, whichever thread met it) is prepared again on the
- * calling thread for its message. */
+ * calling thread for its message. A pose-pair the same as the one before
+ * it in its chunk (a chain's refused step: a third of a sampler's output)
+ * takes that one's parts: preparing is deterministic, so they are the
+ * ones it would make. */
 #define PREP_CHUNK 64
 typedef struct prep_job {
     const double *joints;
@@ -200,13 +203,24 @@ static void prep_work(void *ctx, uint32_t worker)
 {
     (void)worker;
     prep_job_t *j = ctx;
+    const size_t size = 3 * MIM_PAIR_JOINTS * sizeof *j->joints;
     for (uint32_t s; (s = atomic_fetch_add(&j->next, PREP_CHUNK)) < j->n;)
-        for (uint32_t i = s; i < s + PREP_CHUNK && i < j->n; i++)
-            if (prepare_parts(j->joints + (size_t)i * 3 * MIM_PAIR_JOINTS, j->parts, &j->out[i], NULL)) {
+        for (uint32_t i = s; i < s + PREP_CHUNK && i < j->n; i++) {
+            const double *p = j->joints + (size_t)i * 3 * MIM_PAIR_JOINTS;
+            if (i > s && !memcmp(p, p - 3 * MIM_PAIR_JOINTS, size)) {
+                const mim_pair_prep_t *from = &j->out[i - 1];
+                mim_pair_prep_t *to = &j->out[i];
+                to->dim = from->dim, to->parts = from->parts, to->ic = from->ic;
+                memcpy(to->joints, from->joints, sizeof to->joints);
+                if (from->parts & MIM_PREP_SHAPE_CONTEXTS) memcpy(to->sc, from->sc, sizeof to->sc);
+                continue;
+            }
+            if (prepare_parts(p, j->parts, &j->out[i], NULL)) {
                 uint32_t was = atomic_load(&j->first_bad);
                 while (i < was && !atomic_compare_exchange_weak(&j->first_bad, &was, i)) {}
                 break;
             }
+        }
 }
 
 int mim_pair_prepare_many(const double *joints, uint32_t n, uint32_t threads, unsigned parts, mim_pair_prep_t *out,

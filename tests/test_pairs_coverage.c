@@ -388,6 +388,22 @@ static void test_prepared_parts(void **state)
     mim_error_t err = {0};
     assert_int_equal(mim_pair_prepare_many(sj, K, 2, MIM_PREP_TRIANGULATION, tri, NULL, &err), 0);
     assert_int_equal(mim_pair_prepare_many(sj, K, 2, 0, bare, NULL, &err), 0);
+    /* each pose-pair twice in a row: the repeat takes the parts of the one
+     * before it, which are what preparing it alone makes */
+    double *twice = malloc((size_t)2 * K * 3 * J * sizeof *twice);
+    mim_pair_prep_t *both = malloc(2 * K * sizeof *both), alone;
+    assert_non_null(twice), assert_non_null(both);
+    for (uint32_t j = 0; j < 2 * K; j++) memcpy(twice + (size_t)j * 3 * J, s[j / 2].joints, 3 * J * sizeof *twice);
+    assert_int_equal(mim_pair_prepare_many(twice, 2 * K, 2, MIM_PREP_ALL, both, NULL, &err), 0);
+    for (uint32_t j = 0; j < 2 * K; j++) {
+        assert_int_equal(mim_pair_prepare(twice + (size_t)j * 3 * J, &alone, &err), 0);
+        assert_int_equal(both[j].parts, MIM_PREP_ALL);
+        assert_memory_equal(both[j].joints, alone.joints, sizeof alone.joints);
+        assert_int_equal(both[j].ic.n_edges, alone.ic.n_edges);
+        assert_memory_equal(both[j].ic.edge, alone.ic.edge, alone.ic.n_edges * sizeof alone.ic.edge[0]);
+        assert_memory_equal(both[j].sc, alone.sc, sizeof alone.sc);
+    }
+    free(twice), free(both);
     for (int metric = 0; metric < 4; metric++) {
         const mim_sample_metric_t mt = (mim_sample_metric_t)metric;
         double near0[M], near1[M];
