@@ -318,7 +318,9 @@ static double shape_aligned_bound(mim__shape_truth_t *ta, const mim__sc_coords_t
         for (; u > 0 && ta->gain[order[u - 1]] < ta->gain[i]; u--) order[u] = order[u - 1];
         order[u] = i;
     }
-    double made = 0, lower = 0;
+    /* the bound may pass best once the sum passes this (no division a joint) */
+    const double pass = (best + SC_SLACK + ROW_SLACK + slack) / (1 - REL) * N;
+    double made = 0;
     for (int t = 0; t < N; t++) {
         const int i = order[t];
         mim__sc_row_t row;
@@ -328,10 +330,13 @@ static double shape_aligned_bound(mim__shape_truth_t *ta, const mim__sc_coords_t
         lb[i] = joint_cost(ta->rel[i], rel_i, MIM__SC_REL);
         made += lb[i], rest -= radial[i];
         ta->gain[i] += (lb[i] - radial[i] - ta->gain[i]) / 8;
-        lower = (made + (t + 1 < N ? fmax(rest, 0.0) : 0.0)) / N * (1 - REL) - SC_SLACK - ROW_SLACK - slack;
-        if (lower > best) return lower;
+        const double sum = made + (t + 1 < N ? fmax(rest, 0.0) : 0.0);
+        if (sum > pass || t + 1 == N) {
+            const double lower = sum / N * (1 - REL) - SC_SLACK - ROW_SLACK - slack;
+            if (lower > best || t + 1 == N) return lower;
+        }
     }
-    return lower;
+    return -INFINITY; /* not reached */
 }
 
 void mim__shape_truth(const mim_pair_prep_t *a, mim__shape_truth_t *ta)

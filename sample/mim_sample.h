@@ -148,7 +148,9 @@ int mim_pair_prepare(const double *joints, mim_pair_prep_t *out, mim_error_t *er
 /* Prepares n pose-pairs (n x 34 x 3 doubles) on `threads` threads (0: 1),
  * the parts asked for (MIM_PREP_*; the samples of coverage need no shape
  * contexts, and no triangulation unless for D_I: the 3D triangulation is
- * most of the cost, and the shape contexts most of the memory). On an
+ * most of the cost, and the shape contexts most of the memory; a
+ * pose-pair the same as the one before it, as a sampler's refused steps
+ * are, takes that one's parts rather than being prepared again). On an
  * error, *failed (may be NULL) is the first pair that failed and err says
  * why, as mim_pair_prepare. */
 int mim_pair_prepare_many(const double *joints, uint32_t n, uint32_t threads, unsigned parts, mim_pair_prep_t *out,
