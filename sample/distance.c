@@ -75,8 +75,8 @@ static inline __attribute__((always_inline)) void fit_any(const double *a, const
     best_rotation((const double(*)[3])S, dim, R);
 }
 
-/* The same, made apart for 3D points all alike (every alignment of
- * coverage): the same operations in the same order, so the same bits. */
+/* The same, made apart for 3D points all alike (the limbs' fits): the
+ * same operations in the same order, so the same bits. */
 static void fit(const double *a, const double *b, int n, int dim, const uint8_t *use, double R[9], double ca[3],
                 double cb[3])
 {
@@ -96,9 +96,17 @@ void mim__align_points(const double *a, const double *b, int n, int dim, double 
         }
 }
 
+/* 3D through the two steps coverage takes (each pose-pair centred once),
+ * so that the scan and coverage's bounds align by one piece of code. */
 void mim_sample_align(const double *a, const double *b, int dim, double *out)
 {
-    mim__align_points(a, b, MIM_PAIR_JOINTS, dim, out);
+    if (dim != 3) {
+        mim__align_points(a, b, MIM_PAIR_JOINTS, dim, out);
+        return;
+    }
+    mim__centred_t ca, cb;
+    mim__align_centre(a, &ca), mim__align_centre(b, &cb);
+    mim__align_centred(&ca, cb.p, out);
 }
 
 void mim__align_centre(const double *p, mim__centred_t *out)

@@ -122,8 +122,8 @@ void mim__parallel(uint32_t threads, void (*fn)(void *ctx, uint32_t worker), voi
 void mim__align_points(const double *a, const double *b, int n, int dim, double *out);
 /* mim_sample_align (3D) in two steps, for one pose-pair against many:
  * each pose-pair's centroid c and its joints less it p, made once; then
- * b (its joints less its centroid, bc) onto a. The same
- * operations in the same order as mim_sample_align's, so the same bits. */
+ * b (its joints less its centroid, bc) onto a. mim_sample_align (3D) is
+ * the two in turn, so either gives the same bits. */
 typedef struct mim__centred {
     double c[3], p[3 * MIM_PAIR_JOINTS];
 } mim__centred_t;
