@@ -24,8 +24,8 @@
  *   bins together never raises the chi-squared cost. Summed over azimuth and
  *   elevation, a joint's histogram depends on distances alone, which the
  *   alignment keeps: the first bound, with the sample's sums made once.
- *   Summed over azimuth only, it needs bb's elevations: the second bound,
- *   once b is aligned.
+ *   Once b is aligned, each joint's own term in place of its sum's, a
+ *   joint at a time: the aligned bound.
  *
  * Rounding: the bounds hold in exact arithmetic; each computed bound is
  * lowered so that it stays at or below the distance as computed. The
@@ -39,21 +39,18 @@
  * 8 (n - 1) + 8 float epsilons in all (its counts sum to 1), and the
  * samples' radial bin coordinates, kept as floats (|fr| < 4 where it
  * counts), move at most 12 more; f is 3-Lipschitz in each argument and D_S
- * is 0.5 f summed over bins over n: SC_SLACK. The second bound's rows
- * (mim__sc_row, in floats) have elevation coordinates off by at most
- * MIM__BOUND_EL_COORD_ERR bins: each count's elevation shares by twice
- * that in sum; its hats (1 - |f - bin|) round by an epsilon each, four in
- * all, their products by half of one, the lanes' sums (at most 8
- * additions) by 4 of the total, the weight by half of one; the truth's
- * sums, rounded to floats, by half of one: a joint's histograms (their
- * counts sum to 1) by 2 MIM__BOUND_EL_COORD_ERR + 10 epsilons; times 1.5
- * for 0.5 f: ROW_SLACK. The third bound's whole histograms
- * (mim__sc_row_histogram, in floats) share each count with its radial,
- * elevation and azimuth coordinates off by 4 float epsilons,
- * MIM__BOUND_EL_COORD_ERR and MIM__BOUND_AZ_COORD_ERR bins, its cosine of
- * elevation by 8 epsilons: each count's shares by twice their sum; their
- * products round by 4 epsilons and both histograms' sums by SC_SLACK's
- * 8 (n - 1) + 8; times 1.5: WHOLE_SLACK. */
+ * is 0.5 f summed over bins over n: SC_SLACK. The aligned bound's
+ * histograms (mim__sc_row and mim__sc_row_histogram, in floats) share
+ * each count with its radial, elevation and azimuth coordinates off by 4
+ * float epsilons, MIM__BOUND_EL_COORD_ERR and MIM__BOUND_AZ_COORD_ERR
+ * bins and its cosine of elevation by MIM__BOUND_COS_ERR: each count's
+ * shares by twice their sum. Made in floats, its radial and elevation
+ * shares' products round by 2.5 epsilons in all, its azimuth profile
+ * (hats |fa - a| off by 2 epsilons, 1 - that by half of one more, times
+ * the cosine, plus the rest) by 6.5 and their products by half of one:
+ * 10 more; both histograms' sums (the row's: one addition per count and
+ * bin, and one more) by SC_SLACK's 8 (n - 1) + 8; times 1.5 for 0.5 f:
+ * WHOLE_SLACK. */
 #include "internal.h"
 
 #include <float.h>
@@ -68,16 +65,15 @@
 #define L_N (2 * MIM_LIMB_COUNT)
 #define L_DIM PAD(L_N)
 #define S_DIM MIM__SC_RADIAL
-#define RE (MIM__SC_R * MIM__SC_EL)
 
 #define REL 1e-4
 #define LEN_SLACK 1e-6
 #define FAR_SLACK 1e-12
 #define SC_SLACK (1.5 * (8.0 * (N - 1) + 8.0 + 12.0) * (FLT_EPSILON / 2) + 1e-9)
-#define ROW_SLACK (1.01 * 1.5 * (2 * MIM__BOUND_EL_COORD_ERR + 10 * FLT_EPSILON))
 #define WHOLE_SLACK                                                                                                    \
     (1.01 * 1.5 *                                                                                                      \
-     (2 * (MIM__BOUND_EL_COORD_ERR + MIM__BOUND_AZ_COORD_ERR + 12 * FLT_EPSILON) + (4 + 2 * (8.0 * (N - 1) + 8)) * FLT_EPSILON))
+     (2 * (MIM__BOUND_EL_COORD_ERR + MIM__BOUND_AZ_COORD_ERR + MIM__BOUND_COS_ERR + 4 * FLT_EPSILON) +                 \
+      (10 + 2 * (8.0 * (N - 1) + 8)) * FLT_EPSILON))
 /* added to x + y in the first D_S bound: a term can only get smaller, and
  * 0 / 0 never arises (the loop stays free of branches) */
 #define TINY 1e-30f
@@ -140,7 +136,7 @@ void mim__bound_features(mim_sample_metric_t metric, const mim_pair_prep_t *p, i
         double rad[N * MIM__SC_R];
         if (truth) {
             /* the truth's histogram itself: D_S compares it, not its exact value */
-            mim__sc_histogram_marginals(p->sc, rad, NULL);
+            mim__sc_histogram_marginals(p->sc, rad);
         } else {
             mim__sc_pair_radii(p->joints, f + S_DIM);
             mim__sc_radial(f + S_DIM, rad);
@@ -176,10 +172,14 @@ static float lanes_sum(const float *acc)
 /* sum (x - y)^2 / (x + y) over n floats (a multiple of LANES), in lanes. */
 static inline float chi_lanes(const float *x, const float *y, uint32_t n)
 {
-    float acc[LANES] = {0};
-    for (uint32_t i = 0; i < n; i += LANES)
-        for (int l = 0; l < LANES; l++) acc[l] += (x[i + l] - y[i + l]) * (x[i + l] - y[i + l]) / (x[i + l] + y[i + l] + TINY);
-    return lanes_sum(acc);
+    mim__v8f acc = {0}, a, b;
+    for (uint32_t i = 0; i < n; i += LANES) {
+        memcpy(&a, x + i, sizeof a), memcpy(&b, y + i, sizeof b);
+        acc += (a - b) * (a - b) / (a + b + TINY);
+    }
+    float lane[LANES];
+    memcpy(lane, &acc, sizeof lane);
+    return lanes_sum(lane);
 }
 
 /* One truth's first bound of one sample, before the rounding's allowance. */
@@ -280,26 +280,20 @@ MIM__VECTOR_CLONES static void chi_each(const float *x, const float *y, uint32_t
     for (uint32_t i = 0; i < n; i++) out[i] = 0.5f * (x[i] - y[i]) * (x[i] - y[i]) / (x[i] + y[i] + TINY);
 }
 
-/* One joint's chi-squared cost in float lanes over n bins (the second
- * bound's, n = MIM__SC_REL, and the third's, n = MIM_SC_BINS). */
-MIM__VECTOR_CLONES static double joint_cost(const float *a, const float *h, uint32_t n)
-{
-    return 0.5f * chi_lanes(a, h, n);
-}
+/* One joint's chi-squared cost over its histogram's bins, in float lanes. */
+MIM__VECTOR_CLONES static double joint_cost(const float *a, const float *h) { return 0.5f * chi_lanes(a, h, MIM_SC_BINS); }
 
-/* The second bound, a joint at a time (lb: N, each joint's term): each
- * joint's term summed over azimuth is at least its term summed over
- * elevation too (subadditivity, above), which needs no elevation. So the
- * joints go one by one, each adding what its elevations add (its row,
- * made from the aligned joints alone), and the bound stops as soon as the
- * joints made and the radial terms of the others pass best: most samples
- * end before most joints are made. The joints that added most to this
- * truth's earlier samples go first (gain: a running mean of it, each
- * joint's starting above any, so that each is tried). Returns the bound
- * as mim__shape_distance_within compares it; at or below best, every
- * joint was made (lb whole). */
-static double shape_aligned_bound(mim__shape_truth_t *ta, const mim__sc_coords_t *c, const float *fb, double slack, double best,
-                                  double *lb)
+/* The aligned bound, a joint at a time. Each joint's term is at least its
+ * term summed over azimuth and elevation (subadditivity, above), which
+ * needs no alignment: the bound starts at those radial terms, and the
+ * joints go one by one, each replacing its radial term with its own (its
+ * row's histogram, made from the aligned joints alone); it stops as soon
+ * as it passes best: most samples end before most joints are made. The
+ * joints that added most to this truth's earlier samples go first (gain:
+ * a running mean of what a joint adds, each joint's starting above any,
+ * so that each is tried). Returns a bound above best, or else -INFINITY
+ * (every joint made). */
+static double shape_aligned_bound(mim__shape_truth_t *ta, const mim__sc_coords_t *c, const float *fb, double slack, double best)
 {
     /* b's radial sums: its first bound's features (float, SC_SLACK's rounding) */
     float term[S_DIM];
@@ -319,33 +313,36 @@ static double shape_aligned_bound(mim__shape_truth_t *ta, const mim__sc_coords_t
         order[u] = i;
     }
     /* the bound may pass best once the sum passes this (no division a joint) */
-    const double pass = (best + SC_SLACK + ROW_SLACK + slack) / (1 - REL) * N;
+    const double pass = (best + SC_SLACK + WHOLE_SLACK + slack) / (1 - REL) * N;
     double made = 0;
     for (int t = 0; t < N; t++) {
         const int i = order[t];
         mim__sc_row_t row;
-        float rel_i[MIM__SC_REL];
+        float h[MIM_SC_BINS];
         mim__sc_row(c, fb + S_DIM, i, &row);
-        mim__sc_row_radial_elevation(&row, rel_i);
-        lb[i] = joint_cost(ta->rel[i], rel_i, MIM__SC_REL);
-        made += lb[i], rest -= radial[i];
-        ta->gain[i] += (lb[i] - radial[i] - ta->gain[i]) / 8;
+        mim__sc_row_histogram(&row, h);
+        const double own = joint_cost(ta->sc[i], h);
+        ta->gain[i] += (own - radial[i] - ta->gain[i]) / 8;
+        made += own, rest -= radial[i];
         const double sum = made + (t + 1 < N ? fmax(rest, 0.0) : 0.0);
-        if (sum > pass || t + 1 == N) {
-            const double lower = sum / N * (1 - REL) - SC_SLACK - ROW_SLACK - slack;
-            if (lower > best || t + 1 == N) return lower;
+        if (sum > pass) {
+            const double lower = sum / N * (1 - REL) - SC_SLACK - WHOLE_SLACK - slack;
+            if (lower > best) return lower;
         }
     }
-    return -INFINITY; /* not reached */
+    return -INFINITY;
 }
 
 void mim__shape_truth(const mim_pair_prep_t *a, mim__shape_truth_t *ta)
 {
-    double rad[N * MIM__SC_R], rel[N * RE];
+    double rad[N * MIM__SC_R];
     memset(ta, 0, sizeof *ta);
-    mim__sc_histogram_marginals(a->sc, rad, rel);
+    mim__sc_histogram_marginals(a->sc, rad);
     for (int i = 0; i < N; i++)
-        for (int b = 0; b < RE; b++) ta->rel[i][b] = (float)rel[i * RE + b];
+        for (int r = 0; r < MIM__SC_R; r++)
+            for (int az = 0; az < MIM__SC_AZ; az++)
+                for (int e = 0; e < MIM__SC_EL; e++)
+                    ta->sc[i][MIM__SC_WORK(r, e, az)] = a->sc[i][(r * MIM__SC_AZ + az) * MIM__SC_EL + e];
     for (int b = 0; b < N * MIM__SC_R; b++) ta->rad[b] = (float)rad[b];
     for (int i = 0; i < N; i++) ta->gain[i] = 1.0, ta->order[i] = i; /* above any gain: each joint tried */
 }
@@ -353,39 +350,14 @@ void mim__shape_truth(const mim_pair_prep_t *a, mim__shape_truth_t *ta)
 double mim__shape_distance_within(const mim_pair_prep_t *a, const mim__centred_t *ac, mim__shape_truth_t *ta, const double *bc,
                                   const float *fb, double slack, double best, int *exact)
 {
-    double bb[3 * N], lb[N], rest[N + 1], terms[N][MIM_SC_BINS];
+    double bb[3 * N], terms[N][MIM_SC_BINS];
     mim__sc_coords_t c;
     mim__align_centred(ac, bc, bb);
     mim__sc_coords(bb, &c);
-    /* the second bound first: most samples end here */
-    const double lb2 = shape_aligned_bound(ta, &c, fb, slack, best, lb);
-    if (lb2 > best) {
+    const double lower = shape_aligned_bound(ta, &c, fb, slack, best);
+    if (lower > best) {
         *exact = 0;
-        return lb2;
-    }
-    /* the third bound: the joints' whole histograms in floats, those of
-     * the largest bounds first (most likely to pass best) */
-    int order[N];
-    for (int i = 0; i < N; i++) {
-        int t = i;
-        for (; t > 0 && lb[order[t - 1]] < lb[i]; t--) order[t] = order[t - 1];
-        order[t] = i;
-    }
-    rest[N] = 0;
-    for (int t = N; t-- > 0;) rest[t] = rest[t + 1] + lb[order[t]];
-    double done = 0;
-    for (int t = 0; t < N; t++) {
-        const int i = order[t];
-        mim__sc_row_t row;
-        float h[MIM_SC_BINS];
-        mim__sc_row(&c, fb + S_DIM, i, &row);
-        mim__sc_row_histogram(&row, i, h);
-        done += joint_cost(a->sc[i], h, MIM_SC_BINS);
-        const double lower = (done + rest[t + 1]) / N * (1 - REL) - SC_SLACK - ROW_SLACK - WHOLE_SLACK - slack;
-        if (lower > best) {
-            *exact = 0;
-            return lower;
-        }
+        return lower;
     }
     /* no bound above best: the histograms as the scan makes them */
     mim__sc_pairs_t w;

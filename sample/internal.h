@@ -36,6 +36,13 @@ static inline double mim__ic_weight(double len, double beta) { return 1.0 / (len
 #define MIM__VECTOR_CLONES
 #endif
 
+/* 8 floats as one vector (GCC's and clang's vector extensions: one AVX
+ * register, or two SSE ones), and their bits, for masks: for loops whose
+ * lanes the compilers do not find alone. Only inside functions (as an
+ * argument or result it would change the ABI between the clones). */
+typedef float mim__v8f __attribute__((vector_size(8 * sizeof(float))));
+typedef int32_t mim__v8i __attribute__((vector_size(8 * sizeof(int32_t))));
+
 /* ---- 3D shape contexts (shape_context.c; D_S) ---- */
 #define MIM__SC_R 5  /* radial bins */
 #define MIM__SC_AZ 8 /* azimuth */
@@ -63,7 +70,7 @@ void mim__sc_pairs_finish_lazy(mim__sc_pairs_t *w);
 void mim__sc_pairs_joint_ready(mim__sc_pairs_t *w, int i);
 void mim__sc_joint(const mim__sc_pairs_t *w, int i, float sc[MIM_SC_BINS]);
 
-/* A joint's row, for the second and third bounds: its pairs side by side
+/* A joint's row, for D_S's aligned bound: its pairs side by side
  * (MIM__SC_ROW lanes, so that they vectorise), in floats, made from the
  * joints alone, so that a joint's bound needs no other joint's pairs.
  * coords: a pose-pair's joints split by coordinate (the padding 0). */
@@ -75,23 +82,22 @@ void mim__sc_coords(const double *p, mim__sc_coords_t *c);
 /* Row i: for each joint j, the pair's radial bin coordinate (from fr, the
  * 561 of mim__sc_pair_radii; -2, in no bin, for j = i and the padding),
  * j's elevation bin coordinate seen from i (both as binning clamps them),
- * and j - i (over its largest coordinate where that is below a picometre
- * or huge: the third bound's azimuths and cosines take ratios). */
+ * its azimuth bin coordinate (mim__sc_bound_azimuth's) and the
+ * elevation's cosine. */
 typedef struct mim__sc_row {
-    float fr[MIM__SC_ROW], fe[MIM__SC_ROW];
-    float dx[MIM__SC_ROW], dy[MIM__SC_ROW], dz[MIM__SC_ROW];
+    float fr[MIM__SC_ROW], fe[MIM__SC_ROW], fa[MIM__SC_ROW], cosel[MIM__SC_ROW];
 } mim__sc_row_t;
-/* At most how far (in bins) the rows' elevation coordinates lie from
- * those of libm's asin(up / r), both clamped: coverage_bounds.c allows
- * for it. */
+/* At most how far the rows' elevation coordinates (bins) and cosines lie
+ * from those of libm's asin(up / r) and its cosine, the coordinates both
+ * clamped: coverage_bounds.c allows for it. */
 #define MIM__BOUND_EL_COORD_ERR 4e-6
+#define MIM__BOUND_COS_ERR 1e-6
 void mim__sc_row(const mim__sc_coords_t *c, const float *fr, int i, mim__sc_row_t *row);
-/* The row's histogram summed over azimuth (MIM__SC_R x MIM__SC_EL, then 0
- * to MIM__SC_REL), and its whole histogram (the third bound's), in floats,
- * azimuths from mim__sc_bound_azimuth. */
-#define MIM__SC_REL 24
-void mim__sc_row_radial_elevation(const mim__sc_row_t *row, float rel[MIM__SC_REL]);
-void mim__sc_row_histogram(const mim__sc_row_t *row, int i, float sc[MIM_SC_BINS]);
+/* The row's histogram, in floats, laid out as MIM__SC_WORK: azimuth
+ * innermost (a histogram of mim__shape_contexts has elevation innermost,
+ * (r * MIM__SC_AZ + a) * MIM__SC_EL + e). */
+#define MIM__SC_WORK(r, e, a) (((r) * MIM__SC_EL + (e)) * MIM__SC_AZ + (a))
+void mim__sc_row_histogram(const mim__sc_row_t *row, float sc[MIM_SC_BINS]);
 /* The azimuth bin coordinate of the vector (x, ., z), within
  * MIM__BOUND_AZ_COORD_ERR bins of (atan2(z, x) + pi) / 2pi 8 - 1/2. */
 #define MIM__BOUND_AZ_COORD_ERR 4e-6
@@ -104,11 +110,10 @@ static inline double mim__chi_term(double x, double y) { return x + y > 0 ? 0.5 
  * binning clamps them (which a rigid motion keeps). From them the
  * histograms summed over azimuth and elevation (rad: 34 x MIM__SC_R), in
  * double: what mim__shape_contexts' histograms sum to in exact
- * arithmetic; and the same sums of a computed histogram (rad and rel,
- * 34 x MIM__SC_R x MIM__SC_EL; either may be NULL). */
+ * arithmetic; and the same sums of a computed histogram. */
 void mim__sc_pair_radii(const double *p, float *fr);
 void mim__sc_radial(const float *fr, double *rad);
-void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], double *rad, double *rel);
+void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], double *rad);
 
 /* ---- work on threads (parallel.c) ---- */
 /* Runs fn(ctx, w) for w = 0 .. threads - 1 (0 means 1), w 0 on the calling
@@ -135,7 +140,7 @@ void mim__limb_joints(const double *p, int swap, double *out);
 
 /* ---- lower bounds of D_I, D_C, D_S and LIMBS (coverage_bounds.c) ---- */
 /* Floats per sample of a metric's first bound's features (a multiple of
- * 8), and of all its features (D_S's second bound's after them). */
+ * 8), and of all its features (D_S's aligned bound's after them). */
 uint32_t mim__bound_dim(mim_sample_metric_t metric);
 uint32_t mim__bound_stride(mim_sample_metric_t metric);
 /* The features of a sample (b of mim_sample_distance; stride floats) or
@@ -151,15 +156,14 @@ double mim__bound_slack(mim_sample_metric_t metric, const mim_pair_prep_t *p);
 #define MIM__BOUND_TRUTHS 8
 void mim__bound_lower(mim_sample_metric_t metric, const float *fa, uint32_t n, const float *fb, uint32_t k,
                       const double *slack, float *lb);
-/* What D_S's aligned bounds take from truth a, made once a truth: its
- * histograms summed over azimuth (mim__sc_histogram_marginals' rel, in
- * floats, each joint's padded to MIM__SC_REL), those summed over
- * elevation too (its first bound's features), and the second bound's
- * gains, which it learns from each sample, the joints in the order of the
- * sample before. One for each truth and thread. */
+/* What D_S's aligned bound takes from truth a, made once a truth: its
+ * histograms (laid out as the rows'), their sums over azimuth and
+ * elevation (its first bound's features), and the gains, which it learns
+ * from each sample, the joints in the order of the sample before. One
+ * for each truth and thread. */
 #define MIM__SC_RADIAL ((MIM_PAIR_JOINTS * MIM__SC_R + 7) / 8 * 8)
 typedef struct mim__shape_truth {
-    float rel[MIM_PAIR_JOINTS][MIM__SC_REL];
+    float sc[MIM_PAIR_JOINTS][MIM_SC_BINS];
     float rad[MIM__SC_RADIAL];
     double gain[MIM_PAIR_JOINTS];
     int order[MIM_PAIR_JOINTS];
@@ -168,10 +172,10 @@ void mim__shape_truth(const mim_pair_prep_t *a, mim__shape_truth_t *ta);
 /* D_S of sample b (its joints less their centroid bc, mim__align_centre;
  * its features fb) against truth a (ac: a's, centred), as
  * mim_sample_distance gives it, to the bit (*exact 1); or a lower bound of
- * it above best (*exact 0) as soon as one turns up: first the second
- * bound, once b is aligned, then the third (the joints' whole histograms
- * in floats, with the second bound's terms for the joints not yet made);
- * the scan's histograms only where no bound passes best. */
+ * it above best (*exact 0) as soon as one turns up: once b is aligned,
+ * the joints' histograms in floats a joint at a time, with their first
+ * bound's terms for the joints not yet made; the scan's histograms only
+ * where no bound passes best. */
 double mim__shape_distance_within(const mim_pair_prep_t *a, const mim__centred_t *ac, mim__shape_truth_t *ta, const double *bc,
                                   const float *fb, double slack, double best, int *exact);
 /* D_I of sample b (bc and fb as above) against truth a (ac as above, fa),

@@ -20,7 +20,7 @@ _Static_assert(SC_R * SC_AZ * SC_EL == MIM_SC_BINS, "shape context bins");
  * skeletons do, so a pair and its own rigid copy would differ. h is laid
  * out azimuth innermost (WORK), so that a share for all azimuths is added
  * to 8 neighbours at once. */
-#define WORK(r, e, a) (((r) * SC_EL + (e)) * SC_AZ + (a))
+#define WORK MIM__SC_WORK
 static void spread(float *h, double fr, double fa, double fe, double cos_el, float w)
 {
     int r0 = (int)floor(fr), a0 = (int)floor(fa), e0 = (int)floor(fe);
@@ -91,24 +91,29 @@ void mim__sc_pairs_begin_lazy(const double *p, mim__sc_pairs_t *w)
     }
 }
 
+/* atan(u) for u in [0, 1]: a polynomial fitted there (within 1.3e-7 of
+ * atan in floats), by Estrin's scheme: the terms' products in parallel,
+ * not one long chain. */
+static inline float atan01(float u)
+{
+    static const float c[] = {0.99999934f,  -0.33329859f, 0.19946562f,  -0.13908616f,
+                              0.096421652f, -0.055911936f, 0.021862714f, -0.0040545058f};
+    const float s = u * u, s2 = s * s, s4 = s2 * s2;
+    return u * (((c[0] + c[1] * s) + (c[2] + c[3] * s) * s2) + ((c[4] + c[5] * s) + (c[6] + c[7] * s) * s2) * s4);
+}
+
 /* The azimuth coordinate of (x, z), as (atan2(z, x) + pi) / 2pi SC_AZ - 1/2
  * is, in floats (MIM__BOUND_AZ_COORD_ERR bounds how far): the angle from
- * the x or z axis, whichever is nearer, by atan's series to u^15 on
- * |u| <= tan(pi/8) (past it, pi/4 + atan((t - 1) / (t + 1))), then the
- * octant put back. Both branches made and one kept, so that loops over it
- * vectorise. */
+ * the x or z axis, whichever is nearer, atan01 of the smaller coordinate
+ * over the larger, then the octant put back. One division; both branches
+ * made and one kept, so that loops over it vectorise. */
 static inline float bound_azimuth(float x, float z)
 {
-    static const float c[] = {1.0f, -1.0f / 3, 1.0f / 5, -1.0f / 7, 1.0f / 9, -1.0f / 11, 1.0f / 13, -1.0f / 15};
     const float ax = x < 0 ? -x : x, az = z < 0 ? -z : z;
     const int steep = az > ax;
     const float hi = steep ? az : ax, lo = steep ? ax : az;
-    const float t = hi > 0 ? lo / hi : 0.0f; /* in [0, 1] */
-    const int past = t > 0.41421356f;
-    const float u = past ? (t - 1) / (t + 1) : t, u2 = u * u, u4 = u2 * u2, u8 = u4 * u4;
-    const float poly = ((c[0] + c[1] * u2) + (c[2] + c[3] * u2) * u4) + ((c[4] + c[5] * u2) + (c[6] + c[7] * u2) * u4) * u8;
-    float ang = (past ? (float)(M_PI / 4) : 0.0f) + u * poly; /* atan(lo / hi), in [0, pi/4] */
-    ang = steep ? (float)(M_PI / 2) - ang : ang;                 /* the angle from +x in the quadrant */
+    float ang = atan01(hi > 0 ? lo / hi : 0.0f); /* in [0, pi/4] */
+    ang = steep ? (float)(M_PI / 2) - ang : ang; /* the angle from +x in the quadrant */
     ang = x < 0 ? (float)M_PI - ang : ang;
     ang = z < 0 ? -ang : ang;
     return (ang + (float)M_PI) * (float)(SC_AZ / (2 * M_PI)) - 0.5f;
@@ -142,28 +147,38 @@ void mim__sc_coords(const double *p, mim__sc_coords_t *c)
     for (int j = 0; j < N; j++) c->x[j] = p[3 * j], c->y[j] = p[3 * j + 1], c->z[j] = p[3 * j + 2];
 }
 
-/* One lane of a row: j's elevation bin coordinate seen from i, from
- * j - i = (dx, dy, dz), clamped as binning clamps it. |el| = atan(u) for
- * u = |dy| / h (h = |(dx, dz)|) at most 1, else pi/2 - atan(1 / u), atan
- * by a polynomial fitted on [0, 1] (within 1.3e-7 of atan there in
- * floats): one square root and one division, both branches made and one
- * kept, so that the loop vectorises. MIM__BOUND_EL_COORD_ERR bounds how
- * far the coordinate lies from libm's asin (test_bound_elevation). */
-static inline float lane_elevation(float dx, float dy, float dz)
+/* 1 / sqrt(1 + s) for s in [0, 1]: a polynomial fitted there (within
+ * 3.9e-7 in floats), by Estrin's scheme as atan01. */
+static inline float inv_hypot01(float s)
 {
-    static const float c[] = {0.99999934f,  -0.33329859f, 0.19946562f,  -0.13908616f,
-                              0.096421652f, -0.055911936f, 0.021862714f, -0.0040545058f};
+    static const float c[] = {0.99999976f, -0.49996418f, 0.37416843f, -0.30500212f,
+                              0.23893045f, -0.15321627f, 0.065147132f, -0.012956658f};
+    const float s2 = s * s, s4 = s2 * s2;
+    return ((c[0] + c[1] * s) + (c[2] + c[3] * s) * s2) + ((c[4] + c[5] * s) + (c[6] + c[7] * s) * s2) * s4;
+}
+
+/* One lane of a row: j seen from i, j - i = (dx, dy, dz). Its elevation
+ * bin coordinate, clamped as binning clamps it: |el| = atan(u) for
+ * u = |dy| / h (h = |(dx, dz)|) at most 1, else pi/2 - atan(1 / u), by
+ * atan01; the elevation's cosine, 1 / sqrt(1 + u^2) or u / sqrt(1 + u^2)
+ * past 1; and its azimuth bin coordinate (bound_azimuth). One square root
+ * and two divisions, both branches made and one kept, so that the loop
+ * vectorises. MIM__BOUND_EL_COORD_ERR bounds how far the elevation
+ * coordinate lies from libm's asin, MIM__BOUND_COS_ERR the cosine from
+ * libm's (test_bound_elevation). */
+static inline void lane_angles(float dx, float dy, float dz, float *fe, float *fa, float *cosel)
+{
     const float h = sqrtf(dx * dx + dz * dz), ady = dy < 0 ? -dy : dy;
     const int steep = ady > h;
     const float hi = steep ? ady : h, lo = steep ? h : ady;
-    const float u = hi > 0 ? lo / hi : 0.0f, s = u * u; /* 0 / 0 (j at i): el 0 */
-    /* Estrin's scheme: the terms' products in parallel, not one long chain */
-    const float s2 = s * s, s4 = s2 * s2;
-    const float poly = ((c[0] + c[1] * s) + (c[2] + c[3] * s) * s2) + ((c[4] + c[5] * s) + (c[6] + c[7] * s) * s2) * s4;
-    float el = steep ? (float)(M_PI / 2) - u * poly : u * poly;
+    const float u = hi > 0 ? lo / hi : 0.0f; /* 0 / 0 (j at i): el 0 */
+    const float at = atan01(u);
+    float el = steep ? (float)(M_PI / 2) - at : at;
     el = dy < 0 ? -el : el;
     /* elevation_coordinate's, the division by pi made a product */
-    return clamp_coordinate(el * (float)(SC_EL / M_PI) + (SC_EL - 1) / 2.0f, SC_EL);
+    *fe = clamp_coordinate(el * (float)(SC_EL / M_PI) + (SC_EL - 1) / 2.0f, SC_EL);
+    *cosel = (steep ? u : 1.0f) * inv_hypot01(u * u);
+    *fa = bound_azimuth(dx, dz);
 }
 
 /* Outside these a vector's largest coordinate (metres) is scaled in
@@ -181,16 +196,13 @@ MIM__VECTOR_CLONES static void make_row(const mim__sc_coords_t *c, const float *
         const float m = ax > ay ? (ax > az ? ax : az) : (ay > az ? ay : az);
         /* a joint on another (m 0) too: the second pass leaves it as it is */
         rescale |= j != i && j < N && !(m >= (float)ROW_TINY && m <= (float)ROW_HUGE);
-        w->fe[j] = lane_elevation(dx, dy, dz);
-        w->dx[j] = dx, w->dy[j] = dy, w->dz[j] = dz;
+        lane_angles(dx, dy, dz, &w->fe[j], &w->fa[j], &w->cosel[j]);
     }
     for (int j = 0; rescale && j < ROW; j++) {
         const double x = c->x[j] - c->x[i], y = c->y[j] - c->y[i], z = c->z[j] - c->z[i];
         const double m = fmax(fabs(x), fmax(fabs(y), fabs(z)));
         if (!(m > 0 && !(m >= ROW_TINY && m <= ROW_HUGE))) continue;
-        const float dx = (float)(x / m), dy = (float)(y / m), dz = (float)(z / m);
-        w->fe[j] = lane_elevation(dx, dy, dz);
-        w->dx[j] = dx, w->dy[j] = dy, w->dz[j] = dz;
+        lane_angles((float)(x / m), (float)(y / m), (float)(z / m), &w->fe[j], &w->fa[j], &w->cosel[j]);
     }
     /* the radial coordinates: pair (i, j) of the 561 for j > i (in a run),
      * (j, i) for j < i; none for j = i and the padding (-2 is in no bin) */
@@ -202,73 +214,51 @@ MIM__VECTOR_CLONES static void make_row(const mim__sc_coords_t *c, const float *
 
 void mim__sc_row(const mim__sc_coords_t *c, const float *fr, int i, mim__sc_row_t *w) { make_row(c, fr, i, w); }
 
-/* The row's histogram summed over azimuth: each count's radial shares
- * times its elevation shares (spread's, summed over azimuth), made as
- * the hat functions max(0, 1 - |f - bin|) of the clamped coordinates so
- * that the lanes go side by side with no branch. */
-MIM__VECTOR_CLONES static void row_radial_elevation(const mim__sc_row_t *w, float rel[MIM__SC_REL])
+typedef mim__v8f v8f;
+typedef mim__v8i v8i;
+
+/* spread's histogram, a pair at a time: each adds its azimuth profile (8
+ * floats, one vector: cos el (1 - ta, ta) at a0, a0 + 1 as the hats
+ * max(0, 1 - |fa - a|) taken circularly, plus (1 - cos el) / 8 at all)
+ * times its radial and elevation shares to its 4 (radial, elevation)
+ * rows of 8 azimuths (WORK's layout). What a pair adds is made first for
+ * the row's lanes side by side (j = i and the padding, in no radial bin,
+ * add 0); even and odd pairs add to two histograms summed at the end, so
+ * that a row's additions need not wait on each other. */
+MIM__VECTOR_CLONES static void row_histogram(const mim__sc_row_t *w, float h[MIM_SC_BINS])
 {
-    float acc[SC_R * SC_EL][LANES];
+    float k[4][ROW];
+    int32_t at[ROW];
+    for (int j = 0; j < ROW; j++) {
+        /* bin_below's bins and shares */
+        const int counted = w->fr[j] >= 0;
+        const float fr = counted ? w->fr[j] : 0.0f, fe = w->fe[j], wt = counted ? weight : 0.0f;
+        const int r0 = fr >= SC_R - 1 ? SC_R - 2 : (int)fr, e0 = fe >= SC_EL - 1 ? SC_EL - 2 : (int)fe;
+        const float tr = fr - (float)r0, te = fe - (float)e0;
+        k[0][j] = wt * (1 - tr) * (1 - te), k[1][j] = wt * (1 - tr) * te;
+        k[2][j] = wt * tr * (1 - te), k[3][j] = wt * tr * te;
+        at[j] = r0 * SC_EL + e0;
+    }
+    v8f acc[2][SC_R * SC_EL];
     memset(acc, 0, sizeof acc);
-    for (int j = 0; j < ROW; j += LANES) {
-        float hr[SC_R][LANES], he[SC_EL][LANES];
-        for (int r = 0; r < SC_R; r++)
-            for (int l = 0; l < LANES; l++) {
-                const float d = w->fr[j + l] - (float)r, ad = d < 0 ? -d : d;
-                hr[r][l] = ad < 1 ? 1 - ad : 0.0f;
-            }
-        for (int e = 0; e < SC_EL; e++)
-            for (int l = 0; l < LANES; l++) {
-                const float d = w->fe[j + l] - (float)e, ad = d < 0 ? -d : d;
-                he[e][l] = ad < 1 ? 1 - ad : 0.0f;
-            }
-        for (int r = 0; r < SC_R; r++)
-            for (int e = 0; e < SC_EL; e++)
-                for (int l = 0; l < LANES; l++) acc[r * SC_EL + e][l] += hr[r][l] * he[e][l];
+    const v8f az = {0, 1, 2, 3, 4, 5, 6, 7};
+    for (int j = 0; j < N; j++) {
+        const float c = w->cosel[j];
+        const v8f d = (v8f)((v8i)(w->fa[j] - az) & 0x7fffffff), wrap = (float)SC_AZ - d;
+        const v8i nearer = d < wrap;
+        const v8f hat = 1.0f - (v8f)((nearer & (v8i)d) | (~nearer & (v8i)wrap));
+        const v8f prof = c * (v8f)((hat > (v8f){0}) & (v8i)hat) + (1 - c) / SC_AZ;
+        v8f *row = acc[j & 1] + at[j];
+        row[0] += k[0][j] * prof, row[1] += k[1][j] * prof;
+        row[SC_EL] += k[2][j] * prof, row[SC_EL + 1] += k[3][j] * prof;
     }
     for (int b = 0; b < SC_R * SC_EL; b++) {
-        const float *a = acc[b];
-        rel[b] = weight * (((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7])));
+        const v8f sum = acc[0][b] + acc[1][b];
+        memcpy(h + b * SC_AZ, &sum, sizeof sum);
     }
-    for (int b = SC_R * SC_EL; b < MIM__SC_REL; b++) rel[b] = 0;
 }
 
-void mim__sc_row_radial_elevation(const mim__sc_row_t *w, float rel[MIM__SC_REL]) { row_radial_elevation(w, rel); }
-
-MIM__VECTOR_CLONES static void row_histogram(const mim__sc_row_t *w, int i, float sc[MIM_SC_BINS])
-{
-    float fa[ROW], cosel[ROW];
-    for (int j = 0; j < ROW; j++) {
-        const float dx = w->dx[j], dy = w->dy[j], dz = w->dz[j], h2 = dx * dx + dz * dz, len = sqrtf(h2 + dy * dy);
-        const float c = len > 0 ? sqrtf(h2) / len : 1.0f;
-        fa[j] = bound_azimuth(dx, dz), cosel[j] = c < 1 ? c : 1.0f;
-    }
-    /* spread's, but each count's share for all azimuths alike summed apart
-     * and added to the 8 at the end: fewer additions reach a bin */
-    float h[MIM_SC_BINS], all[SC_R * SC_EL];
-    memset(h, 0, sizeof h), memset(all, 0, sizeof all);
-    for (int j = 0; j < N; j++) {
-        if (j == i) continue;
-        float tr, te;
-        const int r0 = bin_below(w->fr[j], SC_R, &tr), e0 = bin_below(w->fe[j], SC_EL, &te);
-        const float c = cosel[j], f = fa[j];
-        const int a0 = (int)floorf(f);
-        const float ta = f - (float)a0;
-        const int a1 = (a0 + 1 + SC_AZ) % SC_AZ, a0w = (a0 + SC_AZ) % SC_AZ;
-        for (int dr = 0; dr < 2; dr++)
-            for (int de = 0; de < 2; de++) {
-                const float k2 = weight * (dr ? tr : 1 - tr) * (de ? te : 1 - te);
-                float *row = h + WORK(r0 + dr, e0 + de, 0);
-                row[a0w] += k2 * c * (1 - ta), row[a1] += k2 * c * ta;
-                all[(r0 + dr) * SC_EL + e0 + de] += k2 * (1 - c);
-            }
-    }
-    for (int r = 0; r < SC_R; r++)
-        for (int a = 0; a < SC_AZ; a++)
-            for (int e = 0; e < SC_EL; e++) sc[(r * SC_AZ + a) * SC_EL + e] = h[WORK(r, e, a)] + all[r * SC_EL + e] / SC_AZ;
-}
-
-void mim__sc_row_histogram(const mim__sc_row_t *w, int i, float sc[MIM_SC_BINS]) { row_histogram(w, i, sc); }
+void mim__sc_row_histogram(const mim__sc_row_t *w, float sc[MIM_SC_BINS]) { row_histogram(w, sc); }
 
 /* The bins' log range: 1/8 to 2 of the mean joint distance. */
 static void radial_range(const double *r, double *r0, double *r1)
@@ -344,18 +334,13 @@ double mim__shape_cost(const float *a, const float *b, int n, int bins)
  * in (r, el); summed over elevation too, w (1 - tr, tr) in r. */
 
 
-void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], double *rad, double *rel)
+void mim__sc_histogram_marginals(const float sc[MIM_PAIR_JOINTS][MIM_SC_BINS], double *rad)
 {
-    if (rad) memset(rad, 0, sizeof(double) * N * SC_R);
-    if (rel) memset(rel, 0, sizeof(double) * N * SC_R * SC_EL);
+    memset(rad, 0, sizeof(double) * N * SC_R);
     for (int i = 0; i < N; i++)
         for (int r = 0; r < SC_R; r++)
             for (int a = 0; a < SC_AZ; a++)
-                for (int e = 0; e < SC_EL; e++) {
-                    double x = sc[i][(r * SC_AZ + a) * SC_EL + e];
-                    if (rad) rad[i * SC_R + r] += x;
-                    if (rel) rel[(i * SC_R + r) * SC_EL + e] += x;
-                }
+                for (int e = 0; e < SC_EL; e++) rad[i * SC_R + r] += sc[i][(r * SC_AZ + a) * SC_EL + e];
 }
 
 void mim__pair_distances(const double *p, double *len)

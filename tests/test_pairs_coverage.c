@@ -95,7 +95,7 @@ static void make_sets(uint64_t seed, uint32_t m, uint32_t k, mim_pair_prep_t **g
 }
 
 /* The histograms' sums made directly from the joints are the sums of the
- * histograms, to their float rounding (the bounds' premise). */
+ * histograms, to their float rounding (the first bound's premise). */
 static void test_marginals(void **state)
 {
     (void)state;
@@ -104,24 +104,12 @@ static void test_marginals(void **state)
     make_sets(5, M, K, &g, &s);
     for (uint32_t j = 0; j < K; j++) {
         float fr[MIM__JOINT_PAIRS];
-        double rad_h[J * MIM__SC_R], rel_h[J * MIM__SC_R * MIM__SC_EL], rad[J * MIM__SC_R], rel[J * MIM__SC_R * MIM__SC_EL];
-        mim__sc_coords_t c;
-        mim__sc_histogram_marginals(s[j].sc, rad_h, rel_h);
+        double rad_h[J * MIM__SC_R], rad[J * MIM__SC_R];
+        mim__sc_histogram_marginals(s[j].sc, rad_h);
         mim__sc_pair_radii(s[j].joints, fr);
         mim__sc_radial(fr, rad);
-        mim__sc_coords(s[j].joints, &c);
-        for (int i = J - 1; i >= 0; i--) {
-            mim__sc_row_t row;
-            float rel_i[MIM__SC_REL];
-            mim__sc_row(&c, fr, i, &row);
-            mim__sc_row_radial_elevation(&row, rel_i);
-            for (int b = 0; b < MIM__SC_R * MIM__SC_EL; b++) rel[i * MIM__SC_R * MIM__SC_EL + b] = rel_i[b];
-            for (int b = MIM__SC_R * MIM__SC_EL; b < MIM__SC_REL; b++) assert_true(rel_i[b] == 0);
-        }
         for (int b = 0; b < J * MIM__SC_R; b++)
             if (fabs(rad[b] - rad_h[b]) > 1e-5) fail_msg("sample %u, radial bin %d: %.9g, histogram %.9g", j, b, rad[b], rad_h[b]);
-        for (int b = 0; b < J * MIM__SC_R * MIM__SC_EL; b++)
-            if (fabs(rel[b] - rel_h[b]) > 1e-5) fail_msg("sample %u, bin %d: %.9g, histogram %.9g", j, b, rel[b], rel_h[b]);
     }
     free(g), free(s);
 }
@@ -442,31 +430,34 @@ static void test_prepared_parts(void **state)
     free(g), free(s), free(sj), free(tri), free(bare), free(gt);
 }
 
-/* The rows' elevation coordinates (mim__sc_row's, as the processor runs
- * them) are within MIM__BOUND_EL_COORD_ERR of the histograms' (libm's
- * asin(up / r), in bin units; both as binning clamps them): over every
- * elevation in steps of 1e-6 of its sine and over vectors of every size
- * and tilt, those near the vertical, below a picometre and huge among
- * them. Joint 0 sits at the origin, the others at the vectors. */
+/* The rows' elevation coordinates and cosines (mim__sc_row's, as the
+ * processor runs them) are within MIM__BOUND_EL_COORD_ERR and
+ * MIM__BOUND_COS_ERR of the histograms' (libm's asin(up / r), in bin
+ * units, both as binning clamps them; and its cos), and their azimuth
+ * coordinates within MIM__BOUND_AZ_COORD_ERR of atan2's: over every elevation in steps of
+ * 1e-6 of its sine and over vectors of every size and tilt, those near
+ * the vertical, below a picometre and huge among them. Joint 0 sits at
+ * the origin, the others at the vectors. */
 static double clamped(double f) { return f < 0 ? 0 : f > MIM__SC_EL - 1 ? MIM__SC_EL - 1 : f; }
-static double row_worst(mim__sc_coords_t *c)
+static void row_worst(mim__sc_coords_t *c, double *worst, double *worst_cos, double *worst_az)
 {
     static const float fr[MIM__JOINT_PAIRS] = {0};
     mim__sc_row_t row;
-    double worst = 0;
     mim__sc_row(c, fr, 0, &row);
     for (int j = 1; j < J; j++) {
         const double x = c->x[j], y = c->y[j], z = c->z[j], r = sqrt(x * x + y * y + z * z);
         const double el = r > 0 ? asin(y / r) : 0.0, exact = (el + M_PI / 2) / M_PI * MIM__SC_EL - 0.5;
-        worst = fmax(worst, fabs((double)row.fe[j] - clamped(exact)));
+        *worst = fmax(*worst, fabs((double)row.fe[j] - clamped(exact)));
+        *worst_cos = fmax(*worst_cos, fabs((double)row.cosel[j] - cos(el)));
+        const double az = (atan2(z, x) + M_PI) / (2 * M_PI) * MIM__SC_AZ - 0.5, d = fabs(row.fa[j] - az);
+        *worst_az = fmax(*worst_az, fmin(d, MIM__SC_AZ - d));
     }
-    return worst;
 }
 static void test_bound_elevation(void **state)
 {
     (void)state;
     mim__sc_coords_t c;
-    double worst = 0;
+    double worst = 0, worst_cos = 0, worst_az = 0;
     mim_rng_t rng;
     mim_rng_seed(&rng, 42, 7);
     memset(&c, 0, sizeof c);
@@ -482,10 +473,13 @@ static void test_bound_elevation(void **state)
             v[0] *= size * flat, v[2] *= size * flat, v[1] *= size;
         }
         c.x[j] = v[0], c.y[j] = v[1], c.z[j] = v[2];
-        if (++j == J) worst = fmax(worst, row_worst(&c)), j = 1;
+        if (++j == J) row_worst(&c, &worst, &worst_cos, &worst_az), j = 1;
     }
-    print_message("the rows' elevation coordinates: at most %.3g bins from asin's\n", worst);
+    print_message("the rows' elevation coordinates: at most %.3g bins from asin's, cosines %.3g from cos, azimuths %.3g from atan2's\n",
+                  worst, worst_cos, worst_az);
     assert_true(worst <= MIM__BOUND_EL_COORD_ERR);
+    assert_true(worst_cos <= MIM__BOUND_COS_ERR);
+    assert_true(worst_az <= MIM__BOUND_AZ_COORD_ERR);
     /* the poles and the horizontal exactly; a joint on joint 0 gives elevation 0 */
     const double up[4] = {1, -2, 0, 0}, side[4] = {0, 0, 1, 0}, want[4] = {3, 0, 1.5, 1.5};
     static const float fr[MIM__JOINT_PAIRS] = {0};
@@ -535,9 +529,12 @@ static void test_bound_azimuth(void **state)
         for (int i = 0; i < J; i++) {
             mim__sc_row_t row;
             mim__sc_row(&c, fr, i, &row);
-            mim__sc_row_histogram(&row, i, h);
+            mim__sc_row_histogram(&row, h);
             double l1 = 0;
-            for (int b = 0; b < MIM_SC_BINS; b++) l1 += fabs((double)h[b] - s[j].sc[i][b]);
+            for (int r = 0; r < MIM__SC_R; r++)
+                for (int a = 0; a < MIM__SC_AZ; a++)
+                    for (int e = 0; e < MIM__SC_EL; e++)
+                        l1 += fabs((double)h[MIM__SC_WORK(r, e, a)] - s[j].sc[i][(r * MIM__SC_AZ + a) * MIM__SC_EL + e]);
             far = fmax(far, l1);
         }
     }
