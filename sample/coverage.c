@@ -4,13 +4,14 @@
  * The exhaustive scan computes D for every truth and sample. The default
  * computes it only where lower bounds (coverage_bounds.c) cannot rule the
  * sample out: the truths of a chunk bound every sample at once (a sample's
- * features read from memory once for all of them), then each takes the
- * samples in increasing bound order and stops at the first bound above
- * the nearest distance found. D_I and D_S go on bounding a sample after
- * aligning it (D_S a joint at a time), and make its distance as the scan
- * does only where no bound passes the nearest.
- * The nearest of the truth before (the truths of a take come in order) is
- * tried first. A sample that repeats an earlier one (a chain's refused
+ * features read from memory once for all of them), then each measures
+ * the samples whose bound is not above the nearest distance found: the
+ * nearest of the truth before first (the truths of a take come in
+ * order), then the few of smallest bound, then the rest in index order
+ * (their memory read in order), each against the nearest as it stands
+ * then. D_I and D_S go on bounding a sample after aligning it (D_S a
+ * joint at a time), and make its distance as the scan does only where no
+ * bound passes the nearest. A sample that repeats an earlier one (a chain's refused
  * step) is skipped: it is exactly as far, and the scan keeps the earlier.
  * A sample is passed over only when a bound, hence its distance, is above
  * a distance found, and equal distances go to the lowest index as in the
@@ -25,11 +26,13 @@
 
 #define N MIM_PAIR_JOINTS
 #define SAMPLE_CHUNK 256
+#define SEED 32
+#define AHEAD 4
 /* Consecutive truths taken at once, each trying its predecessor's nearest
- * first: up to 8, fewer for few truths (so that threads share them); never
+ * first: up to 16, fewer for few truths (so that threads share them); never
  * a matter of the threads, so that the work done is the same on any. */
-static uint32_t truth_chunk(uint32_t m) { return m >= 128 ? MIM__BOUND_TRUTHS : m >= 16 ? m / 16 : 1; }
-_Static_assert(MIM__BOUND_TRUTHS == 8, "chunks of 8 truths at most");
+static uint32_t truth_chunk(uint32_t m) { return m >= 16 * MIM__BOUND_TRUTHS ? MIM__BOUND_TRUTHS : m >= 16 ? m / 16 : 1; }
+_Static_assert(MIM__BOUND_TRUTHS == 16, "chunks of 16 truths at most");
 
 typedef struct job {
     const mim_pair_prep_t *truth, *samples;
@@ -120,35 +123,17 @@ static uint64_t key(float lb, uint32_t j)
     return (uint64_t)u << 32 | j;
 }
 
-/* A key's bound (NaN made -inf), read from the key: the heap's top is at
- * hand, its bound in a 400 KB array may not be. */
-static float key_bound(uint64_t k)
-{
-    uint32_t u = (uint32_t)(k >> 32);
-    u = (u & 0x80000000u) ? u & 0x7fffffffu : ~u;
-    float lb;
-    memcpy(&lb, &u, sizeof lb);
-    return lb;
-}
-
-static void sift_down(uint64_t *h, uint32_t n, uint32_t i)
+/* A heap of keys with the largest on top. */
+static void sift_down_max(uint64_t *h, uint32_t n, uint32_t i)
 {
     for (;;) {
         uint32_t c = 2 * i + 1;
         if (c >= n) return;
-        if (c + 1 < n && h[c + 1] < h[c]) c++;
-        if (h[i] <= h[c]) return;
+        if (c + 1 < n && h[c + 1] > h[c]) c++;
+        if (h[i] >= h[c]) return;
         uint64_t t = h[i];
         h[i] = h[c], h[c] = t, i = c;
     }
-}
-
-static uint64_t pop(uint64_t *h, uint32_t *n)
-{
-    uint64_t top = h[0];
-    h[0] = h[--*n];
-    sift_down(h, *n, 0);
-    return top;
 }
 
 /* Keeps (d, j) when it is nearer than (best, bj), or as near with a lower
@@ -159,12 +144,13 @@ static void keep(double d, uint32_t j, double *best, uint32_t *bj)
 }
 
 /* A worker's room: the first bounds of every sample for each truth of a
- * chunk, the heap of those that may still be nearest, the truths'
- * features and slack. */
+ * chunk, those a truth may measure, the truths' features and slack. */
 typedef struct room {
     float *lb, *fa;
     double slack[MIM__BOUND_TRUTHS];
-    uint64_t *heap;
+    uint32_t *cand;       /* the samples a truth may measure */
+    uint8_t *seen;        /* k: 1 for the seeds, while a truth is measured */
+    uint64_t seed[SEED]; /* the keys of the seeds */
     mim__shape_truth_t shape_a;
     mim__centred_t centred_a;
 } room_t;
@@ -203,15 +189,38 @@ static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t t, uint32_t hint
     if (shape) mim__shape_truth(a, &rm->shape_a);
     if (shape || ic) mim__align_centre(a->joints, &rm->centred_a);
     if (hint < jb->k) keep(mim_sample_distance(a, &jb->samples[hint], jb->metric), hint, best, bj), (*nd)++;
-    uint32_t n = 0;
+    /* the samples that may be nearer than the hint, in index order; the
+     * SEED of smallest bound first, in increasing order (a heap of them),
+     * so that best falls near its end; then the rest in index order, each
+     * against best as it stands then: their memory read in order */
+    uint32_t n = 0, seeds = 0;
     for (uint32_t j = 0; j < jb->k; j++)
-        if (!jb->repeat[j] && j != hint && !(lb[j] > *best)) rm->heap[n++] = key(lb[j], j);
-    for (uint32_t h = n / 2; h-- > 0;) sift_down(rm->heap, n, h);
-    while (n) {
-        const uint32_t j = (uint32_t)rm->heap[0];
-        if (key_bound(rm->heap[0]) > *best) break;
-        pop(rm->heap, &n);
-        if (n) prefetch(jb, (uint32_t)rm->heap[0]); /* the next sample's, while this one is measured */
+        if (!jb->repeat[j] && j != hint && !(lb[j] > *best)) {
+            rm->cand[n++] = j;
+            const uint64_t kj = key(lb[j], j);
+            if (seeds < SEED) {
+                rm->seed[seeds++] = kj;
+                for (uint32_t c = seeds - 1; c > 0 && rm->seed[(c - 1) / 2] < rm->seed[c]; c = (c - 1) / 2) {
+                    const uint64_t up = rm->seed[(c - 1) / 2];
+                    rm->seed[(c - 1) / 2] = rm->seed[c], rm->seed[c] = up;
+                }
+            } else if (kj < rm->seed[0]) {
+                rm->seed[0] = kj;
+                sift_down_max(rm->seed, seeds, 0);
+            }
+        }
+    for (uint32_t e = seeds; e > 1; e--) { /* the heap sorted in place, increasing */
+        const uint64_t top = rm->seed[0];
+        rm->seed[0] = rm->seed[e - 1], rm->seed[e - 1] = top;
+        sift_down_max(rm->seed, e - 1, 0);
+    }
+    for (uint32_t s = 0; s < seeds; s++) rm->seen[(uint32_t)rm->seed[s]] = 1;
+    for (uint32_t at = 0; at < seeds + n; at++) {
+        const uint32_t j = at < seeds ? (uint32_t)rm->seed[at] : rm->cand[at - seeds];
+        if ((at >= seeds && rm->seen[j]) || lb[j] > *best) continue;
+        /* a sample's a few ahead, while this one is measured */
+        if (at + AHEAD >= seeds && at + AHEAD - seeds < n && !(lb[rm->cand[at + AHEAD - seeds]] > *best))
+            prefetch(jb, rm->cand[at + AHEAD - seeds]);
         const mim_pair_prep_t *b = &jb->samples[j];
         if (shape || ic) {
             int exact;
@@ -228,6 +237,7 @@ static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t t, uint32_t hint
         }
         keep(mim_sample_distance(a, b, jb->metric), j, best, bj), (*nd)++;
     }
+    for (uint32_t s = 0; s < seeds; s++) rm->seen[(uint32_t)rm->seed[s]] = 0;
 }
 
 static void truths(void *ctx, uint32_t worker)
@@ -237,8 +247,8 @@ static void truths(void *ctx, uint32_t worker)
     if (!j->exhaustive) {
         rm.lb = malloc((size_t)MIM__BOUND_TRUTHS * j->k * sizeof *rm.lb);
         rm.fa = malloc((size_t)MIM__BOUND_TRUTHS * j->stride * sizeof *rm.fa);
-        rm.heap = malloc((size_t)j->k * sizeof *rm.heap);
-        if (!rm.lb || !rm.fa || !rm.heap) goto out; /* the others take this worker's share */
+        rm.cand = malloc((size_t)j->k * sizeof *rm.cand), rm.seen = calloc(j->k, 1);
+        if (!rm.lb || !rm.fa || !rm.cand || !rm.seen) goto out; /* the others take this worker's share */
     }
     uint64_t nd = 0, na = 0, nc = 0;
     const uint32_t chunk = truth_chunk(j->m);
@@ -260,7 +270,7 @@ static void truths(void *ctx, uint32_t worker)
     }
     atomic_fetch_add(&j->distances, nd), atomic_fetch_add(&j->aligned, na), atomic_fetch_add(&j->cut, nc);
 out:
-    free(rm.lb), free(rm.fa), free(rm.heap);
+    free(rm.lb), free(rm.fa), free(rm.cand), free(rm.seen);
 }
 
 int mim_sample_coverage(const mim_pair_prep_t *truth, uint32_t m, const mim_pair_prep_t *samples, uint32_t k,

@@ -153,7 +153,7 @@ double mim__bound_slack(mim_sample_metric_t metric, const mim_pair_prep_t *p);
  * k samples' features fb (k x stride) against n truths' fa (n x dim, n up
  * to MIM__BOUND_TRUTHS); slack[t]: a_t's mim__bound_slack plus the
  * samples' largest. */
-#define MIM__BOUND_TRUTHS 8
+#define MIM__BOUND_TRUTHS 16
 void mim__bound_lower(mim_sample_metric_t metric, const float *fa, uint32_t n, const float *fb, uint32_t k,
                       const double *slack, float *lb);
 /* What D_S's aligned bound takes from truth a, made once a truth: its

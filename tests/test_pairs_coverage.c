@@ -155,14 +155,15 @@ static void test_bounds_below_distances(void **state)
                 if (!(lb[j] <= d)) fail_msg("metric %d, truth %u, sample %u: bound %.17g above %.17g", metric, i, j, lb[j], d);
                 ratio += d > 0 ? fmax(lb[j], 0) / d / (M * K) : 0;
                 if (mt != MIM_METRIC_SHAPE) continue;
-                /* the second bound (any best below it returns it), bounds
-                 * part-way (best just below d) and the distance itself */
+                /* the aligned bound after one joint (any best below it
+                 * returns it), bounds part-way (best just below d) and the
+                 * distance itself */
                 const float *f = fb + (size_t)j * stride;
                 mim__centred_t sb;
                 mim__align_centre(s[j].joints, &sb);
                 int exact;
                 const double lb2 = mim__shape_distance_within(&g[i], &ga, &ta, sb.p, f, slack, -1.0, &exact);
-                if (exact || !(lb2 <= d)) fail_msg("D_S, truth %u, sample %u: second bound %.17g above %.17g", i, j, lb2, d);
+                if (exact || !(lb2 <= d)) fail_msg("D_S, truth %u, sample %u: aligned bound %.17g above %.17g", i, j, lb2, d);
                 ratio2 += d > 0 ? fmax(lb2, 0) / d / (M * K) : 0;
                 const double part =
                     mim__shape_distance_within(&g[i], &ga, &ta, sb.p, f, slack, lb2 + 0.9 * (d - lb2), &exact);
@@ -172,7 +173,7 @@ static void test_bounds_below_distances(void **state)
             }
         }
         /* and they bound something */
-        print_message("metric %d: bound / distance %.3f on average (D_S's second %.3f)\n", metric, ratio, ratio2);
+        print_message("metric %d: bound / distance %.3f on average (D_S's aligned, one joint made, %.3f)\n", metric, ratio, ratio2);
         assert_true(ratio > 0.1);
         if (mt == MIM_METRIC_SHAPE) assert_true(ratio2 > ratio);
         free(fb), free(fa), free(lbs);
@@ -490,10 +491,10 @@ static void test_bound_elevation(void **state)
     for (int k = 0; k < 4; k++) assert_true(row.fe[k + 1] == want[k]);
 }
 
-/* The third bound's azimuths within MIM__BOUND_AZ_COORD_ERR bins of
+/* The aligned bound's azimuths within MIM__BOUND_AZ_COORD_ERR bins of
  * atan2's (circularly), over every direction in steps of 1e-6 turns and
  * vectors of every size, nearly vertical ones (tiny x and z) among them;
- * and its whole histograms near the scan's for the pose-pairs of a set. */
+ * and its histograms near the scan's for the pose-pairs of a set. */
 static void test_bound_azimuth(void **state)
 {
     (void)state;
@@ -538,7 +539,7 @@ static void test_bound_azimuth(void **state)
             far = fmax(far, l1);
         }
     }
-    print_message("the third bound's histograms: at most %.3g (L1) from the scan's\n", far);
+    print_message("the aligned bound's histograms: at most %.3g (L1) from the scan's\n", far);
     assert_true(far < 1e-4);
     free(g), free(s);
 }
