@@ -237,7 +237,8 @@ void mim__bound_lower(mim_sample_metric_t metric, const float *fa, uint32_t n, c
  * itself: all within REL, and 2 epsilons of the largest |d|. */
 MIM__VECTOR_CLONES static float ic_aligned(const double *a, const double *bb, const float *wa, const float *wb, float *dmax)
 {
-    float x[N], y[N], z[N], len[I_HALF] = {0}, big = 0;
+    float x[N], y[N], z[N], len[I_HALF], big = 0;
+    for (int k = PAIRS; k < I_HALF; k++) len[k] = 0; /* the padding (the pairs all set below) */
     for (int i = 0; i < N; i++) {
         x[i] = (float)(a[3 * i] - bb[3 * i]), y[i] = (float)(a[3 * i + 1] - bb[3 * i + 1]);
         z[i] = (float)(a[3 * i + 2] - bb[3 * i + 2]);
