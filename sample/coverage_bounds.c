@@ -63,7 +63,9 @@
 #define C_DIM PAD(N)
 #define I_HALF PAD(PAIRS)
 #define L_N (2 * MIM_LIMB_COUNT)
-#define L_DIM PAD(L_N)
+#define L_HALF PAD(MIM_LIMB_COUNT) /* a person's limb joints, then 0s */
+_Static_assert((L_HALF & (L_HALF - 1)) == 0, "x ^ L_HALF swaps the halves");
+#define L_DIM (2 * L_HALF)
 #define S_DIM MIM__SC_RADIAL
 
 #define REL 1e-4
@@ -102,12 +104,18 @@ static void centroid_distances_n(const double *p, int n, float *f)
 
 static void centroid_distances(const double *p, float *f) { centroid_distances_n(p, N, f); }
 
-/* LIMBS: the 24 limb joints' distances from their own centroid */
+/* LIMBS: the 24 limb joints' distances from their own centroid, each
+ * person's 12 in a half of L_DIM (so that the people swapped are the
+ * halves swapped, whole lanes; the padding 0) */
 static void limb_distances(const double *p, float *f)
 {
     double l[3 * L_N];
+    float r[L_N];
     mim__limb_joints(p, 0, l);
-    centroid_distances_n(l, L_N, f);
+    centroid_distances_n(l, L_N, r);
+    memset(f, 0, L_DIM * sizeof *f);
+    for (int person = 0; person < 2; person++)
+        memcpy(f + person * L_HALF, r + person * MIM_LIMB_COUNT, MIM_LIMB_COUNT * sizeof *f);
 }
 
 /* Lengths of the 561 joint pairs, then each pair's share of eq. 8's
@@ -150,11 +158,11 @@ void mim__bound_features(mim_sample_metric_t metric, const mim_pair_prep_t *p, i
 double mim__bound_slack(mim_sample_metric_t metric, const mim_pair_prep_t *p)
 {
     double far = 0, size = 0, mean = 0, len[PAIRS];
-    float r[C_DIM];
+    float r[C_DIM > L_DIM ? C_DIM : L_DIM];
     for (int i = 0; i < 3 * N; i++) far = fmax(far, fabs(p->joints[i]));
     if (metric == MIM_METRIC_LIMBS) limb_distances(p->joints, r);
     else centroid_distances(p->joints, r);
-    for (int i = 0; i < (metric == MIM_METRIC_LIMBS ? L_N : N); i++) size = fmax(size, r[i]);
+    for (int i = 0; i < (metric == MIM_METRIC_LIMBS ? L_DIM : N); i++) size = fmax(size, r[i]);
     if (metric != MIM_METRIC_SHAPE) return LEN_SLACK * 2 * size + FAR_SLACK * far;
     mim__pair_distances(p->joints, len);
     for (int k = 0; k < PAIRS; k++) mean += len[k] / PAIRS;
@@ -196,9 +204,9 @@ static inline float first_bound(mim_sample_metric_t metric, const float *fa, con
         float swapped[LANES] = {0};
         for (uint32_t i = 0; i < L_DIM; i += LANES)
             for (int l = 0; l < LANES; l++) {
-                const uint32_t x = i + (uint32_t)l, y = (x + MIM_LIMB_COUNT) % L_N;
+                const uint32_t x = i + (uint32_t)l;
                 acc[l] += fabsf(fa[x] - b[x]);
-                swapped[l] += fabsf(fa[x] - b[y]);
+                swapped[l] += fabsf(fa[x] - b[x ^ L_HALF]);
             }
         return fminf(lanes_sum(acc), lanes_sum(swapped)) / L_N;
     }
