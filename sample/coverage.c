@@ -123,7 +123,8 @@ static uint64_t key(float lb, uint32_t j)
     return (uint64_t)u << 32 | j;
 }
 
-/* A heap of keys with the largest on top. */
+/* The seeds: the SEED smallest keys met, in a heap with the largest on
+ * top while they are gathered, then sorted in place, increasing. */
 static void sift_down_max(uint64_t *h, uint32_t n, uint32_t i)
 {
     for (;;) {
@@ -133,6 +134,29 @@ static void sift_down_max(uint64_t *h, uint32_t n, uint32_t i)
         if (h[i] >= h[c]) return;
         uint64_t t = h[i];
         h[i] = h[c], h[c] = t, i = c;
+    }
+}
+
+static void seeds_keep(uint64_t *h, uint32_t *n, uint64_t k)
+{
+    if (*n < SEED) {
+        uint32_t c = (*n)++;
+        for (h[c] = k; c > 0 && h[(c - 1) / 2] < h[c]; c = (c - 1) / 2) {
+            const uint64_t up = h[(c - 1) / 2];
+            h[(c - 1) / 2] = h[c], h[c] = up;
+        }
+    } else if (k < h[0]) {
+        h[0] = k;
+        sift_down_max(h, *n, 0);
+    }
+}
+
+static void seeds_sort(uint64_t *h, uint32_t n)
+{
+    for (uint32_t e = n; e > 1; e--) {
+        const uint64_t top = h[0];
+        h[0] = h[e - 1], h[e - 1] = top;
+        sift_down_max(h, e - 1, 0);
     }
 }
 
@@ -195,25 +219,8 @@ static void nearest(job_t *jb, room_t *rm, uint32_t i, uint32_t t, uint32_t hint
      * against best as it stands then: their memory read in order */
     uint32_t n = 0, seeds = 0;
     for (uint32_t j = 0; j < jb->k; j++)
-        if (!jb->repeat[j] && j != hint && !(lb[j] > *best)) {
-            rm->cand[n++] = j;
-            const uint64_t kj = key(lb[j], j);
-            if (seeds < SEED) {
-                rm->seed[seeds++] = kj;
-                for (uint32_t c = seeds - 1; c > 0 && rm->seed[(c - 1) / 2] < rm->seed[c]; c = (c - 1) / 2) {
-                    const uint64_t up = rm->seed[(c - 1) / 2];
-                    rm->seed[(c - 1) / 2] = rm->seed[c], rm->seed[c] = up;
-                }
-            } else if (kj < rm->seed[0]) {
-                rm->seed[0] = kj;
-                sift_down_max(rm->seed, seeds, 0);
-            }
-        }
-    for (uint32_t e = seeds; e > 1; e--) { /* the heap sorted in place, increasing */
-        const uint64_t top = rm->seed[0];
-        rm->seed[0] = rm->seed[e - 1], rm->seed[e - 1] = top;
-        sift_down_max(rm->seed, e - 1, 0);
-    }
+        if (!jb->repeat[j] && j != hint && !(lb[j] > *best)) rm->cand[n++] = j, seeds_keep(rm->seed, &seeds, key(lb[j], j));
+    seeds_sort(rm->seed, seeds);
     for (uint32_t s = 0; s < seeds; s++) rm->seen[(uint32_t)rm->seed[s]] = 1;
     for (uint32_t at = 0; at < seeds + n; at++) {
         const uint32_t j = at < seeds ? (uint32_t)rm->seed[at] : rm->cand[at - seeds];

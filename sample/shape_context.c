@@ -204,14 +204,12 @@ MIM__VECTOR_CLONES static void make_row(const mim__sc_coords_t *c, const float *
         if (!(m > 0 && !(m >= ROW_TINY && m <= ROW_HUGE))) continue;
         lane_angles((float)(x / m), (float)(y / m), (float)(z / m), &w->fe[j], &w->fa[j], &w->cosel[j]);
     }
-    /* the radial coordinates: pair (i, j) of the 561 for j > i, (j, i) for
-     * j < i (mim__pair_index's, made in lanes: the loads gathered); none
-     * for j = i and the padding (-2 is in no bin) */
-    for (int j = 0; j < ROW; j++) {
-        const int lo = j < i ? j : i, hi = j < i ? i : j, counted = j != i && j < N;
-        const int k = counted ? ((lo * (2 * N - lo - 1)) >> 1) + hi - lo - 1 : 0;
-        w->fr[j] = counted ? fr[k] : -2.0f;
-    }
+    /* the radial coordinates: pair (i, j) of the 561 for j > i (in a run),
+     * (j, i) for j < i; none for j = i and the padding (-2 is in no bin) */
+    for (int j = 0; j < i; j++) w->fr[j] = fr[mim__pair_index(j, i)];
+    w->fr[i] = -2.0f;
+    if (i + 1 < N) memcpy(w->fr + i + 1, fr + mim__pair_index(i, i + 1), (size_t)(N - 1 - i) * sizeof *fr);
+    for (int j = N; j < ROW; j++) w->fr[j] = -2.0f;
 }
 
 void mim__sc_row(const mim__sc_coords_t *c, const float *fr, int i, mim__sc_row_t *w) { make_row(c, fr, i, w); }
