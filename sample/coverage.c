@@ -40,7 +40,7 @@ typedef struct job {
     mim_sample_metric_t metric;
     int exhaustive;
     float *feat;     /* k x stride: the samples' bound features */
-    double *joints;  /* k x 3 x 34: the samples' joints less their centroid (mim__align_centre), packed */
+    double *joints;  /* k x 3 x 34, for D_I and D_S: the samples' joints less their centroid (mim__align_centre), packed */
     uint8_t *repeat; /* k: 1 when an earlier sample is the same pose-pair */
     uint64_t *hash;  /* k: of each sample's joints, to find the repeats */
     double *slack;   /* per worker, then [0]: the samples' largest mim__bound_slack */
@@ -69,9 +69,11 @@ static void features(void *ctx, uint32_t worker)
     for (uint32_t s; (s = atomic_fetch_add(&j->next, SAMPLE_CHUNK)) < j->k;)
         for (uint32_t i = s; i < s + SAMPLE_CHUNK && i < j->k; i++) {
             mim__bound_features(j->metric, &j->samples[i], 0, j->feat + (size_t)i * j->stride);
-            mim__centred_t c;
-            mim__align_centre(j->samples[i].joints, &c);
-            memcpy(j->joints + (size_t)i * 3 * N, c.p, sizeof c.p);
+            if (j->joints) {
+                mim__centred_t c;
+                mim__align_centre(j->samples[i].joints, &c);
+                memcpy(j->joints + (size_t)i * 3 * N, c.p, sizeof c.p);
+            }
             slack = fmax(slack, mim__bound_slack(j->metric, &j->samples[i]));
             j->hash[i] = joints_hash(&j->samples[i]);
         }
@@ -180,16 +182,19 @@ typedef struct room {
 } room_t;
 
 /* What measuring sample j reads: its joints, and for D_I and D_S (which
- * take them packed) its features (D_I's weights, not its lengths). */
+ * take them packed) its features (D_I's weights, not its lengths). Asked
+ * for with low locality (prefetcht2 on x86): 8 % faster for D_I and D_S
+ * than into the first-level cache, where the 49 lines a sample of D_I
+ * needs compete with those in use (bench/RESULTS.md). */
 static void prefetch(const job_t *jb, uint32_t j)
 {
     const int aligned = jb->metric == MIM_METRIC_IC || jb->metric == MIM_METRIC_SHAPE;
     const char *p = (const char *)(aligned ? jb->joints + (size_t)j * 3 * N : jb->samples[j].joints);
-    for (size_t o = 0; o < 3 * N * sizeof(double); o += 64) __builtin_prefetch(p + o);
+    for (size_t o = 0; o < 3 * N * sizeof(double); o += 64) __builtin_prefetch(p + o, 0, 1);
     if (!aligned) return;
     const uint32_t from = jb->metric == MIM_METRIC_IC ? mim__bound_dim(jb->metric) / 2 : 0;
     const char *f = (const char *)(jb->feat + (size_t)j * jb->stride + from);
-    for (size_t o = 0; o < (jb->stride - from) * sizeof(float); o += 64) __builtin_prefetch(f + o);
+    for (size_t o = 0; o < (jb->stride - from) * sizeof(float); o += 64) __builtin_prefetch(f + o, 0, 1);
 }
 
 /* The nearest sample to truth i, the t-th of its chunk (its first bounds
@@ -307,10 +312,11 @@ int mim_sample_coverage(const mim_pair_prep_t *truth, uint32_t m, const mim_pair
     if (!j.exhaustive) {
         j.feat = malloc((size_t)k * j.stride * sizeof *j.feat);
         j.repeat = calloc(k, 1), j.hash = malloc((size_t)k * sizeof *j.hash);
-        j.joints = malloc((size_t)k * 3 * N * sizeof *j.joints);
+        if (metric == MIM_METRIC_IC || metric == MIM_METRIC_SHAPE) j.joints = malloc((size_t)k * 3 * N * sizeof *j.joints);
     }
     int rc = 0;
-    if (!j.nearest || !j.which || !j.slack || (!j.exhaustive && (!j.feat || !j.repeat || !j.hash || !j.joints))) {
+    if (!j.nearest || !j.which || !j.slack ||
+        (!j.exhaustive && (!j.feat || !j.repeat || !j.hash || (!j.joints && (metric == MIM_METRIC_IC || metric == MIM_METRIC_SHAPE))))) {
         rc = mim_error_set(err, MIM_ENOMEM, "coverage: out of memory for %u truths and %u samples", m, k);
         goto done;
     }

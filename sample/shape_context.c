@@ -187,7 +187,7 @@ static inline void lane_angles(float dx, float dy, float dz, float *fe, float *f
 #define ROW_TINY 1e-12
 #define ROW_HUGE 1e15
 
-MIM__VECTOR_CLONES static void make_row(const mim__sc_coords_t *c, const float *fr, int i, mim__sc_row_t *w)
+MIM__WIDE_CLONES static void make_row(const mim__sc_coords_t *c, const float *fr, int i, mim__sc_row_t *w)
 {
     int rescale = 0;
     for (int j = 0; j < ROW; j++) {
@@ -240,7 +240,9 @@ MIM__VECTOR_CLONES static void row_histogram(const mim__sc_row_t *w, float h[MIM
         at[j] = r0 * SC_EL + e0;
     }
     v8f acc[2][SC_R * SC_EL];
-    memset(acc, 0, sizeof acc);
+    /* zeroed a vector at a time (memset's string store costs more here) */
+#pragma GCC unroll 20
+    for (int b = 0; b < SC_R * SC_EL; b++) acc[0][b] = acc[1][b] = (v8f){0};
     const v8f az = {0, 1, 2, 3, 4, 5, 6, 7};
     for (int j = 0; j < N; j++) {
         const float c = w->cosel[j];
