@@ -189,18 +189,20 @@ static int coverage(int argc, char **argv)
         fprintf(stderr, "mimic pairs coverage: %s: sample %u: %s\n", samples_path, bad + 1, mim_error_text(&err));
         goto done;
     }
+    /* the measures in one pass: D_I and D_S share the samples they align */
     double cov[4];
-    for (int k = 0; k < 4; k++) {
-        if (!want[k]) continue;
-        mim_progress_t pr = {.fn = mim_cli_progress};
-        const mim_sample_coverage_options_t o = {.threads = (uint32_t)threads, .progress = &pr};
-        mim_sample_coverage_t res = {0};
-        if (mim_sample_coverage(g, m, sp, smp.n, (mim_sample_metric_t)k, &o, &res, &err)) {
-            fprintf(stderr, "mimic pairs coverage: %s\n", mim_error_text(&err));
-            goto done;
-        }
-        cov[k] = res.coverage;
+    mim_sample_metric_t asked[4];
+    mim_sample_coverage_t res[4] = {{0}};
+    uint32_t n_asked = 0;
+    for (int k = 0; k < 4; k++)
+        if (want[k]) asked[n_asked++] = (mim_sample_metric_t)k;
+    mim_progress_t pr = {.fn = mim_cli_progress};
+    const mim_sample_coverage_options_t o = {.threads = (uint32_t)threads, .progress = &pr};
+    if (mim_sample_coverage_many(g, m, sp, smp.n, asked, n_asked, &o, res, &err)) {
+        fprintf(stderr, "mimic pairs coverage: %s\n", mim_error_text(&err));
+        goto done;
     }
+    for (uint32_t q = 0; q < n_asked; q++) cov[asked[q]] = res[q].coverage;
     if (as_json) {
         json_t *j = json_pack("{s:I, s:I}", "truth", (json_int_t)m, "samples", (json_int_t)smp.n);
         for (int k = 0; k < 4 && j; k++)

@@ -292,11 +292,9 @@ MIM__VECTOR_CLONES static float ic_aligned(const double *a, const double *bb, co
     return lanes_sum(acc);
 }
 
-double mim__ic_distance_within(const mim_pair_prep_t *a, const mim__centred_t *ac, const float *fa, const mim_pair_prep_t *b,
-                               const double *bc, const float *fb, double slack, double best, int *exact)
+double mim__ic_distance_aligned(const mim_pair_prep_t *a, const float *fa, const mim_pair_prep_t *b, const double *bb,
+                                const float *fb, double slack, double best, int *exact)
 {
-    double bb[3 * N];
-    mim__align_centred(ac, bc, bb);
     float dmax;
     const double sum = ic_aligned(a->joints, bb, fa + I_HALF, fb + I_HALF, &dmax);
     const double lower = sum * (1 - REL) - 2 * FLT_EPSILON * dmax - LEN_SLACK - slack;
@@ -381,12 +379,11 @@ void mim__shape_truth(const mim_pair_prep_t *a, mim__shape_truth_t *ta)
     for (int i = 0; i < N; i++) ta->gain[i] = 1.0, ta->order[i] = i; /* above any gain: each joint tried */
 }
 
-double mim__shape_distance_within(const mim_pair_prep_t *a, const mim__centred_t *ac, mim__shape_truth_t *ta, const double *bc,
-                                  const float *fb, double slack, double best, int *exact)
+double mim__shape_distance_aligned(const mim_pair_prep_t *a, mim__shape_truth_t *ta, const double *bb, const float *fb,
+                                   double slack, double best, int *exact)
 {
-    double bb[3 * N], terms[N][MIM_SC_BINS];
+    double terms[N][MIM_SC_BINS];
     mim__sc_coords_t c;
-    mim__align_centred(ac, bc, bb);
     mim__sc_coords(bb, &c);
     const double lower = shape_aligned_bound(ta, &c, fb, slack, best);
     if (lower > best) {

@@ -178,20 +178,20 @@ typedef struct mim__shape_truth {
     int order[MIM_PAIR_JOINTS];
 } mim__shape_truth_t;
 void mim__shape_truth(const mim_pair_prep_t *a, mim__shape_truth_t *ta);
-/* D_S of sample b (its joints less their centroid bc, mim__align_centre;
- * its features fb) against truth a (ac: a's, centred), as
+/* D_S of sample b against truth a, b aligned onto a (bb: from
+ * mim__align_centred, as mim_sample_align makes it; fb: b's features), as
  * mim_sample_distance gives it, to the bit (*exact 1); or a lower bound of
- * it above best (*exact 0) as soon as one turns up: once b is aligned,
- * the joints' histograms in floats a joint at a time, with their first
- * bound's terms for the joints not yet made; the scan's histograms only
- * where no bound passes best. */
-double mim__shape_distance_within(const mim_pair_prep_t *a, const mim__centred_t *ac, mim__shape_truth_t *ta, const double *bc,
-                                  const float *fb, double slack, double best, int *exact);
-/* D_I of sample b (bc and fb as above) against truth a (ac as above, fa),
- * as mim_sample_distance gives it, to the bit (*exact 1), or a lower bound
- * of it above best (*exact 0): once b is aligned, eq. 8 in floats. */
-double mim__ic_distance_within(const mim_pair_prep_t *a, const mim__centred_t *ac, const float *fa, const mim_pair_prep_t *b,
-                               const double *bc, const float *fb, double slack, double best, int *exact);
+ * it above best (*exact 0) as soon as one turns up: the joints'
+ * histograms in floats a joint at a time, with their first bound's terms
+ * for the joints not yet made; the scan's histograms only where no bound
+ * passes best. One alignment serves D_I and D_S. */
+double mim__shape_distance_aligned(const mim_pair_prep_t *a, mim__shape_truth_t *ta, const double *bb, const float *fb,
+                                   double slack, double best, int *exact);
+/* D_I of sample b (bb and fb as above) against truth a (fa: its
+ * features), as mim_sample_distance gives it, to the bit (*exact 1), or a
+ * lower bound of it above best (*exact 0): eq. 8 in floats. */
+double mim__ic_distance_aligned(const mim_pair_prep_t *a, const float *fa, const mim_pair_prep_t *b, const double *bb,
+                                const float *fb, double slack, double best, int *exact);
 /* The chi-squared cost between shape contexts (Belongie et al.), the mean
  * over n joints of 0.5 sum (a - b)^2 / (a + b) over their bins: D_S in 3D
  * and the shape density's distance in 2D. */

@@ -94,6 +94,37 @@ static void make_sets(uint64_t seed, uint32_t m, uint32_t k, mim_pair_prep_t **g
     free(tj), free(sj);
 }
 
+/* Samples the first bounds cannot tell apart: for each of m truths, 40
+ * mirror images turned at random (every joint distance the truth's: first
+ * bounds near 0, distances far), then one copy with each joint moved by a
+ * centimetre or so (its nearest), found past the seeds, in index order. */
+static mim_pair_prep_t *mirrored_samples(uint64_t seed, const mim_pair_prep_t *g, uint32_t m, uint32_t *k)
+{
+    enum { MIRRORS = 40 };
+    mim_rng_t r;
+    mim_rng_seed(&r, seed, 37);
+    *k = m * (MIRRORS + 1);
+    double *sj = malloc((size_t)*k * 3 * J * sizeof *sj);
+    assert_non_null(sj);
+    for (uint32_t i = 0; i < m; i++) {
+        double *p = sj + (size_t)i * (MIRRORS + 1) * 3 * J;
+        for (int c = 0; c < MIRRORS; c++, p += 3 * J) {
+            memcpy(p, g[i].joints, 3 * J * sizeof *p);
+            for (int j = 0; j < J; j++) p[3 * j] = -p[3 * j];
+            const double none[3] = {0, 0, 0};
+            move(p, mim_rng_gauss(&r), mim_rng_gauss(&r), mim_rng_gauss(&r), 3.0 * mim_rng_unit(&r), 1.0, none);
+        }
+        memcpy(p, g[i].joints, 3 * J * sizeof *p);
+        for (int j = 0; j < 3 * J; j++) p[j] += 0.01 * mim_rng_gauss(&r);
+    }
+    mim_pair_prep_t *s = malloc((size_t)*k * sizeof *s);
+    assert_non_null(s);
+    mim_error_t err = {0};
+    assert_int_equal(mim_pair_prepare_many(sj, *k, 2, MIM_PREP_ALL, s, NULL, &err), 0);
+    free(sj);
+    return s;
+}
+
 /* The histograms' sums made directly from the joints are the sums of the
  * histograms, to their float rounding (the first bound's premise). */
 static void test_marginals(void **state)
@@ -161,14 +192,16 @@ static void test_bounds_below_distances(void **state)
                 const float *f = fb + (size_t)j * stride;
                 mim__centred_t sb;
                 mim__align_centre(s[j].joints, &sb);
+                double bb[3 * MIM_PAIR_JOINTS];
+                mim__align_centred(&ga, sb.p, bb);
                 int exact;
-                const double lb2 = mim__shape_distance_within(&g[i], &ga, &ta, sb.p, f, slack, -1.0, &exact);
+                const double lb2 = mim__shape_distance_aligned(&g[i], &ta, bb, f, slack, -1.0, &exact);
                 if (exact || !(lb2 <= d)) fail_msg("D_S, truth %u, sample %u: aligned bound %.17g above %.17g", i, j, lb2, d);
                 ratio2 += d > 0 ? fmax(lb2, 0) / d / (M * K) : 0;
                 const double part =
-                    mim__shape_distance_within(&g[i], &ga, &ta, sb.p, f, slack, lb2 + 0.9 * (d - lb2), &exact);
+                    mim__shape_distance_aligned(&g[i], &ta, bb, f, slack, lb2 + 0.9 * (d - lb2), &exact);
                 if (!(part <= d)) fail_msg("D_S, truth %u, sample %u: bound part-way %.17g above %.17g", i, j, part, d);
-                const double whole = mim__shape_distance_within(&g[i], &ga, &ta, sb.p, f, slack, INFINITY, &exact);
+                const double whole = mim__shape_distance_aligned(&g[i], &ta, bb, f, slack, INFINITY, &exact);
                 if (!exact || memcmp(&whole, &d, sizeof d)) fail_msg("D_S, truth %u, sample %u: %.17g, not %.17g", i, j, whole, d);
             }
         }
@@ -225,6 +258,78 @@ static void test_pruned_equals_scan(void **state)
         compare(g, 62, s, 600, MIM_METRIC_SHAPE, 1);
         free(g), free(s);
     }
+}
+
+/* Each measure's answers, alone and with the others in one pass, in any
+ * order, on 1 and 2 threads, against the scan's. */
+static void many_against_scan(const mim_pair_prep_t *g, uint32_t m, const mim_pair_prep_t *s, uint32_t k)
+{
+    mim_error_t err = {0};
+    double *scan_near = malloc(4 * (size_t)m * sizeof *scan_near), *near = malloc(4 * (size_t)m * sizeof *near);
+    uint32_t *scan_which = malloc(4 * (size_t)m * sizeof *scan_which), *which = malloc(4 * (size_t)m * sizeof *which);
+    assert_non_null(scan_near), assert_non_null(near), assert_non_null(scan_which), assert_non_null(which);
+    double scan_cov[4];
+    const mim_sample_coverage_options_t scan = {.threads = 2, .exhaustive = 1};
+    for (int q = 0; q < 4; q++) {
+        mim_sample_coverage_t ref = {.nearest = scan_near + (size_t)q * m, .which = scan_which + (size_t)q * m};
+        assert_int_equal(mim_sample_coverage(g, m, s, k, (mim_sample_metric_t)q, &scan, &ref, &err), 0);
+        scan_cov[q] = ref.coverage;
+    }
+    const mim_sample_metric_t all[4] = {MIM_METRIC_LIMBS, MIM_METRIC_SHAPE, MIM_METRIC_CARTESIAN, MIM_METRIC_IC};
+    const mim_sample_metric_t two[2] = {MIM_METRIC_SHAPE, MIM_METRIC_IC};
+    const struct {
+        const mim_sample_metric_t *metrics;
+        uint32_t n;
+    } asks[] = {{all, 4}, {two, 2}, {all + 1, 3}, {all + 3, 1}, {all + 1, 1}};
+    for (size_t a = 0; a < sizeof asks / sizeof asks[0]; a++)
+        for (uint32_t threads = 1; threads <= 2; threads++) {
+            mim_sample_coverage_t res[4];
+            for (uint32_t q = 0; q < asks[a].n; q++)
+                res[q] = (mim_sample_coverage_t){.nearest = near + (size_t)q * m, .which = which + (size_t)q * m};
+            const mim_sample_coverage_options_t o = {.threads = threads};
+            assert_int_equal(mim_sample_coverage_many(g, m, s, k, asks[a].metrics, asks[a].n, &o, res, &err), 0);
+            for (uint32_t q = 0; q < asks[a].n; q++) {
+                const int mt = (int)asks[a].metrics[q];
+                const double *n0 = scan_near + (size_t)mt * m, *n1 = near + (size_t)q * m;
+                const uint32_t *w0 = scan_which + (size_t)mt * m, *w1 = which + (size_t)q * m;
+                for (uint32_t i = 0; i < m; i++)
+                    if (memcmp(&n1[i], &n0[i], sizeof n0[i]) || w1[i] != w0[i])
+                        fail_msg("ask %zu, metric %d, %u threads, truth %u: %.17g (sample %u) against the scan's %.17g (sample %u)", a,
+                                 mt, threads, i, n1[i], w1[i], n0[i], w0[i]);
+                assert_memory_equal(&res[q].coverage, &scan_cov[mt], sizeof res[q].coverage);
+                assert_true(res[q].distances < (uint64_t)m * k);
+            }
+        }
+    free(scan_near), free(near), free(scan_which), free(which);
+}
+
+/* Several measures in one pass (D_I and D_S sharing their alignments):
+ * each answer the scan's, on the random sets and on mirror images that
+ * the first bounds cannot tell from their truths; and the measures asked
+ * for checked. */
+static void test_many_equals_scan(void **state)
+{
+    (void)state;
+    mim_pair_prep_t *g, *s;
+    make_sets(5, 62, 600, &g, &s);
+    many_against_scan(g, 62, s, 600);
+    free(s);
+    uint32_t k;
+    s = mirrored_samples(6, g, 16, &k);
+    many_against_scan(g, 16, s, k);
+    /* the measures asked for: none, too many, one twice, one of none */
+    mim_error_t err = {0};
+    mim_sample_coverage_t res[5] = {{0}};
+    const mim_sample_metric_t five[5] = {MIM_METRIC_IC, MIM_METRIC_CARTESIAN, MIM_METRIC_SHAPE, MIM_METRIC_LIMBS, MIM_METRIC_IC};
+    const mim_sample_metric_t twice[2] = {MIM_METRIC_SHAPE, MIM_METRIC_SHAPE}, none[1] = {(mim_sample_metric_t)7};
+    assert_int_equal(mim_sample_coverage_many(g, 62, s, k, five, 0, NULL, res, &err), MIM_EINVAL);
+    assert_int_equal(mim_sample_coverage_many(g, 62, s, k, five, 5, NULL, res, &err), MIM_EINVAL);
+    mim_error_clear(&err);
+    assert_int_equal(mim_sample_coverage_many(g, 62, s, k, twice, 2, NULL, res, &err), MIM_EINVAL);
+    assert_non_null(strstr(mim_error_text(&err), "twice"));
+    assert_int_equal(mim_sample_coverage_many(g, 62, s, k, none, 1, NULL, res, &err), MIM_EINVAL);
+    assert_int_equal(mim_sample_coverage_many(g, 62, s, k, NULL, 1, NULL, res, &err), MIM_EINVAL);
+    free(g), free(s);
 }
 
 /* Samples all alike: the lowest index, as the scan keeps; one sample. */
@@ -550,6 +655,7 @@ int main(void)
         cmocka_unit_test(test_marginals),
         cmocka_unit_test(test_bounds_below_distances),
         cmocka_unit_test(test_pruned_equals_scan),
+        cmocka_unit_test(test_many_equals_scan),
         cmocka_unit_test(test_ties_and_one_sample),
         cmocka_unit_test(test_limbs_brute_force),
         cmocka_unit_test(test_prepared_parts),
