@@ -387,9 +387,10 @@ int mim_sample_coverage_many(const mim_pair_prep_t *truth, uint32_t m, const mim
                              const mim_sample_metric_t *metrics, uint32_t n, const mim_sample_coverage_options_t *opt,
                              mim_sample_coverage_t *out, mim_error_t *err)
 {
-    if (!truth || !samples || !out || !metrics || !m || !k)
+    if (!truth || !samples || !out || !m || !k)
         return mim_error_set(err, MIM_EINVAL, "coverage: needs truth pose-pairs and samples (%u and %u given)", m, k);
-    if (n < 1 || n > MEASURES) return mim_error_set(err, MIM_EINVAL, "coverage: %u measures asked for (1 to 4)", n);
+    if (!metrics || n < 1 || n > MEASURES)
+        return mim_error_set(err, MIM_EINVAL, "coverage: %u measures asked for (1 to 4)", metrics ? n : 0);
     for (uint32_t q = 0; q < n; q++) {
         if ((unsigned)metrics[q] > MIM_METRIC_LIMBS) return mim_error_set(err, MIM_EINVAL, "coverage: measure %d is none of the four", (int)metrics[q]);
         for (uint32_t r = 0; r < q; r++)
