@@ -190,6 +190,22 @@ static inline float chi_lanes(const float *x, const float *y, uint32_t n)
     return lanes_sum(lane);
 }
 
+/* D_I's first bound of n samples (stride floats apart, n up to
+ * IC_BLOCK) at once, each summed alike: the truth's features are read
+ * once for all of them (the loop is bound by its reads). */
+#define IC_BLOCK 4
+static inline void ic_first_bounds(const float *fa, const float *b, uint32_t stride, int n, float *out)
+{
+    float acc[IC_BLOCK][LANES] = {{0}};
+    for (uint32_t i = 0; i < I_HALF; i += LANES)
+        for (int s = 0; s < n; s++) {
+            const float *bs = b + (size_t)s * stride;
+            for (int l = 0; l < LANES; l++)
+                acc[s][l] += (fa[I_HALF + i + l] + bs[I_HALF + i + l]) * fabsf(fa[i + l] - bs[i + l]);
+        }
+    for (int s = 0; s < n; s++) out[s] = lanes_sum(acc[s]);
+}
+
 /* One truth's first bound of one sample, before the rounding's allowance. */
 static inline float first_bound(mim_sample_metric_t metric, const float *fa, const float *b)
 {
@@ -211,25 +227,9 @@ static inline float first_bound(mim_sample_metric_t metric, const float *fa, con
         return fminf(lanes_sum(acc), lanes_sum(swapped)) / L_N;
     }
     if (metric == MIM_METRIC_SHAPE) return 0.5f * chi_lanes(fa, b, S_DIM) / N;
-    for (uint32_t i = 0; i < I_HALF; i += LANES)
-        for (int l = 0; l < LANES; l++) acc[l] += (fa[I_HALF + i + l] + b[I_HALF + i + l]) * fabsf(fa[i + l] - b[i + l]);
-    return lanes_sum(acc);
-}
-
-/* D_I's first bound of IC_BLOCK samples at once, each summed as
- * first_bound sums it: the truth's features are read once for all of
- * them (the loop is bound by its reads). */
-#define IC_BLOCK 4
-static inline void ic_first_bounds(const float *fa, const float *b, uint32_t stride, float *out)
-{
-    float acc[IC_BLOCK][LANES] = {{0}};
-    for (uint32_t i = 0; i < I_HALF; i += LANES)
-        for (int s = 0; s < IC_BLOCK; s++) {
-            const float *bs = b + (size_t)s * stride;
-            for (int l = 0; l < LANES; l++)
-                acc[s][l] += (fa[I_HALF + i + l] + bs[I_HALF + i + l]) * fabsf(fa[i + l] - bs[i + l]);
-        }
-    for (int s = 0; s < IC_BLOCK; s++) out[s] = lanes_sum(acc[s]);
+    float one;
+    ic_first_bounds(fa, b, 0, 1, &one);
+    return one;
 }
 
 /* The truths go in the inner loop: a sample's features are read from
@@ -247,7 +247,7 @@ MIM__VECTOR_CLONES static void bound_lower(mim_sample_metric_t metric, const flo
         for (; j + IC_BLOCK <= k; j += IC_BLOCK)
             for (uint32_t t = 0; t < n; t++) {
                 float first[IC_BLOCK];
-                ic_first_bounds(fa + (size_t)t * dim, fb + (size_t)j * stride, stride, first);
+                ic_first_bounds(fa + (size_t)t * dim, fb + (size_t)j * stride, stride, IC_BLOCK, first);
                 for (int s = 0; s < IC_BLOCK; s++) lb[(size_t)t * k + j + s] = first[s] * keep - less[t];
             }
     for (; j < k; j++)

@@ -317,18 +317,24 @@ static void test_many_equals_scan(void **state)
     uint32_t k;
     s = mirrored_samples(6, g, 16, &k);
     many_against_scan(g, 16, s, k);
-    /* the measures asked for: none, too many, one twice, one of none */
-    mim_error_t err = {0};
+    /* the measures asked for: none, too many, one twice, one of none, no list */
     mim_sample_coverage_t res[5] = {{0}};
     const mim_sample_metric_t five[5] = {MIM_METRIC_IC, MIM_METRIC_CARTESIAN, MIM_METRIC_SHAPE, MIM_METRIC_LIMBS, MIM_METRIC_IC};
     const mim_sample_metric_t twice[2] = {MIM_METRIC_SHAPE, MIM_METRIC_SHAPE}, none[1] = {(mim_sample_metric_t)7};
-    assert_int_equal(mim_sample_coverage_many(g, 62, s, k, five, 0, NULL, res, &err), MIM_EINVAL);
-    assert_int_equal(mim_sample_coverage_many(g, 62, s, k, five, 5, NULL, res, &err), MIM_EINVAL);
-    mim_error_clear(&err);
-    assert_int_equal(mim_sample_coverage_many(g, 62, s, k, twice, 2, NULL, res, &err), MIM_EINVAL);
-    assert_non_null(strstr(mim_error_text(&err), "twice"));
-    assert_int_equal(mim_sample_coverage_many(g, 62, s, k, none, 1, NULL, res, &err), MIM_EINVAL);
-    assert_int_equal(mim_sample_coverage_many(g, 62, s, k, NULL, 1, NULL, res, &err), MIM_EINVAL);
+    const struct {
+        const mim_sample_metric_t *metrics;
+        uint32_t n;
+        const char *says;
+    } bad[] = {{five, 0, "0 measures asked for (1 to 4)"},
+               {five, 5, "5 measures asked for (1 to 4)"},
+               {twice, 2, "measure 2 asked for twice"},
+               {none, 1, "measure 7 is none of the four"},
+               {NULL, 1, "0 measures asked for (1 to 4)"}};
+    for (size_t b = 0; b < sizeof bad / sizeof bad[0]; b++) {
+        mim_error_t err = {0};
+        assert_int_equal(mim_sample_coverage_many(g, 62, s, k, bad[b].metrics, bad[b].n, NULL, res, &err), MIM_EINVAL);
+        if (!strstr(mim_error_text(&err), bad[b].says)) fail_msg("case %zu: '%s'", b, mim_error_text(&err));
+    }
     free(g), free(s);
 }
 
