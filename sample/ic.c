@@ -1,8 +1,9 @@
 /* Interaction coordinates (seed 002, Section 4.3): the Delaunay edges of a
- * pose-pair's 34 joints, through qhull's reentrant library. The IC vectors
+ * pose-pair's 34 joints: delaunay.c's where it proves its answer (most
+ * pose-pairs in 3D), else qhull's (reentrant library). The IC vectors
  * themselves (u_ij = J_j - J_i) are taken from the joints when compared
  * (distance.c). */
-#include "mim_sample.h"
+#include "internal.h"
 
 #include <libqhull_r/qhull_ra.h>
 #include <math.h>
@@ -34,6 +35,22 @@ static void add_edge(uint8_t have[MIM_PAIR_JOINTS][MIM_PAIR_JOINTS], uint32_t a,
     have[a][b] = 1;
 }
 
+/* The edges found among the distinct joints, a merged joint taking its
+ * first's edges and one to it, sorted into out. */
+static int edges_out(uint8_t have[MIM_PAIR_JOINTS][MIM_PAIR_JOINTS], const uint32_t *rep, mim_ic_t *out)
+{
+    for (uint32_t i = 0; i < MIM_PAIR_JOINTS; i++) {
+        if (rep[i] == i) continue;
+        add_edge(have, i, rep[i]);
+        for (uint32_t j = 0; j < MIM_PAIR_JOINTS; j++)
+            if (j != i && (have[rep[i] < j ? rep[i] : j][rep[i] < j ? j : rep[i]])) add_edge(have, i, j);
+    }
+    for (uint32_t a = 0; a < MIM_PAIR_JOINTS; a++)
+        for (uint32_t b = a + 1; b < MIM_PAIR_JOINTS; b++)
+            if (have[a][b]) out->edge[out->n_edges][0] = (uint8_t)a, out->edge[out->n_edges][1] = (uint8_t)b, out->n_edges++;
+    return 0;
+}
+
 int mim__joints_finite(const double *joints, int dim, mim_error_t *err)
 {
     for (uint32_t i = 0; i < (uint32_t)dim * MIM_PAIR_JOINTS; i++)
@@ -44,7 +61,8 @@ int mim__joints_finite(const double *joints, int dim, mim_error_t *err)
     return 0;
 }
 
-int mim_ic_build(const double *joints, int dim, mim_ic_t *out, mim_error_t *err)
+/* qhull's answer, or first delaunay.c's where it proves its own (fast). */
+static int build(const double *joints, int dim, int fast, mim_ic_t *out, mim_error_t *err)
 {
     if (!joints || !out || (dim != 2 && dim != 3))
         return mim_error_set(err, MIM_EINVAL, "interaction coordinates: dimension %d (2 or 3)", dim);
@@ -68,6 +86,17 @@ int mim_ic_build(const double *joints, int dim, mim_ic_t *out, mim_error_t *err)
     coordT pts[3 * MIM_PAIR_JOINTS];
     for (uint32_t k = 0; k < n_uniq; k++)
         for (int c = 0; c < dim; c++) pts[dim * k + c] = joints[dim * uniq[k] + c];
+    uint8_t have[MIM_PAIR_JOINTS][MIM_PAIR_JOINTS];
+    memset(have, 0, sizeof have);
+    if (fast && dim == 3) {
+        uint8_t found[MIM_PAIR_JOINTS][MIM_PAIR_JOINTS] = {{0}};
+        if (!mim__delaunay3_edges(pts, n_uniq, found)) {
+            for (uint32_t a = 0; a < n_uniq; a++)
+                for (uint32_t b = a + 1; b < n_uniq; b++)
+                    if (found[a][b]) add_edge(have, uniq[a], uniq[b]);
+            return edges_out(have, rep, out);
+        }
+    }
 
     /* qhull reports into a FILE: a memory stream, so that nothing reaches
      * stderr and its reason can go into the message */
@@ -75,8 +104,6 @@ int mim_ic_build(const double *joints, int dim, mim_ic_t *out, mim_error_t *err)
     size_t msg_len = 0;
     FILE *errf = open_memstream(&msg, &msg_len);
     if (!errf) return mim_error_set(err, MIM_ENOMEM, "interaction coordinates: out of memory");
-    uint8_t have[MIM_PAIR_JOINTS][MIM_PAIR_JOINTS];
-    memset(have, 0, sizeof have);
     qhT qh_qh, *qh = &qh_qh;
     qh_zero(qh, errf);
     char flags[] = "qhull d Qt Qbb Qz";
@@ -123,15 +150,12 @@ int mim_ic_build(const double *joints, int dim, mim_ic_t *out, mim_error_t *err)
         return rc;
     }
     free(msg);
-    /* a joint merged into another takes its edges, and one to it */
-    for (uint32_t i = 0; i < MIM_PAIR_JOINTS; i++) {
-        if (rep[i] == i) continue;
-        add_edge(have, i, rep[i]);
-        for (uint32_t j = 0; j < MIM_PAIR_JOINTS; j++)
-            if (j != i && (have[rep[i] < j ? rep[i] : j][rep[i] < j ? j : rep[i]])) add_edge(have, i, j);
-    }
-    for (uint32_t a = 0; a < MIM_PAIR_JOINTS; a++)
-        for (uint32_t b = a + 1; b < MIM_PAIR_JOINTS; b++)
-            if (have[a][b]) out->edge[out->n_edges][0] = (uint8_t)a, out->edge[out->n_edges][1] = (uint8_t)b, out->n_edges++;
-    return 0;
+    return edges_out(have, rep, out);
+}
+
+int mim_ic_build(const double *joints, int dim, mim_ic_t *out, mim_error_t *err) { return build(joints, dim, 1, out, err); }
+
+int mim__ic_build_qhull(const double *joints, int dim, mim_ic_t *out, mim_error_t *err)
+{
+    return build(joints, dim, 0, out, err);
 }

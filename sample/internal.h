@@ -16,6 +16,17 @@ json_t *mim__pairs_joint_labels(void);
  * each) that is not finite (ic.c). */
 int mim__joints_finite(const double *joints, int dim, mim_error_t *err);
 
+/* The edges of the Delaunay tetrahedralisation of n (4 to 34) distinct
+ * points (3 doubles each), set in have[i][j], i < j: 0, or -1 when no
+ * margin proves the answer (qhull's to find) (delaunay.c). */
+int mim__delaunay3_edges(const double *pts, uint32_t n, uint8_t have[MIM_PAIR_JOINTS][MIM_PAIR_JOINTS]);
+/* mim_ic_build by qhull alone (ic.c): what the above must agree with. */
+int mim__ic_build_qhull(const double *joints, int dim, mim_ic_t *out, mim_error_t *err);
+
+/* A pose-pair samples line (samples_file.c) in the form mimic writes it,
+ * read without jansson: 1, or 0 for jansson to read (or refuse). */
+int mim__pairs_line_fast(const char *line, size_t n, double *joints, double *log_density);
+
 /* The joint pair (i, j), i < j, among the 561 taken row by row. */
 #define MIM__JOINT_PAIRS (MIM_PAIR_JOINTS * (MIM_PAIR_JOINTS - 1) / 2)
 static inline int mim__pair_index(int i, int j) { return i * (2 * MIM_PAIR_JOINTS - i - 1) / 2 + (j - i - 1); }

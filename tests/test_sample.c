@@ -1,5 +1,6 @@
-/* sample/ (seed 002): interaction coordinates through qhull, d_I (eq. 8),
+/* sample/ (seed 002): interaction coordinates, d_I (eq. 8),
  * the rigid alignment, D_I / D_C / D_S and coverage (eq. 13). */
+#include "internal.h"
 #include "mim_sample.h"
 
 #include "test_support.h"
@@ -471,6 +472,95 @@ static void test_samples_file(void **s)
     free(h), free(l0), free(l1), free(text);
 }
 
+/* A samples line: joint 0's three coordinates as given, the others
+ * fixed; pre/post wrap "joints": [...] (keys, spaces). */
+static void samples_line(char *buf, size_t cap, const char *pre, const char *xyz, const char *post)
+{
+    int n = snprintf(buf, cap, "%s[[%s]", pre, xyz);
+    for (int i = 1; i < MIM_PAIR_JOINTS; i++) n += snprintf(buf + n, cap - (size_t)n, ", [%d.25, -0.5, 1e-1]", i % 7);
+    snprintf(buf + n, cap - (size_t)n, "]%s", post);
+}
+
+/* jansson's reading of a line (what the fast path must match): joints and
+ * log density, or -1 when it refuses it. */
+static int jansson_line(const char *line, double *joints, double *ld)
+{
+    json_error_t je;
+    json_t *o = json_loads(line, JSON_REJECT_DUPLICATES, &je), *arr = json_object_get(o, "joints");
+    if (!o || json_array_size(arr) != MIM_PAIR_JOINTS) return json_decref(o), -1;
+    for (int i = 0; i < MIM_PAIR_JOINTS; i++)
+        for (int k = 0; k < 3; k++) joints[3 * i + k] = json_number_value(json_array_get(json_array_get(arr, (size_t)i), (size_t)k));
+    json_t *l = json_object_get(o, "log_density");
+    *ld = json_is_number(l) ? json_number_value(l) : NAN;
+    json_decref(o);
+    return 0;
+}
+
+/* The samples reader's fast path (no JSON tree) takes mimic's own lines
+ * and their JSON variants (spaces, keys in either order, integers, -0,
+ * exponents, null or no log density), each value bit for bit jansson's;
+ * it hands anything else to jansson (another key, an escaped key, a
+ * repeated key, a leading zero, a bare point, a 16-digit integer, an
+ * overflowing number, trailing bytes, a NUL), which reads it or names
+ * what is wrong as before. */
+static void test_samples_fast_lines(void **s)
+{
+    (void)s;
+    mim_rng_t r;
+    mim_rng_seed(&r, 8, 0);
+    double p[3 * MIM_PAIR_JOINTS];
+    random_pair(&r, 3, p);
+    char *own = mim_pairs_jsonl_line(p, -3.75);
+    struct { const char *pre, *xyz, *post; int fast; } cases[] = {
+        {"{\"joints\":", "0.1,0.2,0.3", ",\"log_density\":-1.5}", 1},
+        {" { \"log_density\" : null , \"joints\" :\t", " 1 , -0 , 2E2 ", " }\r", 1},
+        {"{\"joints\": ", "-0.0, 1.5e-3, 0", "}", 1},
+        {"{\"log_density\": 12, \"joints\": ", "999.999999999, -1000, 3", "}", 1},
+        {"{\"joints\": ", "0.1, 0.2, 0.3", ", \"extra\": [1, {}]}", 0},
+        {"{\"\\u006aoints\": ", "0.1, 0.2, 0.3", "}", 0},
+        {"{\"joints\": ", "0.1, 0.2, 0.3", ", \"log_density\": 1e999}", 0},
+        {"{\"joints\": ", "01, 0.2, 0.3", "}", 0},
+        {"{\"joints\": ", "1., 0.2, 0.3", "}", 0},
+        {"{\"joints\": ", "1234567890123456, 0.2, 0.3", "}", 0},
+        {"{\"joints\": ", "0.1, 0.2, 0.3", "} x", 0},
+        {"{\"joints\": [[0,0,0]], \"joints\": ", "0.1, 0.2, 0.3", "}", 0},
+    };
+    char line[4096];
+    double got[3 * MIM_PAIR_JOINTS], want[3 * MIM_PAIR_JOINTS], ld_got, ld_want;
+    assert_int_equal(mim__pairs_line_fast(own, strlen(own), got, &ld_got), 1);
+    assert_int_equal(jansson_line(own, want, &ld_want), 0);
+    assert_memory_equal(got, want, sizeof got);
+    assert_true(ld_got == ld_want);
+    for (size_t k = 0; k < sizeof cases / sizeof *cases; k++) {
+        samples_line(line, sizeof line, cases[k].pre, cases[k].xyz, cases[k].post);
+        const int fast = mim__pairs_line_fast(line, strlen(line), got, &ld_got);
+        if (fast != cases[k].fast) fail_msg("case %zu: fast path %d, wanted %d: %.80s", k, fast, cases[k].fast, line);
+        /* through the reader: as jansson reads it, or refused */
+        char *h = mim_pairs_jsonl_header(), text[8192];
+        snprintf(text, sizeof text, "%s\n%s\n", h, line);
+        free(h);
+        mim_pairs_samples_t smp;
+        mim_error_t err = {0};
+        const int rc = mim_pairs_samples_parse(text, strlen(text), "s.jsonl", &smp, &err);
+        const int ok = jansson_line(line, want, &ld_want) == 0 && fabs(want[0]) <= MIM_PLAUSIBLE_REACH_M;
+        if (ok != (rc == 0)) fail_msg("case %zu: reader %d '%s', jansson %s", k, rc, err.msg, ok ? "reads it" : "refuses");
+        if (!rc) {
+            assert_memory_equal(smp.joints, want, sizeof want); /* bits: -0 read as jansson's integer 0 */
+            assert_true(smp.log_density[0] == ld_want || (isnan(smp.log_density[0]) && isnan(ld_want)));
+            if (fast) assert_memory_equal(got, want, sizeof want);
+            mim_pairs_samples_free(&smp);
+        } else {
+            assert_true(strncmp(err.msg, "s.jsonl:2", 9) == 0);
+        }
+    }
+    /* a NUL inside the line: jansson's to refuse */
+    samples_line(line, sizeof line, "{\"joints\": ", "0.1, 0.2, 0.3", "}");
+    const size_t len = strlen(line);
+    line[5] = '\0';
+    assert_int_equal(mim__pairs_line_fast(line, len, got, &ld_got), 0);
+    free(own);
+}
+
 /* ODE's capsule depth: two crossing capsules overlap by the sum of their
  * radii less the distance between their axes; a pose-pair standing apart
  * has none; closer, more. */
@@ -597,7 +687,7 @@ int main(void)
         cmocka_unit_test(test_dI),              cmocka_unit_test(test_rigid_invariance), cmocka_unit_test(test_rigid_fit),
         cmocka_unit_test(test_coverage),
         cmocka_unit_test(test_joint_map), cmocka_unit_test(test_unit_guess),
-        cmocka_unit_test(test_samples_file), cmocka_unit_test(test_penetration),
+        cmocka_unit_test(test_samples_file), cmocka_unit_test(test_samples_fast_lines), cmocka_unit_test(test_penetration),
         cmocka_unit_test(test_views),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
