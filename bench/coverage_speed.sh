@@ -14,7 +14,9 @@
 #                     annotations (4 video cameras) every 10th from 0;
 #                     3000 samples of the ic density, seed jitter 15,0.2
 #   --paper:          also 100 000 samples of the prior density against
-#                     the same 1446 truths, end to end (minutes)
+#                     the same 1446 truths, end to end (minutes), and
+#                     their triangulations (bench_ic_build: mimic's own
+#                     Delaunay against qhull alone)
 #
 # usage: bench/coverage_speed.sh BUILD_DIR [DATA_DIR] [--paper]
 set -eu
@@ -69,6 +71,7 @@ if [ -f "$I/High_five_S1.bvh" ]; then
         -o "$W/p.jsonl" 2>/dev/null | rate)
     echo; echo "== the paper's scale: 1446 truths x 100000 prior samples (pairs sample: $r samples/s on 2 chains)"
     echo "mimic pairs coverage: $(cover 2 "${args[@]}" --every 6 --offset 3 --samples "$W/p.jsonl")"
+    "$B/bench/bench_ic_build" --samples "$W/p.jsonl" --runs 3
   fi
 else
   echo; echo "(no cmu-interactions under $D)"
