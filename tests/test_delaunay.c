@@ -32,7 +32,8 @@ static int check_against_qhull(const double *p, const char *what, int i)
  * coordinate), and clouds of 34 uniform points: qhull's edges every time.
  * The pose-pairs as they are hold ties (the people mirror each other and
  * stand on one floor): there delaunay.c declines and qhull decides. With
- * noise, as real captures, and in the clouds, delaunay.c answers nearly
+ * noise, as real captures, and in the clouds (0.1 mm to 10 km across,
+ * as far from the origin as they are wide), delaunay.c answers nearly
  * every time itself. */
 static void test_agrees_with_qhull(void **s)
 {
@@ -48,7 +49,8 @@ static void test_agrees_with_qhull(void **s)
         answered += check_against_qhull(p, "pose-pair with noise", i), total++;
     }
     for (int i = 0; i < 500; i++, total++) {
-        for (int k = 0; k < 3 * MIM_PAIR_JOINTS; k++) p[k] = 2 * mim_rng_unit(&r) - 1;
+        const double scale = pow(10, -4 + 7 * mim_rng_unit(&r)), shift = 4 * scale * (mim_rng_unit(&r) - 0.5);
+        for (int k = 0; k < 3 * MIM_PAIR_JOINTS; k++) p[k] = scale * (2 * mim_rng_unit(&r) - 1) + shift;
         answered += check_against_qhull(p, "cloud", i);
     }
     if (answered < total * 98 / 100) fail_msg("delaunay.c answered %d of %d", answered, total);
@@ -82,6 +84,40 @@ static void test_declines_ties(void **s)
     assert_false(check_against_qhull(p, "plane", 0));
 }
 
+/* Far from the origin, qhull's lifting (each point's squared distance
+ * from the origin) loses the digits that decide, and its answer can be
+ * another's: a cloud 2 mm across 400 m away gave qhull an edge that no
+ * empty sphere holds (checked in exact arithmetic). delaunay.c's
+ * predicates take differences of the points, exact here: the same cloud
+ * moved 512 m (every coordinate a multiple of 2^-30, so that the move
+ * is exact) gets the edges it gets at the origin, which are qhull's
+ * there; for clouds 2 mm and 2 m across. */
+static void test_far_from_origin(void **s)
+{
+    (void)s;
+    mim_rng_t r;
+    mim_rng_seed(&r, 12, 3);
+    double p[3 * MIM_PAIR_JOINTS], moved[3 * MIM_PAIR_JOINTS];
+    for (int size = 0; size < 2; size++)
+        for (int i = 0; i < 20; i++) {
+            for (int k = 0; k < 3 * MIM_PAIR_JOINTS; k++) {
+                const double step = size ? 0x1p-20 : 0x1p-30; /* 2 m or 2 mm across */
+                p[k] = step * floor((2 * mim_rng_unit(&r) - 1) * 0x1p20);
+                moved[k] = p[k] + 512;
+            }
+            mim_ic_t here, there, qhull;
+            mim_error_t err = {0};
+            assert_int_equal(mim_ic_build(p, 3, &here, &err), 0);
+            assert_int_equal(mim_ic_build(moved, 3, &there, &err), 0);
+            assert_int_equal(mim__ic_build_qhull(p, 3, &qhull, &err), 0);
+            uint8_t have[MIM_PAIR_JOINTS][MIM_PAIR_JOINTS] = {{0}};
+            assert_int_equal(mim__delaunay3_edges(moved, MIM_PAIR_JOINTS, have), 0);
+            if (!same_edges(&here, &there) || !same_edges(&here, &qhull))
+                fail_msg("cloud %d (%s): %u edges at the origin, %u at 512 m, qhull %u at the origin", i, size ? "2 m" : "2 mm",
+                         here.n_edges, there.n_edges, qhull.n_edges);
+        }
+}
+
 /* The smallest answers: four points are one tetrahedron (six edges), and
  * a fifth inside joins all four; fewer than four, or 35, are not asked. */
 static void test_small(void **s)
@@ -110,6 +146,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_agrees_with_qhull),
         cmocka_unit_test(test_declines_ties),
+        cmocka_unit_test(test_far_from_origin),
         cmocka_unit_test(test_small),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
