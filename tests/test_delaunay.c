@@ -32,7 +32,7 @@ static int check_against_qhull(const double *p, const char *what, int i)
  * coordinate), and clouds of 34 uniform points: qhull's edges every time.
  * The pose-pairs as they are hold ties (the people mirror each other and
  * stand on one floor): there delaunay.c declines and qhull decides. With
- * noise, as real captures, and in the clouds (0.1 mm to 10 km across,
+ * noise, as real captures, and in the clouds (0.2 mm to 2 km across,
  * as far from the origin as they are wide), delaunay.c answers nearly
  * every time itself. */
 static void test_agrees_with_qhull(void **s)
